@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Idempotent set-up for a fresh Debian 12 / Python 3.11 machine (root, no GPU):
+# a virtual environment in .venv with study and its dependencies, and a libLLVM that Dr.Jit's LLVM
+# backend can use (Debian 12's default libLLVM 15 crashes it with "Cannot select ... fminimum").
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+  "$PY" -m venv .venv
+fi
+stamp=.venv/.study-installed
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+  .venv/bin/python -m pip install -q --upgrade pip
+  .venv/bin/python -m pip install -q -e '.[test]'
+  touch "$stamp"
+fi
+# A working libLLVM for Dr.Jit: Debian's libllvm19 when apt can install it, otherwise the PyPI wheel
+# karellen-llvm-core (study.backend finds either by itself).
+if ! ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* >/dev/null 2>&1 && ! ls /usr/lib/*/libLLVM-19*.so* >/dev/null 2>&1; then
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null) \
+      || .venv/bin/python -m pip install -q karellen-llvm-core
+  else
+    .venv/bin/python -m pip install -q karellen-llvm-core
+  fi
+fi
+.venv/bin/python -c 'import study.llvm as l; print("study set-up ok; libLLVM:", l.require())'

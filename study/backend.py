@@ -1,0 +1,165 @@
+"""The array backend: the few operations methods use, on numpy or on Dr.Jit (LLVM on the CPU, CUDA on a GPU).
+
+Methods are written once against :class:`Backend` and :class:`V3` (structure-of-arrays 3-vectors): arithmetic,
+comparisons, ``select``, ``sqrt``, ``abs``, ``minimum``/``maximum`` and cube-map lookups. Everything is float32 on
+every backend, as on a GPU. The cube lookup is the only backend-specific piece: numpy gathers four texels, Dr.Jit
+samples a ``Texture2f`` holding the six faces stacked vertically (hardware-accelerated on CUDA).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from study import cubemap, llvm
+from study.errors import StudyError
+
+BACKENDS = ("numpy", "llvm", "cuda")
+
+
+@dataclass
+class V3:
+    """A 3-vector of equally long 1-D arrays (numpy or Dr.Jit)."""
+    x: Any
+    y: Any
+    z: Any
+
+    def __add__(s, o): return V3(s.x + o.x, s.y + o.y, s.z + o.z)
+    def __sub__(s, o): return V3(s.x - o.x, s.y - o.y, s.z - o.z)
+    def __mul__(s, a): return V3(s.x * a, s.y * a, s.z * a)
+    __rmul__ = __mul__
+    def __truediv__(s, a): return V3(s.x / a, s.y / a, s.z / a)
+    def __neg__(s): return V3(-s.x, -s.y, -s.z)
+    def dot(s, o): return s.x * o.x + s.y * o.y + s.z * o.z
+
+
+class Backend:
+    """Array operations of one backend. ``name`` is 'numpy', 'llvm' or 'cuda'."""
+    name: str
+
+    def array(self, a: np.ndarray): ...
+    def numpy(self, a) -> np.ndarray: ...
+    def select(self, cond, a, b): ...
+    def sqrt(self, a): ...
+    def abs(self, a): ...
+    def minimum(self, a, b): ...
+    def maximum(self, a, b): ...
+    def isfinite(self, a): ...
+    def texture(self, texels: np.ndarray): ...
+    def sample(self, tex, face, u, v) -> list: ...
+    def eval(self, *arrays) -> None: ...
+
+    # -------------------------------------------------------------- shared helpers built on the above
+    def vec(self, a: np.ndarray) -> V3:
+        """(N, 3) numpy → V3 on this backend."""
+        a = np.asarray(a, np.float32)
+        return V3(self.array(a[:, 0]), self.array(a[:, 1]), self.array(a[:, 2]))
+
+    def to_numpy(self, v: V3) -> np.ndarray:
+        return np.stack([self.numpy(v.x), self.numpy(v.y), self.numpy(v.z)], axis=-1)
+
+    def length(self, v: V3):
+        return self.sqrt(v.dot(v))
+
+    def normalize(self, v: V3) -> V3:
+        return v / self.length(v)
+
+
+class NumpyBackend(Backend):
+    name = "numpy"
+
+    def array(self, a): return np.ascontiguousarray(a, dtype=np.float32)
+    def numpy(self, a): return np.asarray(a)
+    def select(self, c, a, b): return np.where(c, a, b).astype(np.float32, copy=False)
+    def sqrt(self, a): return np.sqrt(a)
+    def abs(self, a): return np.abs(a)
+    def minimum(self, a, b): return np.minimum(a, b)
+    def maximum(self, a, b): return np.maximum(a, b)
+    def isfinite(self, a): return np.isfinite(a)
+    def eval(self, *arrays): pass
+
+    def texture(self, texels):
+        return np.ascontiguousarray(texels, dtype=np.float32)
+
+    def sample(self, tex, face, u, v):
+        R = tex.shape[1]
+        cj = np.clip(u * R - 0.5, 0, R - 1)
+        ci = np.clip(v * R - 0.5, 0, R - 1)
+        j0 = np.minimum(cj.astype(np.int32), max(R - 2, 0))
+        i0 = np.minimum(ci.astype(np.int32), max(R - 2, 0))
+        fj, fi = (cj - j0)[:, None], (ci - i0)[:, None]
+        f = face.astype(np.int32)
+        j1, i1 = np.minimum(j0 + 1, R - 1), np.minimum(i0 + 1, R - 1)
+        out = ((1 - fi) * ((1 - fj) * tex[f, i0, j0] + fj * tex[f, i0, j1])
+               + fi * ((1 - fj) * tex[f, i1, j0] + fj * tex[f, i1, j1]))
+        return [out[:, c].astype(np.float32) for c in range(tex.shape[-1])]
+
+
+class DrJitBackend(Backend):
+    def __init__(self, device: str):
+        if device == "llvm":
+            llvm.require()
+        import drjit as dr
+        self.dr = dr
+        self.name = device
+        self.m = dr.llvm if device == "llvm" else dr.cuda
+        if device == "cuda":
+            try:
+                dr.cuda.Float(0.0)
+                dr.eval()
+            except Exception as err:  # pragma: no cover - needs a machine without CUDA to hit
+                raise StudyError(f"the cuda backend needs an NVIDIA GPU and driver ({err})", key="backend")
+
+    def array(self, a): return self.m.Float(np.ascontiguousarray(a, dtype=np.float32))
+    def numpy(self, a): return np.asarray(a)
+    def select(self, c, a, b): return self.dr.select(c, a, b)
+    def sqrt(self, a): return self.dr.sqrt(a)
+    def abs(self, a): return self.dr.abs(a)
+    def minimum(self, a, b): return self.dr.minimum(a, b)
+    def maximum(self, a, b): return self.dr.maximum(a, b)
+    def isfinite(self, a): return self.dr.isfinite(a)
+    def eval(self, *arrays): self.dr.eval(*arrays)
+
+    def texture(self, texels):
+        six, R, _, C = texels.shape
+        data = np.ascontiguousarray(texels.reshape(six * R, R, C), dtype=np.float32)
+        return self.m.Texture2f(self.m.TensorXf(data), filter_mode=self.dr.FilterMode.Linear,
+                                wrap_mode=self.dr.WrapMode.Clamp, use_accel=self.name == "cuda")
+
+    def sample(self, tex, face, u, v):
+        R = tex.shape[1]
+        lo, hi = 0.5 / R, 1 - 0.5 / R
+        pos = self.m.Array2f(self.dr.clip(u, lo, hi), (face + self.dr.clip(v, lo, hi)) / 6.0)
+        return list(tex.eval(pos))
+
+
+_cache: dict[str, Backend] = {}
+
+
+def get(name: str = "numpy") -> Backend:
+    """The backend called ``name`` ('numpy', 'llvm' or 'cuda')."""
+    if name not in BACKENDS:
+        raise StudyError(f"unknown backend {name!r}; allowed: {', '.join(BACKENDS)}", key="backend")
+    if name not in _cache:
+        _cache[name] = NumpyBackend() if name == "numpy" else DrJitBackend(name)
+    return _cache[name]
+
+
+class EnvMap:
+    """A cube map bound to a backend: ``lookup(v)`` returns the C channels in the direction of ``v``.
+
+    The channels of a distance impostor are (R, G, B, distance).
+    """
+
+    def __init__(self, texels: np.ndarray, B: Backend):
+        self.B, self.res, self.channels = B, texels.shape[1], texels.shape[-1]
+        self.tex = B.texture(texels)
+
+    def lookup(self, v: V3) -> list:
+        face, u, w = cubemap.face_uv(self.B, v.x, v.y, v.z)
+        return self.B.sample(self.tex, face, u, w)
+
+    def distance(self, v: V3):
+        """|v'|: the stored distance of the environment point seen from the reference point towards v."""
+        return self.lookup(v)[-1]

@@ -1,0 +1,84 @@
+"""The ``study`` command line. Argument parsing only: every command calls one function of the package.
+
+Errors in the input print one line (``error: <file>: <key>: <what is allowed>``) and exit with code 2.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+
+from study.errors import StudyError
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="Measure how close GPU-friendly approximations of ray tracing come to ray tracing.")
+err_console = Console(stderr=True)
+console = Console()
+
+FIGURES = {"fig4": "configs/fig4.toml"}
+
+
+def _fail(err: StudyError) -> None:
+    err_console.print(f"[bold red]error:[/] {err}", highlight=False, soft_wrap=True)
+    raise typer.Exit(2)
+
+
+@app.command()
+def figure(name: str = typer.Argument(..., help="figure to make: " + ", ".join(FIGURES)),
+           config: Optional[Path] = typer.Option(None, help="figure config (default configs/<name>.toml)"),
+           out: Optional[Path] = typer.Option(None, help="output directory (default reports/<name>)"),
+           backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
+           cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders")):
+    """Reproduce one of the paper's figures: image grid + metrics CSV under reports/<name>/."""
+    from study.figures import figure_positions
+    try:
+        if name not in FIGURES:
+            raise StudyError(f"unknown figure {name!r}; allowed: {', '.join(FIGURES)}", key="name")
+        t0 = time.perf_counter()
+        with console.status(f"{name}: rendering and measuring…") as status:
+            def progress(i, n):
+                status.update(f"{name}: {i}/{n} positions done ({time.perf_counter() - t0:.0f} s)")
+            rows = figure_positions(config or FIGURES[name], out or Path("reports") / name, name=name,
+                                    backend=backend, cache=cache, progress=progress)
+    except StudyError as err:
+        _fail(err)
+    _print_table(rows)
+    console.print(f"{name}: wrote {out or Path('reports') / name} in {time.perf_counter() - t0:.1f} s")
+
+
+def _print_table(rows: list[dict]) -> None:
+    from rich.table import Table
+    t = Table(show_lines=False)
+    cols = ["case", "label", "angle_median_deg", "angle_p95_deg", "rmse_oracle", "rmse_mitsuba", "flip_mitsuba",
+            "occluded_fraction"]
+    for c in cols:
+        t.add_column(c, justify="right" if c not in ("case", "label") else "left")
+    for r in rows:
+        t.add_row(*(f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in cols))
+    console.print(t)
+
+
+@app.command("methods")
+def list_methods():
+    """List the registered localization methods and their parameters."""
+    from study import methods
+    for name in methods.names():
+        cls = methods.REGISTRY[name]
+        params = ", ".join(f"{k}={f.default!r}" for k, f in cls.Params.model_fields.items())
+        console.print(f"{name}({params})", highlight=False)
+
+
+def main() -> None:
+    try:
+        app()
+    except StudyError as err:  # errors raised outside a command's own handler
+        err_console.print(f"error: {err}", highlight=False)
+        sys.exit(2)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,100 @@
+"""Figure and study configs (TOML): a base scene, object positions, and the methods to compare.
+
+Example (``configs/fig4.toml``)::
+
+    scene = "../scenes/room.toml"     # path relative to this file, or an inline [scene] table
+    positions = [[0.0, 1.5, 0.0], [0.6, 1.2, 0.3]]   # object centres, one image row each
+    grid = ["classical", "localized(iterations=10)"]  # methods shown in the image grid (default: all)
+
+    [overrides]                      # dotted scene keys, applied to the base scene
+    "render.cube_res" = 256
+
+    [[methods]]
+    name = "classical"
+
+    [[methods]]
+    name = "localized"
+    iterations = [0, 1, 3, 10]       # a list expands into one method per value
+
+Unknown keys, unknown methods and unknown method parameters are errors naming the file and the key.
+"""
+from __future__ import annotations
+
+import itertools
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from study import methods as registry
+from study.errors import StudyError
+from study.methods import Method
+from study.scene import Scene, Vec3, load_scene, scene_from_dict
+
+
+class FigureConfig(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    scene: str | dict[str, Any]
+    overrides: dict[str, Any] = {}
+    positions: list[Vec3] = Field(min_length=1)
+    methods: list[dict[str, Any]] = Field(min_length=1)
+    grid: list[str] | None = None
+
+
+def read_toml(path: str | Path) -> dict:
+    path = Path(path)
+    try:
+        return tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise StudyError("config file not found", file=str(path)) from None
+    except IsADirectoryError:
+        raise StudyError("is a directory, expected a TOML file", file=str(path)) from None
+    except tomllib.TOMLDecodeError as err:
+        raise StudyError(f"not valid TOML ({err})", file=str(path)) from None
+
+
+def base_scene(spec: str | dict, *, config_path: Path) -> Scene:
+    if isinstance(spec, dict):
+        return scene_from_dict(spec, source=f"{config_path} [scene]")
+    p = Path(spec)
+    return load_scene(p if p.is_absolute() else config_path.parent / p)
+
+
+def expand_methods(specs: list[dict], *, source: str) -> list[Method]:
+    """Each spec is {name, param = value | [values]}; lists expand into the Cartesian product."""
+    out = []
+    for i, spec in enumerate(specs):
+        spec = dict(spec)
+        name = spec.pop("name", None)
+        if not isinstance(name, str):
+            raise StudyError(f"each method needs a name; allowed: {', '.join(registry.names())}",
+                             file=source, key=f"methods[{i}].name")
+        keys = list(spec)
+        values = [v if isinstance(v, list) else [v] for v in spec.values()]
+        for combo in itertools.product(*values):
+            try:
+                out.append(registry.make(name, **dict(zip(keys, combo))))
+            except StudyError as err:
+                raise StudyError(err.detail, file=source, key=f"methods[{i}]" + (
+                    "." + err.key.split(".", 1)[1] if err.key and "." in err.key else ".name")) from None
+    return out
+
+
+def load_figure_config(path: str | Path) -> tuple[FigureConfig, Scene, list[Method]]:
+    path = Path(path)
+    data = read_toml(path)
+    try:
+        cfg = FigureConfig.model_validate(data)
+    except ValidationError as err:
+        e = err.errors()[0]
+        key = ".".join(str(p) for p in e["loc"])
+        msg = "unknown key; allowed: " + ", ".join(FigureConfig.model_fields) if e["type"] == "extra_forbidden" else e["msg"]
+        raise StudyError(msg, file=str(path), key=key) from None
+    scene = base_scene(cfg.scene, config_path=path)
+    if cfg.overrides:
+        scene = scene.with_updates(cfg.overrides, source=f"{path} [overrides]")
+    for i, p in enumerate(cfg.positions):
+        scene.with_updates({"object.center": list(p)}, source=f"{path} positions[{i}]")
+    methods = expand_methods(cfg.methods, source=str(path))
+    return cfg, scene, methods

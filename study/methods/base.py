@@ -1,0 +1,104 @@
+"""The contract every localization method fulfils.
+
+A method answers, for a batch of secondary rays, *which direction of the distance impostor to look up* so that the
+looked-up environment point stands in for the ray's true hit.
+
+Inputs (all on one backend ``B``, float32, N rays):
+    x : V3   ray origins relative to the reference point o of the impostor (world units, metres)
+    R : V3   unit ray directions
+    env : EnvMap  the impostor bound to ``B``; ``env.distance(v)`` is |v'| (the stored distance in direction v),
+                  ``env.lookup(v)`` gives (r, g, b, distance)
+
+Output of :meth:`Method.localize`: a :class:`Localization` with
+    l : V3        the lookup vector, relative to o (not normalised; for the paper's method the hit estimate l)
+    valid : (N,)  bool, False where the method found no hit (then the shown point is NaN)
+
+:meth:`Method.trace` adds what every method shares, from one more lookup in direction l: the shown point
+o + l̂·|l'| (returned relative to o), its radiance, and the diagnostic |l|/|l'| (1 = l lies on the environment
+surface; for ``classical`` it is 1/|R'| and carries no meaning). Methods are registered by name (``@register``) and take
+their parameters as keyword arguments, validated by the class's ``Params`` model (unknown names are errors).
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from study.backend import Backend, EnvMap, V3
+from study.errors import StudyError
+
+
+class NoParams(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+@dataclass
+class Localization:
+    l: V3            # lookup vector from the reference point
+    valid: Any       # hit found
+
+
+@dataclass
+class Trace:
+    l: V3            # lookup vector from the reference point
+    shown: V3        # shown point relative to the reference point: l̂ |l'|
+    radiance: V3     # RGB read from the impostor in direction l
+    ratio: Any       # final |l| / |l'|
+    valid: Any       # hit found
+
+
+class Method(ABC):
+    name: ClassVar[str]
+    Params: ClassVar[type[BaseModel]] = NoParams
+
+    def __init__(self, **params):
+        try:
+            self.params = self.Params(**params)
+        except ValidationError as err:
+            e = err.errors()[0]
+            key = ".".join(str(p) for p in e["loc"])
+            allowed = ", ".join(self.Params.model_fields) or "none"
+            msg = "unknown parameter" if e["type"] == "extra_forbidden" else e["msg"]
+            raise StudyError(f"{msg} (parameters of {self.name!r}: {allowed})", key=f"method.{key}") from None
+
+    def __repr__(self):
+        args = ", ".join(f"{k}={v!r}" for k, v in self.params.model_dump().items())
+        return f"{self.name}({args})"
+
+    @property
+    def label(self) -> str:
+        """Label for tables and figures: the name and the parameters that were set, e.g.
+        'localized(iterations=10)'; just the name when none was set."""
+        args = ", ".join(f"{k}={v!r}" for k, v in self.params.model_dump(exclude_unset=True).items())
+        return f"{self.name}({args})" if args else self.name
+
+    @abstractmethod
+    def localize(self, B: Backend, env: EnvMap, x: V3, R: V3) -> Localization:
+        """Find the lookup vector for each ray (see the module docstring for the contract)."""
+
+    @abstractmethod
+    def lookups_per_ray(self) -> int:
+        """Cube-map lookups this method spends per ray (the cost measure of the method-comparison table)."""
+
+    def trace(self, B: Backend, env: EnvMap, x: V3, R: V3) -> Trace:
+        loc = self.localize(B, env, x, R)
+        # ----------------------------------------------------------- shown point and its radiance
+        r, g, b, dist = env.lookup(loc.l)
+        lhat = B.normalize(loc.l)
+        nan = float("nan")
+        shown = V3(*(B.select(loc.valid, c * dist, nan) for c in (lhat.x, lhat.y, lhat.z)))
+        rad = V3(*(B.select(loc.valid, c, nan) for c in (r, g, b)))
+        return Trace(loc.l, shown, rad, B.length(loc.l) / dist, loc.valid)
+
+
+REGISTRY: dict[str, type[Method]] = {}
+
+
+def register(cls: type[Method]) -> type[Method]:
+    """Class decorator: make a method available by its ``name``."""
+    if cls.name in REGISTRY and REGISTRY[cls.name] is not cls:
+        raise RuntimeError(f"two methods are called {cls.name!r}")
+    REGISTRY[cls.name] = cls
+    return cls

@@ -1,0 +1,18 @@
+"""Classical environment mapping (Blinn and Newell 1976): look up the ray direction R itself.
+
+Exact when the ray starts at the reference point (x = 0) or the environment is infinitely far away.
+"""
+from __future__ import annotations
+
+from study.methods.base import Localization, Method, register
+
+
+@register
+class Classical(Method):
+    name = "classical"
+
+    def localize(self, B, env, x, R):
+        return Localization(l=R, valid=B.abs(R.x) >= 0.0)  # always a hit: the environment in direction R
+
+    def lookups_per_ray(self) -> int:
+        return 1

@@ -1,0 +1,55 @@
+"""The paper's localized lookup: false position on |l|/|l'| along the ray ("Hit", Szirmay-Kalos et al. 2005).
+
+Faithful to the HLSL listing with the errata of shared/paper/NOTES.md: the first guess is eq. 2 with the
+overshoot at infinity (the point r seen in direction R), then NITER steps of false position between the last
+undershooting and overshooting guesses (eq. 3), leaving a guess alone inside the band 0.999 < |l|/|l'| < 1.001.
+Before any overshoot has been seen, eq. 2 is used again from the current undershoot.
+"""
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from study.methods.base import Localization, Method, register
+
+
+class Params(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    iterations: Annotated[int, Field(ge=0, le=1000)] = 10   # NITER
+    band_lo: Annotated[float, Field(gt=0, le=1)] = 0.999     # |l|/|l'| below: undershooting
+    band_hi: Annotated[float, Field(ge=1)] = 1.001           # |l|/|l'| above: overshooting
+
+
+@register
+class Localized(Method):
+    name = "localized"
+    Params = Params
+
+    def localize(self, B, env, x, R):
+        p = self.params
+        # ------------------------------------------------------------- start: eq. 2 from p = x, overshoot at r
+        r_len = env.distance(R)                        # |r|
+        pun = B.length(x) / env.distance(x)            # |p|/|p'| of the last undershoot (p = x at d = 0)
+        dun = pun * 0.0                                # ray parameter of the last undershoot
+        dov = pun * 0.0                                # ray parameter of the last overshoot (0: none yet)
+        pov = pun * 0.0                                # |p|/|p'| of the last overshoot (read only once dov != 0)
+        dl = r_len * (1.0 - pun)                       # eq. 2
+        l = x + R * dl                                 # ray equation
+
+        # ------------------------------------------------------------- false-position iterations
+        for _ in range(p.iterations):
+            llp = B.length(l) / env.distance(l)        # |l|/|l'|
+            under = llp < p.band_lo
+            over = llp > p.band_hi
+            step_under = B.select(dov == 0.0, r_len * (1.0 - llp),              # eq. 2
+                                  (dl - dov) * (1.0 - llp) / (llp - pov))       # eq. 3
+            step_over = (dl - dun) * (1.0 - llp) / (llp - pun)                  # eq. 3
+            dun, pun = B.select(under, dl, dun), B.select(under, llp, pun)
+            dov, pov = B.select(over, dl, dov), B.select(over, llp, pov)
+            dl = dl + B.select(under, step_under, B.select(over, step_over, 0.0))
+            l = x + R * dl                             # ray equation
+        return Localization(l=l, valid=B.isfinite(dl))
+
+    def lookups_per_ray(self) -> int:
+        return 3 + self.params.iterations              # |r|, |x'|, one per iteration, the shown point

@@ -1,0 +1,76 @@
+"""Error metrics: geometric (angular error, distance) and image error (RMSE, PSNR, SSIM, FLIP) over a mask.
+
+Images are linear RGB radiance (H, W, 3). RMSE is taken on linear radiance. PSNR, SSIM and FLIP are taken on
+LDR images: ``to_ldr`` clips linear radiance to [0, 1] (exposure 1) and encodes sRGB; FLIP runs in its "LDR"
+mode on these sRGB images. Image metrics are averaged over the masked pixels only (the object's pixels).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def angular_error(x: np.ndarray, shown: np.ndarray, exact: np.ndarray) -> np.ndarray:
+    """Angle in degrees at shading points x between (shown − x) and (exact − x).
+
+    x, shown, exact: (N, 3). NaN where a point is NaN."""
+    a, b = shown - x, exact - x
+    cos = np.sum(a * b, axis=-1) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
+    # arctan2 of |a×b| and a·b keeps precision for tiny angles
+    sin = np.linalg.norm(np.cross(a, b), axis=-1) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
+    return np.degrees(np.arctan2(sin, cos))
+
+
+def summary(values: np.ndarray, prefix: str, unit: str = "") -> dict[str, float]:
+    """``{prefix}_median{unit}``, ``_p95``, ``_max`` of the finite values (NaN if none)."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    stats = (np.median(v), np.percentile(v, 95), v.max()) if v.size else (np.nan,) * 3
+    return {f"{prefix}_{s}{unit}": float(x) for s, x in zip(("median", "p95", "max"), stats)}
+
+
+def to_ldr(img: np.ndarray) -> np.ndarray:
+    """Linear radiance → sRGB-encoded [0, 1] (clip at 1, exposure 1)."""
+    c = np.clip(np.asarray(img, np.float64), 0, 1)
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
+
+
+def rmse(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
+    """Root mean squared error of linear radiance over the masked pixels (all channels)."""
+    d = (np.asarray(test, float) - np.asarray(ref, float))[mask]
+    return float(np.sqrt(np.mean(d * d))) if d.size else np.nan
+
+
+def psnr(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
+    """PSNR (dB) of the LDR images over the masked pixels (scikit-image, data_range 1)."""
+    from skimage.metrics import peak_signal_noise_ratio
+    a, b = to_ldr(ref)[mask], to_ldr(test)[mask]
+    if a.size == 0:
+        return np.nan
+    if np.array_equal(a, b):
+        return float("inf")
+    return float(peak_signal_noise_ratio(a, b, data_range=1.0))
+
+
+def ssim(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
+    """Mean SSIM of the LDR images over the masked pixels (scikit-image's SSIM map, 7×7 window)."""
+    from skimage.metrics import structural_similarity
+    if not mask.any():
+        return np.nan
+    _, smap = structural_similarity(to_ldr(ref), to_ldr(test), channel_axis=-1, data_range=1.0, full=True)
+    return float(smap.mean(axis=-1)[mask].mean())
+
+
+def flip(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
+    """Mean LDR-FLIP error (flip-evaluator) over the masked pixels; inputs are the sRGB LDR images."""
+    import flip_evaluator
+    if not mask.any():
+        return np.nan
+    emap, _, _ = flip_evaluator.evaluate(np.ascontiguousarray(to_ldr(ref), np.float32),
+                                         np.ascontiguousarray(to_ldr(test), np.float32), "LDR",
+                                         applyMagma=False)
+    return float(np.asarray(emap)[..., 0][mask].mean())
+
+
+def image_errors(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray, suffix: str) -> dict[str, float]:
+    return {f"rmse_{suffix}": rmse(test, ref, mask=mask), f"psnr_{suffix}": psnr(test, ref, mask=mask),
+            f"ssim_{suffix}": ssim(test, ref, mask=mask), f"flip_{suffix}": flip(test, ref, mask=mask)}

@@ -1,0 +1,108 @@
+"""Mitsuba 3 renders of a :class:`~study.scene.Scene`: the ground truth and the impostor's radiance.
+
+The room is built from :func:`study.scene.room_mesh` (the very triangles Embree intersects), each surface with its
+procedural texture on a two-sided diffuse BSDF; the light is a point light; the object is a Mitsuba sphere with
+its real material (``conductor`` with per-channel eta and k, or a perfect mirror). Rendering uses the
+``llvm_ad_rgb`` variant on the CPU (``cuda_ad_rgb`` on a GPU) and the ``path`` integrator.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from study import llvm
+from study.cubemap import FACES
+from study.scene import SURFACES, Scene, texture
+
+_variant: str | None = None
+
+
+def mi(variant: str = "llvm_ad_rgb"):
+    """The mitsuba module with a variant set (LLVM checked first, so Dr.Jit never loads libLLVM 15)."""
+    global _variant
+    if variant.startswith("llvm"):
+        llvm.require()
+    import mitsuba
+    if _variant != variant:
+        mitsuba.set_variant(variant)
+        _variant = variant
+    return mitsuba
+
+
+def _mesh(m, name, V, F, UV, bsdf):
+    props = m.Properties()
+    props["bsdf"] = bsdf
+    mesh = m.Mesh(name, len(V), len(F), props=props, has_vertex_texcoords=True)
+    p = m.traverse(mesh)
+    p["vertex_positions"] = np.ascontiguousarray(V, np.float32).ravel()
+    p["faces"] = np.ascontiguousarray(F, np.uint32).ravel()
+    p["vertex_texcoords"] = np.ascontiguousarray(UV, np.float32).ravel()
+    p.update()
+    return mesh
+
+
+def object_bsdf(scene: Scene) -> dict:
+    mat = scene.object.material
+    if mat.type == "mirror":
+        return {"type": "conductor", "material": "none"}
+    return {"type": "conductor", "eta": {"type": "rgb", "value": list(mat.n)},
+            "k": {"type": "rgb", "value": list(mat.k)}}
+
+
+def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dict | None = None) -> dict:
+    m = mi()
+    mesh = scene.mesh()
+    d = {"type": "scene", "sensor": sensor,
+         "integrator": integrator or {"type": "path", "max_depth": scene.render.max_depth},
+         "light": {"type": "point", "position": list(scene.light.position),
+                   "intensity": {"type": "rgb", "value": list(scene.light.intensity)}}}
+    for sid, name in enumerate(SURFACES):
+        if not np.any(mesh.surface == sid):
+            continue
+        V, F, UV = mesh.part(sid)
+        bsdf = m.load_dict({"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": {
+            "type": "bitmap", "bitmap": m.Bitmap(texture(name)), "raw": True, "filter_type": "bilinear"}}})
+        d[f"surface_{sid}"] = _mesh(m, name, V, F, UV, bsdf)
+    if with_object:
+        d["object"] = {"type": "sphere", "center": list(scene.object.center), "radius": scene.object.radius,
+                       "bsdf": object_bsdf(scene)}
+    return d
+
+
+def _sensor(origin, target, up, fov, width, height, spp, seed, *, jitter=True) -> dict:
+    m = mi()
+    sampler = ({"type": "independent", "sample_count": spp, "seed": seed} if jitter else
+               {"type": "stratified", "sample_count": 1, "jitter": False, "seed": seed})
+    return {"type": "perspective", "fov": fov, "fov_axis": "x", "near_clip": 1e-4,
+            "to_world": m.ScalarTransform4f().look_at(origin=list(map(float, origin)),
+                                                      target=list(map(float, target)), up=list(map(float, up))),
+            "film": {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": "box"},
+                     "pixel_format": "rgb"},
+            "sampler": sampler}
+
+
+def render_camera(scene: Scene, *, with_object: bool = True, spp: int | None = None) -> np.ndarray:
+    """The camera's view, path traced: (H, W, 3) float32 linear RGB."""
+    m = mi()
+    c = scene.camera
+    sensor = _sensor(c.eye, c.target, c.up, c.fov, c.width, c.height, spp or scene.render.spp, scene.render.seed)
+    sc = m.load_dict(scene_dict(scene, with_object=with_object, sensor=sensor))
+    return np.array(m.render(sc, seed=scene.render.seed), dtype=np.float32)
+
+
+def render_cube(scene: Scene, res: int, spp: int) -> np.ndarray:
+    """Radiance of the environment seen from the reference point, without the object: (6, R, R, 3) float32.
+
+    Each face is a perspective render (fov 90) along the face's forward axis with the face's up vector, so its
+    pixels are the texels of :mod:`study.cubemap`; texel radiance is the box-filtered pixel average.
+    """
+    m = mi()
+    o = np.asarray(scene.reference.point, float)
+    faces = []
+    sc = None
+    for f, (fwd, _right, up) in enumerate(FACES):
+        sensor = m.load_dict(_sensor(o, o + fwd, up, 90.0, res, res, spp, scene.render.seed + f))
+        if sc is None:
+            sc = m.load_dict(scene_dict(scene, with_object=False, sensor=sensor))
+        faces.append(np.array(m.render(sc, sensor=sensor, seed=scene.render.seed + f), dtype=np.float32))
+    return np.stack(faces)
+

@@ -1,0 +1,43 @@
+"""Shared fixtures. Reference values are computed analytically (study.analytic) unless a test says otherwise."""
+import numpy as np
+import pytest
+
+from study import backend as backends
+from study import llvm
+
+
+def _llvm_ok() -> bool:
+    try:
+        llvm.require()
+        return True
+    except Exception:
+        return False
+
+
+BACKENDS = ["numpy"] + (["llvm"] if _llvm_ok() else [])
+
+#: the analytic box room used throughout, relative to the reference point (4 × 3 × 4 m, reference at the centre)
+BOX_LO = np.array([-2.0, -1.5, -2.0])
+BOX_HI = np.array([2.0, 1.5, 2.0])
+
+
+@pytest.fixture(params=BACKENDS)
+def B(request):
+    return backends.get(request.param)
+
+
+def small_scene_dict(**over):
+    """A small, fast scene (cube 32², camera 40², few samples) as a dict; ``over`` replaces top-level tables."""
+    d = {
+        "room": {"min": [-2.0, 0.0, -2.0], "max": [2.0, 3.0, 2.0]},
+        "light": {"position": [0.3, 2.6, -0.4], "intensity": [7.0, 7.0, 7.0]},
+        "reference": {"point": [0.0, 1.5, 0.0]},
+        "object": {"shape": "sphere", "center": [0.6, 1.2, 0.3], "radius": 0.4,
+                   "material": {"type": "conductor", "n": [0.155, 0.117, 0.138], "k": [4.83, 3.12, 2.15]}},
+        "camera": {"eye": [-0.3, 1.7, -1.9], "target": [0.6, 1.1, 0.6], "up": [0.0, 1.0, 0.0], "fov": 75.0,
+                   "width": 40, "height": 40},
+        "render": {"cube_res": 32, "cube_spp": 4, "spp": 4, "max_depth": 3, "supersample": 1, "seed": 0,
+                   "fresnel": "exact"},
+    }
+    d.update(over)
+    return d
