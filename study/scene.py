@@ -108,7 +108,12 @@ class Conductor(_Strict):
     k: tuple[Annotated[float, Field(ge=0)], ...] = Field(min_length=3, max_length=3)  # extinction coefficient
 
 
-Material = Annotated[Union[Mirror, Conductor], Field(discriminator="type")]
+class Dielectric(_Strict):
+    type: Literal["dielectric"]
+    ior: Annotated[float, Field(gt=1, le=4, allow_inf_nan=False)] = 1.5   # index of refraction inside (outside: 1)
+
+
+Material = Annotated[Union[Mirror, Conductor, Dielectric], Field(discriminator="type")]
 
 
 class Sphere(_Strict):
@@ -212,7 +217,7 @@ def _box_sphere_distance(lo, hi, p) -> float:
 # ---------------------------------------------------------------------------------------------- loading
 def _first_error(err: ValidationError) -> tuple[str, str]:
     e = err.errors()[0]
-    loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p in ("mirror", "conductor")))
+    loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p in ("mirror", "conductor", "dielectric")))
     ctx = e.get("ctx") or {}
     inner = ctx.get("error")
     if isinstance(inner, _KeyedError):

@@ -100,6 +100,9 @@ def fresnel(scene: Scene, rays: ObjectRays) -> np.ndarray:
     cos = np.sum(rays.N * rays.R, axis=-1)
     if mat.type == "mirror":
         return np.ones((len(cos), 3))
+    if mat.type != "conductor":
+        from study.errors import StudyError
+        raise StudyError(f"shading of {mat.type!r} objects is not implemented yet", key="object.material")
     f = fresnel_conductor if scene.render.fresnel == "exact" else fresnel_approx
     return f(mat.n, mat.k, cos)
 

@@ -44,6 +44,8 @@ def object_bsdf(scene: Scene) -> dict:
     mat = scene.object.material
     if mat.type == "mirror":
         return {"type": "conductor", "material": "none"}
+    if mat.type == "dielectric":
+        return {"type": "dielectric", "int_ior": mat.ior, "ext_ior": 1.0}
     return {"type": "conductor", "eta": {"type": "rgb", "value": list(mat.n)},
             "k": {"type": "rgb", "value": list(mat.k)}}
 
