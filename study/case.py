@@ -85,6 +85,8 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
 
     base = {"case": case_id, "cube_res": scene.render.cube_res, "object_x": scene.object.center[0],
             "object_y": scene.object.center[1], "object_z": scene.object.center[2], "backend": backend,
+            "displacement": float(np.linalg.norm(np.subtract(scene.object.center, o))
+                                  / np.linalg.norm(np.subtract(scene.room.max, scene.room.min))),
             "rays": len(rays.x), "occluded_fraction": float(occluded.mean()) if len(occluded) else np.nan}
     out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=truth, mask=mask,
                      occluded=rays.per_pixel(occluded.astype(float), fill=0.0))
@@ -99,7 +101,8 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
     x, R = B.vec(rays.x - o), B.vec(rays.R)
     for m in methods:
         t0 = time.perf_counter()
-        tr = m.trace(B, env, x, R)
+        with np.errstate(divide="ignore", invalid="ignore"):   # numpy evaluates both sides of every select
+            tr = m.trace(B, env, x, R)
         shown = B.to_numpy(tr.shown).astype(np.float64) + o
         rad = B.to_numpy(tr.radiance).astype(np.float64)
         ratio, valid = B.numpy(tr.ratio), B.numpy(tr.valid).astype(bool)

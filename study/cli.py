@@ -19,7 +19,7 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_
 err_console = Console(stderr=True)
 console = Console()
 
-FIGURES = {"fig4": "configs/fig4.toml"}
+FIGURES = {"fig4": "configs/fig4.toml", "fig5": "configs/fig5.toml"}
 
 
 def _fail(err: StudyError) -> None:
@@ -60,6 +60,76 @@ def _print_table(rows: list[dict]) -> None:
     for r in rows:
         t.add_row(*(f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in cols))
     console.print(t)
+
+
+@app.command()
+def sweep(config: Path = typer.Argument(..., help="sweep file (TOML), e.g. configs/sweep.toml"),
+          out: Optional[Path] = typer.Option(None, help="output directory (default reports/sweep-<config name>)"),
+          backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
+          cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
+          jobs: int = typer.Option(1, min=1, max=64, help="cases run in parallel processes"),
+          plots: bool = typer.Option(True, help="write the error curves next to the table")):
+    """Run (or resume) a sweep: one row per case × method in <out>/results.csv, curves beside it."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
+        TimeRemainingColumn
+
+    from study.sweep import run_sweep
+    out = out or Path("reports") / f"sweep-{config.stem}"
+    try:
+        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                      TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=err_console,
+                      transient=False) as bar:
+            task = bar.add_task(f"sweep {config.stem}", total=None)
+
+            def progress(done, total, case_id):
+                if bar.tasks[task].total is None:
+                    bar.update(task, total=total, completed=done)   # finished cases from an earlier run
+                    bar.tasks[task].start_time = None
+                    bar.start_task(task)
+                else:
+                    bar.update(task, completed=done, description=f"sweep {config.stem} ({case_id})")
+            rows, stats = run_sweep(config, out, backend=backend, cache=cache, jobs=jobs, progress=progress)
+        if plots:
+            from study.plots import sweep_plots
+            sweep_plots(rows, out / "plots")
+    except StudyError as err:
+        _fail(err)
+    console.print(f"sweep: {stats['cases']} cases ({stats['cached']} already done, {stats['computed']} computed) "
+                  f"in {stats['seconds']:.1f} s → {out / 'results.csv'}", highlight=False)
+
+
+@app.command()
+def check(config: Path = typer.Option(Path("configs/check.toml"), help="check file: sweep, baseline, tolerances"),
+          update: bool = typer.Option(False, "--update", help="rewrite the baseline instead of comparing"),
+          backend: str = typer.Option("numpy", help="numpy | llvm | cuda"),
+          cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders")):
+    """CI regression: run a small fixed sweep and compare every metric with the committed baseline."""
+    from study.check import run_check
+    try:
+        with console.status("check: running the check sweep…"):
+            fails, lines = run_check(config, update=update, cache=cache, backend=backend)
+    except StudyError as err:
+        _fail(err)
+    for line in lines:
+        console.print(line, highlight=False)
+    if fails:
+        for f in fails:
+            err_console.print(f"[bold red]regression:[/] {f.message}", highlight=False, soft_wrap=True)
+        err_console.print(f"check failed: {len(fails)} problem(s)", highlight=False)
+        raise typer.Exit(1)
+    if not update:
+        console.print("check passed", highlight=False)
+
+
+@app.command()
+def report(reports: Path = typer.Option(Path("reports"), help="directory holding the figures and sweeps")):
+    """Build reports/index.md from the results tables: figures, tables, the paper's claims, versions."""
+    from study.report import build_report
+    try:
+        path = build_report(reports)
+    except StudyError as err:
+        _fail(err)
+    console.print(f"report: wrote {path}", highlight=False)
 
 
 @app.command("methods")

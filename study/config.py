@@ -40,6 +40,7 @@ class FigureConfig(BaseModel):
     positions: list[Vec3] = Field(min_length=1)
     methods: list[dict[str, Any]] = Field(min_length=1)
     grid: list[str] | None = None
+    occlusion_panel: bool = False       # add a column showing which rays' exact hits are hidden from o
 
 
 def read_toml(path: str | Path) -> dict:

@@ -6,12 +6,16 @@ from pathlib import Path
 
 import numpy as np
 
+import json
+
 from study.cache import Cache
+from study.capture import _atomic_write
 from study.case import CaseOutput, run_case
 from study.config import load_figure_config
 from study.errors import StudyError
 from study.metrics import to_ldr
 from study.results import write_csv
+from study.sweep import metadata
 
 
 def _crop_box(mask: np.ndarray, margin: float = 0.35) -> tuple[slice, slice]:
@@ -27,15 +31,17 @@ def _crop_box(mask: np.ndarray, margin: float = 0.35) -> tuple[slice, slice]:
     return slice(y0, y0 + int(2 * half)), slice(x0, x0 + int(2 * half))
 
 
-def image_grid(cases: list[CaseOutput], labels: list[str], path: Path, *, title: str) -> None:
+def image_grid(cases: list[CaseOutput], labels: list[str], path: Path, *, title: str,
+               occlusion_panel: bool = False) -> None:
     """Rows: cases; columns: each method's image, the ray-traced (Mitsuba) image, each method's angular-error
-    heatmap (degrees, log scale 0.01°–30°). Images are tone mapped by clipping at 1 and sRGB encoding."""
+    heatmap (degrees, log scale 0.01°–30°) and, with ``occlusion_panel``, the fraction of each pixel's rays whose
+    exact hit is hidden from the reference point. Images are tone mapped by clipping at 1 and sRGB encoding."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
 
-    ncol = 2 * len(labels) + 1
+    ncol = 2 * len(labels) + 1 + int(occlusion_panel)
     fig, axes = plt.subplots(len(cases), ncol, figsize=(2.3 * ncol, 2.3 * len(cases) + 0.6), squeeze=False)
     norm = LogNorm(vmin=0.01, vmax=30)
     hm = None
@@ -52,6 +58,12 @@ def image_grid(cases: list[CaseOutput], labels: list[str], path: Path, *, title:
             hm = ax.imshow(err, norm=norm, cmap="magma", interpolation="nearest")
             if r == 0:
                 ax.set_title(f"angle error: {lab}", fontsize=8)
+        if occlusion_panel:
+            ax = axes[r, -1]
+            occ = np.where(case.mask | (case.occluded > 0), case.occluded, np.nan)[sy, sx]
+            ax.imshow(occ, vmin=0, vmax=1, cmap="viridis", interpolation="nearest")
+            if r == 0:
+                ax.set_title("hidden from reference point", fontsize=8)
         cx, cy, cz = case.scene.object.center
         axes[r, 0].set_ylabel(f"({cx:g}, {cy:g}, {cz:g})", fontsize=8)
         for ax in axes[r]:
@@ -96,6 +108,10 @@ def figure_positions(config: str | Path, out: str | Path, *, name: str, backend:
         if progress:
             progress(i + 1, len(cfg.positions))
     write_csv(rows, out / "metrics.csv")
+    meta = metadata(config, backend=backend, seed=scene.render.seed, methods=[m.label for m in methods],
+                    cases=len(cfg.positions), figure=name)
+    _atomic_write(out / "metadata.json", json.dumps(meta, indent=2).encode())
     image_grid(cases, labels, out / f"{name}.png", title=f"{name}: {scene.room.min}..{scene.room.max} room, "
-               f"reference point {list(scene.reference.point)}, cube {scene.render.cube_res}², backend {backend}")
+               f"reference point {list(scene.reference.point)}, cube {scene.render.cube_res}², backend {backend}",
+               occlusion_panel=cfg.occlusion_panel)
     return rows

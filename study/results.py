@@ -9,7 +9,7 @@ from pathlib import Path
 from study.capture import _atomic_write
 
 #: Column order of every results table; extra keys follow in the order first seen.
-COLUMNS = ["case", "method", "label", "iterations", "cube_res", "object_x", "object_y", "object_z",
+COLUMNS = ["case", "method", "label", "iterations", "cube_res", "object_x", "object_y", "object_z", "displacement",
            "angle_median_deg", "angle_p95_deg", "angle_max_deg", "dist_median",
            "rmse_oracle", "psnr_oracle", "ssim_oracle", "flip_oracle",
            "rmse_mitsuba", "psnr_mitsuba", "ssim_mitsuba", "flip_mitsuba",

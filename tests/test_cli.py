@@ -77,7 +77,7 @@ def test_fig4_warm_cache_gives_identical_table(fig4_small, tmp_path):
 
 
 @pytest.mark.parametrize("args, words", [
-    (["figure", "fig99"], "unknown figure 'fig99'; allowed: fig4"),
+    (["figure", "fig99"], "unknown figure 'fig99'; allowed: fig4, fig5"),
     (["figure", "fig4", "--config", "missing.toml"], "missing.toml: config file not found"),
     (["figure", "fig4", "--backend", "vulkan"], "backend: unknown backend 'vulkan'; allowed: numpy, llvm, cuda"),
 ])

@@ -1,0 +1,125 @@
+"""Curves from a results table (matplotlib): error vs iterations, vs displacement, vs cube resolution.
+
+Each plot is a PNG with the numbers it shows in a CSV of the same name beside it. A curve varies one column and
+holds every other axis of the sweep at one value (stated in the plot's title): cube resolution at its largest, the
+other axes at their first value, unless the curve varies them.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from study.results import write_csv
+
+METRICS = ("angle_median_deg", "angle_p95_deg")
+
+
+def _axes_of(rows: list[dict]) -> list[str]:
+    return [k for k in rows[0] if k.startswith("axis:")] if rows else []
+
+
+def _hold(rows: list[dict], vary: set[str]) -> tuple[list[dict], dict]:
+    """Rows with every sweep axis not in ``vary`` held at one value; returns (rows, held values)."""
+    held = {}
+    for ax in _axes_of(rows):
+        if ax in vary:
+            continue
+        vals = list(dict.fromkeys(r[ax] for r in rows))
+        if ax == "axis:render.cube_res":
+            vals = sorted(vals, key=float)[-1:]
+        held[ax] = vals[0]
+    if "cube_res" not in vary and not any(a == "axis:render.cube_res" for a in held):
+        res = max(r["cube_res"] for r in rows)
+        held["cube_res"] = res
+    return [r for r in rows if all(r.get(k) == v for k, v in held.items())], held
+
+
+def _family(r: dict) -> str:
+    """Method label without its iteration count: the curve a row belongs to in an iterations plot."""
+    lab = r["label"]
+    if "iterations=" not in lab:
+        return lab
+    inner = [p for p in lab[lab.index("(") + 1:-1].split(", ") if not p.startswith("iterations=")]
+    return r["method"] + (f"({', '.join(inner)})" if inner else "")
+
+
+def _plot(path: Path, series: dict[str, list[tuple[float, float]]], *, xlabel: str, ylabel: str, title: str,
+          logx: bool = False) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for name, pts in series.items():
+        pts = sorted(pts)
+        ax.plot([p[0] for p in pts], [max(p[1], 1e-6) for p in pts], marker="o", ms=3, label=name)
+    ax.set_yscale("log")
+    if logx:
+        ax.set_xscale("log", base=2)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    tmp = path.with_suffix(".tmp.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    tmp.replace(path)
+
+
+def _held_title(held: dict) -> str:
+    return "; ".join(f"{k.removeprefix('axis:')}={v}" for k, v in held.items()) or "all rows"
+
+
+def sweep_plots(rows: list[dict], out: str | Path) -> list[Path]:
+    """Write the curves a sweep's table supports into ``out``; returns the PNG paths."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = [r for r in rows if r["method"] != "oracle"]
+    made = []
+    pos_axis = "axis:object.center" if rows and "axis:object.center" in rows[0] else None
+
+    # ------------------------------------------------------------------ error vs iterations
+    it_rows = [r for r in rows if np.isfinite(r.get("iterations", np.nan))]
+    if len({r["iterations"] for r in it_rows}) > 1:
+        sel, held = _hold(it_rows, {pos_axis} if pos_axis else set())
+        for metric in METRICS:
+            series, table = {}, []
+            for r in sel:
+                name = _family(r) + (f" @ {r[pos_axis]}" if pos_axis else "")
+                series.setdefault(name, []).append((r["iterations"], r[metric]))
+                table.append({"series": name, "iterations": r["iterations"], metric: r[metric]})
+            p = out / f"{metric}_vs_iterations.png"
+            _plot(p, series, xlabel="iterations", ylabel=f"{metric} (deg)", title=_held_title(held))
+            write_csv(table, p.with_suffix(".csv"))
+            made.append(p)
+
+    # ------------------------------------------------------------------ error vs displacement
+    if len({r["displacement"] for r in rows}) > 1:
+        sel, held = _hold(rows, {pos_axis} if pos_axis else set())
+        for metric in METRICS:
+            series, table = {}, []
+            for r in sel:
+                series.setdefault(r["label"], []).append((r["displacement"], r[metric]))
+                table.append({"series": r["label"], "displacement": r["displacement"], metric: r[metric]})
+            p = out / f"{metric}_vs_displacement.png"
+            _plot(p, series, xlabel="|object centre − reference point| / room diagonal", ylabel=f"{metric} (deg)",
+                  title=_held_title(held))
+            write_csv(table, p.with_suffix(".csv"))
+            made.append(p)
+
+    # ------------------------------------------------------------------ error vs cube resolution
+    if len({r["cube_res"] for r in rows}) > 1:
+        sel, held = _hold(rows, {"cube_res", "axis:render.cube_res"})
+        for metric in METRICS:
+            series, table = {}, []
+            for r in sel:
+                series.setdefault(r["label"], []).append((r["cube_res"], r[metric]))
+                table.append({"series": r["label"], "cube_res": r["cube_res"], metric: r[metric]})
+            p = out / f"{metric}_vs_cube_res.png"
+            _plot(p, series, xlabel="cube resolution (texels per face side)", ylabel=f"{metric} (deg)",
+                  title=_held_title(held), logx=True)
+            write_csv(table, p.with_suffix(".csv"))
+            made.append(p)
+    return made

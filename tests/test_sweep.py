@@ -1,0 +1,140 @@
+"""Sweeps: expansion of axes, resume after SIGKILL, atomic table, lock, errors."""
+import fcntl
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from study.errors import StudyError
+from study.results import read_csv
+from study.sweep import load_sweep, run_sweep
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SWEEP = """
+scene = "{scene}"
+seed = 0
+zip = {zip}
+
+[overrides]
+"camera.width" = 24
+"camera.height" = 24
+"render.cube_spp" = 2
+"render.spp" = 2
+"render.supersample" = 1
+
+[axes]
+"object.center" = {{ line = {{ from = [0.3, 1.4, 0.1], to = [1.2, 0.9, 0.7], steps = 3 }} }}
+"render.cube_res" = [16, 24]
+
+[[methods]]
+name = "classical"
+
+[[methods]]
+name = "localized"
+iterations = [0, 3]
+"""
+
+
+def write(tmp_path, name="s.toml", zip="[]", **extra):
+    p = tmp_path / name
+    p.write_text(SWEEP.format(scene=ROOT / "scenes" / "room.toml", zip=zip) + extra.get("tail", ""))
+    return p
+
+
+def same_table(a, b):
+    assert [r["case"] for r in a] == [r["case"] for r in b]
+    for ra, rb in zip(a, b):
+        assert ra.keys() == rb.keys()
+        for k in ra:
+            if k in ("seconds",):
+                continue
+            va, vb = ra[k], rb[k]
+            assert va == vb or (isinstance(va, float) and math.isnan(va) and math.isnan(vb)), (ra["case"], k)
+
+
+def test_cartesian_and_zipped_axes(tmp_path):
+    sw = load_sweep(write(tmp_path))
+    assert len(sw.cases) == 6 and len(sw.methods) == 3
+    assert sw.cases[0].labels == {"object.center": "(0.3, 1.4, 0.1)", "render.cube_res": "16"}
+    assert sw.cases[5].scene.object.center == (1.2, 0.9, 0.7) and sw.cases[5].scene.render.cube_res == 24
+    with pytest.raises(StudyError, match=r"s.toml: zip\[0\]: zipped axes need the same number of values"):
+        load_sweep(write(tmp_path, zip='[["object.center", "render.cube_res"]]'))
+
+
+@pytest.mark.parametrize("tail, key, words", [
+    ('\n[axes2]\nx = 1\n', "axes2", "unknown key; allowed: scene, seed"),
+    ('"object.centre" = [[0, 1, 0]]\n', "axes.object.centre", "unknown scene key"),
+    ('"object.radius" = [0.4, -1.0]\n', "axes.object.radius", "greater than 0"),
+    ('"object.radius" = [2.5]\n', "axes.object.center", "inside the room"),
+])
+def test_bad_sweep_files(tmp_path, tail, key, words):
+    text = SWEEP.format(scene=ROOT / "scenes" / "room.toml", zip="[]")
+    if tail.startswith('"'):
+        text = text.replace('[axes]\n', '[axes]\n' + tail)
+    else:
+        text += tail
+    p = tmp_path / "bad.toml"
+    p.write_text(text)
+    with pytest.raises(StudyError) as e:
+        load_sweep(p)
+    assert str(e.value).startswith(f"{p}: {key}: ") and words in str(e.value), str(e.value)
+
+
+@pytest.fixture(scope="module")
+def reference_run(tmp_path_factory):
+    d = tmp_path_factory.mktemp("sweep")
+    cfg = write(d)
+    rows, stats = run_sweep(cfg, d / "ref", cache=d / "cache")
+    assert stats == {**stats, "cases": 6, "cached": 0, "computed": 6}
+    return d, cfg, rows
+
+
+def test_rerun_recomputes_nothing(reference_run):
+    d, cfg, rows = reference_run
+    again, stats = run_sweep(cfg, d / "ref", cache=d / "cache")
+    assert stats["computed"] == 0 and stats["cached"] == 6
+    same_table(rows, again)
+    same_table(read_csv(d / "ref" / "results.csv"), read_csv(d / "ref" / "results.csv"))
+    assert len(read_csv(d / "ref" / "results.csv")) == 6 * 4
+    meta = json.loads((d / "ref" / "metadata.json").read_text())
+    assert meta["seed"] == 0 and meta["versions"]["mitsuba"] and meta["config_sha256"]
+
+
+def test_sigkill_and_resume_gives_the_same_table(reference_run, tmp_path):
+    """Kill the sweep with SIGKILL after its first finished case (cache warm, so cases are quick); the rerun
+    computes only the missing cases and its table equals the uninterrupted run's (all but the timings)."""
+    d, cfg, rows = reference_run
+    out = tmp_path / "killed"
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen([sys.executable, "-m", "study.cli", "sweep", str(cfg), "--out", str(out),
+                             "--cache", str(d / "cache"), "--no-plots"], cwd=ROOT, env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while time.time() < deadline and not list(out.glob("cases/*.json")):
+        time.sleep(0.01)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    finished = {p.name: p.stat().st_mtime_ns for p in (out / "cases").glob("*.json")}
+    assert 1 <= len(finished) < 6, "the sweep should have been killed mid-run"
+    partial = read_csv(out / "results.csv")
+    assert len(partial) == 4 * len(finished)                         # whole cases only, never half a table
+    again, stats = run_sweep(cfg, out, cache=d / "cache")
+    assert stats["cached"] == len(finished) and stats["computed"] == 6 - len(finished)
+    assert {p.name: p.stat().st_mtime_ns for p in (out / "cases").glob("*.json") if p.name in finished} == finished
+    same_table(rows, again)
+    same_table(read_csv(d / "ref" / "results.csv"), read_csv(out / "results.csv"))
+
+
+def test_second_sweep_on_the_same_directory_stops(reference_run):
+    d, cfg, _ = reference_run
+    with open(d / "ref" / ".lock", "a+") as f:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(StudyError, match="another sweep is writing to this directory"):
+            run_sweep(cfg, d / "ref", cache=d / "cache")
