@@ -59,3 +59,27 @@ def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle between row vectors a and b in degrees (atan2 form, accurate for tiny angles)."""
     c = np.linalg.norm(np.cross(a, b), axis=-1)
     return np.degrees(np.arctan2(c, (a * b).sum(-1)))
+
+
+class BoxEnv:
+    """An exact environment on a backend: the box [lo, hi] (around the reference point at the origin) with
+    ``distance(v)`` computed in closed form instead of read from texels. Same interface as
+    :class:`study.backend.EnvMap`; RGB is |v̂| (a smooth direction-dependent colour)."""
+
+    def __init__(self, lo, hi, B):
+        self.B, self.lo, self.hi = B, [float(a) for a in lo], [float(a) for a in hi]
+        self.res, self.channels = 0, 4
+
+    def distance(self, v):
+        B = self.B
+        n = B.length(v)
+        t = None
+        for c, lo, hi in zip((v.x, v.y, v.z), self.lo, self.hi):
+            dc = c / n
+            tc = B.select(dc > 0, hi / B.maximum(dc, 1e-30), B.select(dc < 0, lo / B.minimum(dc, -1e-30), 1e30))
+            t = tc if t is None else B.minimum(t, tc)
+        return t
+
+    def lookup(self, v):
+        n = self.B.length(v)
+        return [self.B.abs(v.x / n), self.B.abs(v.y / n), self.B.abs(v.z / n), self.distance(v)]

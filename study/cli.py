@@ -23,7 +23,8 @@ FIGURES = {"fig4": "configs/fig4.toml", "fig5": "configs/fig5.toml"}
 
 
 def _fail(err: StudyError) -> None:
-    err_console.print(f"[bold red]error:[/] {err}", highlight=False, soft_wrap=True)
+    from rich.text import Text
+    err_console.print(Text("error: ", style="bold red") + Text(str(err)), highlight=False, soft_wrap=True)
     raise typer.Exit(2)
 
 
@@ -73,9 +74,10 @@ def sweep(config: Path = typer.Argument(..., help="sweep file (TOML), e.g. confi
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
         TimeRemainingColumn
 
-    from study.sweep import run_sweep
+    from study.sweep import load_sweep, run_sweep
     out = out or Path("reports") / f"sweep-{config.stem}"
     try:
+        load_sweep(config, backend=backend)          # every case validated before the progress bar appears
         with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
                       TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=err_console,
                       transient=False) as bar:
@@ -114,7 +116,7 @@ def check(config: Path = typer.Option(Path("configs/check.toml"), help="check fi
         console.print(line, highlight=False)
     if fails:
         for f in fails:
-            err_console.print(f"[bold red]regression:[/] {f.message}", highlight=False, soft_wrap=True)
+            err_console.print(f"regression: {f.message}", highlight=False, soft_wrap=True, markup=False)
         err_console.print(f"check failed: {len(fails)} problem(s)", highlight=False)
         raise typer.Exit(1)
     if not update:

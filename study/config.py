@@ -57,7 +57,10 @@ def read_toml(path: str | Path) -> dict:
 
 def base_scene(spec: str | dict, *, config_path: Path) -> Scene:
     if isinstance(spec, dict):
-        return scene_from_dict(spec, source=f"{config_path} [scene]")
+        try:
+            return scene_from_dict(spec, source=str(config_path))
+        except StudyError as err:          # keys of an inline scene are under "scene." in the config file
+            raise StudyError(err.detail, file=str(config_path), key=f"scene.{err.key}") from None
     p = Path(spec)
     return load_scene(p if p.is_absolute() else config_path.parent / p)
 

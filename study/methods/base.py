@@ -11,7 +11,8 @@ Inputs (all on one backend ``B``, float32, N rays):
 
 Output of :meth:`Method.localize`: a :class:`Localization` with
     l : V3        the lookup vector, relative to o (not normalised; for the paper's method the hit estimate l)
-    valid : (N,)  bool, False where the method found no hit (then the shown point is NaN)
+    valid : (N,)  bool, False where the method found no hit (then the shown point is NaN); ``trace`` also
+                  clears it for rays whose origin is not inside the environment as seen from o
 
 :meth:`Method.trace` adds what every method shares, from one more lookup in direction l: the shown point
 o + l̂·|l'| (returned relative to o), its radiance, and the diagnostic |l|/|l'| (1 = l lies on the environment
@@ -82,15 +83,22 @@ class Method(ABC):
     def lookups_per_ray(self) -> int:
         """Cube-map lookups this method spends per ray (the cost measure of the method-comparison table)."""
 
-    def trace(self, B: Backend, env: EnvMap, x: V3, R: V3) -> Trace:
+    def trace(self, B: Backend, env: EnvMap, x: V3, R: V3, *, check_origin: bool = True) -> Trace:
+        """Localize, then read the shown point and its radiance. With ``check_origin`` (one more lookup, not
+        counted in :meth:`lookups_per_ray`), rays whose origin lies beyond the environment surface as seen from
+        the reference point (|x| > |x'|: outside the room, inside geometry, or hidden behind it) are flagged
+        invalid rather than shaded: no method can localize them."""
         loc = self.localize(B, env, x, R)
+        valid = loc.valid & B.isfinite(B.length(R))
+        if check_origin:
+            valid = valid & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)   # x is an undershoot
         # ----------------------------------------------------------- shown point and its radiance
         r, g, b, dist = env.lookup(loc.l)
         lhat = B.normalize(loc.l)
         nan = float("nan")
-        shown = V3(*(B.select(loc.valid, c * dist, nan) for c in (lhat.x, lhat.y, lhat.z)))
-        rad = V3(*(B.select(loc.valid, c, nan) for c in (r, g, b)))
-        return Trace(loc.l, shown, rad, B.length(loc.l) / dist, loc.valid)
+        shown = V3(*(B.select(valid, c * dist, nan) for c in (lhat.x, lhat.y, lhat.z)))
+        rad = V3(*(B.select(valid, c, nan) for c in (r, g, b)))
+        return Trace(loc.l, shown, rad, B.length(loc.l) / dist, valid)
 
 
 REGISTRY: dict[str, type[Method]] = {}
