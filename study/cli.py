@@ -69,6 +69,8 @@ def sweep(config: Path = typer.Argument(..., help="sweep file (TOML), e.g. confi
           backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
           cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
           jobs: int = typer.Option(1, min=1, max=64, help="cases run in parallel processes"),
+          dask: Optional[str] = typer.Option(None, help="run cases on a Dask cluster: scheduler address, or "
+                                                       "'local' for a local cluster of --jobs workers"),
           plots: bool = typer.Option(True, help="write the error curves next to the table")):
     """Run (or resume) a sweep: one row per case × method in <out>/results.csv, curves beside it."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
@@ -90,7 +92,8 @@ def sweep(config: Path = typer.Argument(..., help="sweep file (TOML), e.g. confi
                     bar.start_task(task)
                 else:
                     bar.update(task, completed=done, description=f"sweep {config.stem} ({case_id})")
-            rows, stats = run_sweep(config, out, backend=backend, cache=cache, jobs=jobs, progress=progress)
+            rows, stats = run_sweep(config, out, backend=backend, cache=cache, jobs=jobs, dask=dask,
+                                    progress=progress)
         if plots:
             from study.plots import sweep_plots
             sweep_plots(rows, out / "plots")

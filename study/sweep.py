@@ -260,8 +260,13 @@ def _load_case(out: Path, case: Case) -> list[dict] | None:
 
 
 def run_sweep(path: str | Path, out: str | Path, *, backend: str = "numpy", cache: str | Path | None = ".cache",
-              jobs: int = 1, progress: Callable[[int, int, str], None] | None = None) -> tuple[list[dict], dict]:
-    """Run (or resume) a sweep; returns (rows, stats) with stats = {cases, cached, computed, seconds}."""
+              jobs: int = 1, dask: str | None = None,
+              progress: Callable[[int, int, str], None] | None = None) -> tuple[list[dict], dict]:
+    """Run (or resume) a sweep; returns (rows, stats) with stats = {cases, cached, computed, seconds}.
+
+    Cases run in this process (``jobs=1``), in ``jobs`` local processes, or on a Dask distributed cluster
+    (``dask`` = a scheduler address, or ``"local"`` for a LocalCluster of ``jobs`` single-threaded worker
+    processes). The table is the same either way: rows are ordered by case, not by completion."""
     t0 = time.perf_counter()
     sweep = load_sweep(path, backend=backend)
     out = Path(out)
@@ -298,7 +303,9 @@ def run_sweep(path: str | Path, out: str | Path, *, backend: str = "numpy", cach
 
         if progress:
             progress(len(done), len(sweep.cases), "")
-        if jobs <= 1 or len(todo) <= 1:
+        if dask:
+            _run_dask(todo, specs, backend, cache_s, jobs, dask, finish)
+        elif jobs <= 1 or len(todo) <= 1:
             for c in todo:
                 finish(c, _run_one(c.scene.model_dump(mode="json"), specs, backend, cache_s, c.id, 1))
         else:
@@ -317,12 +324,7 @@ def _run_parallel(todo: list[Case], specs, backend, cache_s, jobs, finish) -> No
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
-    from study.capture import impostor_key
-    first, rest, seen = [], [], set()
-    for c in todo:
-        k = impostor_key(c.scene)
-        (rest if k in seen else first).append(c)
-        seen.add(k)
+    first, rest = _first_of_each_impostor(todo)
     with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn")) as pool:
         for batch in (first, rest):
             futs = {pool.submit(_run_one, c.scene.model_dump(mode="json"), specs, backend, cache_s, c.id, jobs): c
@@ -331,6 +333,44 @@ def _run_parallel(todo: list[Case], specs, backend, cache_s, jobs, finish) -> No
                 fin, _ = wait(futs, return_when=FIRST_COMPLETED)
                 for f in fin:
                     finish(futs.pop(f), f.result())
+
+
+def _first_of_each_impostor(todo: list[Case]) -> tuple[list[Case], list[Case]]:
+    """Split cases into the first case of each impostor and the rest (which then find it cached)."""
+    from study.capture import impostor_key
+    first, rest, seen = [], [], set()
+    for c in todo:
+        k = impostor_key(c.scene)
+        (rest if k in seen else first).append(c)
+        seen.add(k)
+    return first, rest
+
+
+def _run_dask(todo: list[Case], specs, backend, cache_s, jobs, address: str, finish) -> None:
+    """Cases as tasks on a Dask distributed cluster; the cache directory must be shared by the workers."""
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise StudyError("needs dask[distributed] (pip install 'dask[distributed]')", key="--dask") from None
+    cluster = None
+    if address == "local":
+        cluster = LocalCluster(n_workers=max(jobs, 1), threads_per_worker=1, processes=True, dashboard_address=None)
+        client = Client(cluster)
+    else:
+        try:
+            client = Client(address, timeout="20s")
+        except OSError as err:
+            raise StudyError(f"cannot reach the Dask scheduler ({err})", key="--dask") from None
+    try:
+        for batch in _first_of_each_impostor(todo):
+            futs = {client.submit(_run_one, c.scene.model_dump(mode="json"), specs, backend, cache_s, c.id,
+                                  max(jobs, 1), key=f"study-{c.key}", pure=False): c for c in batch}
+            for f in as_completed(list(futs)):
+                finish(futs[f], f.result())
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
 
 
 def _write_table(sweep: Sweep, done: dict[int, list[dict]], out: Path) -> None:

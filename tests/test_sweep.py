@@ -196,3 +196,12 @@ def test_drjit_runs_agree_within_1e5(reference_run, tmp_path):
         for k, va in ra.items():
             if isinstance(va, float) and k != "seconds" and np.isfinite(va):
                 assert abs(va - rb[k]) <= 1e-5 * max(abs(va), 1e-12) + 1e-12, k
+
+
+def test_dask_local_cluster_gives_the_same_table(reference_run, tmp_path):
+    """Scale-out: the same sweep on a local Dask distributed cluster (2 worker processes)."""
+    pytest.importorskip("distributed")
+    d, cfg, rows = reference_run
+    got, stats = run_sweep(cfg, tmp_path / "dask", cache=d / "cache", jobs=2, dask="local")
+    assert stats["computed"] == 6
+    same_table(rows, got)
