@@ -47,9 +47,17 @@ def _claims_section(tables: dict[str, list[dict]]) -> list[str]:
     lines = ["## The paper's claims", "",
              "Each claim is checked on every table it applies to (study/claims.py).", "",
              "| claim | paper | table | holds | evidence |", "|---|---|---|---|---|"]
+    seen = set()
     for name, rows in tables.items():
         for cl, v in claim_registry.evaluate(rows):
+            seen.add(cl.id)
             lines.append(f"| {cl.text} | {cl.source} | {name} | {'✓' if v.ok else '✗'} | {v.number} |")
+    figs = [n for n in tables if n.startswith("fig")]
+    if len(figs) > 1:                      # claims that contrast figures (e.g. occluded vs free cases)
+        name = " + ".join(figs)
+        for cl, v in claim_registry.evaluate([r for n in figs for r in tables[n]]):
+            if cl.id not in seen:
+                lines.append(f"| {cl.text} | {cl.source} | {name} | {'✓' if v.ok else '✗'} | {v.number} |")
     return lines + [""]
 
 
