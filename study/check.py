@@ -14,11 +14,11 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from study import claims as claim_registry
 from study.capture import _atomic_write
-from study.config import read_toml
+from study.config import validate
 from study.errors import StudyError
 from study.results import read_csv, write_csv
 from study.sweep import run_sweep
@@ -45,14 +45,7 @@ class Failure:
 
 def load_check(path: str | Path) -> tuple[CheckConfig, Path, Path]:
     path = Path(path)
-    try:
-        cfg = CheckConfig.model_validate(read_toml(path))
-    except ValidationError as err:
-        e = err.errors()[0]
-        key = ".".join(str(p) for p in e["loc"])
-        msg = ("unknown key; allowed: " + ", ".join(CheckConfig.model_fields)
-               if e["type"] == "extra_forbidden" else e["msg"])
-        raise StudyError(msg, file=str(path), key=key) from None
+    cfg = validate(CheckConfig, path)
     known = [c.id for c in claim_registry.CLAIMS]
     for i, c in enumerate(cfg.claims):
         if c not in known:

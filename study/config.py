@@ -55,6 +55,20 @@ def read_toml(path: str | Path) -> dict:
         raise StudyError(f"not valid TOML ({err})", file=str(path)) from None
 
 
+def validate(model: type[BaseModel], path: Path):
+    """Read the TOML file at ``path`` into ``model``; the first problem becomes one StudyError naming the key."""
+    try:
+        return model.model_validate(read_toml(path))
+    except ValidationError as err:
+        e = err.errors()[0]
+        key = ".".join(str(p) for p in e["loc"])
+        if e["type"] == "extra_forbidden":
+            msg = "unknown key" + ("; allowed: " + ", ".join(model.model_fields) if len(e["loc"]) == 1 else "")
+        else:
+            msg = e["msg"]
+        raise StudyError(msg, file=str(path), key=key) from None
+
+
 def base_scene(spec: str | dict, *, config_path: Path) -> Scene:
     if isinstance(spec, dict):
         try:
@@ -87,14 +101,7 @@ def expand_methods(specs: list[dict], *, source: str) -> list[Method]:
 
 def load_figure_config(path: str | Path) -> tuple[FigureConfig, Scene, list[Method]]:
     path = Path(path)
-    data = read_toml(path)
-    try:
-        cfg = FigureConfig.model_validate(data)
-    except ValidationError as err:
-        e = err.errors()[0]
-        key = ".".join(str(p) for p in e["loc"])
-        msg = "unknown key; allowed: " + ", ".join(FigureConfig.model_fields) if e["type"] == "extra_forbidden" else e["msg"]
-        raise StudyError(msg, file=str(path), key=key) from None
+    cfg = validate(FigureConfig, path)
     scene = base_scene(cfg.scene, config_path=path)
     if cfg.overrides:
         scene = scene.with_updates(cfg.overrides, source=f"{path} [overrides]")

@@ -95,31 +95,21 @@ def sweep_plots(rows: list[dict], out: str | Path) -> list[Path]:
             write_csv(table, p.with_suffix(".csv"))
             made.append(p)
 
-    # ------------------------------------------------------------------ error vs displacement
-    if len({r["displacement"] for r in rows}) > 1:
-        sel, held = _hold(rows, {pos_axis} if pos_axis else set())
+    # ------------------------------------------------------------------ error vs displacement, cube resolution
+    for x, vary, xlabel, logx in (
+            ("displacement", {pos_axis} if pos_axis else set(), "|object centre − reference point| / room diagonal",
+             False),
+            ("cube_res", {"cube_res", "axis:render.cube_res"}, "cube resolution (texels per face side)", True)):
+        if len({r[x] for r in rows}) < 2:
+            continue
+        sel, held = _hold(rows, vary)
         for metric in METRICS:
             series, table = {}, []
             for r in sel:
-                series.setdefault(r["label"], []).append((r["displacement"], r[metric]))
-                table.append({"series": r["label"], "displacement": r["displacement"], metric: r[metric]})
-            p = out / f"{metric}_vs_displacement.png"
-            _plot(p, series, xlabel="|object centre − reference point| / room diagonal", ylabel=f"{metric} (deg)",
-                  title=_held_title(held))
-            write_csv(table, p.with_suffix(".csv"))
-            made.append(p)
-
-    # ------------------------------------------------------------------ error vs cube resolution
-    if len({r["cube_res"] for r in rows}) > 1:
-        sel, held = _hold(rows, {"cube_res", "axis:render.cube_res"})
-        for metric in METRICS:
-            series, table = {}, []
-            for r in sel:
-                series.setdefault(r["label"], []).append((r["cube_res"], r[metric]))
-                table.append({"series": r["label"], "cube_res": r["cube_res"], metric: r[metric]})
-            p = out / f"{metric}_vs_cube_res.png"
-            _plot(p, series, xlabel="cube resolution (texels per face side)", ylabel=f"{metric} (deg)",
-                  title=_held_title(held), logx=True)
+                series.setdefault(r["label"], []).append((r[x], r[metric]))
+                table.append({"series": r["label"], x: r[x], metric: r[metric]})
+            p = out / f"{metric}_vs_{x}.png"
+            _plot(p, series, xlabel=xlabel, ylabel=f"{metric} (deg)", title=_held_title(held), logx=logx)
             write_csv(table, p.with_suffix(".csv"))
             made.append(p)
     return made

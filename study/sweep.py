@@ -39,10 +39,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from study.capture import _atomic_write
-from study.config import base_scene, expand_methods, read_toml
+from study.config import base_scene, expand_methods, validate
 from study.errors import StudyError
 from study.methods import Method
 from study.results import write_csv
@@ -123,16 +123,7 @@ def _axis_values(key: str, spec, source: str) -> list[tuple[str, Any]]:
 def load_sweep(path: str | Path, *, backend: str = "numpy") -> Sweep:
     """Read, validate and expand a sweep file: every case's scene is validated before anything runs."""
     path = Path(path)
-    data = read_toml(path)
-    try:
-        cfg = SweepConfig.model_validate(data)
-    except ValidationError as err:
-        e = err.errors()[0]
-        key = ".".join(str(p) for p in e["loc"])
-        msg = ("unknown key; allowed: " + ", ".join(SweepConfig.model_fields)
-               if e["type"] == "extra_forbidden" and len(e["loc"]) == 1 else
-               "unknown key" if e["type"] == "extra_forbidden" else e["msg"])
-        raise StudyError(msg, file=str(path), key=key) from None
+    cfg = validate(SweepConfig, path)
     scene = base_scene(cfg.scene, config_path=path)
     if cfg.overrides:
         scene = scene.with_updates(cfg.overrides, source=f"{path} [overrides]")
