@@ -207,7 +207,7 @@ class DistanceMap:
 
     ``exit(p, d)`` searches each ray p + s d (p on or inside the object, world space) for the first s where
     f(s) = |l| − |l'| turns positive (l = p + s d − c, |l'| the map's distance towards l): ``steps`` linear steps
-    over s ∈ (0, 2 radius] (past that the ray is outside the bounding sphere, so f > 0) bracket the crossing, then
+    over s ∈ (0, 2.1 radius] (past 2 radius the ray is outside the bounding sphere, so f > 0) bracket the crossing, then
     ``iterations`` steps of false position (the paper's eq. 3) refine it. The paper's start (eq. 2) is not used: it
     assumes a far environment and, from a point on the surface (f = 0), stays there. f is a difference, not the
     paper's ratio |l|/|l'|, since |l'| = 0 where the map is empty. The exit normal is the map's normal towards
@@ -229,7 +229,7 @@ class DistanceMap:
 
     def exit(self, p, d):
         x = np.asarray(p, float) - self.c
-        n, s_max = len(x), 2.0 * self.radius
+        n, s_max = len(x), 2.1 * self.radius
         # ----- linear search for the first under → over step (under at s = 0: the ray starts inside)
         s_lo, f_lo = np.zeros(n), np.minimum(self._f(x), -1e-7)
         s_hi, f_hi = np.full(n, s_max), np.full(n, np.nan)
@@ -246,7 +246,7 @@ class DistanceMap:
         s = s_hi
         for _ in range(self.iterations):
             s = s_lo + (s_hi - s_lo) * f_lo / (f_lo - f_hi)
-            f = self._f(x + s * d)
+            f = self._f(x + s[:, None] * d)
             over = f > 0
             s_hi, f_hi = np.where(over, s, s_hi), np.where(over, f, f_hi)
             s_lo, f_lo = np.where(over, s_lo, s), np.where(over, f_lo, np.minimum(f, -1e-7))

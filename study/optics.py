@@ -29,8 +29,9 @@ def fresnel_dielectric(cos_i: np.ndarray, eta) -> np.ndarray:
     sin_t2 = eta ** 2 * (1 - cos_i ** 2)
     tir = sin_t2 >= 1
     cos_t = np.sqrt(np.clip(1 - sin_t2, 0, 1))
-    rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
-    rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    with np.errstate(invalid="ignore", divide="ignore"):      # 0/0 only at grazing TIR, replaced below
+        rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+        rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
     return np.where(tir, 1.0, 0.5 * (rs * rs + rp * rp))
 
 
