@@ -43,7 +43,7 @@ A scene is a TOML file (or dict) validated on load; y is up, units are metres. E
     refraction = "double"                # dielectric objects: "single" (paper) or "double" (in and out)
     exit = "auto"                        # far side: "exact" (analytic sphere / Embree), "distance_map" (the
                                          # object's own map); "auto" = exact for a sphere, distance map for meshes
-    internal_bounces = 4                 # total internal reflections followed before a ray is dropped (counted)
+    internal_bounces = 8                 # total internal reflections followed before a ray is dropped (counted)
     object_res = 128                     # face resolution of the object's own distance map
 
 Meshes: ``object.shape = "torus" | "knot" | "blob"`` with ``rotation = [rx, ry, rz]`` (degrees) and ``detail``;
@@ -158,7 +158,7 @@ class Render(_Strict):
     fresnel: Literal["exact", "approx"] = "exact"   # object shading: exact conductor Fresnel or the paper's
     refraction: Literal["single", "double"] = "double"  # dielectric objects: paper's single refraction or in-and-out
     exit: Literal["auto", "exact", "distance_map"] = "auto"  # double refraction: how the far side is found
-    internal_bounces: Annotated[int, Field(ge=0, le=16)] = 4   # total internal reflections followed, then dropped
+    internal_bounces: Annotated[int, Field(ge=0, le=16)] = 8   # total internal reflections followed, then dropped
     object_res: Annotated[int, Field(ge=4, le=2048)] = 128     # face resolution of the object's own distance map
 
 
