@@ -219,8 +219,10 @@ def test_glass_sphere_end_to_end(glass_cases):
     dbl, sgl = glass_cases["double"], glass_cases["single"]
     e_dbl = {r["label"]: r for r in dbl.rows}["oracle"]["rmse_mitsuba"]
     e_sgl = {r["label"]: r for r in sgl.rows}["oracle"]["rmse_mitsuba"]
-    assert e_dbl < e_sgl and e_dbl < 0.1, (e_dbl, e_sgl)
     m = dbl.mask
+    print(f"\nglass sphere 48²: oracle vs Mitsuba RMSE double {e_dbl:.4f}, single {e_sgl:.4f}; "
+          f"mean radiance ratio oracle/Mitsuba {dbl.oracle[m].mean() / dbl.mitsuba[m].mean():.4f}")
+    assert e_dbl < e_sgl and e_dbl < 0.1, (e_dbl, e_sgl)
     assert abs(dbl.oracle[m].mean() / dbl.mitsuba[m].mean() - 1) < 0.1
 
 
