@@ -180,15 +180,18 @@ class Scene(_Strict):
     def _placement(self):
         lo, hi = np.array(self.room.min), np.array(self.room.max)
         c, r = np.array(self.object.center), self.object.radius
+        mesh = self.object.shape != "sphere"         # meshes are checked by their bounding sphere
+        what = f"{self.object.shape} (bounding radius {r})" if mesh else f"sphere (radius {r})"
+        who = f"{self.object.shape} (its bounding sphere)" if mesh else "sphere"
         if np.any(c - r <= lo) or np.any(c + r >= hi):
-            raise _KeyedError("object.center", f"the {self.object.shape} (bounding radius {r}) must lie inside the room "
+            raise _KeyedError("object.center", f"the {what} must lie inside the room "
                               f"{list(self.room.min)}..{list(self.room.max)}")
         for i, col in enumerate(self.columns):
             blo, bhi = col.box(self.room)
             if np.any(blo[[0, 2]] < lo[[0, 2]]) or np.any(bhi[[0, 2]] > hi[[0, 2]]) or bhi[1] >= hi[1]:
                 raise _KeyedError(f"columns[{i}]", "the column must lie inside the room")
             if _box_sphere_distance(blo, bhi, c) <= r:
-                raise _KeyedError("object.center", f"the {self.object.shape} (its bounding sphere) overlaps columns[{i}]; move it or the column")
+                raise _KeyedError("object.center", f"the {who} overlaps columns[{i}]; move it or the column")
         for key, p in (("reference.point", self.reference.point), ("light.position", self.light.position),
                        ("camera.eye", self.camera.eye)):
             p = np.array(p)
