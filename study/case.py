@@ -50,6 +50,8 @@ def camera_render(scene: Scene, cache: Cache, *, with_object: bool) -> np.ndarra
              s.camera.model_dump(), s.render.spp, s.render.max_depth, s.render.seed, "v2"]
     if with_object:
         parts.append(s.object.model_dump())
+        if s.object.material.type == "dielectric":
+            parts.append("dielectric depth +2")           # see mitsuba.scene_dict
     key = content_key(*parts)
     img = cache.get("mitsuba" if with_object else "background", key,
                     lambda: render_camera(scene, with_object=with_object))
@@ -73,7 +75,7 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
     mask = rays.full
 
     # ------------------------------------------------------------------ exact references: Embree and oracle
-    exact = tracer.intersect(rays.x, rays.R)["point"]
+    exact = tracer.intersect(*rays.exact_rays())["point"]            # dielectrics: the exactly traced rays
     to_hit = exact - o
     hit_dist = np.linalg.norm(to_hit, axis=-1)
     seen = tracer.distance(np.broadcast_to(o, to_hit.shape), to_hit / hit_dist[:, None])
@@ -87,7 +89,8 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
             "object_y": scene.object.center[1], "object_z": scene.object.center[2], "backend": backend,
             "displacement": float(np.linalg.norm(np.subtract(scene.object.center, o))
                                   / np.linalg.norm(np.subtract(scene.room.max, scene.room.min))),
-            "rays": len(rays.x), "occluded_fraction": float(occluded.mean()) if len(occluded) else np.nan}
+            "rays": len(rays.x), "occluded_fraction": float(occluded.mean()) if len(occluded) else np.nan,
+            **rays.stats}
     out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=truth, mask=mask,
                      occluded=rays.per_pixel(occluded.astype(float), fill=0.0))
     out.rows.append({**base, "method": "oracle", "label": "oracle", "iterations": np.nan,

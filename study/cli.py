@@ -19,7 +19,7 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_
 err_console = Console(stderr=True)
 console = Console()
 
-FIGURES = {"fig4": "configs/fig4.toml", "fig5": "configs/fig5.toml"}
+FIGURES = {"fig4": "configs/fig4.toml", "fig5": "configs/fig5.toml", "fig6": "configs/fig6.toml"}
 
 
 def _fail(err: StudyError) -> None:
@@ -42,7 +42,7 @@ def figure(name: str = typer.Argument(..., help="figure to make: " + ", ".join(F
         t0 = time.perf_counter()
         with console.status(f"{name}: rendering and measuring…") as status:
             def progress(i, n):
-                status.update(f"{name}: {i}/{n} positions done ({time.perf_counter() - t0:.0f} s)")
+                status.update(f"{name}: {i}/{n} rows done ({time.perf_counter() - t0:.0f} s)")
             rows = figure_positions(config or FIGURES[name], out or Path("reports") / name, name=name,
                                     backend=backend, cache=cache, progress=progress)
     except StudyError as err:

@@ -16,6 +16,14 @@ Example (``configs/fig4.toml``)::
     name = "localized"
     iterations = [0, 1, 3, 10]       # a list expands into one method per value
 
+Instead of ``positions``, a figure may list ``cases``: each a table of dotted scene overrides, one image row each,
+with an optional ``name`` (``configs/fig6.toml``)::
+
+    [[cases]]
+    name = "glass-sphere-single"
+    "object.material" = { type = "dielectric", ior = 1.5 }
+    "render.refraction" = "single"
+
 Unknown keys, unknown methods and unknown method parameters are errors naming the file and the key.
 """
 from __future__ import annotations
@@ -25,7 +33,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from study import methods as registry
 from study.errors import StudyError
@@ -37,10 +45,29 @@ class FigureConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
     scene: str | dict[str, Any]
     overrides: dict[str, Any] = {}
-    positions: list[Vec3] = Field(min_length=1)
+    positions: list[Vec3] | None = Field(None, min_length=1)
+    cases: list[dict[str, Any]] | None = Field(None, min_length=1)
     methods: list[dict[str, Any]] = Field(min_length=1)
     grid: list[str] | None = None
     occlusion_panel: bool = False       # add a column showing which rays' exact hits are hidden from o
+
+    @model_validator(mode="after")
+    def _one_of(self):
+        if (self.positions is None) == (self.cases is None):
+            raise ValueError("give either positions or cases (one image row each)")
+        return self
+
+    def case_list(self) -> list[tuple[str, str, dict[str, Any]]]:
+        """(case id suffix, row label, scene overrides) per image row."""
+        if self.positions is not None:
+            return [(f"p{i}", f"({p[0]:g}, {p[1]:g}, {p[2]:g})", {"object.center": list(p)})
+                    for i, p in enumerate(self.positions)]
+        out = []
+        for i, c in enumerate(self.cases):
+            c = dict(c)
+            name = str(c.pop("name", f"c{i}"))
+            out.append((name, name, c))
+        return out
 
 
 def read_toml(path: str | Path) -> dict:
@@ -105,7 +132,7 @@ def load_figure_config(path: str | Path) -> tuple[FigureConfig, Scene, list[Meth
     scene = base_scene(cfg.scene, config_path=path)
     if cfg.overrides:
         scene = scene.with_updates(cfg.overrides, source=f"{path} [overrides]")
-    for i, p in enumerate(cfg.positions):
-        scene.with_updates({"object.center": list(p)}, source=f"{path} positions[{i}]")
+    for i, (_, _, over) in enumerate(cfg.case_list()):
+        scene.with_updates(over, source=f"{path} {'positions' if cfg.positions is not None else 'cases'}[{i}]")
     methods = expand_methods(cfg.methods, source=str(path))
     return cfg, scene, methods

@@ -32,7 +32,7 @@ def _crop_box(mask: np.ndarray, margin: float = 0.35) -> tuple[slice, slice]:
 
 
 def image_grid(cases: list[CaseOutput], labels: list[str], path: Path, *, title: str,
-               occlusion_panel: bool = False) -> None:
+               occlusion_panel: bool = False, row_labels: list[str] | None = None) -> None:
     """Rows: cases; columns: each method's image, the ray-traced (Mitsuba) image, each method's angular-error
     heatmap (degrees, log scale 0.01°–30°) and, with ``occlusion_panel``, the fraction of each pixel's rays whose
     exact hit is hidden from the reference point. Images are tone mapped by clipping at 1 and sRGB encoding."""
@@ -65,7 +65,7 @@ def image_grid(cases: list[CaseOutput], labels: list[str], path: Path, *, title:
             if r == 0:
                 ax.set_title("hidden from reference point", fontsize=8)
         cx, cy, cz = case.scene.object.center
-        axes[r, 0].set_ylabel(f"({cx:g}, {cy:g}, {cz:g})", fontsize=8)
+        axes[r, 0].set_ylabel(row_labels[r] if row_labels else f"({cx:g}, {cy:g}, {cz:g})", fontsize=8)
         for ax in axes[r]:
             ax.set_xticks([]); ax.set_yticks([])
     fig.suptitle(title, fontsize=10)
@@ -82,8 +82,8 @@ def image_grid(cases: list[CaseOutput], labels: list[str], path: Path, *, title:
 
 def figure_positions(config: str | Path, out: str | Path, *, name: str, backend: str = "numpy",
                      cache: str | Path | None = ".cache", progress=None) -> list[dict]:
-    """Run every position of a figure config with every method; write ``<out>/<name>.png`` and
-    ``<out>/metrics.csv`` (one row per position × method). Returns the rows."""
+    """Run every position (or case) of a figure config with every method; write ``<out>/<name>.png`` and
+    ``<out>/metrics.csv`` (one row per position or case × method). Returns the rows."""
     cfg, scene, methods = load_figure_config(config)
     labels = cfg.grid or [m.label for m in methods]
     unknown = [g for g in labels if g not in {m.label for m in methods}]
@@ -97,21 +97,23 @@ def figure_positions(config: str | Path, out: str | Path, *, name: str, backend:
         raise StudyError(f"cannot create the output directory ({err.strerror})", file=str(out)) from None
     store = Cache(cache)
     cases, rows = [], []
-    for i, pos in enumerate(cfg.positions):
+    todo = cfg.case_list()
+    for i, (suffix, _, over) in enumerate(todo):
         t0 = time.perf_counter()
-        sc = scene.with_updates({"object.center": list(pos)}, source=str(config))
-        case = run_case(sc, methods, backend=backend, cache=store, case_id=f"{name}-p{i}")
+        sc = scene.with_updates(over, source=str(config))
+        case = run_case(sc, methods, backend=backend, cache=store, case_id=f"{name}-{suffix}")
         for r in case.rows:
             r["case_seconds"] = time.perf_counter() - t0
         cases.append(case)
         rows += case.rows
         if progress:
-            progress(i + 1, len(cfg.positions))
+            progress(i + 1, len(todo))
     write_csv(rows, out / "metrics.csv")
     meta = metadata(config, backend=backend, seed=scene.render.seed, methods=[m.label for m in methods],
-                    cases=len(cfg.positions), figure=name)
+                    cases=len(todo), figure=name)
     _atomic_write(out / "metadata.json", json.dumps(meta, indent=2).encode())
     image_grid(cases, labels, out / f"{name}.png", title=f"{name}: {scene.room.min}..{scene.room.max} room, "
                f"reference point {list(scene.reference.point)}, cube {scene.render.cube_res}², backend {backend}",
-               occlusion_panel=cfg.occlusion_panel)
+               occlusion_panel=cfg.occlusion_panel,
+               row_labels=None if cfg.positions is not None else [lab for _, lab, _ in todo])
     return rows

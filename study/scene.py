@@ -40,6 +40,14 @@ A scene is a TOML file (or dict) validated on load; y is up, units are metres. E
     supersample = 2                      # method rays per pixel side
     seed = 0
     fresnel = "exact"                    # "exact" conductor Fresnel (as Mitsuba) or the paper's "approx"
+    refraction = "double"                # dielectric objects: "single" (paper) or "double" (in and out)
+    exit = "auto"                        # far side: "exact" (analytic sphere / Embree), "distance_map" (the
+                                         # object's own map); "auto" = exact for a sphere, distance map for meshes
+    internal_bounces = 8                 # total internal reflections followed before a ray is dropped (counted)
+    object_res = 128                     # face resolution of the object's own distance map
+
+Meshes: ``object.shape = "torus" | "knot" | "blob"`` with ``rotation = [rx, ry, rz]`` (degrees) and ``detail``;
+``radius`` is then the bounding-sphere radius, which the placement checks use.
 
 Every error is a :class:`~study.errors.StudyError` whose message names the file, the key and what is allowed.
 """
@@ -117,10 +125,18 @@ Material = Annotated[Union[Mirror, Conductor, Dielectric], Field(discriminator="
 
 
 class Sphere(_Strict):
-    shape: Literal["sphere"] = "sphere"
+    """The shaded object. ``shape`` "sphere" is analytic; "torus", "knot" and "blob" are triangle meshes with
+    smooth vertex normals (:mod:`study.objects`), scaled so that ``radius`` is their bounding-sphere radius,
+    turned by ``rotation`` (Euler angles in degrees about x, then y, then z) and tessellated finer with ``detail``."""
+    shape: Literal["sphere", "torus", "knot", "blob"] = "sphere"
     center: Vec3 = (0.5, 1.2, 0.3)
-    radius: PosFloat = 0.4
+    radius: PosFloat = 0.4                       # sphere radius, or bounding-sphere radius of a mesh
     material: Material = Mirror(type="mirror")
+    rotation: Vec3 = (0.0, 0.0, 0.0)             # meshes: Euler angles x, y, z in degrees
+    detail: Annotated[int, Field(ge=1, le=6)] = 3  # meshes: tessellation level
+
+
+Object = Sphere
 
 
 class Camera(_Strict):
@@ -140,6 +156,10 @@ class Render(_Strict):
     supersample: Annotated[int, Field(ge=1, le=8)] = 2
     seed: Annotated[int, Field(ge=0)] = 0
     fresnel: Literal["exact", "approx"] = "exact"   # object shading: exact conductor Fresnel or the paper's
+    refraction: Literal["single", "double"] = "double"  # dielectric objects: paper's single refraction or in-and-out
+    exit: Literal["auto", "exact", "distance_map"] = "auto"  # double refraction: how the far side is found
+    internal_bounces: Annotated[int, Field(ge=0, le=16)] = 8   # total internal reflections followed, then dropped
+    object_res: Annotated[int, Field(ge=4, le=2048)] = 128     # face resolution of the object's own distance map
 
 
 class Scene(_Strict):
@@ -160,15 +180,18 @@ class Scene(_Strict):
     def _placement(self):
         lo, hi = np.array(self.room.min), np.array(self.room.max)
         c, r = np.array(self.object.center), self.object.radius
+        mesh = self.object.shape != "sphere"         # meshes are checked by their bounding sphere
+        what = f"{self.object.shape} (bounding radius {r})" if mesh else f"sphere (radius {r})"
+        who = f"{self.object.shape} (its bounding sphere)" if mesh else "sphere"
         if np.any(c - r <= lo) or np.any(c + r >= hi):
-            raise _KeyedError("object.center", f"the sphere (radius {r}) must lie inside the room "
+            raise _KeyedError("object.center", f"the {what} must lie inside the room "
                               f"{list(self.room.min)}..{list(self.room.max)}")
         for i, col in enumerate(self.columns):
             blo, bhi = col.box(self.room)
             if np.any(blo[[0, 2]] < lo[[0, 2]]) or np.any(bhi[[0, 2]] > hi[[0, 2]]) or bhi[1] >= hi[1]:
                 raise _KeyedError(f"columns[{i}]", "the column must lie inside the room")
             if _box_sphere_distance(blo, bhi, c) <= r:
-                raise _KeyedError("object.center", f"the sphere overlaps columns[{i}]; move it or the column")
+                raise _KeyedError("object.center", f"the {who} overlaps columns[{i}]; move it or the column")
         for key, p in (("reference.point", self.reference.point), ("light.position", self.light.position),
                        ("camera.eye", self.camera.eye)):
             p = np.array(p)

@@ -2,11 +2,22 @@
 
 The object's pixels are composited over a Mitsuba render of the room without the object. Each pixel is shaded
 from ``supersample²`` stratified sub-pixel rays; a sub-pixel ray that misses the object shows the background.
+
+Dielectric objects (``material.type = "dielectric"``) hand the methods two secondary rays per camera ray: the
+reflected ray at the entry point (weight F_in) and the transmitted ray (weight (1 − F_in)(1 − F_out)). With
+``render.refraction = "single"`` (the paper) the transmitted ray is the refracted ray at the entry point, looked up
+from there; with ``"double"`` it is the ray leaving the object's far side (:func:`study.optics.through_object`),
+found exactly (sphere: closed form; mesh: Embree) or through the object's own distance map
+(:class:`study.objects.DistanceMap`), after at most ``render.internal_bounces`` total internal reflections. Rays
+still inside after that, or whose exit was not found, are dropped from the secondary rays (so no NaN reaches the
+metrics) and counted (``dropped_fraction``); their energy is lost, as is the part reflected back inside at a
+transmitting exit. The exact reference (Embree) traces the exact outgoing ray: where the methods get the ray from
+the distance map, ``exact_x``/``exact_R`` hold the exactly traced one.
 """
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -21,6 +32,34 @@ class ObjectRays:
     N: np.ndarray          # (M, 3) unit normals
     V: np.ndarray          # (M, 3) unit view directions (camera → x)
     R: np.ndarray          # (M, 3) unit reflected directions
+    # ----- dielectrics: K secondary rays (x, R above are then (K, 3)), several per camera ray
+    src: np.ndarray | None = None       # (K,) index of the camera ray (among the M hits) each ray belongs to
+    weight: np.ndarray | None = None    # (K, 3) Fresnel weight of each secondary ray
+    exact_x: np.ndarray | None = None   # (K, 3) exactly traced outgoing rays for Embree (default x, R)
+    exact_R: np.ndarray | None = None
+    stats: dict = field(default_factory=dict)   # extra per-case numbers for the metrics table
+
+    def exact_rays(self) -> tuple[np.ndarray, np.ndarray]:
+        """The exact outgoing rays (origins, directions), one per secondary ray, for the exact reference."""
+        return (self.x if self.exact_x is None else self.exact_x), (self.R if self.exact_R is None else self.exact_R)
+
+    def per_camera_ray(self, values: np.ndarray, *, total: bool = False) -> np.ndarray:
+        """Secondary-ray values (K, ...) → camera-ray values (M, ...): the sum (``total``) or the weighted mean
+        (Fresnel weight, NaN ignored) of the secondary rays of each camera ray. Identity without ``src``."""
+        if self.src is None:
+            return values
+        M = int(self.hit.sum())
+        v = np.asarray(values, float)
+        out = np.zeros((M,) + v.shape[1:])
+        if total:
+            np.add.at(out, self.src, v)
+            return out
+        w = self.weight.mean(axis=1).reshape((-1,) + (1,) * (v.ndim - 1)) * np.isfinite(v)
+        den = np.zeros_like(out)
+        np.add.at(out, self.src, np.nan_to_num(v) * w)
+        np.add.at(den, self.src, np.broadcast_to(w, v.shape))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(den > 0, out / den, np.nan)
 
     @property
     def full(self) -> np.ndarray:
@@ -30,6 +69,7 @@ class ObjectRays:
     def per_pixel(self, values: np.ndarray, fill=np.nan, reduce="mean") -> np.ndarray:
         """Scatter per-ray values (M, ...) to pixels (H, W, ...), averaging the sub-pixel rays that hit."""
         H, W, S = self.hit.shape
+        values = self.per_camera_ray(values)
         out = np.full((H, W, S) + values.shape[1:], np.nan)
         out[self.hit] = values
         with np.errstate(invalid="ignore"), warnings.catch_warnings():
@@ -55,17 +95,59 @@ def intersect_sphere(o, d, center, radius) -> np.ndarray:
 
 
 def object_rays(scene: Scene) -> ObjectRays:
+    from study import objects
     o, d = camera_rays(scene.camera, scene.render.supersample)
     H, W, S, _ = d.shape
-    t = intersect_sphere(o.reshape(-1, 3), d.reshape(-1, 3), scene.object.center, scene.object.radius)
+    geom = objects.geometry(scene)
+    t, n = geom.intersect(o.reshape(-1, 3), d.reshape(-1, 3))
     hit = np.isfinite(t)
     V = d.reshape(-1, 3)[hit]
     x = o.reshape(-1, 3)[hit] + V * t[hit, None]
-    N = (x - np.asarray(scene.object.center)) / scene.object.radius
+    N = n[hit]
+    N = np.where((np.sum(N * V, -1) < 0)[:, None], N, N - 2 * np.sum(N * V, -1, keepdims=True) * V)  # face the eye
     N /= np.linalg.norm(N, axis=-1, keepdims=True)
     R = reflect(V, N)
     R /= np.linalg.norm(R, axis=-1, keepdims=True)
-    return ObjectRays(hit.reshape(H, W, S), x, N, V, R)
+    rays = ObjectRays(hit.reshape(H, W, S), x, N, V, R)
+    if scene.object.material.type == "dielectric":
+        rays = dielectric_rays(scene, rays, geom)
+    return rays
+
+
+def dielectric_rays(scene: Scene, rays: ObjectRays, geom) -> ObjectRays:
+    """The secondary rays of a dielectric object: reflected (weight F_in) and transmitted (module docstring)."""
+    from study import objects, optics
+    r, ior = scene.render, scene.object.material.ior
+    x, N, V, R = rays.x, rays.N, rays.V, rays.R
+    M = len(x)
+    F_in = optics.fresnel_dielectric(-np.sum(V * N, axis=-1), 1.0 / ior)
+    stats = {"refraction": r.refraction}
+    # ----- transmitted rays: single refraction (paper) or through the far side
+    if r.refraction == "single":
+        T, _ = optics.refract(V, N, 1.0 / ior)
+        tx, tR, tw, ok = x, T, 1 - F_in, np.ones(M, bool)
+        ex, eR = tx, tR
+        stats["exit"] = "none"
+    else:
+        mode = r.exit if r.exit != "auto" else ("exact" if scene.object.shape == "sphere" else "distance_map")
+        exact = optics.through_object(x, V, N, ior, geom.exit, max_bounces=r.internal_bounces)
+        if mode == "exact":
+            path = exact
+        else:
+            dmap = objects.DistanceMap(geom, r.object_res)
+            path = optics.through_object(x, V, N, ior, dmap.exit, max_bounces=r.internal_bounces)
+            stats["exit_lookups_per_ray"] = dmap.lookups_per_ray()
+        ok = path.ok & exact.ok
+        tx, tR, tw, ex, eR = path.origin, path.out, path.transmittance, exact.origin, exact.out
+        stats.update(exit=mode, tir_fraction=float(np.mean(path.bounces[ok] > 0)) if ok.any() else np.nan)
+    stats["dropped_fraction"] = float(1 - ok.mean()) if M else 0.0
+    # ----- secondary rays: all reflected rays, then the transmitted rays that left the object
+    keep = np.nonzero(ok)[0]
+    src = np.concatenate([np.arange(M), keep])
+    w = np.concatenate([F_in, tw[keep]])
+    cat = lambda a, b: np.concatenate([a, b[keep]])                 # noqa: E731
+    return ObjectRays(rays.hit, cat(x, tx), cat(N, N), cat(V, V), cat(R, tR), src=src,
+                      weight=np.repeat(w[:, None], 3, axis=1), exact_x=cat(x, ex), exact_R=cat(R, eR), stats=stats)
 
 
 # ---------------------------------------------------------------------------------------------- Fresnel
@@ -97,6 +179,8 @@ def fresnel_conductor(n, k, cos_theta) -> np.ndarray:
 def fresnel(scene: Scene, rays: ObjectRays) -> np.ndarray:
     """Fresnel reflectance (M, 3) of the object's material for the object's rays."""
     mat = scene.object.material
+    if rays.weight is not None:
+        return rays.weight
     cos = np.sum(rays.N * rays.R, axis=-1)
     if mat.type == "mirror":
         return np.ones((len(cos), 3))
@@ -111,5 +195,5 @@ def composite(rays: ObjectRays, reflected: np.ndarray, background: np.ndarray) -
     """Image (H, W, 3): sub-pixel rays on the object show ``reflected`` (M, 3), the others the background."""
     H, W, S = rays.hit.shape
     sub = np.broadcast_to(background[:, :, None, :], (H, W, S, 3)).copy()
-    sub[rays.hit] = reflected
+    sub[rays.hit] = rays.per_camera_ray(reflected, total=True)
     return sub.mean(axis=2).astype(np.float32)

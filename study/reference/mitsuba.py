@@ -2,7 +2,8 @@
 
 The room is built from :func:`study.scene.room_mesh` (the very triangles Embree intersects), each surface with its
 procedural texture on a two-sided diffuse BSDF; the light is a point light; the object is a Mitsuba sphere with
-its real material (``conductor`` with per-channel eta and k, or a perfect mirror). Rendering uses the
+its real material (``conductor`` with per-channel eta and k, a perfect mirror, or a ``dielectric``), or a mesh with
+smooth vertex normals for mesh shapes. A dielectric object gets ``max_depth + 2`` (in and out of the glass). Rendering uses the
 ``llvm_ad_rgb`` variant on the CPU (``cuda_ad_rgb`` on a GPU) and the ``path`` integrator.
 """
 from __future__ import annotations
@@ -53,8 +54,11 @@ def object_bsdf(scene: Scene) -> dict:
 def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dict | None = None) -> dict:
     m = mi()
     mesh = scene.mesh()
+    depth = scene.render.max_depth
+    if with_object and scene.object.material.type == "dielectric":
+        depth += 2                        # entering and leaving the glass: the room behind gets max_depth as well
     d = {"type": "scene", "sensor": sensor,
-         "integrator": integrator or {"type": "path", "max_depth": scene.render.max_depth},
+         "integrator": integrator or {"type": "path", "max_depth": depth},
          "light": {"type": "point", "position": list(scene.light.position),
                    "intensity": {"type": "rgb", "value": list(scene.light.intensity)}}}
     for sid, name in enumerate(SURFACES):
@@ -64,10 +68,29 @@ def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dic
         bsdf = m.load_dict({"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": {
             "type": "bitmap", "bitmap": m.Bitmap(texture(name)), "raw": True, "filter_type": "bilinear"}}})
         d[f"surface_{sid}"] = _mesh(m, name, V, F, UV, bsdf)
-    if with_object:
+    if with_object and scene.object.shape == "sphere":
         d["object"] = {"type": "sphere", "center": list(scene.object.center), "radius": scene.object.radius,
                        "bsdf": object_bsdf(scene)}
+    elif with_object:
+        d["object"] = object_mesh(scene)
     return d
+
+
+def object_mesh(scene: Scene):
+    """The object's triangles (:func:`study.objects.object_mesh`, the ones Embree intersects) with their smooth
+    vertex normals, as a Mitsuba mesh with the object's BSDF."""
+    from study.objects import object_mesh as make
+    m = mi()
+    om = make(scene.object)
+    props = m.Properties()
+    props["bsdf"] = m.load_dict(object_bsdf(scene))
+    mesh = m.Mesh("object", len(om.vertices), len(om.faces), props=props, has_vertex_normals=True)
+    p = m.traverse(mesh)
+    p["vertex_positions"] = np.ascontiguousarray(om.vertices, np.float32).ravel()
+    p["faces"] = np.ascontiguousarray(om.faces, np.uint32).ravel()
+    p["vertex_normals"] = np.ascontiguousarray(om.normals, np.float32).ravel()
+    p.update()
+    return mesh
 
 
 def _sensor(origin, target, up, fov, width, height, spp, seed, *, jitter=True) -> dict:
