@@ -7,5 +7,6 @@ bash scripts/setup.sh
 S=.venv/bin/study
 $S figure fig4
 $S figure fig5
+$S figure fig6
 $S sweep configs/sweep.toml --jobs 2
 $S report
