@@ -49,6 +49,9 @@ class Backend:
     def texture(self, texels: np.ndarray): ...
     def sample(self, tex, face, u, v) -> list: ...
     def eval(self, *arrays) -> None: ...
+    def loop(self, n: int, state: tuple, body) -> tuple: ...
+    def freeze(self, fn): ...
+    def sync(self) -> None: ...
 
     # -------------------------------------------------------------- shared helpers built on the above
     def vec(self, a: np.ndarray) -> V3:
@@ -78,6 +81,14 @@ class NumpyBackend(Backend):
     def maximum(self, a, b): return np.maximum(a, b)
     def isfinite(self, a): return np.isfinite(a)
     def eval(self, *arrays): pass
+    def sync(self): pass
+    def freeze(self, fn): return fn
+
+    def loop(self, n, state, body):
+        """``state = body(*state)`` n times (see :meth:`DrJitBackend.loop`)."""
+        for _ in range(n):
+            state = tuple(body(*state))
+        return tuple(state)
 
     def texture(self, texels):
         return np.ascontiguousarray(texels, dtype=np.float32)
@@ -97,6 +108,14 @@ class NumpyBackend(Backend):
 
 
 class DrJitBackend(Backend):
+    """Dr.Jit on LLVM (CPU) or CUDA.
+
+    ``symbolic_loops`` (default True): :meth:`loop` records the loop body once (``dr.while_loop``), so the whole
+    search is one kernel whose size and tracing cost do not grow with the iteration count; False unrolls it in
+    Python (one traced copy of the body per iteration), as a plain ``for`` loop would.
+    """
+    symbolic_loops: bool = True
+
     def __init__(self, device: str):
         if device == "llvm":
             llvm.require()
@@ -120,6 +139,21 @@ class DrJitBackend(Backend):
     def maximum(self, a, b): return self.dr.maximum(a, b)
     def isfinite(self, a): return self.dr.isfinite(a)
     def eval(self, *arrays): self.dr.eval(*arrays)
+    def sync(self): self.dr.sync_thread()
+
+    def loop(self, n, state, body):
+        """``state = body(*state)`` n times, as one symbolic loop (``dr.while_loop``) in the kernel."""
+        if n == 0 or not self.symbolic_loops:
+            return NumpyBackend.loop(self, n, state, body)
+        i = self.m.UInt32(0)
+        out = self.dr.while_loop((i, *state), lambda i, *s: i < n, lambda i, *s: (i + 1, *body(*s)))
+        return tuple(out[1:])
+
+    def freeze(self, fn):
+        """``dr.freeze(fn)``: the first call records the kernels fn launches, later calls replay them without
+        running fn's Python code (array sizes may change between calls). Every Dr.Jit array and texture fn
+        reads must come in through its arguments (dataclasses such as V3 are traversed)."""
+        return self.dr.freeze(fn)
 
     def texture(self, texels):
         six, R, _, C = texels.shape
@@ -149,17 +183,25 @@ def get(name: str = "numpy") -> Backend:
 class EnvMap:
     """A cube map bound to a backend: ``lookup(v)`` returns the C channels in the direction of ``v``.
 
-    The channels of a distance impostor are (R, G, B, distance).
+    The channels of a distance impostor are (R, G, B, distance). The last channel (distance) is kept in a texture
+    of its own, ``dist``: the search reads only distances, so each of its lookups fetches one float per texel
+    instead of four (a quarter of the texture traffic); ``tex`` holds the other channels. Every channel is
+    filtered on its own, so the values are the same as from one texture. ``info`` is a small record of scene
+    knowledge that some methods use (keys documented in :mod:`study.methods.base`); empty when nothing is known.
     """
 
-    def __init__(self, texels: np.ndarray, B: Backend):
+    def __init__(self, texels: np.ndarray, B: Backend, info: dict | None = None):
         self.B, self.res, self.channels = B, texels.shape[1], texels.shape[-1]
-        self.tex = B.texture(texels)
+        self.info = dict(info or {})
+        self.tex = B.texture(texels[..., :-1]) if self.channels > 1 else None   # colour channels
+        self.dist = B.texture(texels[..., -1:])                                  # distance |v'|
 
     def lookup(self, v: V3) -> list:
         face, u, w = cubemap.face_uv(self.B, v.x, v.y, v.z)
-        return self.B.sample(self.tex, face, u, w)
+        colour = self.B.sample(self.tex, face, u, w) if self.tex is not None else []
+        return colour + self.B.sample(self.dist, face, u, w)
 
     def distance(self, v: V3):
         """|v'|: the stored distance of the environment point seen from the reference point towards v."""
-        return self.lookup(v)[-1]
+        face, u, w = cubemap.face_uv(self.B, v.x, v.y, v.z)
+        return self.B.sample(self.dist, face, u, w)[0]

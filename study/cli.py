@@ -137,6 +137,46 @@ def report(reports: Path = typer.Option(Path("reports"), help="directory holding
     console.print(f"report: wrote {path}", highlight=False)
 
 
+@app.command()
+def bench(out: Path = typer.Option(Path("reports/bench"), help="output directory"),
+          config: Path = typer.Option(Path("configs/fig4.toml"), help="figure config whose scene is benched"),
+          position: int = typer.Option(2, help="index into the config's positions: where the object stands"),
+          scene_res: int = typer.Option(1024, help="camera resolution (res²) of the fig4 ray batch"),
+          rays: int = typer.Option(1024 * 1024, help="rays in the synthetic batch"),
+          iterations: str = typer.Option("0,1,3,10,20", help="iteration counts of iterative methods"),
+          cube_res: int = typer.Option(256, help="impostor cube resolution"),
+          backends: str = typer.Option("auto", help="comma list of numpy, llvm, cuda (auto: all available)"),
+          repeats: int = typer.Option(5, help="timed repeats (median reported)"),
+          numpy_max_rays: int = typer.Option(1 << 16, help="numpy is timed on at most this many rays"),
+          scaling: bool = typer.Option(True, help="also run the scaling studies (plots)"),
+          tag: str = typer.Option("", help="name of this machine in file names (default cpu or gpu)")):
+    """Time every method against exact ray casting (Embree, Mitsuba) on the same rays: CSV + Markdown tables."""
+    from study import bench as bm
+    from study.config import load_figure_config
+    try:
+        cfg, scene, _ = load_figure_config(config)
+        if not 0 <= position < len(cfg.positions):
+            raise StudyError(f"position {position} out of range; allowed: 0..{len(cfg.positions) - 1}",
+                             file=str(config), key="positions")
+        try:
+            its = tuple(int(v) for v in iterations.split(","))
+        except ValueError:
+            raise StudyError("comma-separated integers expected, e.g. 0,1,10", key="iterations") from None
+        names = () if backends == "auto" else tuple(b.strip() for b in backends.split(",") if b.strip())
+        opt = bm.BenchOptions(position=tuple(cfg.positions[position]), scene_res=scene_res, synthetic=rays,
+                              iterations=its, cube_res=cube_res, backends=names, repeats=repeats,
+                              numpy_max_rays=numpy_max_rays, scaling=scaling, tag=tag)
+        t0 = time.perf_counter()
+        rows, scal, info = bm.run_bench(scene, opt, log=lambda s: console.print(
+            f"[{time.perf_counter() - t0:6.1f} s] {s}", highlight=False),
+            on_table=lambda rows, info: bm.write_outputs(rows, [], info, out))
+        files = bm.write_outputs(rows, scal, info, out)
+    except StudyError as err:
+        _fail(err)
+    console.print(bm.markdown_table(rows, bm.BENCH_COLS), highlight=False, soft_wrap=True)
+    console.print("wrote " + ", ".join(str(f) for f in files), highlight=False, soft_wrap=True)
+
+
 @app.command("methods")
 def list_methods():
     """List the registered localization methods and their parameters."""

@@ -35,10 +35,10 @@ class Localized(Method):
         dov = pun * 0.0                                # ray parameter of the last overshoot (0: none yet)
         pov = pun * 0.0                                # |p|/|p'| of the last overshoot (read only once dov != 0)
         dl = r_len * (1.0 - pun)                       # eq. 2
-        l = x + R * dl                                 # ray equation
 
         # ------------------------------------------------------------- false-position iterations
-        for _ in range(p.iterations):
+        def iteration(dl, dun, pun, dov, pov):
+            l = x + R * dl                             # ray equation
             llp = B.length(l) / env.distance(l)        # |l|/|l'|
             under = llp < p.band_lo
             over = llp > p.band_hi
@@ -48,7 +48,11 @@ class Localized(Method):
             dun, pun = B.select(under, dl, dun), B.select(under, llp, pun)
             dov, pov = B.select(over, dl, dov), B.select(over, llp, pov)
             dl = dl + B.select(under, step_under, B.select(over, step_over, 0.0))
-            l = x + R * dl                             # ray equation
+            return dl, dun, pun, dov, pov
+
+        # one recorded loop on Dr.Jit (the whole search is one kernel), a Python loop on numpy
+        dl, dun, pun, dov, pov = B.loop(p.iterations, (dl, dun, pun, dov, pov), iteration)
+        l = x + R * dl                                 # ray equation
         return Localization(l=l, valid=B.isfinite(dl))
 
     def lookups_per_ray(self) -> int:
