@@ -513,32 +513,32 @@ def write_outputs(rows, scaling, info, out: Path) -> list[Path]:
 
 
 def plot_scaling(rows: list[dict], path: Path, *, title: str) -> None:
+    """Four log-scale panels (rays, iterations, cube resolution, triangles), one line per backend × method;
+    exact tracers dashed."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    studies = [("rays", "rays per call", "ms per call", True), ("iterations", "iterations (localized)",
-               "ms per 1024² frame", False), ("cube_res", "cube resolution", "ms per 1024² frame", True),
-               ("triangles", "triangles in the room", "ms per 1024² frame", True)]
-    fig, axes = plt.subplots(1, 4, figsize=(18, 4.2))
-    for ax, (study, xlabel, ylabel, logx) in zip(axes, studies):
+    studies = [("rays", "rays per call", "ms per call", True),
+               ("iterations", "iterations of localized", "ms per 1024² frame", False),
+               ("cube_res", "cube resolution (localized, 10 iterations)", "ms per 1024² frame", True),
+               ("triangles", "triangles in the room (+ displaced heightfield)", "ms per 1024² frame", True)]
+    fig, axes = plt.subplots(2, 2, figsize=(13, 9))
+    for ax, (study, xlabel, ylabel, logx) in zip(axes.ravel(), studies):
         sub = [r for r in rows if r["study"] == study]
-        for key in dict.fromkeys((r["backend"], r["label"]) for r in sub):
-            pts = sorted((r["value"], r["ms_per_call"] if study == "rays" else r["ms_per_frame"])
-                         for r in sub if (r["backend"], r["label"]) == key)
-            if pts:
-                style = "--" if key[1].startswith("exact") else "-"
-                ax.plot(*zip(*pts), style, marker="o", ms=3, label=f"{key[1]} [{key[0]}]")
+
+        def key(r):
+            lab = r["label"].split("(")[0] if study == "iterations" else r["label"]
+            return f"{lab} [{r['backend']}]"
+        for k in dict.fromkeys(key(r) for r in sub):
+            pts = sorted((float(r["value"]), float(r["ms_per_call"] if study == "rays" else r["ms_per_frame"]))
+                         for r in sub if key(r) == k)
+            ax.plot(*zip(*pts), "--" if k.startswith("exact") else "-", marker="o", ms=3, label=k)
         ax.set_xscale("log" if logx else "linear")
         ax.set_yscale("log")
         ax.set_xlabel(xlabel); ax.set_ylabel(ylabel); ax.grid(True, which="both", alpha=0.3)
-    handles, labels = axes[0].get_legend_handles_labels()
-    for ax in axes[1:]:
-        for h, lab in zip(*ax.get_legend_handles_labels()):
-            if lab not in labels:
-                handles.append(h); labels.append(lab)
-    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8)
+        ax.legend(fontsize=7)
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout(rect=(0, 0.14, 1, 1))
+    fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp.png")
     fig.savefig(tmp, dpi=100)
