@@ -106,6 +106,8 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
         t0 = time.perf_counter()
         with np.errstate(divide="ignore", invalid="ignore"):   # numpy evaluates both sides of every select
             tr = m.trace(B, env, x, R)
+        B.eval(tr.shown.x, tr.shown.y, tr.shown.z, tr.radiance.x, tr.radiance.y, tr.radiance.z, tr.ratio,
+               tr.valid)                            # one kernel for all outputs, not one per numpy copy
         shown = B.to_numpy(tr.shown).astype(np.float64) + o
         rad = B.to_numpy(tr.radiance).astype(np.float64)
         ratio, valid = B.numpy(tr.ratio), B.numpy(tr.valid).astype(bool)
