@@ -61,6 +61,29 @@ def _claims_section(tables: dict[str, list[dict]]) -> list[str]:
     return lines + [""]
 
 
+COMPARISON = ["angle_median_deg", "angle_p95_deg", "rmse_oracle", "rmse_mitsuba", "flip_mitsuba", "valid_fraction",
+              "lookups_per_ray"]
+
+
+def _comparison_section(tables: dict[str, list[dict]]) -> list[str]:
+    """One row per table × method: the median over the table's cases of each metric, and the cost."""
+    import numpy as np
+    rows = []
+    for name, tab in tables.items():
+        labels = list(dict.fromkeys(r["label"] for r in tab))
+        for lab in labels:
+            sel = [r for r in tab if r["label"] == lab]
+            row = {"table": name, "method": lab, "cases": len(sel)}
+            for m in COMPARISON:
+                vals = np.array([r.get(m, np.nan) for r in sel], float)
+                row[m] = float(np.nanmedian(vals)) if np.isfinite(vals).any() else float("nan")
+            rows.append(row)
+    return ["## Method comparison", "",
+            "Per table and method, the median over the table's cases of each metric; the cost is cube-map lookups "
+            "per ray (the oracle's single lookup is the radiance read at the exact hit).", "",
+            table(rows, ["table", "method", "cases", *COMPARISON]), ""]
+
+
 def _sweep_section(d: Path, rows: list[dict]) -> list[str]:
     meta = _meta(d)
     rel = d.name
@@ -104,6 +127,7 @@ def build_report(reports: str | Path = "reports") -> Path:
              "*oracle* = exact hit, radiance read from the impostor (a perfect localization); *mitsuba* = "
              "path-traced ground truth.", ""]
     lines += _claims_section(tables)
+    lines += _comparison_section(tables)
     for d in figs:
         rows = tables[d.name]
         meta = _meta(d)
