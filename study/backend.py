@@ -149,12 +149,14 @@ def get(name: str = "numpy") -> Backend:
 class EnvMap:
     """A cube map bound to a backend: ``lookup(v)`` returns the C channels in the direction of ``v``.
 
-    The channels of a distance impostor are (R, G, B, distance).
+    The channels of a distance impostor are (R, G, B, distance). ``info`` is a small record of scene knowledge
+    that some methods use (keys documented in :mod:`study.methods.base`); empty when nothing is known.
     """
 
-    def __init__(self, texels: np.ndarray, B: Backend):
+    def __init__(self, texels: np.ndarray, B: Backend, info: dict | None = None):
         self.B, self.res, self.channels = B, texels.shape[1], texels.shape[-1]
         self.tex = B.texture(texels)
+        self.info = dict(info or {})
 
     def lookup(self, v: V3) -> list:
         face, u, w = cubemap.face_uv(self.B, v.x, v.y, v.z)
