@@ -100,7 +100,12 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
                      "valid_fraction": 1.0, "ratio_residual_median": 0.0, "lookups_per_ray": 1, "seconds": 0.0})
 
     # ------------------------------------------------------------------ every method on the same rays
-    env = backends.EnvMap(imp.texels(), B)
+    env = backends.EnvMap(imp.texels(), B, info={"reference": o, "room": (scene.room.min, scene.room.max)})
+    n_layers = max((m.layers_needed() for m in methods), default=1)
+    if n_layers > 1:                                                  # depth layers for the methods that search them
+        from study.layers import layered_impostor
+        env.info["layers"] = [backends.EnvMap(t, B) for t in
+                              layered_impostor(scene, cache, n_layers, imp.radiance, tracer)]
     x, R = B.vec(rays.x - o), B.vec(rays.R)
     for m in methods:
         t0 = time.perf_counter()

@@ -10,8 +10,10 @@ g(t) = |p(t)| − (1 − t) |p(t)'| (|v'| the stored distance towards v), g < 0 
 surface has a crossing.
 
 Phases: (1) linear search for the FIRST pair of consecutive samples with g < 0 then g ≥ 0; (2) ``secant_steps``
-secant (false-position) steps on g inside that bracket, keeping the side by the sign of g; the result is the
-secant point of the final bracket. The secant works on g(t) instead of the chapter's q(d) because q is infinite at
+secant (false-position) steps on g inside that bracket, keeping the side by the sign of g, by default with the
+Illinois rule (when the same end is replaced twice in a row, the other end's g is halved; plain false position
+stalls on one side and left errors of centimetres after 10 steps on a column face); the result is the secant
+point of the final bracket. The secant works on g(t) instead of the chapter's q(d) because q is infinite at
 t = 1; both vanish at the same points. Invalid (NaN shown point) where no crossing is found (x itself behind the
 environment surface and the ray never comes out in front of it).
 """
@@ -29,7 +31,8 @@ class Params(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
     linear_steps: Annotated[int, Field(ge=1, le=4096)] = 30     # n_max: steps for a half-turn arc
     min_linear_steps: Annotated[int, Field(ge=1, le=4096)] = 10  # n_min
-    secant_steps: Annotated[int, Field(ge=0, le=100)] = 2        # secant lookups after the linear search
+    secant_steps: Annotated[int, Field(ge=0, le=100)] = 4        # secant lookups after the linear search
+    illinois: bool = True                                        # Illinois rule against one-sided stagnation
 
     @model_validator(mode="after")
     def _order(self):
@@ -74,12 +77,17 @@ class LinearSecant(Method):
         def secant():
             return t_l - g_l * (t_p - t_l) / (g_p - g_l)
 
+        side = zero                                    # +1: last step replaced t_l, −1: t_p, 0: none yet
         for _ in range(p.secant_steps):
             t = secant()
             gt = g(t)
             under = gt < 0.0
+            if p.illinois:                             # the same end replaced twice: halve the other end's g
+                g_p = B.select(under & (side > 0.0), g_p * 0.5, g_p)
+                g_l = B.select(~under & (side < 0.0), g_l * 0.5, g_l)
             t_l, g_l = B.select(under, t, t_l), B.select(under, gt, g_l)
             t_p, g_p = B.select(under, t_p, t), B.select(under, g_p, gt)
+            side = B.select(under, zero + 1.0, zero - 1.0)
         t = secant()
         l = (x * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)   # x + R d(t)
         return Localization(l=l, valid=found & B.isfinite(t))

@@ -5,8 +5,8 @@ point o): for each axis i, t_i = ((R_i > 0 ? bmax_i : bmin_i) − x_i) / R_i, t*
 is l = x + R t*. Exact when the room is the proxy; wrong wherever the scene departs from it (columns).
 
 The proxy: ``box_min``/``box_max`` (world coordinates) when given; otherwise the room (``env.info["room"]``);
-on a bare impostor without scene information, the box through the six stored distances along ±x, ±y, ±z (the
-room itself when nothing stands on those axes). Invalid (NaN shown point) where x lies outside the box.
+on a bare impostor without scene information, the box through the six walls seen along ±x, ±y, ±z (the room
+itself when nothing stands on those axes). Invalid (NaN shown point) where x lies outside the box.
 """
 from __future__ import annotations
 
@@ -37,8 +37,12 @@ def room_box(B, env) -> tuple[np.ndarray, np.ndarray]:
     if "room" in env.info:
         lo, hi = (np.asarray(c, float) for c in env.info["room"])
         return lo - o, hi - o
+    # through a texel centre next to each axis (face coordinates ±1/R), so the stored distance is exact there;
+    # its component along the axis is the distance to the plane of a wall perpendicular to that axis
     axes = np.concatenate([np.eye(3), -np.eye(3)])
-    d = B.numpy(env.distance(B.vec(axes))).astype(float)                # |±e_i'|
+    w = axes + (1.0 / env.res) * np.abs(np.roll(axes, 1, axis=1)) + (1.0 / env.res) * np.abs(np.roll(axes, 2, axis=1))
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    d = B.numpy(env.distance(B.vec(w))).astype(float) * np.abs(w[axes != 0])    # plane distance per axis
     return -d[3:], d[:3]
 
 
