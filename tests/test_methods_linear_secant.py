@@ -66,5 +66,5 @@ def test_no_crossing_is_invalid(column_room, B):
 
 def test_parameters_are_checked():
     from study.errors import StudyError
-    with pytest.raises(StudyError, match="min_linear_steps"):
+    with pytest.raises(StudyError, match="^method: .*min_linear_steps must not exceed linear_steps"):
         methods.make("linear_secant", linear_steps=5, min_linear_steps=10)

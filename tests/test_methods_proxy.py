@@ -87,4 +87,4 @@ def test_lookups_per_ray_of_the_new_methods():
     assert methods.make("proxy_box").lookups_per_ray() == 1
     assert methods.make("proxy_sphere").lookups_per_ray() == 1
     assert methods.make("linear_secant", linear_steps=30, secant_steps=2).lookups_per_ray() == 34
-    assert methods.make("layered", layers=3, iterations=10).lookups_per_ray() == 39
+    assert methods.make("layered", layers=3, iterations=10).lookups_per_ray() == 3 * (1 + 30 + 2 * 11)

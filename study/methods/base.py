@@ -70,7 +70,8 @@ class Method(ABC):
             key = ".".join(str(p) for p in e["loc"])
             allowed = ", ".join(self.Params.model_fields) or "none"
             msg = "unknown parameter" if e["type"] == "extra_forbidden" else e["msg"]
-            raise StudyError(f"{msg} (parameters of {self.name!r}: {allowed})", key=f"method.{key}") from None
+            raise StudyError(f"{msg} (parameters of {self.name!r}: {allowed})",
+                             key=f"method.{key}" if key else "method") from None
 
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self.params.model_dump().items())

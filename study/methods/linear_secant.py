@@ -72,6 +72,7 @@ class LinearSecant(Method):
             t_p, g_p = B.select(cross, t, t_p), B.select(cross, gt, g_p)
             found = found | cross
             t_prev, g_prev = t, gt
+            B.eval(t_l, g_l, t_p, g_p, found, g_prev)  # one small kernel per step (Dr.Jit compiles it fast)
 
         # ------------------------------------------------------------- secant steps inside the bracket
         def secant():
@@ -88,6 +89,7 @@ class LinearSecant(Method):
             t_l, g_l = B.select(under, t, t_l), B.select(under, gt, g_l)
             t_p, g_p = B.select(under, t_p, t), B.select(under, g_p, gt)
             side = B.select(under, zero + 1.0, zero - 1.0)
+            B.eval(t_l, g_l, t_p, g_p, side)
         t = secant()
         l = (x * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)   # x + R d(t)
         return Localization(l=l, valid=found & B.isfinite(t))
