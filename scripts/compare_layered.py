@@ -40,11 +40,11 @@ def main() -> int:
           f"occluded fraction {out.rows[0]['occluded_fraction']:.3f}")
     print(f"{'method':40s} {'median°':>9s} {'p95°':>9s} {'max°':>8s} {'valid':>6s} {'lookups':>7s}")
     for r in out.rows:
-        print(f"{r['label']:40s} {r['angle_median_deg']:9.4f} {r['angle_p95_deg']:9.4f} {r['angle_max_deg']:8.2f} "
+        print(f"{r['label']:40s} {r['angle_median_deg']:9.3g} {r['angle_p95_deg']:9.3g} {r['angle_max_deg']:8.2f} "
               f"{r['valid_fraction']:6.3f} {r['lookups_per_ray']:7d}")
     p95 = {r["method"]: r["angle_p95_deg"] for r in out.rows}
     ratio = p95["layered"] / p95["localized"]
-    print(f"p95 layered / localized = {p95['layered']:.4f} / {p95['localized']:.4f} = {ratio:.3f} "
+    print(f"p95 layered / localized = {p95['layered']:.3g} / {p95['localized']:.3g} = {ratio:.3g} "
           f"({'below' if ratio < 0.5 else 'NOT below'} one half)")
     return 0 if ratio < 0.5 else 1
 

@@ -19,6 +19,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from study import analytic
+from study.backend import V3
 from study.methods.base import Localization, Method, register
 from study.methods.proxy_box import reference_point
 
@@ -62,7 +63,7 @@ class ProxySphere(Method):
         c = (np.zeros(3) if p.center is None else np.asarray(p.center, float) - reference_point(env))
         rho = p.radius if p.radius is not None else fitted_radius(B, env)
         # ------------------------------------------------------------- far root of |L + R t| = ρ
-        L = x - V3c(x, c)
+        L = V3(x.x - float(c[0]), x.y - float(c[1]), x.z - float(c[2]))   # x − c
         b = L.dot(R)
         disc = b * b - (L.dot(L) - float(rho) ** 2)
         t = -b + B.sqrt(B.maximum(disc, 0.0))
@@ -72,8 +73,3 @@ class ProxySphere(Method):
     def lookups_per_ray(self) -> int:
         return 1                                       # the shown point (the proxy hit is analytic)
 
-
-def V3c(x, c):
-    """The constant vector c broadcast like x (a V3 of arrays)."""
-    from study.backend import V3
-    return V3(x.x * 0.0 + float(c[0]), x.y * 0.0 + float(c[1]), x.z * 0.0 + float(c[2]))
