@@ -135,8 +135,12 @@ class Layered(Method):
         l, valid, _, _ = self._search(B, env, x, R)
         return Localization(l=l, valid=valid)
 
-    def trace(self, B, env, x, R):
+    def trace(self, B, env, x, R, *, check_origin: bool = True):
+        """As :meth:`Method.trace` (same origin check), reading the kept layer's distance and radiance."""
         l, valid, rgb, dist = self._search(B, env, x, R)
+        valid = valid & B.isfinite(B.length(R))
+        if check_origin:
+            valid = valid & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)   # x is an undershoot
         lhat = B.normalize(l)
         nan = float("nan")
         shown = V3(*(B.select(valid, c * dist, nan) for c in (lhat.x, lhat.y, lhat.z)))
