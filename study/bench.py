@@ -42,6 +42,7 @@ import numpy as np
 from study import analytic, cubemap
 from study import backend as backends
 from study import methods as registry
+from study.case import env_info
 from study.errors import StudyError
 from study.scene import Scene
 
@@ -182,9 +183,16 @@ def median_time(call, finish, *, repeats: int, warmup: int = 2, min_repeat_s: fl
     return float(np.median(ts))
 
 
-def _method_runner(m, B, tex_np, x, R, *, frozen: bool):
-    """(call, finish) for one method on one backend: call() traces (or replays) and returns the outputs."""
-    env = backends.EnvMap(tex_np, B)
+def _method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None):
+    """(call, finish) for one method on one backend: call() traces (or replays) and returns the outputs.
+
+    ``info`` is the scene knowledge methods may use (room, reference point). A method that searches several
+    layers gets the impostor itself as each layer (the bench times lookups; texel values do not change their
+    cost) and runs unfrozen: a frozen function cannot see textures kept inside ``env.info``."""
+    env = backends.EnvMap(tex_np, B, info=info)
+    if m.layers_needed() > 1:
+        env.info["layers"] = [env] * m.layers_needed()
+        frozen = False
     X, RR = B.vec(x), B.vec(R)
     B.eval(X.x, X.y, X.z, RR.x, RR.y, RR.z)
 
@@ -205,14 +213,14 @@ def _method_runner(m, B, tex_np, x, R, *, frozen: bool):
     return (lambda: fn(tex, dist, X, RR)), finish
 
 
-def time_method(m, B, tex_np, x, R, *, frozen: bool, repeats: int) -> float:
+def time_method(m, B, tex_np, x, R, *, frozen: bool, repeats: int, info: dict | None = None) -> float:
     # Garbage left by earlier runs (reference cycles) must not be freed while a frozen function records:
     # freeing Dr.Jit memory then is an unrecordable host call that aborts the process.
     gc.collect()
     B.sync()
     gc.disable()
     try:
-        call, finish = _method_runner(m, B, tex_np, x, R, frozen=frozen)
+        call, finish = _method_runner(m, B, tex_np, x, R, frozen=frozen, info=info)
         return median_time(call, finish, repeats=repeats)
     finally:
         gc.enable()
@@ -384,13 +392,15 @@ def run_bench(scene: Scene, opt: BenchOptions, log=print, on_table=None) -> tupl
                 extra = ["plain"] if nm != "numpy" and m.label == "localized(iterations=10)" else []
                 for path in paths + extra:
                     try:
-                        t = time_method(m, B, tex, x, R, frozen=path == "frozen", repeats=opt.repeats)
+                        t = time_method(m, B, tex, x, R, frozen=path == "frozen", repeats=opt.repeats,
+                                        info=env_info(scene))
                     except Exception as err:    # e.g. a method whose arrays a frozen function cannot see
                         log(f"{m.label} on {nm} ({path}) failed: {str(err).splitlines()[0][:160]}")
                         if path != "frozen":
                             raise
                         path = "plain"
-                        t = time_method(m, B, tex, x, R, frozen=False, repeats=opt.repeats)
+                        t = time_method(m, B, tex, x, R, frozen=False, repeats=opt.repeats,
+                                        info=env_info(scene))
                     row = _rate_row({"batch": b.name, "backend": nm, "path": path, "label": m.label,
                                      "triangles": len(F), "cube_res": opt.cube_res}, t, len(x))
                     rows.append(_with_ratios(row, exact, b, nm))
@@ -421,7 +431,8 @@ def _scaling(scene, opt, names, o, tex, exact, log) -> list[dict]:
         x, R = b.x - o, b.R
         if nm == "numpy":
             x, R = x[:opt.numpy_max_rays], R[:opt.numpy_max_rays]
-        t = time_method(m, B, t_tex, x, R, frozen=nm != "numpy", repeats=max(3, opt.repeats // 2))
+        t = time_method(m, B, t_tex, x, R, frozen=nm != "numpy", repeats=max(3, opt.repeats // 2),
+                        info=env_info(scene))
         rows.append(_rate_row({"study": study, "value": value, "backend": nm, "label": m.label,
                                "cube_res": cube}, t, len(x)))
 

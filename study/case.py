@@ -58,6 +58,11 @@ def camera_render(scene: Scene, cache: Cache, *, with_object: bool) -> np.ndarra
     return img.reshape(s.camera.height, s.camera.width, 3)
 
 
+def env_info(scene: Scene) -> dict:
+    """The scene knowledge methods may use (``env.info``, keys in study.methods.base): reference point, room."""
+    return {"reference": np.asarray(scene.reference.point, float), "room": (scene.room.min, scene.room.max)}
+
+
 # ---------------------------------------------------------------------------------------------- the case
 def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cache: Cache | None = None,
              case_id: str = "", keep_images: bool = True) -> CaseOutput:
@@ -100,7 +105,12 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
                      "valid_fraction": 1.0, "ratio_residual_median": 0.0, "lookups_per_ray": 1, "seconds": 0.0})
 
     # ------------------------------------------------------------------ every method on the same rays
-    env = backends.EnvMap(imp.texels(), B)
+    env = backends.EnvMap(imp.texels(), B, info=env_info(scene))
+    n_layers = max((m.layers_needed() for m in methods), default=1)
+    if n_layers > 1:                                                  # depth layers for the methods that search them
+        from study.layers import layered_impostor
+        env.info["layers"] = [backends.EnvMap(t, B) for t in
+                              layered_impostor(scene, cache, n_layers, imp.radiance, tracer)]
     x, R = B.vec(rays.x - o), B.vec(rays.R)
     for m in methods:
         t0 = time.perf_counter()

@@ -18,6 +18,14 @@ Output of :meth:`Method.localize`: a :class:`Localization` with
 o + l̂·|l'| (returned relative to o), its radiance, and the diagnostic |l|/|l'| (1 = l lies on the environment
 surface; for ``classical`` it is 1/|R'| and carries no meaning). Methods are registered by name (``@register``) and take
 their parameters as keyword arguments, validated by the class's ``Params`` model (unknown names are errors).
+
+Scene knowledge (optional): ``env.info`` is a dict that the caller (``study.case``) fills with what it knows; a
+method must still run when a key is missing (on a bare impostor, as in the analytic tests) and says what it falls
+back to. Keys, all in world coordinates (metres):
+    "reference" : (3,) the reference point o (methods work relative to it)
+    "room"      : ((3,), (3,)) the room box (min, max)
+    "layers"    : list[EnvMap] the layered impostor, nearest layer first (see :mod:`study.layers`); present when
+                  some method's :meth:`Method.layers_needed` asked for more than one layer
 """
 from __future__ import annotations
 
@@ -62,7 +70,8 @@ class Method(ABC):
             key = ".".join(str(p) for p in e["loc"])
             allowed = ", ".join(self.Params.model_fields) or "none"
             msg = "unknown parameter" if e["type"] == "extra_forbidden" else e["msg"]
-            raise StudyError(f"{msg} (parameters of {self.name!r}: {allowed})", key=f"method.{key}") from None
+            raise StudyError(f"{msg} (parameters of {self.name!r}: {allowed})",
+                             key=f"method.{key}" if key else "method") from None
 
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self.params.model_dump().items())
@@ -82,6 +91,11 @@ class Method(ABC):
     @abstractmethod
     def lookups_per_ray(self) -> int:
         """Cube-map lookups this method spends per ray (the cost measure of the method-comparison table)."""
+
+    def layers_needed(self) -> int:
+        """Depth layers of the impostor this method searches (the caller captures that many into
+        ``env.info["layers"]`` when more than one is asked for); 1 for the plain impostor."""
+        return 1
 
     def trace(self, B: Backend, env: EnvMap, x: V3, R: V3, *, check_origin: bool = True) -> Trace:
         """Localize, then read the shown point and its radiance. With ``check_origin`` (one more lookup, not

@@ -1,0 +1,154 @@
+"""Layered distance maps (GPU Gems 3 ch. 17; Hakura and Snyder 2001): every depth layer searched, nearest clean
+hit kept.
+
+Layers come from ``env.info["layers"]`` (:mod:`study.layers`: layer k holds the (k+1)-th surface seen from the
+reference point o, channels R, G, B, jump, distance); on a bare impostor without layers, the impostor itself is
+the only layer (no jump channel, so no hit is ever rejected as skin).
+
+Search (per layer, all layers on the same samples): the linear search of :mod:`study.methods.linear_secant` (the
+t = d/(d + a) parameterization, n = max(n_max (1 − x̂·R)/2, n_min) steps along the arc) on
+g_k(t) = |p(t)| − (1 − t) |p(t)'|_k, recording the first TWO sign changes of each layer in either direction
+(under → over: the ray passes a surface that faces o; over → under: a surface that faces away from o, such as a
+column top seen from below, which is how a layer behind the first holds it); each is refined by ``iterations``
+Illinois secant steps. One lookup at each refined point reads q = |l|/|l'|_k, the layer's relative depth jump and
+the radiance. A crossing is *clean* where |q − 1| ≤ ``tolerance`` and the jump is below ``max_jump``; a crossing
+on a depth discontinuity is the "skin" that bilinear interpolation stretches from a silhouette to what lies behind
+it, not a surface.
+
+Why not the paper's false position on each layer: on the layer that holds a column top (seen from below), a ray
+coming down onto the top first crosses the skin along the top's silhouette edge and then the top itself; false
+position converges on the skin (the first root of its first bracket) and never reaches the top (see
+tests/test_methods_layered.py). Recording two crossings per layer lets the skin be rejected and the top kept.
+
+Kept: the nearest clean crossing over all layers; where none is clean, the nearest crossing with |q − 1| ≤
+``tolerance``; where none is, the first crossing of the first layer. valid: some crossing was found. The shown
+point and radiance come from the layer the hit was kept from (``trace`` is overridden for that).
+"""
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from study.backend import V3
+from study.methods.base import Localization, Method, Trace, register
+
+
+class Params(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    layers: Annotated[int, Field(ge=1, le=16)] = 3               # depth layers searched
+    iterations: Annotated[int, Field(ge=0, le=1000)] = 10        # secant steps per crossing
+    linear_steps: Annotated[int, Field(ge=1, le=4096)] = 30      # n_max
+    min_linear_steps: Annotated[int, Field(ge=1, le=4096)] = 10  # n_min
+    tolerance: Annotated[float, Field(gt=0)] = 0.01              # |q − 1| of a converged crossing
+    max_jump: Annotated[float, Field(gt=0)] = 0.1                # relative depth jump above which it is skin
+
+    @model_validator(mode="after")
+    def _order(self):
+        if self.min_linear_steps > self.linear_steps:
+            raise ValueError("min_linear_steps must not exceed linear_steps")
+        return self
+
+
+@register
+class Layered(Method):
+    name = "layered"
+    Params = Params
+
+    def layers_needed(self) -> int:
+        return self.params.layers
+
+    def _search(self, B, env, x, R):
+        """Returns (l, valid, [r, g, b], distance) of the kept hit."""
+        p = self.params
+        maps = list(env.info.get("layers") or [env])[:p.layers]
+        # ------------------------------------------------------------- parameterization and step count
+        xl = B.length(x)
+        a = B.maximum(xl, 1e-6)                        # a = |x|
+        cos = x.dot(R) / a                             # x̂·R
+        n = B.maximum(p.linear_steps * (1.0 - cos) * 0.5, float(p.min_linear_steps))
+        dt = 1.0 / B.minimum(n, float(p.linear_steps))
+        zero = xl * 0.0
+
+        def point(t):                                  # p(t) = (1 − t) x + t a R
+            return x * (1.0 - t) + R * (a * t)
+
+        def g(m, t):
+            pt = point(t)
+            return B.length(pt) - (1.0 - t) * m.distance(pt)
+
+        # ------------------------------------------------------------- linear search: first two sign changes
+        never = zero != zero
+        g_prev = [g(m, zero) for m in maps]
+        # found, ta, ga, tb, gb (a harmless dummy bracket until found, so that refining it stays finite)
+        cross = [[[never, zero, zero - 1.0, zero + 1.0, zero + 1.0] for _ in range(2)] for _ in maps]
+        t_prev = zero
+        for k in range(1, p.linear_steps + 1):
+            t = B.minimum(dt * float(k), 1.0)
+            for i, m in enumerate(maps):
+                gt = g(m, t)
+                change = (g_prev[i] < 0.0) != (gt < 0.0)
+                (f1, *b1), (f2, *b2) = cross[i]
+                new1, new2 = change & ~f1, change & f1 & ~f2
+                cross[i] = [[f1 | new1, *(B.select(new1, v, o) for v, o in zip((t_prev, g_prev[i], t, gt), b1))],
+                            [f2 | new2, *(B.select(new2, v, o) for v, o in zip((t_prev, g_prev[i], t, gt), b2))]]
+                g_prev[i] = gt
+            t_prev = t
+            B.eval(*g_prev, *(v for c in cross for b in c for v in b))   # one small kernel per step (Dr.Jit)
+
+        # ------------------------------------------------------------- secant refinement, test, nearest kept
+        big = 1e30
+        best = None
+        for i, m in enumerate(maps):
+            for j, (found, ta, ga, tb, gb) in enumerate(cross[i]):
+                side = zero                            # Illinois: +1 last replaced a, −1 replaced b
+                for _ in range(p.iterations):
+                    t = ta - ga * (tb - ta) / (gb - ga)
+                    gt = g(m, t)
+                    same_a = (gt < 0.0) == (ga < 0.0)
+                    gb = B.select(same_a & (side > 0.0), gb * 0.5, gb)
+                    ga = B.select(~same_a & (side < 0.0), ga * 0.5, ga)
+                    ta, ga = B.select(same_a, t, ta), B.select(same_a, gt, ga)
+                    tb, gb = B.select(same_a, tb, t), B.select(same_a, gb, gt)
+                    side = B.select(same_a, zero + 1.0, zero - 1.0)
+                    B.eval(ta, ga, tb, gb, side)
+                t = ta - ga * (tb - ta) / (gb - ga)
+                l = point(t) / B.maximum(1.0 - t, 1e-7)          # x + R d(t)
+                ch = m.lookup(l)
+                dist = ch[-1]
+                jump = ch[3] if m.channels == 5 else zero
+                conv = found & B.isfinite(t) & (B.abs(B.length(l) / dist - 1.0) <= p.tolerance)
+                clean = conv & (jump < p.max_jump)
+                # rank: clean crossings by t, then converged ones, then the first layer's first crossing
+                key = B.select(clean, t, B.select(conv, t + 10.0, zero + (100.0 if i == j == 0 else big)))
+                key = B.select(found, key, zero + big * 2)
+                cand = (l.x, l.y, l.z, ch[0], ch[1], ch[2], dist, key)
+                if best is None:
+                    best = cand
+                else:
+                    take = cand[-1] < best[-1]
+                    best = tuple(B.select(take, c, b) for c, b in zip(cand, best))
+        lx, ly, lz, r, gg, b, dist, key = best
+        return V3(lx, ly, lz), key < big, [r, gg, b], dist
+
+    def localize(self, B, env, x, R):
+        l, valid, _, _ = self._search(B, env, x, R)
+        return Localization(l=l, valid=valid)
+
+    def trace(self, B, env, x, R, *, check_origin: bool = True):
+        """As :meth:`Method.trace` (same origin check), reading the kept layer's distance and radiance."""
+        l, valid, rgb, dist = self._search(B, env, x, R)
+        valid = valid & B.isfinite(B.length(R))
+        if check_origin:
+            valid = valid & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)   # x is an undershoot
+        lhat = B.normalize(l)
+        nan = float("nan")
+        shown = V3(*(B.select(valid, c * dist, nan) for c in (lhat.x, lhat.y, lhat.z)))
+        rad = V3(*(B.select(valid, c, nan) for c in rgb))
+        return Trace(l, shown, rad, B.length(l) / dist, valid)
+
+    def lookups_per_ray(self) -> int:
+        # per layer: g(0), n_max linear steps, two crossings × (secant steps + the final lookup that gives the
+        # test, the jump and the shown point's distance and radiance)
+        p = self.params
+        return p.layers * (1 + p.linear_steps + 2 * (p.iterations + 1))
