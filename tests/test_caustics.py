@@ -93,3 +93,48 @@ def test_splat_conserves_power(scene):
     E = lightmap.splat(sid, uv, power, frames, res=64, sigma=0.05)
     area = (frames.size_u * frames.size_v / 64 ** 2)[:, None, None, None]
     np.testing.assert_allclose((E * area).sum((0, 1, 2)), power.sum(0), rtol=1e-9)
+
+
+SMALL_CAUSTICS = """
+methods = [{ name = "localized", iterations = [0, 10] }]
+resolutions = [16, 32]
+
+[scene]
+room = { min = [-2.0, 0.0, -2.0], max = [2.0, 3.0, 2.0] }
+light = { position = [0.3, 2.6, -0.4], intensity = [7.0, 7.0, 7.0] }
+reference = { point = [0.0, 1.5, 0.0] }
+object = { center = [0.6, 1.2, 0.3], radius = 0.4, material = { type = "MATERIAL" } }
+camera = { eye = [-0.6, 1.9, -1.5], target = [0.8, 0.3, 0.8], fov = 60.0, width = 32, height = 32 }
+render = { cube_res = 32, cube_spp = 2, spp = 2, max_depth = 3, supersample = 1 }
+
+[caustic]
+cube_res = 64
+lightmap_res = 64
+sigma = 0.05
+
+[mitsuba]
+spp = 16
+"""
+
+
+def test_caustics_sweep_cli_end_to_end(tmp_path):
+    """`study caustics-sweep` on a tiny config writes fig8.png, sweep.csv and sweep.png; 10 iterations place the
+    light map closer to exact photon tracing than 0 iterations; a mirror object is one 'error:' line, exit 2."""
+    from typer.testing import CliRunner
+    from study.cli import app
+    from study.results import read_csv
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(SMALL_CAUSTICS.replace('"MATERIAL"', '"dielectric", ior = 1.3'))
+    r = CliRunner().invoke(app, ["caustics-sweep", "--config", str(cfg), "--out", str(tmp_path / "o"),
+                                 "--cache", str(tmp_path / "cache")])
+    assert r.exit_code == 0, r.output
+    for f in ("fig8.png", "sweep.csv", "sweep.png", "fig8.csv"):
+        assert (tmp_path / "o" / f).is_file()
+    rows = [x for x in read_csv(tmp_path / "o" / "sweep.csv") if x["method"] == "localized"]
+    assert len(rows) == 4
+    for res in (16, 32):
+        it = {x["iterations"]: x for x in rows if x["caustic_res"] == res}
+        assert it[10.0]["lm_rmse"] < it[0.0]["lm_rmse"]
+    cfg.write_text(SMALL_CAUSTICS.replace("MATERIAL", "mirror"))
+    r = CliRunner().invoke(app, ["caustics-sweep", "--config", str(cfg), "--out", str(tmp_path / "o2")])
+    assert r.exit_code == 2 and "error:" in r.output and "object.material" in r.output
