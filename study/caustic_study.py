@@ -194,7 +194,8 @@ def lightmap_errors(E: np.ndarray, Eref: np.ndarray, area: np.ndarray, eps: floa
 def image_errors(img: np.ndarray, ref: np.ndarray, mask: np.ndarray, eps: float, suffix: str) -> dict[str, float]:
     d = (img - ref)[mask]
     return {f"img_rmse_{suffix}": float(np.sqrt(np.mean(d ** 2))),
-            f"img_relmse_{suffix}": float(np.mean(d ** 2 / (ref[mask] ** 2 + eps)))}
+            f"img_relmse_{suffix}": float(np.mean(d ** 2 / (ref[mask] ** 2 + eps))),
+            f"img_sum_ratio_{suffix}": float(img[mask].sum() / ref[mask].sum())}   # caustic radiance ours / ref
 
 
 # ---------------------------------------------------------------------------------------------- the study
