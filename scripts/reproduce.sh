@@ -8,5 +8,6 @@ S=.venv/bin/study
 $S figure fig4
 $S figure fig5
 $S figure fig6
+$S caustics-sweep
 $S sweep configs/sweep.toml --jobs 2
 $S report

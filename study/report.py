@@ -111,6 +111,27 @@ def _sweep_section(d: Path, rows: list[dict]) -> list[str]:
     return lines
 
 
+CAUSTIC_COLS = ["caustic_res", "label", "photons", "lm_rmse", "lm_relmse", "img_rmse_mitsuba", "img_sum_ratio_mitsuba",
+                "mitsuba_noise_rmse", "photon_angle_p95_deg", "seconds_per_map"]
+
+
+def _caustics_section(reports: Path) -> list[str]:
+    """Figure 8 (``study caustics-sweep`` → reports/fig8/): light-map error against exact photon tracing (a),
+    image error against Mitsuba's ptracer (b), time per caustic map."""
+    d = reports / "fig8"
+    if not (d / "sweep.csv").is_file():
+        return []
+    rows = read_csv(d / "sweep.csv")
+    lines = ["## fig8: caustics", "",
+             "Glass sphere (n = 1.3) focusing the point light; caustic map from the light, photon hits localized in "
+             "the distance impostor, splatted into light maps (study/caustics.py, study/lightmap.py). "
+             "lm_* = light-map error against exact photon tracing (a), W/m²; img_* = caustic-only image against "
+             "Mitsuba ptracer (b); mitsuba_noise_rmse = Mitsuba's own noise (two seeds). "
+             "Table: [fig8/sweep.csv](fig8/sweep.csv).", ""]
+    lines += [f"![fig8](fig8/{p.name})" for p in sorted(d.glob("*.png"))]
+    return lines + ["", table(rows, CAUSTIC_COLS), ""]
+
+
 def build_report(reports: str | Path = "reports") -> Path:
     """Write ``<reports>/index.md``; returns its path."""
     reports = Path(reports)
@@ -138,6 +159,7 @@ def build_report(reports: str | Path = "reports") -> Path:
         lines += ["", table(rows, ["case", "label", *SUMMARY]), ""]
     for d in sweeps:
         lines += _sweep_section(d, tables[d.name])
+    lines += _caustics_section(reports)
     others = sorted(p for p in reports.glob("*.md") if p.name != "index.md")
     others += sorted(p for p in reports.glob("*/*.md") if p.parent.name not in {d.name for d in figs + sweeps})
     if others:
