@@ -28,26 +28,18 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field
 
 from study.backend import V3
 from study.methods.base import Localization, Method, Trace, register
+from study.methods.linear_secant import LinearSearchParams
 
 
-class Params(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+class Params(LinearSearchParams):                                # + linear_steps, min_linear_steps
     layers: Annotated[int, Field(ge=1, le=16)] = 3               # depth layers searched
     iterations: Annotated[int, Field(ge=0, le=1000)] = 10        # secant steps per crossing
-    linear_steps: Annotated[int, Field(ge=1, le=4096)] = 30      # n_max
-    min_linear_steps: Annotated[int, Field(ge=1, le=4096)] = 10  # n_min
     tolerance: Annotated[float, Field(gt=0)] = 0.01              # |q − 1| of a converged crossing
     max_jump: Annotated[float, Field(gt=0)] = 0.1                # relative depth jump above which it is skin
-
-    @model_validator(mode="after")
-    def _order(self):
-        if self.min_linear_steps > self.linear_steps:
-            raise ValueError("min_linear_steps must not exceed linear_steps")
-        return self
 
 
 @register

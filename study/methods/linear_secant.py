@@ -27,18 +27,22 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from study.methods.base import Localization, Method, register
 
 
-class Params(BaseModel):
+class LinearSearchParams(BaseModel):
+    """The linear search's step counts (shared with ``layered``)."""
     model_config = ConfigDict(extra="forbid", frozen=True)
     linear_steps: Annotated[int, Field(ge=1, le=4096)] = 30     # n_max: steps for a half-turn arc
     min_linear_steps: Annotated[int, Field(ge=1, le=4096)] = 10  # n_min
-    secant_steps: Annotated[int, Field(ge=0, le=100)] = 4        # secant lookups after the linear search
-    illinois: bool = True                                        # Illinois rule against one-sided stagnation
 
     @model_validator(mode="after")
     def _order(self):
         if self.min_linear_steps > self.linear_steps:
             raise ValueError("min_linear_steps must not exceed linear_steps")
         return self
+
+
+class Params(LinearSearchParams):
+    secant_steps: Annotated[int, Field(ge=0, le=100)] = 4        # secant lookups after the linear search
+    illinois: bool = True                                        # Illinois rule against one-sided stagnation
 
 
 @register
