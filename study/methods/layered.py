@@ -32,7 +32,7 @@ from pydantic import Field
 
 from study.backend import V3
 from study.methods.base import Localization, Method, Trace, register
-from study.methods.linear_secant import LinearSearchParams
+from study.methods.linear_secant import LinearSearchParams, secant_update
 
 
 class Params(LinearSearchParams):                                # + linear_steps, min_linear_steps
@@ -97,12 +97,8 @@ class Layered(Method):
                 for _ in range(p.iterations):
                     t = ta - ga * (tb - ta) / (gb - ga)
                     gt = g(m, t)
-                    same_a = (gt < 0.0) == (ga < 0.0)
-                    gb = B.select(same_a & (side > 0.0), gb * 0.5, gb)
-                    ga = B.select(~same_a & (side < 0.0), ga * 0.5, ga)
-                    ta, ga = B.select(same_a, t, ta), B.select(same_a, gt, ga)
-                    tb, gb = B.select(same_a, tb, t), B.select(same_a, gb, gt)
-                    side = B.select(same_a, zero + 1.0, zero - 1.0)
+                    same_a = (gt < 0.0) == (ga < 0.0)      # t lies on a's side of the crossing
+                    ta, ga, tb, gb, side = secant_update(B, same_a, t, gt, ta, ga, tb, gb, side)
                     B.eval(ta, ga, tb, gb, side)
                 t = ta - ga * (tb - ta) / (gb - ga)
                 l = point(t) / B.maximum(1.0 - t, 1e-7)          # x + R d(t)

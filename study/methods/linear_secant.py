@@ -45,6 +45,19 @@ class Params(LinearSearchParams):
     illinois: bool = True                                        # Illinois rule against one-sided stagnation
 
 
+def secant_update(B, replace_a, t, gt, ta, ga, tb, gb, side, *, illinois: bool = True):
+    """One bracket update of the secant (regula falsi) search: the new point (t, g(t)) replaces end a where
+    ``replace_a``, else end b. ``side`` remembers which end the last step replaced (+1 a, −1 b); with the
+    Illinois rule, an end replaced twice in a row halves the other end's g against one-sided stagnation.
+    Returns (ta, ga, tb, gb, side)."""
+    if illinois:
+        gb = B.select(replace_a & (side > 0.0), gb * 0.5, gb)
+        ga = B.select(~replace_a & (side < 0.0), ga * 0.5, ga)
+    ta, ga = B.select(replace_a, t, ta), B.select(replace_a, gt, ga)
+    tb, gb = B.select(replace_a, tb, t), B.select(replace_a, gb, gt)
+    return ta, ga, tb, gb, B.select(replace_a, side * 0.0 + 1.0, side * 0.0 - 1.0)
+
+
 @register
 class LinearSecant(Method):
     name = "linear_secant"
@@ -86,13 +99,8 @@ class LinearSecant(Method):
         for _ in range(p.secant_steps):
             t = secant()
             gt = g(t)
-            under = gt < 0.0
-            if p.illinois:                             # the same end replaced twice: halve the other end's g
-                g_p = B.select(under & (side > 0.0), g_p * 0.5, g_p)
-                g_l = B.select(~under & (side < 0.0), g_l * 0.5, g_l)
-            t_l, g_l = B.select(under, t, t_l), B.select(under, gt, g_l)
-            t_p, g_p = B.select(under, t_p, t), B.select(under, g_p, gt)
-            side = B.select(under, zero + 1.0, zero - 1.0)
+            t_l, g_l, t_p, g_p, side = secant_update(B, gt < 0.0, t, gt, t_l, g_l, t_p, g_p, side,
+                                                     illinois=p.illinois)
             B.eval(t_l, g_l, t_p, g_p, side)
         t = secant()
         l = (x * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)   # x + R d(t)
