@@ -1,7 +1,7 @@
 """Figure 5 check: p95 angular error of ``layered`` against ``localized`` on scenes/columns.toml.
 
-Runs the real pipeline (study.case.run_case: Mitsuba impostor radiance, Embree distances and exact hits, the
-layered impostor of study.layers) and prints one row per method. Goal (issue 4): layered's p95 below half of
+Runs the real pipeline (study.evaluate.case.run_case: Mitsuba impostor radiance, Embree distances and exact hits, the
+layered impostor of study.impostor.layers) and prints one row per method. Goal (issue 4): layered's p95 below half of
 localized's, both at 10 iterations.
 
     python scripts/compare_layered.py [--scene scenes/columns.toml] [--backend numpy] [--cache .cache] [--layers 3]
@@ -16,7 +16,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))     # this checkout
 
 from study import methods
 from study.cache import Cache
-from study.case import run_case
+from study.evaluate.case import run_case
 from study.scene import load_scene
 
 

@@ -1,7 +1,8 @@
 """The array backend: the few operations methods use, on numpy or on Dr.Jit (LLVM on the CPU, CUDA on a GPU).
 
 Methods are written once against :class:`Backend` and :class:`V3` (structure-of-arrays 3-vectors): arithmetic,
-comparisons, ``select``, ``sqrt``, ``abs``, ``minimum``/``maximum`` and cube-map lookups. Everything is float32 on
+comparisons, ``select``, ``sqrt``, ``abs``, ``minimum``/``maximum`` and bilinear texture samples (the cube-map
+lookup on top of them is :class:`study.impostor.envmap.EnvMap`). Everything is float32 on
 every backend, as on a GPU. The cube lookup is the only backend-specific piece: numpy gathers four texels, Dr.Jit
 samples a ``Texture2f`` holding the six faces stacked vertically (hardware-accelerated on CUDA).
 """
@@ -12,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from study import cubemap, llvm
+from study import runtime as llvm
 from study.errors import StudyError
 
 BACKENDS = ("numpy", "llvm", "cuda")
@@ -178,30 +179,3 @@ def get(name: str = "numpy") -> Backend:
     if name not in _cache:
         _cache[name] = NumpyBackend() if name == "numpy" else DrJitBackend(name)
     return _cache[name]
-
-
-class EnvMap:
-    """A cube map bound to a backend: ``lookup(v)`` returns the C channels in the direction of ``v``.
-
-    The channels of a distance impostor are (R, G, B, distance). The last channel (distance) is kept in a texture
-    of its own, ``dist``: the search reads only distances, so each of its lookups fetches one float per texel
-    instead of four (a quarter of the texture traffic); ``tex`` holds the other channels. Every channel is
-    filtered on its own, so the values are the same as from one texture. ``info`` is a small record of scene
-    knowledge that some methods use (keys documented in :mod:`study.methods.base`); empty when nothing is known.
-    """
-
-    def __init__(self, texels: np.ndarray, B: Backend, info: dict | None = None):
-        self.B, self.res, self.channels = B, texels.shape[1], texels.shape[-1]
-        self.info = dict(info or {})
-        self.tex = B.texture(texels[..., :-1]) if self.channels > 1 else None   # colour channels
-        self.dist = B.texture(texels[..., -1:])                                  # distance |v'|
-
-    def lookup(self, v: V3) -> list:
-        face, u, w = cubemap.face_uv(self.B, v.x, v.y, v.z)
-        colour = self.B.sample(self.tex, face, u, w) if self.tex is not None else []
-        return colour + self.B.sample(self.dist, face, u, w)
-
-    def distance(self, v: V3):
-        """|v'|: the stored distance of the environment point seen from the reference point towards v."""
-        face, u, w = cubemap.face_uv(self.B, v.x, v.y, v.z)
-        return self.B.sample(self.dist, face, u, w)[0]

@@ -13,8 +13,8 @@ from typing import Callable
 
 import numpy as np
 
-from study.capture import _atomic_write, read_exr, write_exr
 from study.errors import StudyError
+from study.io import atomic_write, read_exr, write_exr
 
 
 def content_key(*parts) -> str:
@@ -60,7 +60,7 @@ class Cache:
         try:
             d.mkdir(parents=True, exist_ok=True)
             write_exr(d / f"{key}.exr", _as_image(a))
-            _atomic_write(d / f"{key}.json", json.dumps({"shape": list(a.shape), "sha256": _digest(a)}).encode())
+            atomic_write(d / f"{key}.json", json.dumps({"shape": list(a.shape), "sha256": _digest(a)}).encode())
         except OSError as err:
             raise StudyError(f"cannot write the cache ({err.strerror})", file=str(d)) from None
 

@@ -12,12 +12,42 @@ from typing import Optional
 import typer
 from rich.console import Console
 
+from study import __version__, methods
+from study.bench.output import bench_table, write_outputs
+from study.bench.run import BenchOptions, run_bench
+from study.caustics.figure import fig8
 from study.errors import StudyError
+from study.harness.config import load_figure_config
+from study.harness.runner import run_sweep
+from study.harness.sweep import load_sweep
+from study.outputs.check import run_check
+from study.outputs.figures import figure_positions
+from study.outputs.plots import sweep_plots
+from study.outputs.report import build_report
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Measure how close GPU-friendly approximations of ray tracing come to ray tracing.")
 err_console = Console(stderr=True)
 console = Console()
+
+
+def _version(value: bool) -> None:
+    if value:
+        console.print(f"study {__version__}", highlight=False)
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(plugin: list[str] = typer.Option([], "--plugin", metavar="MODULE",
+                                              help="import MODULE first: methods it registers join every command "
+                                                   "(repeatable; also $STUDY_PLUGINS)"),
+             version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                          help="print the version and exit")):
+    """Measure how close GPU-friendly approximations of ray tracing come to ray tracing."""
+    try:
+        methods.load_plugins(plugin)
+    except StudyError as err:
+        _fail(err)
 
 FIGURES = {"fig4": "configs/fig4.toml", "fig5": "configs/fig5.toml", "fig6": "configs/fig6.toml",
            "fig8": "configs/fig8.toml"}
@@ -36,12 +66,11 @@ def figure(name: str = typer.Argument(..., help="figure to make: " + ", ".join(F
            backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
            cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders")):
     """Reproduce one of the paper's figures: image grid + metrics CSV under reports/<name>/."""
-    from study.figures import figure_positions
     try:
         if name not in FIGURES:
             raise StudyError(f"unknown figure {name!r}; allowed: {', '.join(FIGURES)}", key="name")
         t0 = time.perf_counter()
-        if name == "fig8":  # caustics: its own pipeline (study/caustic_study.py)
+        if name == "fig8":  # caustics: study/caustics/figure.py
             return _caustics(config or FIGURES[name], out or Path("reports") / name, backend, cache, sweep=False)
         with console.status(f"{name}: rendering and measuring…") as status:
             def progress(i, n):
@@ -76,10 +105,15 @@ def sweep(config: Path = typer.Argument(..., help="sweep file (TOML), e.g. confi
                                                        "'local' for a local cluster of --jobs workers"),
           plots: bool = typer.Option(True, help="write the error curves next to the table")):
     """Run (or resume) a sweep: one row per case × method in <out>/results.csv, curves beside it."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
-        TimeRemainingColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
-    from study.sweep import load_sweep, run_sweep
     out = out or Path("reports") / f"sweep-{config.stem}"
     try:
         load_sweep(config, backend=backend)          # every case validated before the progress bar appears
@@ -98,7 +132,6 @@ def sweep(config: Path = typer.Argument(..., help="sweep file (TOML), e.g. confi
             rows, stats = run_sweep(config, out, backend=backend, cache=cache, jobs=jobs, dask=dask,
                                     progress=progress)
         if plots:
-            from study.plots import sweep_plots
             sweep_plots(rows, out / "plots")
     except StudyError as err:
         _fail(err)
@@ -112,7 +145,6 @@ def check(config: Path = typer.Option(Path("configs/check.toml"), help="check fi
           backend: str = typer.Option("numpy", help="numpy | llvm | cuda"),
           cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders")):
     """CI regression: run a small fixed sweep and compare every metric with the committed baseline."""
-    from study.check import run_check
     try:
         with console.status("check: running the check sweep…"):
             fails, lines = run_check(config, update=update, cache=cache, backend=backend)
@@ -132,7 +164,6 @@ def check(config: Path = typer.Option(Path("configs/check.toml"), help="check fi
 @app.command()
 def report(reports: Path = typer.Option(Path("reports"), help="directory holding the figures and sweeps")):
     """Build reports/index.md from the results tables: figures, tables, the paper's claims, versions."""
-    from study.report import build_report
     try:
         path = build_report(reports)
     except StudyError as err:
@@ -146,7 +177,10 @@ def bench(out: Path = typer.Option(Path("reports/bench"), help="output directory
           position: int = typer.Option(2, help="index into the config's positions: where the object stands"),
           scene_res: int = typer.Option(1024, help="camera resolution (res²) of the fig4 ray batch"),
           rays: int = typer.Option(1024 * 1024, help="rays in the synthetic batch"),
-          iterations: str = typer.Option("0,1,3,10,20", help="iteration counts of iterative methods"),
+          method_names: str = typer.Option("all", "--methods",
+                                           help="comma list of method names (all: every registered method)"),
+          ladder: bool = typer.Option(True, help="time each method at every value of its knob's ladder "
+                                                 "(--no-ladder: at its defaults only)"),
           cube_res: int = typer.Option(256, help="impostor cube resolution"),
           backends: str = typer.Option("auto", help="comma list of numpy, llvm, cuda (auto: all available)"),
           repeats: int = typer.Option(5, help="timed repeats (median reported)"),
@@ -154,34 +188,28 @@ def bench(out: Path = typer.Option(Path("reports/bench"), help="output directory
           scaling: bool = typer.Option(True, help="also run the scaling studies (plots)"),
           tag: str = typer.Option("", help="name of this machine in file names (default cpu or gpu)")):
     """Time every method against exact ray casting (Embree, Mitsuba) on the same rays: CSV + Markdown tables."""
-    from study import bench as bm
-    from study.config import load_figure_config
     try:
         cfg, scene, _ = load_figure_config(config)
         if not 0 <= position < len(cfg.positions):
             raise StudyError(f"position {position} out of range; allowed: 0..{len(cfg.positions) - 1}",
                              file=str(config), key="positions")
-        try:
-            its = tuple(int(v) for v in iterations.split(","))
-        except ValueError:
-            raise StudyError("comma-separated integers expected, e.g. 0,1,10", key="iterations") from None
+        chosen = () if method_names == "all" else tuple(m.strip() for m in method_names.split(",") if m.strip())
         names = () if backends == "auto" else tuple(b.strip() for b in backends.split(",") if b.strip())
-        opt = bm.BenchOptions(position=tuple(cfg.positions[position]), scene_res=scene_res, synthetic=rays,
-                              iterations=its, cube_res=cube_res, backends=names, repeats=repeats,
-                              numpy_max_rays=numpy_max_rays, scaling=scaling, tag=tag)
+        opt = BenchOptions(position=tuple(cfg.positions[position]), scene_res=scene_res, synthetic=rays,
+                           methods=chosen, ladder=ladder, cube_res=cube_res, backends=names, repeats=repeats,
+                           numpy_max_rays=numpy_max_rays, scaling=scaling, tag=tag)
         t0 = time.perf_counter()
-        rows, scal, info = bm.run_bench(scene, opt, log=lambda s: console.print(
+        rows, scal, info = run_bench(scene, opt, log=lambda s: console.print(
             f"[{time.perf_counter() - t0:6.1f} s] {s}", highlight=False),
-            on_table=lambda rows, info: bm.write_outputs(rows, [], info, out))
-        files = bm.write_outputs(rows, scal, info, out)
+            on_table=lambda rows, info: write_outputs(rows, [], info, out))
+        files = write_outputs(rows, scal, info, out)
     except StudyError as err:
         _fail(err)
-    console.print(bm.markdown_table(rows, bm.BENCH_COLS), highlight=False, soft_wrap=True)
+    console.print(bench_table(rows), highlight=False, soft_wrap=True)
     console.print("wrote " + ", ".join(str(f) for f in files), highlight=False, soft_wrap=True)
 
 
 def _caustics(config, out, backend, cache, *, sweep: bool):
-    from study.caustic_study import fig8
     t0 = time.perf_counter()
     try:
         rows = fig8(config, out, backend=backend, cache=cache, sweep=sweep)
@@ -207,11 +235,12 @@ def caustics_sweep(config: Path = typer.Option(Path("configs/caustics_sweep.toml
 @app.command("methods")
 def list_methods():
     """List the registered localization methods and their parameters."""
-    from study import methods
     for name in methods.names():
         cls = methods.REGISTRY[name]
         params = ", ".join(f"{k}={f.default!r}" for k, f in cls.Params.model_fields.items())
-        console.print(f"{name}({params})", highlight=False)
+        knob = (f"  knob: {cls.knob.param} ∈ {{{', '.join(map(str, cls.knob.ladder))}}}" if cls.knob
+                else "  knob: none")
+        console.print(f"{name}({params})\n{knob}", highlight=False, soft_wrap=True)
 
 
 def main() -> None:

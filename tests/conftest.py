@@ -1,9 +1,9 @@
-"""Shared fixtures. Reference values are computed analytically (study.analytic) unless a test says otherwise."""
+"""Shared fixtures. Reference values are computed analytically (study.impostor.analytic) unless a test says otherwise."""
 import numpy as np
 import pytest
 
 from study import backend as backends
-from study import llvm
+from study import runtime as llvm
 
 
 def _llvm_ok() -> bool:

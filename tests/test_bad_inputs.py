@@ -160,7 +160,7 @@ def test_unwritable_output_and_bad_options(workdir):
 
 def test_corrupted_cached_impostor_is_recomputed_not_trusted(workdir):
     """A damaged cache entry is never trusted: the figure is recomputed and comes out identical."""
-    from study.results import read_csv
+    from study.tables import read_csv
     cfg = workdir / "ok.toml"
     cfg.write_text(FIG.format(**DEFAULT))
     args = ["figure", "fig4", "--config", str(cfg), "--cache", str(workdir / "cache")]

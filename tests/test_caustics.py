@@ -4,14 +4,16 @@ import math
 
 import numpy as np
 import pytest
+from conftest import BACKENDS, small_scene_dict
 
-from study import analytic, caustics, lightmap
 from study import backend as backends
 from study import methods
+from study.caustics import lightmap
+from study.caustics import photons as caustics
+from study.impostor import analytic
+from study.impostor.envmap import EnvMap
 from study.reference.embree import Tracer
 from study.scene import scene_from_dict
-
-from conftest import BACKENDS, small_scene_dict
 
 GLASS = {"shape": "sphere", "center": [0.6, 1.2, 0.3], "radius": 0.4,
          "material": {"type": "dielectric", "ior": 1.3}}
@@ -29,7 +31,7 @@ def tracer(scene):
 
 def _exact_env(scene, res, B):
     o = np.asarray(scene.reference.point)
-    return backends.EnvMap(analytic.box_impostor(res, np.asarray(scene.room.min) - o,
+    return EnvMap(analytic.box_impostor(res, np.asarray(scene.room.min) - o,
                                                  np.asarray(scene.room.max) - o), B)
 
 
@@ -121,19 +123,20 @@ def test_caustics_sweep_cli_end_to_end(tmp_path):
     """`study caustics-sweep` on a tiny config writes fig8.png, sweep.csv and sweep.png; 10 iterations place the
     light map closer to exact photon tracing than 0 iterations; a mirror object is one 'error:' line, exit 2."""
     from typer.testing import CliRunner
+
     from study.cli import app
-    from study.results import read_csv
+    from study.tables import read_csv
     cfg = tmp_path / "c.toml"
     cfg.write_text(SMALL_CAUSTICS.replace('"MATERIAL"', '"dielectric", ior = 1.3'))
     r = CliRunner().invoke(app, ["caustics-sweep", "--config", str(cfg), "--out", str(tmp_path / "o"),
                                  "--cache", str(tmp_path / "cache")])
     assert r.exit_code == 0, r.output
-    for f in ("fig8.png", "sweep.csv", "sweep.png", "fig8.csv"):
+    for f in ("fig8.png", "sweep/results.csv", "sweep.png", "fig8.csv"):
         assert (tmp_path / "o" / f).is_file()
-    rows = [x for x in read_csv(tmp_path / "o" / "sweep.csv") if x["method"] == "localized"]
+    rows = [x for x in read_csv(tmp_path / "o" / "sweep" / "results.csv") if x["method"] == "localized"]
     assert len(rows) == 4
     for res in (16, 32):
-        it = {x["iterations"]: x for x in rows if x["caustic_res"] == res}
+        it = {x["knob_value"]: x for x in rows if x["caustic_res"] == res}
         assert it[10.0]["lm_rmse"] < it[0.0]["lm_rmse"]
     cfg.write_text(SMALL_CAUSTICS.replace("MATERIAL", "mirror"))
     r = CliRunner().invoke(app, ["caustics-sweep", "--config", str(cfg), "--out", str(tmp_path / "o2")])

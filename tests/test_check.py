@@ -3,9 +3,9 @@ planted regression (the localized method forced to fewer iterations). `study rep
 import pytest
 from typer.testing import CliRunner
 
-from study.check import Tolerance, compare
 from study.cli import app
 from study.methods.localized import Localized
+from study.outputs.check import Tolerance, compare
 
 runner = CliRunner()
 

@@ -6,7 +6,7 @@ import pytest
 from typer.testing import CliRunner
 
 from study.cli import app
-from study.results import read_csv
+from study.tables import read_csv
 
 SMALL = """
 positions = [[0.0, 1.5, 0.0], [0.8, 1.1, 0.5], [1.4, 0.7, 1.0]]
@@ -46,7 +46,7 @@ def test_fig4_small_writes_grid_and_table(fig4_small):
     d, rows = fig4_small
     assert (d / "out" / "fig4.png").stat().st_size > 10_000
     assert len(rows) == 3 * 6                                         # 3 positions × (oracle + 5 methods)
-    for col in ("case", "method", "iterations", "angle_median_deg", "angle_p95_deg", "angle_max_deg",
+    for col in ("case", "method", "knob", "knob_value", "angle_median_deg", "angle_p95_deg", "angle_max_deg",
                 "dist_median", "rmse_oracle", "psnr_mitsuba", "ssim_mitsuba", "flip_mitsuba", "occluded_fraction"):
         assert col in rows[0]
 
@@ -97,7 +97,7 @@ def test_bad_method_parameter_in_config(tmp_path):
 
 
 def test_shipped_fig4_config_is_valid():
-    from study.config import load_figure_config
+    from study.harness.config import load_figure_config
     cfg, scene, methods = load_figure_config("configs/fig4.toml")
     assert len(cfg.positions) >= 3 and scene.reference.point == (0.0, 1.5, 0.0)
     assert {m.label for m in methods} >= {"classical", "localized(iterations=10)"}
@@ -106,7 +106,7 @@ def test_shipped_fig4_config_is_valid():
 
 def test_shipped_fig6_config_is_valid():
     """fig6 lists cases (override tables) rather than positions: glass sphere single and double, meshes."""
-    from study.config import load_figure_config
+    from study.harness.config import load_figure_config
     cfg, scene, methods = load_figure_config("configs/fig6.toml")
     names = [n for n, _, _ in cfg.case_list()]
     assert {"glass-sphere-single", "glass-sphere-double"} <= set(names)

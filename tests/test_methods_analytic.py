@@ -1,15 +1,16 @@
 """Every registered method on the analytic box room (exact distances, exact ray–box hits).
 
-Each case states its expected outcome; the expected values come from study.analytic, not from the methods.
+Each case states its expected outcome; the expected values come from study.impostor.analytic, not from the methods.
 """
 import numpy as np
 import pytest
-
-from study import analytic, methods
-from study import backend as backends
-from study.errors import StudyError
-
 from conftest import BACKENDS, BOX_HI, BOX_LO
+
+from study import backend as backends
+from study import methods
+from study.errors import StudyError
+from study.impostor import analytic
+from study.impostor.envmap import EnvMap
 
 RES = 256
 
@@ -20,7 +21,7 @@ def box_tex():
 
 
 def _shown(method, B, tex, x, d):
-    env = backends.EnvMap(tex, B)
+    env = EnvMap(tex, B)
     tr = method.trace(B, env, B.vec(x), B.vec(d))
     return B.to_numpy(tr.shown).astype(float), tr
 

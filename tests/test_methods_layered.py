@@ -1,13 +1,14 @@
-"""layered: depth layers (study.layers) searched with the paper's iteration; a column top hidden from o."""
+"""layered: depth layers (study.impostor.layers) searched with the paper's iteration; a column top hidden from o."""
 import numpy as np
 import pytest
+from conftest import small_scene_dict
 
 from study import backend as backends
-from study import cubemap, layers, methods
+from study import methods
+from study.impostor import cubemap, layers
+from study.impostor.envmap import EnvMap
 from study.reference.embree import Tracer
 from study.scene import scene_from_dict
-
-from conftest import small_scene_dict
 
 RES = 128
 COLUMN = {"center": [-0.8, 0.3], "footprint": [0.5, 0.5], "height": 2.0}    # top 0.5 m above o (1.5 m)
@@ -58,10 +59,10 @@ def test_layered_recovers_a_column_top_hidden_from_the_reference_point(column_la
     the radiance it reads (here: the surface point's position) belongs to that point."""
     s, o, tracer, tex, _ = column_layers
     x, d, exact = _top_rays(tracer, o)
-    loc = methods.make("localized", iterations=10).trace(B, backends.EnvMap(tex[0][..., [0, 1, 2, 4]], B),
+    loc = methods.make("localized", iterations=10).trace(B, EnvMap(tex[0][..., [0, 1, 2, 4]], B),
                                                            B.vec(x), B.vec(d))
     assert np.mean(np.linalg.norm(B.to_numpy(loc.shown) - exact, axis=1) > 0.1) >= 0.9
-    env = backends.EnvMap(tex[0], B, info={"reference": o, "layers": [backends.EnvMap(t, B) for t in tex]})
+    env = EnvMap(tex[0], B, info={"reference": o, "layers": [EnvMap(t, B) for t in tex]})
     for n_layers in (1, 2):
         lay = methods.make("layered", layers=n_layers, iterations=10).trace(B, env, B.vec(x), B.vec(d))
         err = np.linalg.norm(B.to_numpy(lay.shown) - exact, axis=1)
@@ -80,7 +81,7 @@ def test_false_position_on_the_top_layer_stops_on_the_skin(column_layers):
     s, o, tracer, tex, _ = column_layers
     B = backends.get("numpy")
     x, d, exact = _top_rays(tracer, o)
-    env1 = backends.EnvMap(tex[1], B)
+    env1 = EnvMap(tex[1], B)
     l = methods.make("localized", iterations=10).localize(B, env1, B.vec(x), B.vec(d)).l
     ch = env1.lookup(l)
     q = B.numpy(B.length(l)) / ch[-1]
@@ -113,7 +114,7 @@ def test_case_gives_layered_its_layers(tmp_path):
     """run_case with layered(layers=2) captures two layers through the cache (nothing recomputed on a second
     run) and reports a row for it with every ray valid."""
     from study.cache import Cache
-    from study.case import run_case
+    from study.evaluate.case import run_case
     s = scene_from_dict(small_scene_dict(columns=[COLUMN]))
     cache = Cache(tmp_path)
     ms = [methods.make("localized"), methods.make("layered", layers=2)]

@@ -1,14 +1,14 @@
 """linear_secant against the paper's false position on an Embree-captured impostor with a near column."""
 import numpy as np
 import pytest
+from conftest import small_scene_dict
 
 from study import backend as backends
 from study import methods
-from study.capture import capture_distance
+from study.impostor.capture import capture_distance
+from study.impostor.envmap import EnvMap
 from study.reference.embree import Tracer
 from study.scene import scene_from_dict
-
-from conftest import small_scene_dict
 
 RES = 128
 
@@ -25,7 +25,7 @@ def column_room():
 
 
 def _shown(name, B, tex, x, d, check_origin=True, **kw):
-    tr = methods.make(name, **kw).trace(B, backends.EnvMap(tex, B), B.vec(x), B.vec(d), check_origin=check_origin)
+    tr = methods.make(name, **kw).trace(B, EnvMap(tex, B), B.vec(x), B.vec(d), check_origin=check_origin)
     return B.to_numpy(tr.shown).astype(float), B.numpy(tr.valid).astype(bool)
 
 

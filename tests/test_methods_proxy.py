@@ -1,12 +1,13 @@
-"""proxy_box and proxy_sphere on analytic environments (study.analytic): exact where the environment is the proxy."""
+"""proxy_box and proxy_sphere on analytic environments (study.impostor.analytic): exact where the environment is the proxy."""
 import numpy as np
 import pytest
-
-from study import analytic, methods
-from study import backend as backends
-from study.methods.proxy_sphere import fibonacci_directions
-
 from conftest import BOX_HI, BOX_LO
+
+from study import backend as backends
+from study import methods
+from study.impostor import analytic
+from study.impostor.envmap import EnvMap
+from study.methods.proxy_sphere import fibonacci_directions
 
 O = np.array([0.0, 1.5, 0.0])                    # the reference point, world
 
@@ -17,7 +18,7 @@ def box_tex():
 
 
 def _trace(m, B, tex, x, d, info=None):
-    tr = m.trace(B, backends.EnvMap(tex, B, info=info), B.vec(x), B.vec(d))
+    tr = m.trace(B, EnvMap(tex, B, info=info), B.vec(x), B.vec(d))
     return B.to_numpy(tr.l).astype(float), B.to_numpy(tr.shown).astype(float), B.numpy(tr.valid).astype(bool)
 
 
@@ -75,8 +76,8 @@ def test_proxy_sphere_fit_is_the_mean_room_distance(box_tex):
     wall points."""
     from study.methods.proxy_sphere import fitted_radius
     B = backends.get("numpy")
-    a = fitted_radius(B, backends.EnvMap(box_tex, B))
-    b = fitted_radius(B, backends.EnvMap(box_tex, B, info={"reference": O, "room": (O + BOX_LO, O + BOX_HI)}))
+    a = fitted_radius(B, EnvMap(box_tex, B))
+    b = fitted_radius(B, EnvMap(box_tex, B, info={"reference": O, "room": (O + BOX_LO, O + BOX_HI)}))
     assert abs(a - b) / b < 0.005 and 1.5 < b < 3.2
     w = fibonacci_directions(1000)
     np.testing.assert_allclose(np.linalg.norm(w, axis=1), 1.0)

@@ -5,8 +5,10 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from study import analytic, cubemap, methods
 from study import backend as backends
+from study import methods
+from study.impostor import analytic, cubemap
+from study.impostor.envmap import EnvMap
 
 B = backends.get("numpy")
 SETTINGS = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -33,7 +35,7 @@ def rays_in(lo, hi, n, seed, fill=0.8):
 def test_no_nan_and_shown_points_on_the_environment_surface(room, res, seed, name, iterations):
     lo, hi = room
     tex = analytic.box_impostor(res, lo, hi)
-    env = backends.EnvMap(tex, B)
+    env = EnvMap(tex, B)
     x, d = rays_in(lo, hi, 500, seed)
     params = {"iterations": iterations} if "iterations" in methods.REGISTRY[name].Params.model_fields else {}
     with np.errstate(all="ignore"):
@@ -72,7 +74,7 @@ def test_localized_converges_to_the_analytic_hit_with_an_exact_environment(room,
 @given(room=rooms(), seed=st.integers(0, 2**31 - 1), name=st.sampled_from(methods.names()))
 def test_rays_starting_outside_the_environment_are_flagged(room, seed, name):
     lo, hi = room
-    env = backends.EnvMap(analytic.box_impostor(16, lo, hi), B)
+    env = EnvMap(analytic.box_impostor(16, lo, hi), B)
     rng = np.random.default_rng(seed)
     axis = rng.integers(0, 3, 300)
     x = rng.uniform(lo * 0.9, hi * 0.9, (300, 3))

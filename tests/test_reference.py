@@ -1,15 +1,14 @@
 """Exact references against analytic answers: Embree hits, captured distances, EXR storage, the cache."""
 import numpy as np
 import pytest
+from conftest import small_scene_dict
 
-from study import analytic, cubemap
 from study.cache import Cache
-from study.capture import Impostor, capture_distance, read_exr, write_exr
 from study.errors import StudyError
+from study.impostor import analytic, cubemap
+from study.impostor.capture import Impostor, capture_distance, read_exr, write_exr
 from study.reference.embree import Tracer
 from study.scene import scene_from_dict
-
-from conftest import small_scene_dict
 
 
 @pytest.fixture(scope="module")

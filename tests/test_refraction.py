@@ -1,13 +1,18 @@
 """Refraction and mesh objects against independent answers: Snell's law traced here by angles (not by
-study.optics' vector form), an analytic glass cube for total internal reflection, trimesh/Embree for meshes, and
+study.optics.interfaces' vector form), an analytic glass cube for total internal reflection, trimesh/Embree for meshes, and
 Mitsuba for the glass sphere's image."""
 import numpy as np
 import pytest
 
-from study import analytic, methods, objects, optics, shading
 from study import backend as backends
+from study import methods
 from study.errors import StudyError
-from study.scene import scene_from_dict
+from study.impostor import analytic
+from study.impostor.envmap import EnvMap
+from study.optics import interfaces as optics
+from study.optics import shading
+from study.optics.distance_map import DistanceMap
+from study.scene import objects, scene_from_dict
 from tests.conftest import BOX_HI, BOX_LO, small_scene_dict
 
 GLASS = {"type": "dielectric", "ior": 1.5}
@@ -58,7 +63,7 @@ def test_double_refraction_through_sphere_matches_snell_trace_with_exact_environ
     # ----- the method on the exact environment: the box room around the reference point
     o = np.array(sc.reference.point)
     B = backends.get("numpy")
-    env = backends.EnvMap(analytic.box_impostor(512, BOX_LO, BOX_HI), B)
+    env = EnvMap(analytic.box_impostor(512, BOX_LO, BOX_HI), B)
     tr = methods.make("localized", iterations=40).trace(B, env, B.vec(e - o), B.vec(out))
     shown = B.to_numpy(tr.shown).astype(float)
     exact = analytic.box_hit(e - o, out, BOX_LO, BOX_HI)
@@ -174,7 +179,7 @@ def test_distance_map_exit_of_a_sphere_is_close_to_the_closed_form():
     surface (random incoming directions, n = 1.5: inside within 41.8° of the inward normal)."""
     sc = glass_scene()
     g = objects.geometry(sc)
-    dm = objects.DistanceMap(g, 128)
+    dm = DistanceMap(g, 128)
     rng = np.random.default_rng(3)
     nrm = rng.normal(size=(500, 3)); nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
     x = g.center + g.radius * nrm
@@ -192,7 +197,7 @@ def test_distance_map_exit_of_a_sphere_is_close_to_the_closed_form():
 @pytest.fixture(scope="module")
 def glass_cases(tmp_path_factory):
     from study.cache import Cache
-    from study.case import run_case
+    from study.evaluate.case import run_case
     cache = Cache(tmp_path_factory.mktemp("cache"))
     ms = [methods.make("classical"), methods.make("localized", iterations=10)]
     kw = dict(camera={"eye": [-0.3, 1.7, -1.9], "target": [0.6, 1.2, 0.3], "fov": 30.0, "width": 48, "height": 48})
@@ -229,7 +234,8 @@ def test_glass_sphere_end_to_end(glass_cases):
 def test_mitsuba_gets_the_same_triangles_and_normals():
     """Camera rays against Mitsuba's mesh of a rotated torus (room included) and against the object's Embree
     scene: the same rays hit the object, at the same distance (1e-4 m) with the same shading normal (0.5°)."""
-    from study.reference.mitsuba import mi, scene_dict, _sensor
+    from study.reference.mitsuba import mi, scene_dict
+    from study.reference.mitsuba import sensor as _sensor
     from study.scene import camera_rays
     m = mi()
     sc = glass_scene(shape="torus")

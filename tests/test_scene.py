@@ -1,10 +1,9 @@
 """Scene validation: each invalid input gives one StudyError naming the file, the key and what is allowed."""
 import pytest
+from conftest import small_scene_dict
 
 from study.errors import StudyError
 from study.scene import load_scene, scene_from_dict
-
-from conftest import small_scene_dict
 
 
 def test_shipped_scene_loads():

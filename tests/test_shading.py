@@ -2,14 +2,16 @@
 import numpy as np
 import pytest
 
-from study import shading
+from study.optics import interfaces as optics
+from study.optics import shading
+from study.scene import objects
 
 
 def test_reflect_and_sphere_hit():
     V = np.array([[0.0, -1.0, 0.0]])
     N = np.array([[0.0, 1.0, 0.0]])
-    np.testing.assert_allclose(shading.reflect(V, N), [[0.0, 1.0, 0.0]])
-    t = shading.intersect_sphere(np.array([[0.0, 0.0, -5.0], [0.0, 3.0, -5.0]]),
+    np.testing.assert_allclose(optics.reflect(V, N), [[0.0, 1.0, 0.0]])
+    t = objects.intersect_sphere(np.array([[0.0, 0.0, -5.0], [0.0, 3.0, -5.0]]),
                                  np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]), [0, 0, 0], 1.0)
     assert t[0] == pytest.approx(4.0) and np.isinf(t[1])
 

@@ -12,8 +12,9 @@ from pathlib import Path
 import pytest
 
 from study.errors import StudyError
-from study.results import read_csv
-from study.sweep import load_sweep, run_sweep
+from study.harness.runner import run_sweep
+from study.harness.sweep import load_sweep
+from study.tables import read_csv
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,16 +1,43 @@
-"""Localization methods, one file each, registered by name. Every module of this package is imported here, so
-adding a method means adding a file and nothing else."""
+"""Localization methods: the contract (``base``) and one file per method, registered by name.
+
+Every module of this package is imported here, so adding a method to study means adding a file and nothing else.
+Methods from outside the package register the same way (``@register``) from a module that study imports at start:
+one named by ``--plugin MODULE`` on the command line or in the environment variable ``STUDY_PLUGINS``
+(comma-separated; worker processes inherit it), or one advertised under the entry-point group ``study.methods``.
+"""
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
+import os
 import pkgutil
 
 from study.errors import StudyError
-from study.methods.base import REGISTRY, Localization, Method, Trace, register
+from study.methods.base import REGISTRY, Knob, Localization, Method, Trace, register
 
 for _m in pkgutil.iter_modules(__path__):
     if _m.name != "base":
         importlib.import_module(f"{__name__}.{_m.name}")
+
+PLUGIN_ENV = "STUDY_PLUGINS"
+
+
+def load_plugins(modules: list[str] | tuple[str, ...] = ()) -> list[str]:
+    """Import the plugin modules named in ``modules``, in ``$STUDY_PLUGINS`` and under the entry-point group
+    ``study.methods``; their ``@register`` calls add methods. The named modules are added to ``$STUDY_PLUGINS``
+    so that worker processes load them too. Returns the modules loaded."""
+    names = [m for m in os.environ.get(PLUGIN_ENV, "").split(",") if m.strip()] + list(modules)
+    names = list(dict.fromkeys(n.strip() for n in names))
+    for n in names:
+        try:
+            importlib.import_module(n)
+        except ImportError as err:
+            raise StudyError(f"cannot import the plugin module ({err})", key=n) from None
+    if names:
+        os.environ[PLUGIN_ENV] = ",".join(names)
+    for ep in importlib.metadata.entry_points(group="study.methods"):
+        ep.load()
+    return names
 
 
 def names() -> list[str]:
@@ -24,4 +51,10 @@ def make(name: str, **params) -> Method:
     return REGISTRY[name](**params)
 
 
-__all__ = ["Localization", "Method", "Trace", "make", "names", "register", "REGISTRY"]
+def all_methods() -> list[Method]:
+    """Every registered method with its default parameters, in name order."""
+    return [make(n) for n in names()]
+
+
+__all__ = ["Knob", "Localization", "Method", "Trace", "all_methods", "load_plugins", "make", "names", "register",
+           "REGISTRY"]

@@ -19,12 +19,18 @@ o + l̂·|l'| (returned relative to o), its radiance, and the diagnostic |l|/|l'
 surface; for ``classical`` it is 1/|R'| and carries no meaning). Methods are registered by name (``@register``) and take
 their parameters as keyword arguments, validated by the class's ``Params`` model (unknown names are errors).
 
-Scene knowledge (optional): ``env.info`` is a dict that the caller (``study.case``) fills with what it knows; a
+What the harness needs to know about a method it reads from the class, never from parameter names:
+    knob : Knob | None     the one parameter that trades cost for accuracy and the ladder of values that error
+                           curves, the bench and claims try (None: the method has no such parameter)
+    lookups_per_ray()      the cost measure of the method-comparison table
+    layers_needed()        depth layers of the impostor it searches (captured by the caller when > 1)
+
+Scene knowledge (optional): ``env.info`` is a dict that the caller (``study.evaluate.case``) fills with what it knows; a
 method must still run when a key is missing (on a bare impostor, as in the analytic tests) and says what it falls
 back to. Keys, all in world coordinates (metres):
     "reference" : (3,) the reference point o (methods work relative to it)
     "room"      : ((3,), (3,)) the room box (min, max)
-    "layers"    : list[EnvMap] the layered impostor, nearest layer first (see :mod:`study.layers`); present when
+    "layers"    : list[EnvMap] the layered impostor, nearest layer first (see :mod:`study.impostor.layers`); present when
                   some method's :meth:`Method.layers_needed` asked for more than one layer
 """
 from __future__ import annotations
@@ -35,8 +41,17 @@ from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from study.backend import Backend, EnvMap, V3
+from study.backend import V3, Backend
 from study.errors import StudyError
+from study.impostor.envmap import EnvMap
+from study.validation import first_error
+
+
+@dataclass(frozen=True)
+class Knob:
+    """The parameter of a method that trades cost for accuracy, and the values curves and the bench try."""
+    param: str                      # name of the parameter in the method's Params
+    ladder: tuple                   # values tried by error-vs-cost curves, ``study bench`` and claims
 
 
 class NoParams(BaseModel):
@@ -61,15 +76,15 @@ class Trace:
 class Method(ABC):
     name: ClassVar[str]
     Params: ClassVar[type[BaseModel]] = NoParams
+    knob: ClassVar[Knob | None] = None
 
     def __init__(self, **params):
         try:
             self.params = self.Params(**params)
         except ValidationError as err:
-            e = err.errors()[0]
-            key = ".".join(str(p) for p in e["loc"])
+            key, msg = first_error(err, self.Params)
+            msg = "unknown parameter" if msg.startswith("unknown key") else msg
             allowed = ", ".join(self.Params.model_fields) or "none"
-            msg = "unknown parameter" if e["type"] == "extra_forbidden" else e["msg"]
             raise StudyError(f"{msg} (parameters of {self.name!r}: {allowed})",
                              key=f"method.{key}" if key else "method") from None
 
@@ -79,10 +94,34 @@ class Method(ABC):
 
     @property
     def label(self) -> str:
-        """Label for tables and figures: the name and the parameters that were set, e.g.
-        'localized(iterations=10)'; just the name when none was set."""
-        args = ", ".join(f"{k}={v!r}" for k, v in self.params.model_dump(exclude_unset=True).items())
+        """Label for tables and figures: the name, the knob's value and the other parameters that were set, e.g.
+        'localized(iterations=10)'; just the name for a method without a knob and with nothing set."""
+        shown = self.params.model_dump(exclude_unset=True)
+        if self.knob is not None:
+            shown = {self.knob.param: self.knob_value, **{k: v for k, v in shown.items() if k != self.knob.param}}
+        args = ", ".join(f"{k}={v!r}" for k, v in shown.items())
         return f"{self.name}({args})" if args else self.name
+
+    @property
+    def knob_value(self):
+        """The value of the cost/accuracy knob (None without a knob)."""
+        return getattr(self.params, self.knob.param) if self.knob is not None else None
+
+    def family(self) -> str:
+        """The label without the knob: the curve this method belongs to in an error-vs-knob plot."""
+        shown = {k: v for k, v in self.params.model_dump(exclude_unset=True).items()
+                 if self.knob is None or k != self.knob.param}
+        args = ", ".join(f"{k}={v!r}" for k, v in shown.items())
+        return f"{self.name}({args})" if args else self.name
+
+    def with_knob(self, value) -> "Method":
+        """The same method with the knob set to ``value``."""
+        params = {**self.params.model_dump(exclude_unset=True), self.knob.param: value}
+        return type(self)(**params)
+
+    def ladder(self) -> list["Method"]:
+        """This method at every value of its knob's ladder (itself alone without a knob)."""
+        return [self.with_knob(v) for v in self.knob.ladder] if self.knob is not None else [self]
 
     @abstractmethod
     def localize(self, B: Backend, env: EnvMap, x: V3, R: V3) -> Localization:

@@ -1,7 +1,7 @@
 """Layered distance maps (GPU Gems 3 ch. 17; Hakura and Snyder 2001): every depth layer searched, nearest clean
 hit kept.
 
-Layers come from ``env.info["layers"]`` (:mod:`study.layers`: layer k holds the (k+1)-th surface seen from the
+Layers come from ``env.info["layers"]`` (:mod:`study.impostor.layers`: layer k holds the (k+1)-th surface seen from the
 reference point o, channels R, G, B, jump, distance); on a bare impostor without layers, the impostor itself is
 the only layer (no jump channel, so no hit is ever rejected as skin).
 
@@ -10,7 +10,7 @@ t = d/(d + a) parameterization, n = max(n_max (1 − x̂·R)/2, n_min) steps alo
 g_k(t) = |p(t)| − (1 − t) |p(t)'|_k, recording the first TWO sign changes of each layer in either direction
 (under → over: the ray passes a surface that faces o; over → under: a surface that faces away from o, such as a
 column top seen from below, which is how a layer behind the first holds it); each is refined by ``iterations``
-Illinois secant steps. One lookup at each refined point reads q = |l|/|l'|_k, the layer's relative depth jump and
+Illinois secant steps (both phases from the search core :mod:`study.methods.search`). One lookup at each refined point reads q = |l|/|l'|_k, the layer's relative depth jump and
 the radiance. A crossing is *clean* where |q − 1| ≤ ``tolerance`` and the jump is below ``max_jump``; a crossing
 on a depth discontinuity is the "skin" that bilinear interpolation stretches from a silhouette to what lies behind
 it, not a surface.
@@ -26,13 +26,15 @@ point and radiance come from the layer the hit was kept from (``trace`` is overr
 """
 from __future__ import annotations
 
+from functools import partial
 from typing import Annotated
 
 from pydantic import Field
 
 from study.backend import V3
-from study.methods.base import Localization, Method, Trace, register
-from study.methods.linear_secant import LinearSearchParams, secant_update
+from study.methods.base import Knob, Localization, Method, Trace, register
+from study.methods.linear_secant import LinearSearchParams
+from study.methods.search import refine, secant_point, sign_changes
 
 
 class Params(LinearSearchParams):                                # + linear_steps, min_linear_steps
@@ -46,6 +48,7 @@ class Params(LinearSearchParams):                                # + linear_step
 class Layered(Method):
     name = "layered"
     Params = Params
+    knob = Knob("linear_steps", (15, 30, 60, 120))    # a finer linear search steps over fewer thin crossings
 
     def layers_needed(self) -> int:
         return self.params.layers
@@ -70,37 +73,18 @@ class Layered(Method):
             return B.length(pt) - (1.0 - t) * m.distance(pt)
 
         # ------------------------------------------------------------- linear search: first two sign changes
-        never = zero != zero
-        g_prev = [g(m, zero) for m in maps]
-        # found, ta, ga, tb, gb (a harmless dummy bracket until found, so that refining it stays finite)
-        cross = [[[never, zero, zero - 1.0, zero + 1.0, zero + 1.0] for _ in range(2)] for _ in maps]
-        t_prev = zero
-        for k in range(1, p.linear_steps + 1):
-            t = B.minimum(dt * float(k), 1.0)
-            for i, m in enumerate(maps):
-                gt = g(m, t)
-                change = (g_prev[i] < 0.0) != (gt < 0.0)
-                (f1, *b1), (f2, *b2) = cross[i]
-                new1, new2 = change & ~f1, change & f1 & ~f2
-                cross[i] = [[f1 | new1, *(B.select(new1, v, o) for v, o in zip((t_prev, g_prev[i], t, gt), b1))],
-                            [f2 | new2, *(B.select(new2, v, o) for v, o in zip((t_prev, g_prev[i], t, gt), b2))]]
-                g_prev[i] = gt
-            t_prev = t
-            B.eval(*g_prev, *(v for c in cross for b in c for v in b))   # one small kernel per step (Dr.Jit)
+        # per layer, two brackets (a harmless dummy bracket until found, so that refining it stays finite)
+        dummy = (zero, zero - 1.0, zero + 1.0, zero + 1.0)
+        cross = sign_changes(B, lambda t: [g(m, t) for m in maps], zero, [g(m, zero) for m in maps], dt,
+                             p.linear_steps, count=2, t_max=1.0, default=dummy)
 
         # ------------------------------------------------------------- secant refinement, test, nearest kept
         big = 1e30
         best = None
         for i, m in enumerate(maps):
-            for j, (found, ta, ga, tb, gb) in enumerate(cross[i]):
-                side = zero                            # Illinois: +1 last replaced a, −1 replaced b
-                for _ in range(p.iterations):
-                    t = ta - ga * (tb - ta) / (gb - ga)
-                    gt = g(m, t)
-                    same_a = (gt < 0.0) == (ga < 0.0)      # t lies on a's side of the crossing
-                    ta, ga, tb, gb, side = secant_update(B, same_a, t, gt, ta, ga, tb, gb, side)
-                    B.eval(ta, ga, tb, gb, side)
-                t = ta - ga * (tb - ta) / (gb - ga)
+            for j, br in enumerate(cross[i]):
+                br = refine(B, partial(g, m), br, p.iterations)      # Illinois secant steps
+                t, found = secant_point(br), br.found
                 l = point(t) / B.maximum(1.0 - t, 1e-7)          # x + R d(t)
                 ch = m.lookup(l)
                 dist = ch[-1]

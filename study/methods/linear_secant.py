@@ -9,7 +9,7 @@ g(t) = |p(t)| − (1 − t) |p(t)'| (|v'| the stored distance towards v), g < 0 
 ("undershoot", the paper's |l|/|l'| < 1), g > 0 behind it. g(1) = a > 0, so every ray that starts in front of the
 surface has a crossing.
 
-Phases: (1) linear search for the FIRST pair of consecutive samples with g < 0 then g ≥ 0; (2) ``secant_steps``
+Phases (the search core :mod:`study.methods.search`): (1) linear search for the FIRST pair of consecutive samples with g < 0 then g ≥ 0; (2) ``secant_steps``
 secant (false-position) steps on g inside that bracket, keeping the side by the sign of g, by default with the
 Illinois rule (when the same end is replaced twice in a row, the other end's g is halved; plain false position
 stalls on one side and left errors of centimetres after 10 steps on a column face); the result is the secant
@@ -24,7 +24,8 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from study.methods.base import Localization, Method, register
+from study.methods.base import Knob, Localization, Method, register
+from study.methods.search import first_crossing, refine, secant_point
 
 
 class LinearSearchParams(BaseModel):
@@ -45,23 +46,11 @@ class Params(LinearSearchParams):
     illinois: bool = True                                        # Illinois rule against one-sided stagnation
 
 
-def secant_update(B, replace_a, t, gt, ta, ga, tb, gb, side, *, illinois: bool = True):
-    """One bracket update of the secant (regula falsi) search: the new point (t, g(t)) replaces end a where
-    ``replace_a``, else end b. ``side`` remembers which end the last step replaced (+1 a, −1 b); with the
-    Illinois rule, an end replaced twice in a row halves the other end's g against one-sided stagnation.
-    Returns (ta, ga, tb, gb, side)."""
-    if illinois:
-        gb = B.select(replace_a & (side > 0.0), gb * 0.5, gb)
-        ga = B.select(~replace_a & (side < 0.0), ga * 0.5, ga)
-    ta, ga = B.select(replace_a, t, ta), B.select(replace_a, gt, ga)
-    tb, gb = B.select(replace_a, tb, t), B.select(replace_a, gb, gt)
-    return ta, ga, tb, gb, B.select(replace_a, side * 0.0 + 1.0, side * 0.0 - 1.0)
-
-
 @register
 class LinearSecant(Method):
     name = "linear_secant"
     Params = Params
+    knob = Knob("linear_steps", (10, 30, 60, 120))    # a finer linear search steps over fewer thin crossings
 
     def localize(self, B, env, x, R):
         p = self.params
@@ -78,33 +67,15 @@ class LinearSecant(Method):
 
         # ------------------------------------------------------------- linear search for the first crossing
         zero = xl * 0.0
-        t_prev, g_prev = zero, g(zero)                 # sample k − 1
-        found = g_prev != g_prev                       # all False
-        t_l, g_l, t_p, g_p = zero, g_prev, zero + 1.0, a   # bracket: last undershoot, first overshoot
-        for k in range(1, p.linear_steps + 1):
-            t = B.minimum(dt * float(k), 1.0)
-            gt = g(t)
-            cross = ~found & (g_prev < 0.0) & (gt >= 0.0)
-            t_l, g_l = B.select(cross, t_prev, t_l), B.select(cross, g_prev, g_l)
-            t_p, g_p = B.select(cross, t, t_p), B.select(cross, gt, g_p)
-            found = found | cross
-            t_prev, g_prev = t, gt
-            B.eval(t_l, g_l, t_p, g_p, found, g_prev)  # one small kernel per step (Dr.Jit compiles it fast)
+        g0 = g(zero)
+        # bracket: last undershoot, first overshoot (no crossing: the whole arc, t = 0 to the point at infinity)
+        br = first_crossing(B, g, zero, g0, dt, p.linear_steps, t_max=1.0, default=(zero, g0, zero + 1.0, a))
 
         # ------------------------------------------------------------- secant steps inside the bracket
-        def secant():
-            return t_l - g_l * (t_p - t_l) / (g_p - g_l)
-
-        side = zero                                    # +1: last step replaced t_l, −1: t_p, 0: none yet
-        for _ in range(p.secant_steps):
-            t = secant()
-            gt = g(t)
-            t_l, g_l, t_p, g_p, side = secant_update(B, gt < 0.0, t, gt, t_l, g_l, t_p, g_p, side,
-                                                     illinois=p.illinois)
-            B.eval(t_l, g_l, t_p, g_p, side)
-        t = secant()
+        br = refine(B, g, br, p.secant_steps, illinois=p.illinois, rising=True)
+        t = secant_point(br)
         l = (x * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)   # x + R d(t)
-        return Localization(l=l, valid=found & B.isfinite(t))
+        return Localization(l=l, valid=br.found & B.isfinite(t))
 
     def lookups_per_ray(self) -> int:
         # g(0), the linear steps (the vectorized loop spends n_max on every ray; rays with a shorter arc repeat

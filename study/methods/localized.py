@@ -11,7 +11,7 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from study.methods.base import Localization, Method, register
+from study.methods.base import Knob, Localization, Method, register
 
 
 class Params(BaseModel):
@@ -25,6 +25,7 @@ class Params(BaseModel):
 class Localized(Method):
     name = "localized"
     Params = Params
+    knob = Knob("iterations", (0, 1, 3, 10, 20))      # false-position steps
 
     def localize(self, B, env, x, R):
         p = self.params

@@ -15,6 +15,7 @@ from typing import Optional
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
+from study.errors import StudyError
 from study.methods.base import Localization, Method, register
 
 Vec3 = tuple[float, float, float]
@@ -54,7 +55,6 @@ class ProxyBox(Method):
     def localize(self, B, env, x, R):
         p = self.params
         if (p.box_min is None) != (p.box_max is None):
-            from study.errors import StudyError
             raise StudyError("give both box_min and box_max, or neither", key="method.box_min")
         if p.box_min is None:
             lo, hi = room_box(B, env)

@@ -18,8 +18,8 @@ from typing import Annotated, Optional
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from study import analytic
 from study.backend import V3
+from study.impostor import analytic
 from study.methods.base import Localization, Method, register
 from study.methods.proxy_box import reference_point
 

@@ -1,20 +1,35 @@
 """Exact first hits with Embree (embreex) on the very triangles Mitsuba renders (:func:`study.scene.room_mesh`)."""
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from study.scene import RoomMesh
 
 
 class Tracer:
-    """Embree scene of a :class:`RoomMesh`. ``intersect`` releases the GIL; float32 inside, as Embree is."""
+    """Embree scene of a :class:`RoomMesh`. ``intersect`` releases the GIL; float32 inside, as Embree is.
 
-    def __init__(self, mesh: RoomMesh):
+    ``threads`` (default: every core) is how many chunks :meth:`distance` casts at once."""
+
+    def __init__(self, mesh: RoomMesh, *, threads: int | None = None):
         from embreex import rtcore_scene as rtcs
         from embreex.mesh_construction import TriangleMesh
         self.mesh = mesh
         self.scene = rtcs.EmbreeScene()
         TriangleMesh(self.scene, mesh.vertices.astype(np.float32), mesh.faces.astype(np.int32))
+        self.threads = max(1, threads or os.cpu_count() or 1)
+        self._pool: tuple[int, ThreadPoolExecutor] | None = None     # (pid, pool), made on first use
+
+    @classmethod
+    def from_triangles(cls, V: np.ndarray, F: np.ndarray, *, threads: int | None = None) -> "Tracer":
+        """A tracer of raw triangles (V, 3), (F, 3): one untextured surface (uv and surface ids all zero)."""
+        V = np.ascontiguousarray(V, np.float32).reshape(-1, 3)
+        F = np.ascontiguousarray(F, np.int32).reshape(-1, 3)
+        mesh = RoomMesh(V, F, np.zeros((len(V), 2), np.float32), np.zeros(len(F), np.int32), ("triangles",))
+        return cls(mesh, threads=threads)
 
     def intersect(self, o: np.ndarray, d: np.ndarray, *, chunk: int = 1 << 20) -> dict[str, np.ndarray]:
         """First hits of rays o + t d (t > 0): (N, 3) each.
@@ -42,5 +57,27 @@ class Tracer:
         return {"t": t, "point": point, "prim": prim, "surface": surface, "uv": np.where(hit[:, None], uv, np.nan)}
 
     def distance(self, o: np.ndarray, d: np.ndarray) -> np.ndarray:
-        """|hit − o| for unit directions d (inf on a miss)."""
-        return self.intersect(o, d)["t"]
+        """|hit − o| for unit directions d (inf on a miss): (N,) float64, the ``t`` of :meth:`intersect`.
+
+        Only the hit distance is asked of Embree; batches of 4096 rays or more are cut into ``threads`` chunks
+        cast at once (embreex releases the GIL)."""
+        o = np.ascontiguousarray(o, np.float32).reshape(-1, 3)
+        d = np.ascontiguousarray(d, np.float32).reshape(-1, 3)
+        t = np.empty(len(o))
+
+        def cast(a: int, b: int) -> None:
+            res = self.scene.run(o[a:b], d[a:b], output=1)
+            t[a:b] = np.where(res["geomID"] != -1, res["tfar"], np.inf)
+
+        if self.threads == 1 or len(o) < 4096:
+            cast(0, len(o))
+            return t
+        cuts = np.linspace(0, len(o), self.threads + 1).astype(int)
+        list(self._executor().map(cast, cuts[:-1], cuts[1:]))         # list(): wait, and raise a chunk's error
+        return t
+
+    def _executor(self) -> ThreadPoolExecutor:
+        # made lazily and again in a forked child (a parent's pool has no threads there)
+        if self._pool is None or self._pool[0] != os.getpid():
+            self._pool = (os.getpid(), ThreadPoolExecutor(self.threads, thread_name_prefix="embree"))
+        return self._pool[1]

@@ -10,26 +10,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from study import llvm
-from study.cubemap import FACES
+from study import runtime
 from study.scene import SURFACES, Scene, texture
-
-_variant: str | None = None
+from study.scene.objects import object_mesh as make_object_mesh
 
 
 def mi(variant: str = "llvm_ad_rgb"):
-    """The mitsuba module with a variant set (LLVM checked first, so Dr.Jit never loads libLLVM 15)."""
-    global _variant
-    if variant.startswith("llvm"):
-        llvm.require()
-    import mitsuba
-    if _variant != variant:
-        mitsuba.set_variant(variant)
-        _variant = variant
-    return mitsuba
+    """The mitsuba module with ``variant`` set (:func:`study.runtime.mitsuba`)."""
+    return runtime.mitsuba(variant)
 
 
-def _mesh(m, name, V, F, UV, bsdf):
+def triangle_mesh(m, name, V, F, UV, bsdf):
+    """A Mitsuba mesh of triangles (V, F) with texture coordinates UV and a loaded BSDF."""
     props = m.Properties()
     props["bsdf"] = bsdf
     mesh = m.Mesh(name, len(V), len(F), props=props, has_vertex_texcoords=True)
@@ -67,7 +59,7 @@ def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dic
         V, F, UV = mesh.part(sid)
         bsdf = m.load_dict({"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": {
             "type": "bitmap", "bitmap": m.Bitmap(texture(name)), "raw": True, "filter_type": "bilinear"}}})
-        d[f"surface_{sid}"] = _mesh(m, name, V, F, UV, bsdf)
+        d[f"surface_{sid}"] = triangle_mesh(m, name, V, F, UV, bsdf)
     if with_object and scene.object.shape == "sphere":
         d["object"] = {"type": "sphere", "center": list(scene.object.center), "radius": scene.object.radius,
                        "bsdf": object_bsdf(scene)}
@@ -77,11 +69,10 @@ def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dic
 
 
 def object_mesh(scene: Scene):
-    """The object's triangles (:func:`study.objects.object_mesh`, the ones Embree intersects) with their smooth
+    """The object's triangles (:func:`study.scene.objects.object_mesh`, the ones Embree intersects) with their smooth
     vertex normals, as a Mitsuba mesh with the object's BSDF."""
-    from study.objects import object_mesh as make
     m = mi()
-    om = make(scene.object)
+    om = make_object_mesh(scene.object)
     props = m.Properties()
     props["bsdf"] = m.load_dict(object_bsdf(scene))
     mesh = m.Mesh("object", len(om.vertices), len(om.faces), props=props, has_vertex_normals=True)
@@ -93,7 +84,7 @@ def object_mesh(scene: Scene):
     return mesh
 
 
-def _sensor(origin, target, up, fov, width, height, spp, seed, *, jitter=True) -> dict:
+def sensor(origin, target, up, fov, width, height, spp, seed, *, jitter=True) -> dict:
     m = mi()
     sampler = ({"type": "independent", "sample_count": spp, "seed": seed} if jitter else
                {"type": "stratified", "sample_count": 1, "jitter": False, "seed": seed})
@@ -109,25 +100,13 @@ def render_camera(scene: Scene, *, with_object: bool = True, spp: int | None = N
     """The camera's view, path traced: (H, W, 3) float32 linear RGB."""
     m = mi()
     c = scene.camera
-    sensor = _sensor(c.eye, c.target, c.up, c.fov, c.width, c.height, spp or scene.render.spp, scene.render.seed)
-    sc = m.load_dict(scene_dict(scene, with_object=with_object, sensor=sensor))
+    cam = sensor(c.eye, c.target, c.up, c.fov, c.width, c.height, spp or scene.render.spp, scene.render.seed)
+    sc = m.load_dict(scene_dict(scene, with_object=with_object, sensor=cam))
     return np.array(m.render(sc, seed=scene.render.seed), dtype=np.float32)
 
 
-def render_cube(scene: Scene, res: int, spp: int) -> np.ndarray:
-    """Radiance of the environment seen from the reference point, without the object: (6, R, R, 3) float32.
-
-    Each face is a perspective render (fov 90) along the face's forward axis with the face's up vector, so its
-    pixels are the texels of :mod:`study.cubemap`; texel radiance is the box-filtered pixel average.
-    """
-    m = mi()
-    o = np.asarray(scene.reference.point, float)
-    faces = []
-    sc = None
-    for f, (fwd, _right, up) in enumerate(FACES):
-        sensor = m.load_dict(_sensor(o, o + fwd, up, 90.0, res, res, spp, scene.render.seed + f))
-        if sc is None:
-            sc = m.load_dict(scene_dict(scene, with_object=False, sensor=sensor))
-        faces.append(np.array(m.render(sc, sensor=sensor, seed=scene.render.seed + f), dtype=np.float32))
-    return np.stack(faces)
-
+def triangle_scene(V: np.ndarray, F: np.ndarray, variant: str = "llvm_ad_rgb"):
+    """(mitsuba module, scene) holding the triangles (V, F) as one diffuse mesh, in ``variant``: for ray queries."""
+    m = mi(variant)
+    mesh = triangle_mesh(m, "room", V, F, np.zeros((len(V), 2), np.float32), m.load_dict({"type": "diffuse"}))
+    return m, m.load_dict({"type": "scene", "room": mesh})

@@ -1,0 +1,56 @@
+"""Regenerate the README's map of the house ("Where things are") from the package and module docstrings.
+
+    python scripts/house.py           # rewrite the table between the markers in README.md
+    python scripts/house.py --check   # exit 1 if README.md is not up to date (tests/test_architecture.py)
+"""
+from __future__ import annotations
+
+import ast
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BEGIN, END = "<!-- house:begin (scripts/house.py) -->", "<!-- house:end -->"
+#: top to bottom, as the layers of pyproject.toml
+ORDER = ["cli.py", "outputs", "bench", "caustics", "harness", "evaluate", "optics", "methods", "impostor",
+         "reference", "scene", "cache.py", "validation.py", "tables.py", "backend.py", "io.py", "runtime.py",
+         "errors.py"]
+
+
+def _first_sentence(path: Path) -> str:
+    doc = ast.get_docstring(ast.parse(path.read_text())) or ""
+    text = " ".join(doc.split("\n\n")[0].split())                 # the first paragraph
+    for m in re.finditer(r"\.(?=\s|$)", text):                    # its first sentence (not "ch. 17", "et al.")
+        if not re.search(r"(\bch|\bal|e\.g|i\.e|\bvs|\d)$", text[:m.start()]):
+            text = text[:m.end()]
+            break
+    return text.replace("|", "\\|")
+
+
+def table() -> str:
+    rows = ["| where | what |", "|---|---|"]
+    for name in ORDER:
+        p = ROOT / "study" / name
+        if p.is_dir():
+            rows.append(f"| `study/{name}/` | {_first_sentence(p / '__init__.py')} |")
+            for mod in sorted(p.glob("*.py")):
+                if mod.name != "__init__.py":
+                    rows.append(f"| &nbsp;&nbsp;`{mod.name}` | {_first_sentence(mod)} |")
+        else:
+            rows.append(f"| `study/{name}` | {_first_sentence(p)} |")
+    return "\n".join(rows)
+
+
+def render(readme: str) -> str:
+    a, b = readme.index(BEGIN) + len(BEGIN), readme.index(END)
+    return readme[:a] + "\n" + table() + "\n" + readme[b:]
+
+
+if __name__ == "__main__":
+    path = ROOT / "README.md"
+    old = path.read_text()
+    new = render(old)
+    if "--check" in sys.argv:
+        sys.exit(0 if new == old else 1)
+    path.write_text(new)

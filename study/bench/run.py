@@ -1,0 +1,126 @@
+"""``study bench``: the options and the main table (every method × backend × batch, with the exact rows).
+
+Method rows: every registered method (or those named in ``methods``), each at every value of its knob's ladder
+(``Method.ladder()``; with ``ladder=False`` at its defaults only), on each backend; on Dr.Jit through the frozen
+path (``Backend.freeze``: recorded kernels replayed, no Python tracing per call) and, for the ``focus`` method at
+its defaults (the paper's ``localized``), also the plain traced path. numpy is timed on at most
+``numpy_max_rays`` rays of a batch.
+Exact rows: Embree on every core, and Mitsuba ``ray_intersect`` on the device of each backend asked for.
+Ratios: x_vs_embree / x_vs_mitsuba = the exact tracer's time for the same rays over the method's (> 1: the method
+is faster); Mitsuba is taken on the same device as the backend (LLVM for numpy and llvm, CUDA for cuda).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from study import backend as backends
+from study import methods as registry
+from study.bench.batches import Batch, closeup_rays, distance_texels, room_triangles, scene_rays, synthetic_rays
+from study.bench.machine import available_backends, machine_info
+from study.bench.scaling import knob_values, scaling_rows
+from study.bench.timing import FRAME, Exact, mitsuba_variant, rate_row, time_method
+from study.evaluate.case import env_info
+from study.methods import Method
+from study.scene import Scene
+
+
+@dataclass
+class BenchOptions:
+    position: tuple = (1.1, 0.9, 0.6)           # object centre for the fig4 batch
+    scene_res: int = 1024                       # camera res² for the fig4 batch
+    synthetic: int = FRAME                      # rays of the synthetic batch
+    methods: tuple = ()                         # names of the methods timed; () = every registered one
+    ladder: bool = True                         # each method at every value of its knob's ladder (else defaults)
+    cube_res: int = 256
+    backends: tuple = ()                        # () = all available
+    repeats: int = 5
+    numpy_max_rays: int = 1 << 16               # numpy is timed on at most this many rays of a batch
+    focus: str = "localized"                    # the method of the scaling studies and of the plain-path rows
+    scaling: bool = True
+    ray_counts: tuple = (256 ** 2, 512 ** 2, 1024 ** 2, 2048 ** 2)
+    knob_extra: tuple = (2, 5, 15)              # knob values tried besides the focus method's ladder (finer curve)
+    cube_resolutions: tuple = (64, 128, 256, 512, 1024)
+    triangles: tuple = (0, 100, 1000, 10_000, 100_000, 1_000_000)
+    tag: str = ""                               # device tag in file names and tables (default: cpu / gpu name)
+
+
+def method_list(opt: BenchOptions) -> list[Method]:
+    """The methods timed: each one named (all registered by default) at each knob value of its ladder, or at
+    its defaults only without ``opt.ladder``. An unknown name is a StudyError."""
+    chosen = [registry.make(n) for n in dict.fromkeys(opt.methods or registry.names())]
+    return [v for m in chosen for v in (m.ladder() if opt.ladder else [m])]
+
+
+def run_bench(scene: Scene, opt: BenchOptions, log=print, on_table=None) -> tuple[list[dict], list[dict], dict]:
+    """Time everything; returns (bench rows, scaling rows, machine info). ``on_table(rows, info)`` is called
+    with the main table before the scaling studies start (so it is kept if they fail)."""
+    names = list(opt.backends) or available_backends()
+    for n in names:
+        backends.get(n)                                        # unknown or unavailable: StudyError now
+    methods = method_list(opt)                                 # unknown methods: StudyError now
+    plain_too = registry.make(opt.focus).label                 # also timed on the plain traced path
+    if opt.scaling:
+        knob_values(opt)                                       # invalid knob values: StudyError now
+    info = machine_info()
+    info["tag"] = opt.tag or ("gpu" if "cuda" in names else "cpu")
+    o = np.asarray(scene.reference.point, float)
+    V, F = room_triangles(scene)
+    exact = Exact(V, F, opt.repeats, log)
+    tex = distance_texels(exact.tracer, o, opt.cube_res)
+    batches = [scene_rays(scene, opt.position, opt.scene_res), closeup_rays(scene, opt.position, opt.scene_res),
+               synthetic_rays(scene, opt.synthetic)]
+    rows = []
+
+    # ------------------------------------------------------------------ exact ray casting of each batch
+    for b in batches:
+        n = len(b.x)
+        rows.append(rate_row({"batch": b.name, "backend": f"cpu x{exact.tracer.threads}", "path": "embree",
+                              "label": "exact: Embree", "triangles": len(F), "cube_res": ""}, exact.embree(b), n))
+        for dev in sorted({"cuda" if nm == "cuda" else "llvm" for nm in names}):
+            v = mitsuba_variant(dev)
+            t = exact.mitsuba(b, v)
+            if np.isfinite(t):
+                rows.append(rate_row({"batch": b.name, "backend": dev, "path": "ray_intersect",
+                                      "label": f"exact: Mitsuba {v}", "triangles": len(F), "cube_res": ""}, t, n))
+        log(f"exact ray casting of {b.name} timed")
+
+    # ------------------------------------------------------------------ every method on every backend
+    info_env = env_info(scene)
+    for b in batches:
+        for nm in names:
+            B = backends.get(nm)
+            k = len(b.x) if nm != "numpy" else opt.numpy_max_rays
+            x, R = b.x[:k] - o, b.R[:k]
+            paths = ["frozen"] if nm != "numpy" else ["plain"]
+            for m in methods:
+                extra = ["plain"] if nm != "numpy" and m.label == plain_too else []
+                for path in paths + extra:
+                    try:
+                        t = time_method(m, B, tex, x, R, frozen=path == "frozen", repeats=opt.repeats,
+                                        info=info_env)
+                    except Exception as err:    # e.g. a method whose arrays a frozen function cannot see
+                        log(f"{m.label} on {nm} ({path}) failed: {str(err).splitlines()[0][:160]}")
+                        if path != "frozen":
+                            raise
+                        path = "plain"
+                        t = time_method(m, B, tex, x, R, frozen=False, repeats=opt.repeats, info=info_env)
+                    row = rate_row({"batch": b.name, "backend": nm, "path": path, "label": m.label,
+                                    "triangles": len(F), "cube_res": opt.cube_res}, t, len(x))
+                    rows.append(with_ratios(row, exact, b, nm))
+            log(f"methods on {nm}, {b.name} timed")
+
+    if on_table:
+        on_table(rows, info)
+    scaling = scaling_rows(scene, opt, names, o, tex, exact, log) if opt.scaling else []
+    return rows, scaling, info
+
+
+def with_ratios(row: dict, exact: Exact, b: Batch, backend: str) -> dict:
+    """``row`` plus x_vs_embree and x_vs_mitsuba: the exact tracer's time per ray over the method's."""
+    per_ray = row["ms_per_call"] / row["rays"]
+    n = len(b.x)
+    row["x_vs_embree"] = exact.embree(b) * 1e3 / n / per_ray
+    row["x_vs_mitsuba"] = exact.mitsuba(b, mitsuba_variant(backend)) * 1e3 / n / per_ray
+    return row

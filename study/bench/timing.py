@@ -1,0 +1,150 @@
+"""Timing: one harness (:func:`median_time`) for the methods (per backend, frozen or plain) and the exact tracers.
+
+Warm-up calls first (compilation, recording); then ``repeats`` repeats of ``inner`` back-to-back calls (``inner``
+chosen so one repeat lasts ≥ 20 ms), each call's outputs evaluated, the device synchronised (``dr.sync_thread()``)
+before the clock is read; the median per call is reported.
+
+Exact tracers: Embree (:class:`study.reference.embree.Tracer`, chunks cast on every core: embreex releases the GIL)
+and Mitsuba ``scene.ray_intersect`` (``llvm_ad_rgb`` on the CPU, ``cuda_ad_rgb``/OptiX on the GPU), both on the
+same triangles; :class:`Exact` times each batch once and shares the numbers between tables.
+"""
+from __future__ import annotations
+
+import gc
+import math
+import time
+
+import numpy as np
+
+from study.impostor.envmap import EnvMap
+from study.reference import mitsuba as mitsuba_ref
+from study.reference.embree import Tracer
+
+FRAME = 1024 * 1024          # rays of a 1024² frame
+
+
+def median_time(call, finish, *, repeats: int, warmup: int = 2, min_repeat_s: float = 0.02) -> float:
+    """Median seconds per ``call()``; ``finish(out)`` evaluates one call's outputs, ``finish(None)`` syncs.
+
+    ``inner`` calls per repeat (each evaluated), one device sync before each clock read."""
+    for _ in range(warmup):
+        finish(call()); finish(None)
+    t0 = time.perf_counter()
+    finish(call()); finish(None)
+    once = time.perf_counter() - t0
+    inner = max(1, min(1000, int(min_repeat_s / max(once, 1e-7))))
+    ts = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(inner):
+            finish(call())
+        finish(None)
+        ts.append((time.perf_counter() - t0) / inner)
+    return float(np.median(ts))
+
+
+def rate_row(base: dict, seconds: float, rays: int) -> dict:
+    """``base`` plus rays, ms_per_call, mrays_per_s and ms_per_frame (a 1024² frame at the measured rate)."""
+    return {**base, "rays": rays, "ms_per_call": seconds * 1e3, "mrays_per_s": rays / seconds / 1e6,
+            "ms_per_frame": seconds / rays * FRAME * 1e3}
+
+
+# ---------------------------------------------------------------------------------------------- methods
+def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None):
+    """(call, finish) for one method on one backend: call() traces (or replays) and returns the outputs.
+
+    ``info`` is the scene knowledge methods may use (room, reference point). A method that searches several
+    layers gets the impostor itself as each layer (the bench times lookups; texel values do not change their
+    cost) and runs unfrozen: a frozen function cannot see textures kept inside ``env.info``."""
+    env = EnvMap(tex_np, B, info=info)
+    if m.layers_needed() > 1:
+        env.info["layers"] = [env] * m.layers_needed()
+        frozen = False
+    X, RR = B.vec(x), B.vec(R)
+    B.eval(X.x, X.y, X.z, RR.x, RR.y, RR.z)
+
+    def trace(tex, dist, X, RR):                 # textures as arguments: a frozen function sees only those
+        env.tex, env.dist = tex, dist
+        t = m.trace(B, env, X, RR)
+        return t.shown, t.radiance, t.ratio, t.valid
+
+    fn = B.freeze(trace) if frozen else trace
+    tex, dist = env.tex, env.dist
+
+    def finish(out):
+        if out is None:
+            B.sync()
+        else:
+            s, r, ratio, valid = out
+            B.eval(s.x, s.y, s.z, r.x, r.y, r.z, ratio, valid)
+    return (lambda: fn(tex, dist, X, RR)), finish
+
+
+def time_method(m, B, tex_np, x, R, *, frozen: bool, repeats: int, info: dict | None = None) -> float:
+    # Garbage left by earlier runs (reference cycles) must not be freed while a frozen function records:
+    # freeing Dr.Jit memory then is an unrecordable host call that aborts the process.
+    gc.collect()
+    B.sync()
+    gc.disable()
+    try:
+        call, finish = method_runner(m, B, tex_np, x, R, frozen=frozen, info=info)
+        return median_time(call, finish, repeats=repeats)
+    finally:
+        gc.enable()
+
+
+# ---------------------------------------------------------------------------------------------- exact tracers
+def time_embree(tracer: Tracer, x, R, *, repeats: int) -> float:
+    o, d = np.ascontiguousarray(x, np.float32), np.ascontiguousarray(R, np.float32)
+    return median_time(lambda: tracer.distance(o, d), lambda out: None, repeats=repeats)
+
+
+def time_mitsuba(m, scene, x, R, *, repeats: int) -> float:
+    import drjit as dr  # optional: only where Mitsuba is timed
+    ray = m.Ray3f(m.Point3f(np.ascontiguousarray(x.T, np.float32)), m.Vector3f(np.ascontiguousarray(R.T, np.float32)))
+    dr.eval(ray)
+
+    def finish(si):
+        if si is None:
+            dr.sync_thread()
+        else:
+            dr.eval(si.t, si.p)
+    return median_time(lambda: scene.ray_intersect(ray), finish, repeats=repeats)
+
+
+def mitsuba_variant(backend: str) -> str:
+    """The Mitsuba variant on the device of ``backend``: CUDA for cuda, LLVM for numpy and llvm."""
+    return "cuda_ad_rgb" if backend == "cuda" else "llvm_ad_rgb"
+
+
+class Exact:
+    """Embree and Mitsuba timings of batches on one set of triangles (V, F), each computed once and shared.
+
+    ``tracer`` is the Embree tracer of (V, F) (also what the bench's impostor is captured with)."""
+
+    def __init__(self, V, F, repeats: int, log):
+        self.V, self.F, self.repeats, self.log = V, F, repeats, log
+        self.tracer = Tracer.from_triangles(V, F)
+        self.scenes: dict[str, tuple] = {}
+        self.t: dict[tuple, float] = {}
+
+    def embree(self, batch) -> float:
+        key = ("embree", batch.name)
+        if key not in self.t:
+            self.t[key] = time_embree(self.tracer, batch.x, batch.R, repeats=self.repeats)
+        return self.t[key]
+
+    def mitsuba(self, batch, variant: str) -> float:
+        """Seconds per ``ray_intersect`` of the batch in ``variant``; NaN (and a log line) where it is missing."""
+        key = (variant, batch.name)
+        if key not in self.t:
+            try:
+                if variant not in self.scenes:
+                    self.scenes[variant] = mitsuba_ref.triangle_scene(self.V, self.F, variant)
+                m, sc = self.scenes[variant]
+                mitsuba_ref.mi(variant)                     # the variant current while its scene is timed
+                self.t[key] = time_mitsuba(m, sc, batch.x, batch.R, repeats=self.repeats)
+            except Exception as err:        # a variant missing on this machine: no number, say why
+                self.log(f"mitsuba {variant} unavailable: {str(err).splitlines()[0][:120]}")
+                self.t[key] = math.nan
+        return self.t[key]

@@ -1,0 +1,147 @@
+"""One case end to end: capture → shade the object with each method → references → metrics.
+
+A reader can follow one ray here: camera ray → object (``shading.object_rays``) → reflected ray (x, R) →
+``method.trace`` on the chosen backend → shown point and radiance → Fresnel → composited image; the same ray →
+Embree exact hit → angular error; the images → image error against the oracle and against Mitsuba.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from study import backend as backends
+from study.cache import Cache, content_key
+from study.evaluate import metrics
+from study.impostor.capture import Impostor, capture_distance, impostor_key, render_cube
+from study.impostor.envmap import EnvMap
+from study.impostor.layers import layered_impostor
+from study.methods import Method
+from study.optics import shading
+from study.reference.embree import Tracer
+from study.reference.mitsuba import render_camera
+from study.scene import Scene
+
+
+@dataclass
+class CaseOutput:
+    scene: Scene
+    rows: list[dict]                                       # one per method (and one for the oracle)
+    images: dict[str, np.ndarray] = field(default_factory=dict)      # label → (H, W, 3) linear RGB
+    angle_maps: dict[str, np.ndarray] = field(default_factory=dict)  # label → (H, W) mean angular error, deg
+    oracle: np.ndarray | None = None                       # (H, W, 3) what a perfect localization shows
+    mitsuba: np.ndarray | None = None                      # (H, W, 3) path-traced ground truth
+    occluded: np.ndarray | None = None                     # (H, W) fraction of sub-pixel rays occluded from o
+    mask: np.ndarray | None = None                         # (H, W) pixels fully on the object
+
+
+# ---------------------------------------------------------------------------------------------- cached inputs
+def impostor(scene: Scene, cache: Cache, tracer: Tracer | None = None) -> Impostor:
+    r = scene.render
+    key = impostor_key(scene)
+    rad = cache.get("radiance", key, lambda: render_cube(scene, r.cube_res, r.cube_spp))
+    dist = cache.get("distance", key, lambda: capture_distance(scene, r.cube_res, tracer))
+    return Impostor(np.asarray(scene.reference.point, float), rad.reshape(6, r.cube_res, r.cube_res, 3),
+                    dist.reshape(6, r.cube_res, r.cube_res))
+
+
+def camera_render(scene: Scene, cache: Cache, *, with_object: bool) -> np.ndarray:
+    s = scene
+    parts = [s.room.model_dump(), [c.model_dump() for c in s.columns], s.light.model_dump(),
+             s.camera.model_dump(), s.render.spp, s.render.max_depth, s.render.seed, "v2"]
+    if with_object:
+        parts.append(s.object.model_dump())
+        if s.object.material.type == "dielectric":
+            parts.append("dielectric depth +2")           # see mitsuba.scene_dict
+    key = content_key(*parts)
+    img = cache.get("mitsuba" if with_object else "background", key,
+                    lambda: render_camera(scene, with_object=with_object))
+    return img.reshape(s.camera.height, s.camera.width, 3)
+
+
+def env_info(scene: Scene) -> dict:
+    """The scene knowledge methods may use (``env.info``, keys in study.methods.base): reference point, room."""
+    return {"reference": np.asarray(scene.reference.point, float), "room": (scene.room.min, scene.room.max)}
+
+
+def knob_columns(m: Method) -> dict:
+    """The columns that place a method on its cost/accuracy curve: family (label without the knob), knob (the
+    parameter's name, '' without one) and knob_value (NaN without one)."""
+    return {"family": m.family(), "knob": m.knob.param if m.knob else "",
+            "knob_value": float(m.knob_value) if m.knob else np.nan}
+
+
+# ---------------------------------------------------------------------------------------------- the case
+def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cache: Cache | None = None,
+             case_id: str = "", keep_images: bool = True) -> CaseOutput:
+    cache = cache or Cache(None)
+    B = backends.get(backend)
+    tracer = Tracer(scene.mesh())
+    o = np.asarray(scene.reference.point, float)
+
+    # ------------------------------------------------------------------ inputs: impostor, renders, rays
+    imp = impostor(scene, cache, tracer)
+    background = camera_render(scene, cache, with_object=False)
+    truth = camera_render(scene, cache, with_object=True)
+    rays = shading.object_rays(scene)
+    F = shading.fresnel(scene, rays)
+    mask = rays.full
+
+    # ------------------------------------------------------------------ exact references: Embree and oracle
+    exact = tracer.intersect(*rays.exact_rays())["point"]            # dielectrics: the exactly traced rays
+    to_hit = exact - o
+    hit_dist = np.linalg.norm(to_hit, axis=-1)
+    seen = tracer.distance(np.broadcast_to(o, to_hit.shape), to_hit / hit_dist[:, None])
+    occluded = seen < hit_dist * (1 - 1e-4) - 1e-5                   # the exact hit is hidden from o
+    nb = backends.get("numpy")
+    env_np = EnvMap(imp.texels(), nb)
+    oracle_rad = np.stack([np.asarray(c) for c in env_np.lookup(nb.vec(to_hit))[:3]], -1)
+    oracle_img = shading.composite(rays, oracle_rad * F, background)
+
+    base = {"case": case_id, "cube_res": scene.render.cube_res, "object_x": scene.object.center[0],
+            "object_y": scene.object.center[1], "object_z": scene.object.center[2], "backend": backend,
+            "displacement": float(np.linalg.norm(np.subtract(scene.object.center, o))
+                                  / np.linalg.norm(np.subtract(scene.room.max, scene.room.min))),
+            "rays": len(rays.x), "occluded_fraction": float(occluded.mean()) if len(occluded) else np.nan,
+            **rays.stats}
+    out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=truth, mask=mask,
+                     occluded=rays.per_pixel(occluded.astype(float), fill=0.0))
+    out.rows.append({**base, "method": "oracle", "label": "oracle", "family": "oracle", "knob": "", "knob_value": np.nan,
+                     **metrics.summary(np.zeros(len(rays.x)), "angle", "_deg"), "dist_median": 0.0,
+                     **metrics.image_errors(oracle_img, oracle_img, mask=mask, suffix="oracle"),
+                     **metrics.image_errors(oracle_img, truth, mask=mask, suffix="mitsuba"),
+                     "valid_fraction": 1.0, "ratio_residual_median": 0.0, "lookups_per_ray": 1, "seconds": 0.0})
+
+    # ------------------------------------------------------------------ every method on the same rays
+    env = EnvMap(imp.texels(), B, info=env_info(scene))
+    n_layers = max((m.layers_needed() for m in methods), default=1)
+    if n_layers > 1:                                                  # depth layers for the methods that search them
+        env.info["layers"] = [EnvMap(t, B) for t in
+                              layered_impostor(scene, cache, n_layers, imp.radiance, tracer)]
+    x, R = B.vec(rays.x - o), B.vec(rays.R)
+    for m in methods:
+        t0 = time.perf_counter()
+        with np.errstate(divide="ignore", invalid="ignore"):   # numpy evaluates both sides of every select
+            tr = m.trace(B, env, x, R)
+        B.eval(tr.shown.x, tr.shown.y, tr.shown.z, tr.radiance.x, tr.radiance.y, tr.radiance.z, tr.ratio,
+               tr.valid)                            # one kernel for all outputs, not one per numpy copy
+        shown = B.to_numpy(tr.shown).astype(np.float64) + o
+        rad = B.to_numpy(tr.radiance).astype(np.float64)
+        ratio, valid = B.numpy(tr.ratio), B.numpy(tr.valid).astype(bool)
+        seconds = time.perf_counter() - t0
+        img = shading.composite(rays, np.nan_to_num(rad) * F, background)
+        ang = metrics.angular_error(rays.x, shown, exact)
+        row = {**base, "method": m.name, "label": m.label, **knob_columns(m),
+               **metrics.summary(ang, "angle", "_deg"),
+               "dist_median": float(np.nanmedian(np.linalg.norm(shown - exact, axis=-1))),
+               **metrics.image_errors(img, oracle_img, mask=mask, suffix="oracle"),
+               **metrics.image_errors(img, truth, mask=mask, suffix="mitsuba"),
+               "valid_fraction": float(valid.mean()),
+               "ratio_residual_median": float(np.nanmedian(np.abs(ratio - 1))),
+               "lookups_per_ray": m.lookups_per_ray(), "seconds": seconds}
+        out.rows.append(row)
+        if keep_images:
+            out.images[m.label] = img
+            out.angle_maps[m.label] = rays.per_pixel(ang, fill=np.nan)
+    return out

@@ -1,0 +1,34 @@
+"""A cube map bound to an array backend: what methods search (:class:`EnvMap`)."""
+from __future__ import annotations
+
+import numpy as np
+
+from study.backend import V3, Backend
+from study.impostor import cubemap
+
+
+class EnvMap:
+    """A cube map bound to a backend: ``lookup(v)`` returns the C channels in the direction of ``v``.
+
+    The channels of a distance impostor are (R, G, B, distance). The last channel (distance) is kept in a texture
+    of its own, ``dist``: the search reads only distances, so each of its lookups fetches one float per texel
+    instead of four (a quarter of the texture traffic); ``tex`` holds the other channels. Every channel is
+    filtered on its own, so the values are the same as from one texture. ``info`` is a small record of scene
+    knowledge that some methods use (keys documented in :mod:`study.methods.base`); empty when nothing is known.
+    """
+
+    def __init__(self, texels: np.ndarray, B: Backend, info: dict | None = None):
+        self.B, self.res, self.channels = B, texels.shape[1], texels.shape[-1]
+        self.info = dict(info or {})
+        self.tex = B.texture(texels[..., :-1]) if self.channels > 1 else None   # colour channels
+        self.dist = B.texture(texels[..., -1:])                                  # distance |v'|
+
+    def lookup(self, v: V3) -> list:
+        face, u, w = cubemap.face_uv(self.B, v.x, v.y, v.z)
+        colour = self.B.sample(self.tex, face, u, w) if self.tex is not None else []
+        return colour + self.B.sample(self.dist, face, u, w)
+
+    def distance(self, v: V3):
+        """|v'|: the stored distance of the environment point seen from the reference point towards v."""
+        face, u, w = cubemap.face_uv(self.B, v.x, v.y, v.z)
+        return self.B.sample(self.dist, face, u, w)[0]

@@ -1,0 +1,119 @@
+"""CI regression on error metrics: run a small fixed sweep, compare every metric with a committed baseline.
+
+The check file (``configs/check.toml``) names the sweep, the baseline directory, the paper's claims that must hold
+(:mod:`study.outputs.claims`) and a tolerance per metric: a metric passes when |new − baseline| ≤ abs + rel·|baseline|
+(NaN equals NaN). Rows are matched by (case, label); a row missing on either side is a failure. ``update=True``
+rewrites the baseline (results.csv + metadata.json) instead of comparing.
+"""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from study.errors import StudyError
+from study.harness.runner import run_sweep
+from study.io import atomic_write
+from study.outputs import claims as claim_registry
+from study.tables import read_csv, without_timing, write_csv
+from study.validation import validate_file
+
+
+class Tolerance(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    abs: float = Field(ge=0)
+    rel: float = Field(ge=0)
+
+
+class CheckConfig(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    sweep: str
+    baseline: str
+    claims: list[str] = []
+    tolerance: dict[str, Tolerance] = Field(min_length=1)
+
+
+@dataclass
+class Failure:
+    message: str
+
+
+def load_check(path: str | Path) -> tuple[CheckConfig, Path, Path]:
+    path = Path(path)
+    cfg = validate_file(CheckConfig, path)
+    known = [c.id for c in claim_registry.CLAIMS]
+    for i, c in enumerate(cfg.claims):
+        if c not in known:
+            raise StudyError(f"unknown claim {c!r}; allowed: {', '.join(known)}", file=str(path), key=f"claims[{i}]")
+    return cfg, path.parent / cfg.sweep, path.parent / cfg.baseline
+
+
+def compare(new: list[dict], base: list[dict], tolerance: dict[str, Tolerance]) -> list[Failure]:
+    fails = []
+    index = {(r["case"], r["label"]): r for r in base}
+    seen = set()
+    for r in new:
+        k = (r["case"], r["label"])
+        b = index.get(k)
+        if b is None:
+            fails.append(Failure(f"{k[1]} in {k[0]}: not in the baseline (run `study check --update`?)"))
+            continue
+        seen.add(k)
+        for metric, tol in tolerance.items():
+            if metric not in r or metric not in b:
+                fails.append(Failure(f"{metric}: missing from the {'results' if metric not in r else 'baseline'}"))
+                continue
+            x, y = float(r[metric]), float(b[metric])
+            if math.isnan(x) and math.isnan(y) or x == y:
+                continue
+            allowed = tol.abs + tol.rel * abs(y)
+            if not (abs(x - y) <= allowed):
+                fails.append(Failure(f"{metric} of {k[1]} in {k[0]} moved from {y:.6g} to {x:.6g} "
+                                     f"(by {x - y:+.3g}; tolerance ±{allowed:.3g} = {tol.abs:g} + {tol.rel:g}·|baseline|)"))
+    for k in index.keys() - seen:
+        fails.append(Failure(f"{k[1]} in {k[0]}: in the baseline but not in the results"))
+    return fails
+
+
+def run_check(path: str | Path = "configs/check.toml", *, update: bool = False, cache: str | Path | None = ".cache",
+              backend: str = "numpy") -> tuple[list[Failure], list[str]]:
+    """Returns (failures, report lines). With ``update`` the baseline is rewritten and failures are empty."""
+    cfg, sweep_path, base_dir = load_check(path)
+    with tempfile.TemporaryDirectory(prefix="study-check-") as tmp:
+        rows, stats = run_sweep(sweep_path, Path(tmp) / "run", backend=backend, cache=cache)
+        meta = json.loads((Path(tmp) / "run" / "metadata.json").read_text())
+    lines = [f"check: {stats['cases']} cases × {len(meta['methods'])} methods in {stats['seconds']:.1f} s"]
+    if update:
+        base_dir.mkdir(parents=True, exist_ok=True)
+        write_csv(without_timing(rows), base_dir / "results.csv")       # timing is not a regression
+        atomic_write(base_dir / "metadata.json", json.dumps(meta, indent=2).encode())
+        lines.append(f"baseline written: {base_dir / 'results.csv'} ({len(rows)} rows)")
+        return [], lines
+    if not (base_dir / "results.csv").is_file():
+        raise StudyError("no baseline yet; create it with `study check --update`", file=str(base_dir / "results.csv"))
+    base = read_csv(base_dir / "results.csv")
+    parsed = read_csv_rows(rows)
+    fails = compare(parsed, base, cfg.tolerance)
+    verdicts = {c.id: (c, v) for c, v in claim_registry.evaluate(parsed)}
+    for cid in cfg.claims:
+        if cid not in verdicts:
+            fails.append(Failure(f"claim {cid}: the check sweep has no rows it applies to"))
+            continue
+        c, v = verdicts[cid]
+        lines.append(f"claim {cid}: {'✓' if v.ok else '✗'} {v.number}")
+        if not v.ok:
+            fails.append(Failure(f"claim {cid} ({c.text}) does not hold: {v.number}"))
+    lines.append(f"{len(parsed)} rows × {len(cfg.tolerance)} metrics compared with {base_dir / 'results.csv'}")
+    return fails, lines
+
+
+def read_csv_rows(rows: list[dict]) -> list[dict]:
+    """Rows as they read back from CSV (so in-memory and baseline values compare alike)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        write_csv(rows, Path(tmp) / "r.csv")
+        return read_csv(Path(tmp) / "r.csv")

@@ -1,0 +1,12 @@
+"""What is rendered: the one scene description (schema and validation), the room as triangles with their
+textures, the camera's rays, and the shaded object (sphere or mesh) as geometry.
+
+Owns: :class:`Scene` (``schema``), :class:`RoomMesh` (``room``), :func:`camera_rays` (``camera``), object meshes
+and their exact ray queries (``objects``). Imports nothing of study but the bottom modules (errors, io, validation).
+"""
+from study.scene.camera import camera_rays, look_at_basis
+from study.scene.room import SURFACES, RoomMesh, room_mesh, texture
+from study.scene.schema import Camera, Column, Scene, Sphere, Vec3, load_scene, scene_from_dict
+
+__all__ = ["Camera", "Column", "RoomMesh", "SURFACES", "Scene", "Sphere", "Vec3", "camera_rays", "load_scene",
+           "look_at_basis", "room_mesh", "scene_from_dict", "texture"]

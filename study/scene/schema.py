@@ -1,0 +1,247 @@
+"""The one scene description that feeds Mitsuba, Embree and the methods.
+
+A scene is a TOML file (or dict) validated on load; y is up, units are metres. Example::
+
+    [room]
+    min = [-2.0, 0.0, -2.0]              # box room, inner faces textured and diffuse
+    max = [2.0, 3.0, 2.0]
+
+    [[columns]]                          # optional boxes standing on the floor
+    center = [1.0, -1.0]                 # (x, z) of the footprint centre
+    footprint = [0.4, 0.4]               # extent along x and z
+    height = 1.2
+
+    [light]                              # point light, radiant intensity per RGB channel (W/sr)
+    position = [0.0, 2.6, 0.0]
+    intensity = [6.0, 6.0, 6.0]
+
+    [reference]
+    point = [0.0, 1.5, 0.0]              # where the distance impostor is taken
+
+    [object]
+    shape = "sphere"
+    center = [0.5, 1.2, 0.3]
+    radius = 0.4
+    material = { type = "conductor", n = [0.155, 0.117, 0.138], k = [4.83, 3.12, 2.15] }
+
+    [camera]
+    eye = [0.0, 1.5, -1.9]
+    target = [0.6, 1.0, 0.5]
+    up = [0.0, 1.0, 0.0]
+    fov = 70.0                           # horizontal, degrees
+    width = 256
+    height = 256
+
+    [render]
+    cube_res = 256                       # impostor face resolution
+    cube_spp = 64                        # Mitsuba samples per texel for the impostor radiance
+    spp = 64                             # Mitsuba samples per pixel for the ground truth
+    max_depth = 4                        # path length of Mitsuba's path tracer
+    supersample = 2                      # method rays per pixel side
+    seed = 0
+    fresnel = "exact"                    # "exact" conductor Fresnel (as Mitsuba) or the paper's "approx"
+    refraction = "double"                # dielectric objects: "single" (paper) or "double" (in and out)
+    exit = "auto"                        # far side: "exact" (analytic sphere / Embree), "distance_map" (the
+                                         # object's own map); "auto" = exact for a sphere, distance map for meshes
+    internal_bounces = 8                 # total internal reflections followed before a ray is dropped (counted)
+    object_res = 128                     # face resolution of the object's own distance map
+
+Meshes: ``object.shape = "torus" | "knot" | "blob"`` with ``rotation = [rx, ry, rz]`` (degrees) and ``detail``;
+``radius`` is then the bounding-sphere radius, which the placement checks use.
+
+Every error is a :class:`~study.errors.StudyError` whose message names the file, the key and what is allowed.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from study.errors import StudyError
+from study.io import read_toml
+from study.scene.room import RoomMesh, room_mesh
+from study.validation import KeyedError, first_error
+
+Vec3 = tuple[float, float, float]
+Vec2 = tuple[float, float]
+PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class Room(_Strict):
+    min: Vec3 = (-2.0, 0.0, -2.0)
+    max: Vec3 = (2.0, 3.0, 2.0)
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        if any(a >= b for a, b in zip(self.min, self.max)):
+            raise ValueError("room.max must exceed room.min on every axis")
+        return self
+
+
+class Column(_Strict):
+    center: Vec2
+    footprint: tuple[PosFloat, PosFloat]
+    height: PosFloat
+
+    def box(self, room: Room) -> tuple[np.ndarray, np.ndarray]:
+        """The column as an axis-aligned box (lo, hi) standing on the room's floor."""
+        (cx, cz), (sx, sz) = self.center, self.footprint
+        lo = np.array([cx - sx / 2, room.min[1], cz - sz / 2])
+        hi = np.array([cx + sx / 2, room.min[1] + self.height, cz + sz / 2])
+        return lo, hi
+
+
+class Light(_Strict):
+    position: Vec3 = (0.0, 2.6, 0.0)
+    intensity: tuple[PosFloat, PosFloat, PosFloat] = (6.0, 6.0, 6.0)
+
+
+class Reference(_Strict):
+    point: Vec3 = (0.0, 1.5, 0.0)
+
+
+class Mirror(_Strict):
+    type: Literal["mirror"]
+
+
+class Conductor(_Strict):
+    type: Literal["conductor"]
+    n: tuple[PosFloat, PosFloat, PosFloat]  # real part of the refraction index per RGB channel
+    k: tuple[Annotated[float, Field(ge=0)], ...] = Field(min_length=3, max_length=3)  # extinction coefficient
+
+
+class Dielectric(_Strict):
+    type: Literal["dielectric"]
+    ior: Annotated[float, Field(gt=1, le=4, allow_inf_nan=False)] = 1.5   # index of refraction inside (outside: 1)
+
+
+Material = Annotated[Union[Mirror, Conductor, Dielectric], Field(discriminator="type")]
+
+
+class Sphere(_Strict):
+    """The shaded object. ``shape`` "sphere" is analytic; "torus", "knot" and "blob" are triangle meshes with
+    smooth vertex normals (:mod:`study.scene.objects`), scaled so that ``radius`` is their bounding-sphere radius,
+    turned by ``rotation`` (Euler angles in degrees about x, then y, then z) and tessellated finer with ``detail``."""
+    shape: Literal["sphere", "torus", "knot", "blob"] = "sphere"
+    center: Vec3 = (0.5, 1.2, 0.3)
+    radius: PosFloat = 0.4                       # sphere radius, or bounding-sphere radius of a mesh
+    material: Material = Mirror(type="mirror")
+    rotation: Vec3 = (0.0, 0.0, 0.0)             # meshes: Euler angles x, y, z in degrees
+    detail: Annotated[int, Field(ge=1, le=6)] = 3  # meshes: tessellation level
+
+
+Object = Sphere
+
+
+class Camera(_Strict):
+    eye: Vec3 = (0.0, 1.5, -1.9)
+    target: Vec3 = (0.6, 1.0, 0.5)
+    up: Vec3 = (0.0, 1.0, 0.0)
+    fov: Annotated[float, Field(gt=0, lt=180)] = 70.0
+    width: Annotated[int, Field(ge=8, le=4096)] = 256
+    height: Annotated[int, Field(ge=8, le=4096)] = 256
+
+
+class Render(_Strict):
+    cube_res: Annotated[int, Field(ge=4, le=4096)] = 256
+    cube_spp: Annotated[int, Field(ge=1)] = 64
+    spp: Annotated[int, Field(ge=1)] = 64
+    max_depth: Annotated[int, Field(ge=2, le=64)] = 4
+    supersample: Annotated[int, Field(ge=1, le=8)] = 2
+    seed: Annotated[int, Field(ge=0)] = 0
+    fresnel: Literal["exact", "approx"] = "exact"   # object shading: exact conductor Fresnel or the paper's
+    refraction: Literal["single", "double"] = "double"  # dielectric objects: paper's single refraction or in-and-out
+    exit: Literal["auto", "exact", "distance_map"] = "auto"  # double refraction: how the far side is found
+    internal_bounces: Annotated[int, Field(ge=0, le=16)] = 8   # total internal reflections followed, then dropped
+    object_res: Annotated[int, Field(ge=4, le=2048)] = 128     # face resolution of the object's own distance map
+
+
+class Scene(_Strict):
+    room: Room = Room()
+    columns: tuple[Column, ...] = ()
+    light: Light = Light()
+    reference: Reference = Reference()
+    object: Sphere = Sphere()
+    camera: Camera = Camera()
+    render: Render = Render()
+
+    @field_validator("columns", mode="before")
+    @classmethod
+    def _list(cls, v):
+        return tuple(v) if isinstance(v, list) else v
+
+    @model_validator(mode="after")
+    def _placement(self):
+        lo, hi = np.array(self.room.min), np.array(self.room.max)
+        c, r = np.array(self.object.center), self.object.radius
+        mesh = self.object.shape != "sphere"         # meshes are checked by their bounding sphere
+        what = f"{self.object.shape} (bounding radius {r})" if mesh else f"sphere (radius {r})"
+        who = f"{self.object.shape} (its bounding sphere)" if mesh else "sphere"
+        if np.any(c - r <= lo) or np.any(c + r >= hi):
+            raise KeyedError("object.center", f"the {what} must lie inside the room "
+                              f"{list(self.room.min)}..{list(self.room.max)}")
+        for i, col in enumerate(self.columns):
+            blo, bhi = col.box(self.room)
+            if np.any(blo[[0, 2]] < lo[[0, 2]]) or np.any(bhi[[0, 2]] > hi[[0, 2]]) or bhi[1] >= hi[1]:
+                raise KeyedError(f"columns[{i}]", "the column must lie inside the room")
+            if _box_sphere_distance(blo, bhi, c) <= r:
+                raise KeyedError("object.center", f"the {who} overlaps columns[{i}]; move it or the column")
+        for key, p in (("reference.point", self.reference.point), ("light.position", self.light.position),
+                       ("camera.eye", self.camera.eye)):
+            p = np.array(p)
+            if np.any(p <= lo) or np.any(p >= hi):
+                raise KeyedError(key, "must lie strictly inside the room")
+            for i, col in enumerate(self.columns):
+                if _box_sphere_distance(*col.box(self.room), p) <= 0:
+                    raise KeyedError(key, f"lies inside columns[{i}]")
+        for key, p in (("light.position", self.light.position), ("camera.eye", self.camera.eye),
+                       ("reference.point", self.reference.point)):
+            if key != "reference.point" and float(np.linalg.norm(np.subtract(p, c))) <= r:
+                raise KeyedError(key, "lies inside the object")
+        if np.linalg.norm(np.cross(np.subtract(self.camera.target, self.camera.eye), self.camera.up)) < 1e-9:
+            raise KeyedError("camera.up", "must not be parallel to the viewing direction")
+        return self
+
+    # ------------------------------------------------------------------ derived geometry
+    def with_updates(self, updates: dict[str, Any], *, source: str = "<override>") -> "Scene":
+        """A new scene with dotted-key overrides (``{"object.center": [1, 1, 0]}``), validated again."""
+        data = self.model_dump(mode="python")
+        for key, value in updates.items():
+            node, parts = data, key.split(".")
+            for p in parts[:-1]:
+                if not isinstance(node, dict) or p not in node:
+                    raise StudyError(f"unknown scene key; allowed top-level keys: {sorted(data)}", file=source, key=key)
+                node = node[p]
+            if not isinstance(node, dict) or (parts[-1] not in node and parts[-1] != "material"):
+                raise StudyError("unknown scene key", file=source, key=key)
+            node[parts[-1]] = value
+        return scene_from_dict(data, source=source)
+
+    def mesh(self) -> RoomMesh:
+        """The room and its columns as triangles (:func:`study.scene.room.room_mesh`)."""
+        return room_mesh(self)
+
+
+def _box_sphere_distance(lo, hi, p) -> float:
+    return float(np.linalg.norm(np.maximum(np.maximum(lo - p, 0), p - hi)))
+
+
+# ---------------------------------------------------------------------------------------------- loading
+def scene_from_dict(data: dict, *, source: str = "<scene>") -> Scene:
+    """Validate a scene dict; the first problem is one StudyError naming ``source`` and the dotted key."""
+    try:
+        return Scene.model_validate(data)
+    except ValidationError as err:
+        key, msg = first_error(err, Scene, skip=("mirror", "conductor", "dielectric"))
+        raise StudyError(msg, file=source, key=key or "(top level)") from None
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a scene TOML file."""
+    return scene_from_dict(read_toml(path, what="scene file"), source=str(path))

@@ -1,0 +1,90 @@
+"""Tables: the tidy results table (one row per case × method) as CSV, written atomically, and Markdown tables.
+
+Every CSV study writes goes through :func:`write_csv` (fixed column order, NaN as an empty cell) and is read back
+by :func:`read_csv`; every Markdown table through :func:`markdown`."""
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+
+from study.io import atomic_write
+
+#: Column order of every results table; extra keys follow in the order first seen.
+COLUMNS = ["case", "method", "label", "family", "knob", "knob_value", "cube_res", "object_x", "object_y", "object_z", "displacement",
+           "angle_median_deg", "angle_p95_deg", "angle_max_deg", "dist_median",
+           "rmse_oracle", "psnr_oracle", "ssim_oracle", "flip_oracle",
+           "rmse_mitsuba", "psnr_mitsuba", "ssim_mitsuba", "flip_mitsuba",
+           "occluded_fraction", "valid_fraction", "ratio_residual_median", "lookups_per_ray", "rays",
+           "backend", "seconds"]
+
+
+#: Wall-clock columns: measured, not computed, so never part of a regression baseline.
+TIMING_COLUMNS = ("seconds", "case_seconds")
+
+
+def without_timing(rows: list[dict]) -> list[dict]:
+    """The rows without their wall-clock columns (:data:`TIMING_COLUMNS`)."""
+    return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in rows]
+
+
+def _fmt(v):
+    if isinstance(v, float):
+        if math.isnan(v):
+            return ""
+        return repr(v) if math.isfinite(v) else ("inf" if v > 0 else "-inf")
+    return v
+
+
+def columns_of(rows: list[dict]) -> list[str]:
+    extra = [k for r in rows for k in r if k not in COLUMNS]
+    return [c for c in COLUMNS if any(c in r for r in rows)] + list(dict.fromkeys(extra))
+
+
+def to_csv(rows: list[dict]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=columns_of(rows), lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: _fmt(v) for k, v in r.items()})
+    return buf.getvalue()
+
+
+def write_csv(rows: list[dict], path: str | Path) -> None:
+    atomic_write(Path(path), to_csv(rows).encode())
+
+
+def read_csv(path: str | Path) -> list[dict]:
+    """Rows with numbers parsed back to float (empty → NaN)."""
+    out = []
+    with open(path, newline="") as f:
+        for r in csv.DictReader(f):
+            row = {}
+            for k, v in r.items():
+                try:
+                    row[k] = float(v) if v != "" else math.nan
+                except ValueError:
+                    row[k] = v
+            out.append(row)
+    return out
+
+
+def fmt_number(v, digits: int = 3) -> str:
+    """A table cell: floats to ``digits`` significant digits (tiny ones in e-notation), NaN as '–'."""
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "–"
+        if v == 0:
+            return "0"
+        return f"{v:.{digits}g}" if abs(v) >= 1e-3 else f"{v:.1e}"
+    return str(v)
+
+
+def markdown(rows: list[dict], cols: list[str], *, digits: int = 3) -> str:
+    """A Markdown table of ``rows`` with the columns ``cols`` that some row has."""
+    cols = [c for c in cols if any(c in r for r in rows)]
+    out = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    for r in rows:
+        out.append("| " + " | ".join(fmt_number(r.get(c, ""), digits) for c in cols) + " |")
+    return "\n".join(out)

@@ -1,0 +1,53 @@
+"""The house rules of study, checked: the layer contracts in pyproject.toml (import-linter), no import cycle, no
+module over 350 lines, and the README's map of the house up to date."""
+import textwrap
+from pathlib import Path
+
+from importlinter.cli import lint_imports
+
+ROOT = Path(__file__).resolve().parents[1]
+MAX_LINES = 350
+
+
+def test_layer_contracts_hold():
+    """import-linter's contracts of pyproject.toml: lower layers never import upper ones, no cycles."""
+    assert lint_imports(config_filename=str(ROOT / "pyproject.toml"), no_cache=True) == 0
+
+
+def test_layer_contract_catches_an_upward_import(tmp_path, monkeypatch):
+    """The same kind of contract on a two-layer toy package, with the lower layer importing the upper: broken."""
+    pkg = tmp_path / "toy"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "high.py").write_text("X = 1\n")
+    (pkg / "low.py").write_text("from toy.high import X\n")
+    (tmp_path / "toy.toml").write_text(textwrap.dedent("""
+        [tool.importlinter]
+        root_package = "toy"
+        [[tool.importlinter.contracts]]
+        name = "layers"
+        type = "layers"
+        layers = ["toy.high", "toy.low"]
+    """))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert lint_imports(config_filename=str(tmp_path / "toy.toml"), no_cache=True) == 1
+
+
+def test_no_module_is_over_350_lines():
+    long = {str(p.relative_to(ROOT)): n for p in (ROOT / "study").rglob("*.py")
+            if (n := len(p.read_text().splitlines())) > MAX_LINES}
+    assert not long, f"split these modules: {long}"
+
+
+def test_every_package_says_what_it_owns():
+    for init in (ROOT / "study").rglob("__init__.py"):
+        doc = init.read_text().lstrip()
+        assert doc.startswith('"""') and len(doc.split('"""')[1].split()) >= 8, f"{init}: no docstring"
+
+
+def test_readme_map_of_the_house_is_current():
+    """README.md's 'Where things are' is what scripts/house.py makes from the docstrings today."""
+    import runpy
+    house = runpy.run_path(str(ROOT / "scripts" / "house.py"))
+    readme = (ROOT / "README.md").read_text()
+    assert house["render"](readme) == readme, "run `python scripts/house.py` to regenerate README.md's map"
