@@ -3,9 +3,16 @@ distance map searched with it: the same exits on numpy and Dr.Jit, and as many l
 import numpy as np
 import pytest
 
-from study import backend as backends
-from study.methods.search import (Bracket, first_crossing, first_crossing_ref, refine, refine_ref, secant_point,
-                                  sign_changes, sign_changes_ref)
+from study.methods.search import (
+    Bracket,
+    first_crossing,
+    first_crossing_ref,
+    refine,
+    refine_ref,
+    secant_point,
+    sign_changes,
+    sign_changes_ref,
+)
 from study.optics.distance_map import DistanceMap
 from study.scene import objects
 from tests.conftest import BACKENDS
@@ -15,7 +22,7 @@ N, STEPS = 400, 30
 
 
 def cubics(n, seed):
-    """Per ray a cubic c (t − r1)(t − r2)(t − r3): roots in [−0.3, 1.3], |c| in [0.5, 2], either sign (float32)."""
+    """Per ray a cubic c (t − r1)(t − r2)(t − r3): roots in [−0.3, 1.3], |c| in [0.5, 2], either sign."""
     rng = np.random.default_rng(seed)
     roots = rng.uniform(-0.3, 1.3, (n, 3)).astype(np.float32)
     scale = (rng.choice([-1.0, 1.0], n) * rng.uniform(0.5, 2.0, n)).astype(np.float32)
@@ -92,7 +99,7 @@ def test_refine_matches_its_twin_and_finds_the_root(B, illinois, rising):
     """From the core's own brackets: the secant point after 0–12 steps agrees with the twin's (float32 against
     float64) wherever a crossing was found; with the Illinois rule, 12 steps put it on a root of the cubic."""
     roots, scale = cubics(N, 4)
-    t0, dt, t0b, dtb = samples(B, seed=13)
+    _, _, t0b, dtb = samples(B, seed=13)
     g = g_core(B, roots, scale)
     if rising:
         br = first_crossing(B, g, t0b, g(t0b), dtb, STEPS, t_max=1.0)

@@ -18,7 +18,6 @@ What is compared with what (like with like):
 """
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Any
 
@@ -31,17 +30,15 @@ from study.caustics import lightmap
 from study.caustics import photons as caustics
 from study.errors import StudyError
 from study.evaluate.case import impostor, knob_columns
-from study.harness.config import MethodSpecs, base_scene, expand_methods
+from study.harness.config import MethodSpecs, configured_scene, expand_methods
 from study.impostor.analytic import angle_deg
 from study.impostor.envmap import EnvMap
-from study.io import atomic_savefig
 from study.methods import Method
 from study.optics import interfaces as optics
 from study.reference.embree import Tracer
 from study.reference.mitsuba import mi, scene_dict, sensor
 from study.scene import Scene, camera_rays
 from study.scene.objects import intersect_sphere
-from study.tables import write_csv
 from study.validation import validate_file
 
 
@@ -75,9 +72,7 @@ class CausticConfig(BaseModel):
 def load_caustic_config(path: str | Path) -> tuple[CausticConfig, Scene, list[Method]]:
     path = Path(path)
     cfg = validate_file(CausticConfig, path)
-    scene = base_scene(cfg.scene, config_path=path)
-    if cfg.overrides:
-        scene = scene.with_updates(cfg.overrides, source=f"{path} [overrides]")
+    scene = configured_scene(cfg, path)
     if scene.object.material.type != "dielectric":
         raise StudyError("caustics need a dielectric object", file=str(path), key="object.material")
     return cfg, scene, expand_methods(cfg.methods, source=str(path))

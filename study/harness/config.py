@@ -83,6 +83,15 @@ def base_scene(spec: str | dict, *, config_path: Path) -> Scene:
 MethodSpecs = Literal["all"] | list[Literal["all"] | dict[str, Any]]
 
 
+def configured_scene(cfg, path: Path) -> Scene:
+    """The base scene of a config (``cfg.scene``: a path relative to the config file, or an inline table) with
+    the config's ``[overrides]`` applied."""
+    scene = base_scene(cfg.scene, config_path=path)
+    if cfg.overrides:
+        scene = scene.with_updates(cfg.overrides, source=f"{path} [overrides]")
+    return scene
+
+
 def expand_methods(specs: MethodSpecs, *, source: str) -> list[Method]:
     """The methods a config asks for. ``"all"`` (alone or as a list entry) is every registered method with its
     default parameters; a table is {name, param = value | [values]}, lists expanding into the Cartesian product.
@@ -111,9 +120,7 @@ def expand_methods(specs: MethodSpecs, *, source: str) -> list[Method]:
 def load_figure_config(path: str | Path) -> tuple[FigureConfig, Scene, list[Method]]:
     path = Path(path)
     cfg = validate_file(FigureConfig, path)
-    scene = base_scene(cfg.scene, config_path=path)
-    if cfg.overrides:
-        scene = scene.with_updates(cfg.overrides, source=f"{path} [overrides]")
+    scene = configured_scene(cfg, path)
     for i, (_, _, over) in enumerate(cfg.case_list()):
         scene.with_updates(over, source=f"{path} {'positions' if cfg.positions is not None else 'cases'}[{i}]")
     methods = expand_methods(cfg.methods, source=str(path))

@@ -37,7 +37,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from study.errors import StudyError
-from study.harness.config import MethodSpecs, base_scene, expand_methods
+from study.harness.config import MethodSpecs, configured_scene, expand_methods
 from study.methods import Method
 from study.scene import Scene
 from study.validation import validate_file
@@ -118,9 +118,7 @@ def load_sweep(path: str | Path, *, backend: str = "numpy") -> Sweep:
     """Read, validate and expand a sweep file: every case's scene is validated before anything runs."""
     path = Path(path)
     cfg = validate_file(SweepConfig, path)
-    scene = base_scene(cfg.scene, config_path=path)
-    if cfg.overrides:
-        scene = scene.with_updates(cfg.overrides, source=f"{path} [overrides]")
+    scene = configured_scene(cfg, path)
     if cfg.seed is not None:
         scene = scene.with_updates({"render.seed": cfg.seed}, source=str(path))
     methods = expand_methods(cfg.methods, source=str(path))

@@ -10,10 +10,10 @@ t = d/(d + a) parameterization, n = max(n_max (1 − x̂·R)/2, n_min) steps alo
 g_k(t) = |p(t)| − (1 − t) |p(t)'|_k, recording the first TWO sign changes of each layer in either direction
 (under → over: the ray passes a surface that faces o; over → under: a surface that faces away from o, such as a
 column top seen from below, which is how a layer behind the first holds it); each is refined by ``iterations``
-Illinois secant steps (both phases from the search core :mod:`study.methods.search`). One lookup at each refined point reads q = |l|/|l'|_k, the layer's relative depth jump and
-the radiance. A crossing is *clean* where |q − 1| ≤ ``tolerance`` and the jump is below ``max_jump``; a crossing
-on a depth discontinuity is the "skin" that bilinear interpolation stretches from a silhouette to what lies behind
-it, not a surface.
+Illinois secant steps (both phases from the search core :mod:`study.methods.search`). One lookup at each refined
+point reads q = |l|/|l'|_k, the layer's relative depth jump and the radiance. A crossing is *clean* where
+|q − 1| ≤ ``tolerance`` and the jump is below ``max_jump``; a crossing on a depth discontinuity is the "skin" that
+bilinear interpolation stretches from a silhouette to what lies behind it, not a surface.
 
 Why not the paper's false position on each layer: on the layer that holds a column top (seen from below), a ray
 coming down onto the top first crosses the skin along the top's silhouette edge and then the top itself; false

@@ -9,17 +9,16 @@ g(t) = |p(t)| − (1 − t) |p(t)'| (|v'| the stored distance towards v), g < 0 
 ("undershoot", the paper's |l|/|l'| < 1), g > 0 behind it. g(1) = a > 0, so every ray that starts in front of the
 surface has a crossing.
 
-Phases (the search core :mod:`study.methods.search`): (1) linear search for the FIRST pair of consecutive samples with g < 0 then g ≥ 0; (2) ``secant_steps``
-secant (false-position) steps on g inside that bracket, keeping the side by the sign of g, by default with the
-Illinois rule (when the same end is replaced twice in a row, the other end's g is halved; plain false position
-stalls on one side and left errors of centimetres after 10 steps on a column face); the result is the secant
-point of the final bracket. The secant works on g(t) instead of the chapter's q(d) because q is infinite at
-t = 1; both vanish at the same points. Invalid (NaN shown point) where no crossing is found (x itself behind the
-environment surface and the ray never comes out in front of it).
+Phases (both from the search core :mod:`study.methods.search`): (1) linear search for the FIRST pair of consecutive
+samples with g < 0 then g ≥ 0; (2) ``secant_steps`` secant (false-position) steps on g inside that bracket, keeping
+the side by the sign of g, by default with the Illinois rule (when the same end is replaced twice in a row, the
+other end's g is halved; plain false position stalls on one side and left errors of centimetres after 10 steps on a
+column face); the result is the secant point of the final bracket. The secant works on g(t) instead of the chapter's
+q(d) because q is infinite at t = 1; both vanish at the same points. Invalid (NaN shown point) where no crossing is
+found (x itself behind the environment surface and the ray never comes out in front of it).
 """
 from __future__ import annotations
 
-import math
 from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator

@@ -29,7 +29,8 @@ Each function has a slow, obvious ``_ref`` twin (one ray, plain Python floats) t
 """
 from __future__ import annotations
 
-from typing import Any, Callable, NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 
 class Bracket(NamedTuple):
@@ -62,7 +63,7 @@ def sign_changes(B, g: Callable, t0, g0, dt, steps: int, *, count: int = 2, t_ma
 def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first):
     many = isinstance(g0, (list, tuple))
     g_prev = list(g0) if many else [g0]                # g at the previous sample, per function
-    never = t0 < t0                                    # all False
+    never = B.isfinite(t0) & ~B.isfinite(t0)          # all False
     # per function, per crossing: found, t_lo, g_lo, t_hi, g_hi (the default, or a placeholder until the end)
     start = [tuple(default) if default is not None else (t0, gp, t0, gp) for gp in g_prev]
     cross = [[[never, *s] for _ in range(count)] for s in start]
@@ -115,7 +116,7 @@ def refine(B, g: Callable, bracket: Bracket, steps: int, *, illinois: bool = Tru
     end's g (plain false position stalls on one side). Returns the final bracket (``found`` passed through); its
     :func:`secant_point` is the estimate."""
     t_lo, g_lo, t_hi, g_hi, found = bracket
-    side = t_lo * 0.0                                  # +1: the last step replaced the lo end, −1: the hi end, 0: none
+    side = t_lo * 0.0                                  # +1: the last step replaced the lo end, −1: hi, 0: none
     for _ in range(steps):
         t = t_lo - g_lo * (t_hi - t_lo) / (g_hi - g_lo)   # secant point
         gt = g(t)

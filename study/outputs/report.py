@@ -7,33 +7,18 @@ report another command wrote (e.g. ``reports/performance.md``).
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 from study.io import atomic_write
 from study.outputs import claims as claim_registry
-from study.tables import read_csv
+from study.tables import markdown, read_csv
 
 SUMMARY = ["angle_median_deg", "angle_p95_deg", "rmse_oracle", "rmse_mitsuba", "ssim_mitsuba", "flip_mitsuba",
            "occluded_fraction", "lookups_per_ray"]
 
 
-def _fmt(v) -> str:
-    if isinstance(v, float):
-        if math.isnan(v):
-            return "–"
-        if v == 0:
-            return "0"
-        return f"{v:.3g}" if abs(v) >= 1e-3 else f"{v:.1e}"
-    return str(v)
-
-
 def table(rows: list[dict], cols: list[str]) -> str:
-    cols = [c for c in cols if any(c in r for r in rows)]
-    out = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    for r in rows:
-        out.append("| " + " | ".join(_fmt(r.get(c, "")) for c in cols) + " |")
-    return "\n".join(out)
+    return markdown(rows, cols, digits=3)
 
 
 def _meta(d: Path) -> dict:
