@@ -37,7 +37,9 @@ def canonical(label: str) -> str:
 
 
 def key(r: dict) -> tuple:
-    return (r.get("case", ""), str(r.get("caustic_res", "")), canonical(r["label"]))
+    if "caustic_res" in r:                      # caustic tables: one row per resolution × method
+        return (str(r["caustic_res"]), canonical(r["label"]))
+    return (r.get("case", ""), canonical(r["label"]))
 
 
 def compare(old: Path, new: Path, rtol: float) -> bool:
