@@ -24,4 +24,4 @@ if ! ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* >/dev/null 2>&1 && ! ls /usr/li
     .venv/bin/python -m pip install -q karellen-llvm-core
   fi
 fi
-.venv/bin/python -c 'import study.llvm as l; print("study set-up ok; libLLVM:", l.require())'
+.venv/bin/python -c 'import study.runtime as r; print("study set-up ok; libLLVM:", r.require())'
