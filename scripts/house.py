@@ -15,6 +15,7 @@ BEGIN, END = "<!-- house:begin (scripts/house.py) -->", "<!-- house:end -->"
 #: top to bottom, as the layers of pyproject.toml
 ORDER = ["cli.py", "outputs", "bench", "caustics", "harness", "evaluate", "optics", "methods", "impostor",
          "reference", "scene", "cache.py", "validation.py", "tables.py", "backend.py", "io.py", "runtime.py",
+         "codehash.py",
          "errors.py"]
 
 

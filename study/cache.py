@@ -1,8 +1,11 @@
 """Content-addressed cache of arrays (impostors, Mitsuba renders), validated when loaded.
 
-An entry is ``<root>/<kind>/<key>.exr`` (float32 EXR through Mitsuba's Bitmap) and ``<key>.json`` holding the
-array's shape and SHA-256. Both are written atomically (temporary file + rename), the JSON last; an entry whose
-EXR is missing, unreadable, of another shape or another checksum is recomputed, never trusted.
+An entry is ``<root>/<kind>/<key>.exr`` (float32 EXR through Mitsuba's Bitmap) and ``<key>.json`` holding its
+full key, the array's shape and SHA-256. The key is the caller's content key folded with the hash of the code
+that produces the array (:func:`study.codehash.code_hash` of ``code``), so an entry made by other code is never
+found. Both files are written atomically (temporary file + rename), the JSON last; an entry whose JSON names
+another key (a file copied or renamed), or whose EXR is missing, unreadable, of another shape or another
+checksum is recomputed, never trusted. :meth:`Cache.info` and :meth:`Cache.clear` serve ``study cache``.
 """
 from __future__ import annotations
 
@@ -13,6 +16,7 @@ from typing import Callable
 
 import numpy as np
 
+from study.codehash import code_hash
 from study.errors import StudyError
 from study.io import atomic_write, read_exr, write_exr
 
@@ -44,6 +48,8 @@ class Cache:
         exr, meta = self.root / kind / f"{key}.exr", self.root / kind / f"{key}.json"
         try:
             info = json.loads(meta.read_text())
+            if info["key"] != key:
+                return None
             a = read_exr(exr)
             a = a.reshape(info["shape"])
             if _digest(a) != info["sha256"]:
@@ -60,12 +66,17 @@ class Cache:
         try:
             d.mkdir(parents=True, exist_ok=True)
             write_exr(d / f"{key}.exr", _as_image(a))
-            atomic_write(d / f"{key}.json", json.dumps({"shape": list(a.shape), "sha256": _digest(a)}).encode())
+            atomic_write(d / f"{key}.json", json.dumps({"key": key, "shape": list(a.shape),
+                                                             "sha256": _digest(a)}).encode())
         except OSError as err:
             raise StudyError(f"cannot write the cache ({err.strerror})", file=str(d)) from None
 
-    def get(self, kind: str, key: str, make: Callable[[], np.ndarray]) -> np.ndarray:
-        """The cached array, or ``make()`` stored under (kind, key)."""
+    def get(self, kind: str, key: str, make: Callable[[], np.ndarray], *, code) -> np.ndarray:
+        """The cached array, or ``make()`` stored under (kind, key + the hash of ``code``).
+
+        ``code`` is the function that produces the array (or a tuple of functions, classes, modules): its
+        module's source and that of every study module it imports are part of the key."""
+        key = content_key(key, code_hash(*(code if isinstance(code, (tuple, list)) else (code,))))
         a = self.load(kind, key)
         if a is not None:
             self.hits += 1
@@ -74,3 +85,69 @@ class Cache:
         a = np.asarray(make(), np.float32)
         self.store(kind, key, a)
         return a
+
+    # ------------------------------------------------------------------ study cache info / clear
+    def _kinds(self) -> dict[str, list[Path]]:
+        """Kind → the cache's files in ``<root>/<kind>/`` (a directory holding at least one entry): entries (JSON +
+        EXR) and, where the directory holds nothing else, EXRs without JSON and temporary files left by
+        interrupted writes. Files the cache never writes are never listed, so never removed."""
+        if self.root is None or not self.root.exists():
+            return {}
+        if not self.root.is_dir():
+            raise StudyError("the cache is not a directory", file=str(self.root))
+        out = {}
+        try:
+            for d in sorted(p for p in self.root.iterdir() if p.is_dir()):
+                files = sorted(p for p in d.iterdir() if p.is_file())
+                entries = [p for p in files if p.suffix == ".json" and not p.name.startswith(".") and _is_entry(p)]
+                if not entries:
+                    continue
+                mine = {p for e in entries for p in (e, e.with_suffix(".exr")) if p.exists()}
+                strays = [p for p in files if p not in mine]
+                if all(p.suffix == ".exr" or p.name.startswith(".") and p.suffix in (".tmp", ".exr")
+                       for p in strays):
+                    mine.update(strays)
+                out[d.name] = sorted(mine)
+        except OSError as err:
+            raise StudyError(f"cannot read the cache ({err.strerror})", file=str(self.root)) from None
+        return out
+
+    def info(self) -> dict[str, tuple[int, int]]:
+        """Kind → (entries, bytes on disk) of everything the cache holds."""
+        return {k: (sum(p.suffix == ".json" and not p.name.startswith(".") for p in fs),
+                    sum(p.stat().st_size for p in fs)) for k, fs in self._kinds().items()}
+
+    def clear(self, kind: str | None = None) -> dict[str, tuple[int, int]]:
+        """Remove every entry (of ``kind`` only, if given); returns kind → (entries, bytes) removed."""
+        kinds = self._kinds()
+        if kind is not None:
+            if kind not in kinds:
+                raise StudyError(f"no entries of kind {kind!r}; kinds here: {', '.join(kinds) or 'none'}",
+                                 file=str(self.root), key="--kind")
+            kinds = {kind: kinds[kind]}
+        gone = {}
+        for k, fs in kinds.items():
+            n = sum(p.suffix == ".json" and not p.name.startswith(".") for p in fs)
+            size = 0
+            for p in fs:
+                try:
+                    size += p.stat().st_size
+                    p.unlink()
+                except FileNotFoundError:
+                    pass
+                except OSError as err:
+                    raise StudyError(f"cannot remove a cache file ({err.strerror})", file=str(p)) from None
+            try:
+                (self.root / k).rmdir()                      # only if nothing else is left in it
+            except OSError:
+                pass
+            gone[k] = (n, size)
+        return gone
+
+
+def _is_entry(p: Path) -> bool:
+    try:
+        info = json.loads(p.read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(info, dict) and "sha256" in info and "shape" in info

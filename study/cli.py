@@ -1,9 +1,14 @@
 """The ``study`` command line. Argument parsing only: every command calls one function of the package.
 
-Errors in the input print one line (``error: <file>: <key>: <what is allowed>``) and exit with code 2.
+Every error prints one line (``error: <file>: <key>: <what is allowed>``), never a traceback (``study --debug``
+shows it), and ends with a distinct exit code: 2 bad input, 3 a problem of the environment (libLLVM, GPU, disk
+full, permissions, memory, another command writing to the same directory), 1 a regression found by ``check``,
+4 an internal error (a bug), 130 interrupted.
 """
 from __future__ import annotations
 
+import functools
+import signal
 import sys
 import time
 from pathlib import Path
@@ -12,14 +17,16 @@ from typing import Optional
 import typer
 from rich.console import Console
 
-from study import __version__, methods
-from study.bench.output import bench_table, write_outputs
-from study.bench.run import BenchOptions, run_bench
+from study import __version__, methods, runtime
+from study.bench.output import bench_table, write_scaling, write_table
+from study.bench.run import BenchOptions, check_options, run_bench
+from study.cache import Cache
 from study.caustics.figure import fig8
-from study.errors import StudyError
+from study.errors import StudyError, user_error
+from study.harness import budget
 from study.harness.config import load_figure_config
-from study.harness.runner import run_sweep
-from study.harness.sweep import load_sweep
+from study.harness.runner import prepare_sweep, run_sweep
+from study.io import locked
 from study.outputs.check import run_check
 from study.outputs.figures import figure_positions
 from study.outputs.plots import sweep_plots
@@ -37,14 +44,25 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
+#: Global options of this run (set by the callback before the command).
+DEBUG = {"on": False}
+
+
 @app.callback()
 def _options(plugin: list[str] = typer.Option([], "--plugin", metavar="MODULE",
                                               help="import MODULE first: methods it registers join every command "
                                                    "(repeatable; also $STUDY_PLUGINS)"),
+             debug: bool = typer.Option(False, "--debug", help="show the traceback of an error"),
+             max_memory: float = typer.Option(budget.DEFAULT_MAX_MEMORY_GIB, "--max-memory", metavar="GIB",
+                                              help="refuse a case estimated to need more memory (GiB)"),
+             max_minutes: float = typer.Option(budget.DEFAULT_MAX_MINUTES, "--max-minutes", metavar="MIN",
+                                               help="refuse a command estimated to take longer (minutes)"),
              version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
                                           help="print the version and exit")):
     """Measure how close GPU-friendly approximations of ray tracing come to ray tracing."""
+    DEBUG["on"] = debug
     try:
+        budget.configure(max_memory, max_minutes)
         methods.load_plugins(plugin)
     except StudyError as err:
         _fail(err)
@@ -53,32 +71,59 @@ FIGURES = {"fig4": "configs/fig4.toml", "fig5": "configs/fig5.toml", "fig6": "co
            "fig8": "configs/fig8.toml"}
 
 
+def _line(text: str) -> str:
+    return " ".join(str(text).split()) or "(no message)"
+
+
 def _fail(err: StudyError) -> None:
     from rich.text import Text
-    err_console.print(Text("error: ", style="bold red") + Text(str(err)), highlight=False, soft_wrap=True)
-    raise typer.Exit(2)
+    err_console.print(Text("error: ", style="bold red") + Text(_line(str(err))), highlight=False, soft_wrap=True)
+    raise typer.Exit(err.code)
+
+
+def guarded(llvm: bool = False):
+    """A command whose errors are one line each (:func:`study.errors.user_error`); ``llvm``: it renders, so the
+    libLLVM that Mitsuba and Dr.Jit will load is checked first (exit 3 where it would abort the process)."""
+    def wrap(fn):
+        @functools.wraps(fn)
+        def run(*args, **kwargs):
+            try:
+                if llvm:
+                    runtime.require()
+                return fn(*args, **kwargs)
+            except (typer.Exit, typer.Abort, typer.TyperException):
+                raise
+            except KeyboardInterrupt:
+                if DEBUG["on"]:
+                    raise
+                err_console.print("error: interrupted", highlight=False)
+                raise typer.Exit(130)
+            except Exception as err:
+                if DEBUG["on"]:
+                    raise
+                _fail(user_error(err))
+        return run
+    return wrap
 
 
 @app.command()
+@guarded(llvm=True)
 def figure(name: str = typer.Argument(..., help="figure to make: " + ", ".join(FIGURES)),
            config: Optional[Path] = typer.Option(None, help="figure config (default configs/<name>.toml)"),
            out: Optional[Path] = typer.Option(None, help="output directory (default reports/<name>)"),
            backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
            cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders")):
     """Reproduce one of the paper's figures: image grid + metrics CSV under reports/<name>/."""
-    try:
-        if name not in FIGURES:
-            raise StudyError(f"unknown figure {name!r}; allowed: {', '.join(FIGURES)}", key="name")
-        t0 = time.perf_counter()
-        if name == "fig8":  # caustics: study/caustics/figure.py
-            return _caustics(config or FIGURES[name], out or Path("reports") / name, backend, cache, sweep=False)
-        with console.status(f"{name}: rendering and measuring…") as status:
-            def progress(i, n):
-                status.update(f"{name}: {i}/{n} rows done ({time.perf_counter() - t0:.0f} s)")
-            rows = figure_positions(config or FIGURES[name], out or Path("reports") / name, name=name,
-                                    backend=backend, cache=cache, progress=progress)
-    except StudyError as err:
-        _fail(err)
+    if name not in FIGURES:
+        raise StudyError(f"unknown figure {name!r}; allowed: {', '.join(FIGURES)}", key="name")
+    t0 = time.perf_counter()
+    if name == "fig8":  # caustics: study/caustics/figure.py
+        return _caustics(config or FIGURES[name], out or Path("reports") / name, backend, cache, sweep=False)
+    with console.status(f"{name}: rendering and measuring…") as status:
+        def progress(i, n):
+            status.update(f"{name}: {i}/{n} rows done ({time.perf_counter() - t0:.0f} s)")
+        rows = figure_positions(config or FIGURES[name], out or Path("reports") / name, name=name,
+                                backend=backend, cache=cache, progress=progress)
     _print_table(rows)
     console.print(f"{name}: wrote {out or Path('reports') / name} in {time.perf_counter() - t0:.1f} s")
 
@@ -96,6 +141,7 @@ def _print_table(rows: list[dict]) -> None:
 
 
 @app.command()
+@guarded(llvm=True)
 def sweep(config: Path = typer.Argument(..., help="sweep file (TOML), e.g. configs/sweep.toml"),
           out: Optional[Path] = typer.Option(None, help="output directory (default reports/sweep-<config name>)"),
           backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
@@ -115,41 +161,35 @@ def sweep(config: Path = typer.Argument(..., help="sweep file (TOML), e.g. confi
     )
 
     out = out or Path("reports") / f"sweep-{config.stem}"
-    try:
-        load_sweep(config, backend=backend)          # every case validated before the progress bar appears
-        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                      TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=err_console,
-                      transient=False) as bar:
-            task = bar.add_task(f"sweep {config.stem}", total=None)
+    prepare_sweep(config, backend=backend, jobs=jobs)   # every case checked before the progress bar appears
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=err_console,
+                  transient=False) as bar:
+        task = bar.add_task(f"sweep {config.stem}", total=None)
 
-            def progress(done, total, case_id):
-                if bar.tasks[task].total is None:
-                    bar.update(task, total=total, completed=done)   # finished cases from an earlier run
-                    bar.tasks[task].start_time = None
-                    bar.start_task(task)
-                else:
-                    bar.update(task, completed=done, description=f"sweep {config.stem} ({case_id})")
-            rows, stats = run_sweep(config, out, backend=backend, cache=cache, jobs=jobs, dask=dask,
-                                    progress=progress)
-        if plots:
-            sweep_plots(rows, out / "plots")
-    except StudyError as err:
-        _fail(err)
+        def progress(done, total, case_id):
+            if bar.tasks[task].total is None:
+                bar.update(task, total=total, completed=done)   # finished cases from an earlier run
+                bar.tasks[task].start_time = None
+                bar.start_task(task)
+            else:
+                bar.update(task, completed=done, description=f"sweep {config.stem} ({case_id})")
+        rows, stats = run_sweep(config, out, backend=backend, cache=cache, jobs=jobs, dask=dask,
+                                progress=progress,     # the curves join the table's output set
+                                extra=(lambda rows, d: sweep_plots(rows, d / "plots")) if plots else None)
     console.print(f"sweep: {stats['cases']} cases ({stats['cached']} already done, {stats['computed']} computed) "
                   f"in {stats['seconds']:.1f} s → {out / 'results.csv'}", highlight=False)
 
 
 @app.command()
+@guarded(llvm=True)
 def check(config: Path = typer.Option(Path("configs/check.toml"), help="check file: sweep, baseline, tolerances"),
           update: bool = typer.Option(False, "--update", help="rewrite the baseline instead of comparing"),
           backend: str = typer.Option("numpy", help="numpy | llvm | cuda"),
           cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders")):
     """CI regression: run a small fixed sweep and compare every metric with the committed baseline."""
-    try:
-        with console.status("check: running the check sweep…"):
-            fails, lines = run_check(config, update=update, cache=cache, backend=backend)
-    except StudyError as err:
-        _fail(err)
+    with console.status("check: running the check sweep…"):
+        fails, lines = run_check(config, update=update, cache=cache, backend=backend)
     for line in lines:
         console.print(line, highlight=False)
     if fails:
@@ -162,16 +202,15 @@ def check(config: Path = typer.Option(Path("configs/check.toml"), help="check fi
 
 
 @app.command()
+@guarded()
 def report(reports: Path = typer.Option(Path("reports"), help="directory holding the figures and sweeps")):
     """Build reports/index.md from the results tables: figures, tables, the paper's claims, versions."""
-    try:
-        path = build_report(reports)
-    except StudyError as err:
-        _fail(err)
+    path = build_report(reports)
     console.print(f"report: wrote {path}", highlight=False)
 
 
 @app.command()
+@guarded(llvm=True)
 def bench(out: Path = typer.Option(Path("reports/bench"), help="output directory"),
           config: Path = typer.Option(Path("configs/fig4.toml"), help="figure config whose scene is benched"),
           position: int = typer.Option(2, help="index into the config's positions: where the object stands"),
@@ -188,33 +227,32 @@ def bench(out: Path = typer.Option(Path("reports/bench"), help="output directory
           scaling: bool = typer.Option(True, help="also run the scaling studies (plots)"),
           tag: str = typer.Option("", help="name of this machine in file names (default cpu or gpu)")):
     """Time every method against exact ray casting (Embree, Mitsuba) on the same rays: CSV + Markdown tables."""
-    try:
-        cfg, scene, _ = load_figure_config(config)
-        if not 0 <= position < len(cfg.positions):
-            raise StudyError(f"position {position} out of range; allowed: 0..{len(cfg.positions) - 1}",
-                             file=str(config), key="positions")
-        chosen = () if method_names == "all" else tuple(m.strip() for m in method_names.split(",") if m.strip())
-        names = () if backends == "auto" else tuple(b.strip() for b in backends.split(",") if b.strip())
-        opt = BenchOptions(position=tuple(cfg.positions[position]), scene_res=scene_res, synthetic=rays,
-                           methods=chosen, ladder=ladder, cube_res=cube_res, backends=names, repeats=repeats,
-                           numpy_max_rays=numpy_max_rays, scaling=scaling, tag=tag)
-        t0 = time.perf_counter()
+    cfg, scene, _ = load_figure_config(config)
+    if cfg.positions is None or not 0 <= position < len(cfg.positions):
+        n = len(cfg.positions or [])
+        raise StudyError(f"position {position} out of range; allowed: 0..{n - 1}" if n else
+                         "the config lists no positions", file=str(config), key="positions")
+    chosen = () if method_names == "all" else tuple(m.strip() for m in method_names.split(",") if m.strip())
+    names = () if backends == "auto" else tuple(b.strip() for b in backends.split(",") if b.strip())
+    opt = BenchOptions(position=tuple(cfg.positions[position]), scene_res=scene_res, synthetic=rays,
+                       methods=chosen, ladder=ladder, cube_res=cube_res, backends=names, repeats=repeats,
+                       numpy_max_rays=numpy_max_rays, scaling=scaling, tag=tag)
+    check_options(opt)
+    t0 = time.perf_counter()
+    files: list[Path] = []
+    with locked(out):          # the main table and the scaling study: each replaced whole, or left as it was
         rows, scal, info = run_bench(scene, opt, log=lambda s: console.print(
             f"[{time.perf_counter() - t0:6.1f} s] {s}", highlight=False),
-            on_table=lambda rows, info: write_outputs(rows, [], info, out))
-        files = write_outputs(rows, scal, info, out)
-    except StudyError as err:
-        _fail(err)
+            on_table=lambda rows, info: files.extend(write_table(rows, info, out, lock=False)))
+        if scal:
+            files += write_scaling(scal, info, out, lock=False)
     console.print(bench_table(rows), highlight=False, soft_wrap=True)
     console.print("wrote " + ", ".join(str(f) for f in files), highlight=False, soft_wrap=True)
 
 
 def _caustics(config, out, backend, cache, *, sweep: bool):
     t0 = time.perf_counter()
-    try:
-        rows = fig8(config, out, backend=backend, cache=cache, sweep=sweep)
-    except StudyError as err:
-        _fail(err)
+    rows = fig8(config, out, backend=backend, cache=cache, sweep=sweep)
     for r in rows:
         console.print(", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in r.items()
                                 if k in ("caustic_res", "label", "lm_rmse", "lm_relmse", "energy_ratio",
@@ -224,6 +262,7 @@ def _caustics(config, out, backend, cache, *, sweep: bool):
 
 
 @app.command("caustics-sweep")
+@guarded(llvm=True)
 def caustics_sweep(config: Path = typer.Option(Path("configs/caustics_sweep.toml"), help="sweep config"),
                    out: Path = typer.Option(Path("reports/fig8"), help="output directory"),
                    backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where caustic maps are built"),
@@ -233,6 +272,7 @@ def caustics_sweep(config: Path = typer.Option(Path("configs/caustics_sweep.toml
 
 
 @app.command("methods")
+@guarded()
 def list_methods():
     """List the registered localization methods and their parameters."""
     for name in methods.names():
@@ -243,12 +283,62 @@ def list_methods():
         console.print(f"{name}({params})\n{knob}", highlight=False, soft_wrap=True)
 
 
+cache_app = typer.Typer(no_args_is_help=True, help="The cache of impostors and renders: what it holds, clearing it.")
+app.add_typer(cache_app, name="cache")
+
+
+def _size(n: int) -> str:
+    return next(f"{n / f:.1f} {u}" for f, u in ((1 << 30, "GiB"), (1 << 20, "MiB"), (1 << 10, "KiB"), (1, "B"))
+                if n >= f or u == "B")
+
+
+@cache_app.command("info")
+@guarded()
+def cache_info(cache: Path = typer.Option(Path(".cache"), help="cache directory")):
+    """Entries and bytes per kind (radiance, distance, mitsuba, …)."""
+    kinds = Cache(cache).info()
+    for k, (n, size) in kinds.items():
+        console.print(f"{k}: {n} entries, {_size(size)}", highlight=False, soft_wrap=True)
+    total = sum(n for n, _ in kinds.values()), sum(s for _, s in kinds.values())
+    console.print(f"cache {cache}: {total[0]} entries, {_size(total[1])}", highlight=False, soft_wrap=True)
+
+
+@cache_app.command("clear")
+@guarded()
+def cache_clear(cache: Path = typer.Option(Path(".cache"), help="cache directory"),
+                kind: Optional[str] = typer.Option(None, help="remove only the entries of this kind")):
+    """Remove the cache's entries (all, or those of one --kind); anything else in the directory stays."""
+    gone = Cache(cache).clear(kind)
+    for k, (n, size) in gone.items():
+        console.print(f"{k}: removed {n} entries, {_size(size)}", highlight=False, soft_wrap=True)
+    console.print(f"cache {cache}: removed {sum(n for n, _ in gone.values())} entries", highlight=False, soft_wrap=True)
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main() -> None:
+    """The ``study`` executable: like ``app()``, but usage errors too are one line (exit 2), and SIGTERM
+    interrupts like Ctrl-C (the output sets of :mod:`study.io` then clean up)."""
+    signal.signal(signal.SIGTERM, _interrupt)
     try:
-        app()
-    except StudyError as err:  # errors raised outside a command's own handler
-        err_console.print(f"error: {err}", highlight=False)
-        sys.exit(2)
+        rc = app(standalone_mode=False)
+    except typer.Abort:
+        err_console.print("error: interrupted", highlight=False)
+        sys.exit(130)
+    except typer.TyperException as err:                   # bad option or argument: one line, not a panel
+        msg = err.format_message() if hasattr(err, "format_message") else str(err)
+        hint = f"{err.param_hint}: " if isinstance(getattr(err, "param_hint", None), str) else ""
+        err_console.print(f"error: {_line(hint + msg)}", highlight=False, soft_wrap=True, markup=False)
+        sys.exit(getattr(err, "exit_code", 2))
+    except KeyboardInterrupt:
+        err_console.print("error: interrupted", highlight=False)
+        sys.exit(130)
+    except StudyError as err:                             # raised outside a command's own handler
+        err_console.print(f"error: {_line(str(err))}", highlight=False, soft_wrap=True, markup=False)
+        sys.exit(err.code)
+    sys.exit(rc if isinstance(rc, int) else 0)
 
 
 if __name__ == "__main__":

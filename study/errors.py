@@ -1,10 +1,70 @@
-"""The one exception type users see: a single line naming the file, the key and what is allowed."""
+"""The one exception type users see: a single line naming the file, the key and what is allowed.
+
+Each error carries the exit code the CLI ends with: 2 for bad input (:class:`StudyError`), 3 for a problem of the
+environment (:class:`EnvironmentProblem`: libLLVM, GPU, disk full, permissions, memory). ``study check`` ends
+with 1 for a regression it found (not an error), and an unexpected exception (a bug) with 4
+(:func:`user_error` turns any exception into its one line).
+"""
+import errno
+import os
+
+BAD_INPUT, REGRESSION, ENVIRONMENT, INTERNAL = 2, 1, 3, 4
 
 
 class StudyError(Exception):
-    """Bad input or environment. ``str(err)`` is one line meant for the user; the CLI prints it and exits 2."""
+    """Bad input or environment. ``str(err)`` is one line meant for the user; the CLI prints it and exits with
+    ``err.code`` (2: bad input)."""
 
-    def __init__(self, message: str, *, file: str | None = None, key: str | None = None):
+    code = BAD_INPUT
+
+    def __init__(self, message: str, *, file: str | None = None, key: str | None = None, code: int | None = None):
         self.file, self.key, self.detail = file, key, message
+        if code is not None:
+            self.code = code
         where = ": ".join(str(p) for p in (file, key) if p)
         super().__init__(f"{where}: {message}" if where else message)
+
+    def __reduce__(self):      # keeps file, key and code across processes (worker → sweep)
+        return _rebuild, (type(self), self.detail, self.file, self.key, self.code)
+
+
+class EnvironmentProblem(StudyError):
+    """The machine, not the input: no usable libLLVM, no GPU, a full or read-only disk, too little memory
+    (exit code 3)."""
+
+    code = ENVIRONMENT
+
+
+def _rebuild(cls, detail, file, key, code):
+    return cls(detail, file=file, key=key, code=code)
+
+
+#: errno values that say the path given is wrong (bad input, exit 2); any other OSError is the machine's (exit 3).
+_BAD_PATH = {errno.ENOTDIR, errno.EEXIST, errno.EISDIR, errno.ENOENT, errno.ENAMETOOLONG, errno.ELOOP}
+
+
+def os_problem(err: OSError, what: str, path=None) -> StudyError:
+    """An OSError as the one line a user sees: a wrong path is bad input (exit 2), anything else — a full or
+    read-only disk, permissions, I/O — a problem of the environment (exit 3)."""
+    path = path if path is not None else err.filename
+    reason = os.strerror(err.errno) if err.errno else str(err)
+    cls = StudyError if err.errno in _BAD_PATH else EnvironmentProblem
+    return cls(f"{what} ({reason})", file=str(path) if path is not None else None)
+
+
+def user_error(err: BaseException) -> StudyError:
+    """Any exception as the StudyError a user sees, with its exit code: OSError → :func:`os_problem` (and a
+    StudyError raised while handling one of the machine's), out of memory → 3, anything unexpected → an internal
+    error (4) naming the exception."""
+    if isinstance(err, StudyError):
+        ctx = err.__context__             # raised while handling a full disk, a permission, … (e.g. the cache's)
+        if err.code == BAD_INPUT and isinstance(ctx, OSError) and ctx.errno and ctx.errno not in _BAD_PATH:
+            return EnvironmentProblem(err.detail, file=err.file, key=err.key)
+        return err
+    if isinstance(err, OSError):
+        return os_problem(err, "cannot read or write a file")
+    if isinstance(err, MemoryError):
+        return EnvironmentProblem("out of memory; lower the resolution, supersampling or samples, or --max-memory")
+    first = (str(err).strip().splitlines() or [""])[0][:200]
+    return StudyError(f"internal error ({type(err).__name__}: {first}); please report it, `study --debug …` "
+                      "shows the traceback", code=INTERNAL)

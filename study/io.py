@@ -1,5 +1,8 @@
 """Files written and read the one way study does it: atomically, with one clear error per problem.
 
+* :func:`output_set`: a command's whole output set as a transaction: written into a fresh directory beside the
+  target and swapped in at the end, so a failed or killed command leaves the previous outputs as they were
+  (:func:`locked`: one command at a time per output directory).
 * :func:`atomic_write` / :func:`atomic_savefig` / :func:`write_exr`: a temporary file beside the target, renamed
   over it at the end, so a reader (or a killed run) never sees half a file, and no temporary file is left behind.
 * :func:`read_toml`: a TOML file, or a :class:`~study.errors.StudyError` naming the file.
@@ -8,15 +11,24 @@
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import errno
+import fcntl
+import glob
 import os
+import shutil
+import stat
 import tempfile
 import tomllib
 from pathlib import Path
+from typing import Iterable
 
 import numpy as np
 
 from study import runtime
-from study.errors import StudyError
+from study.errors import EnvironmentProblem, StudyError, os_problem
+
+LOCK = ".lock"
 
 
 @contextlib.contextmanager
@@ -49,6 +61,19 @@ def atomic_savefig(fig, path: str | Path, *, dpi: int = 110) -> None:
             fig.savefig(tmp, dpi=dpi, format="png")
     finally:
         plt.close(fig)
+
+
+def png_bytes(fig, *, dpi: int = 110) -> bytes:
+    """A matplotlib figure as PNG bytes (then closed): drawn before its output set is written."""
+    import io
+
+    import matplotlib.pyplot as plt
+    buf = io.BytesIO()
+    try:
+        fig.savefig(buf, dpi=dpi, format="png")
+    finally:
+        plt.close(fig)
+    return buf.getvalue()
 
 
 def read_toml(path: str | Path, *, what: str = "config file") -> dict:
@@ -84,3 +109,199 @@ def read_exr(path: str | Path) -> np.ndarray:
     except Exception as err:
         raise StudyError(f"unreadable EXR ({str(err).splitlines()[0][:120]})", file=str(path)) from None
     return a if a.ndim == 3 else a[..., None]
+
+
+# ---------------------------------------------------------------------------------------------- output sets
+@contextlib.contextmanager
+def locked(out: str | Path):
+    """Hold ``<out>/.lock`` (created, and removed again at the end) so that one study command at a time writes to
+    ``out``; a second one stops at once with a clear message. ``out`` is created if needed (and removed again if
+    the block fails and leaves it empty)."""
+    out = Path(out)
+    top = _make_dir(out)
+    try:
+        if not os.access(out, os.W_OK | os.X_OK):
+            raise EnvironmentProblem("the output directory is not writable", file=str(out))
+        path = out / LOCK
+        while True:
+            try:
+                f = open(path, "a+")
+            except OSError as err:
+                raise os_problem(err, "cannot lock the output directory", out) from None
+            try:
+                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                f.close()
+                raise EnvironmentProblem("another study command is writing to this directory; wait for it or "
+                                         "choose another --out", file=str(out)) from None
+            if _same_file(path, f):          # not a lock file that its last holder removed meanwhile
+                break
+            f.close()
+        try:
+            yield
+        finally:
+            if _same_file(path, f):
+                with contextlib.suppress(OSError):
+                    os.unlink(path)
+            f.close()
+    except BaseException:
+        _remove_created(out, top)
+        raise
+
+
+def _same_file(path: Path, f) -> bool:
+    try:
+        a, b = os.stat(path), os.fstat(f.fileno())
+    except OSError:
+        return False
+    return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
+
+
+def _make_dir(out: Path) -> Path | None:
+    """Create ``out`` (and its parents); the topmost directory created, or None if it existed."""
+    top = None
+    for p in [out, *out.parents]:
+        if p.exists():
+            break
+        top = p
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise os_problem(err, "cannot create the output directory", out) from None
+    return top
+
+
+def _remove_created(out: Path, top: Path | None) -> None:
+    """Remove the empty directories :func:`_make_dir` created, from ``out`` up to ``top``."""
+    if top is None:
+        return
+    for p in [out, *out.parents]:
+        try:
+            p.rmdir()
+        except OSError:
+            return
+        if p == top:
+            return
+
+
+@contextlib.contextmanager
+def output_set(out: str | Path, owns: Iterable[str] = (), *, keeps: Iterable[str] = (), lock: bool = True,
+               swap: bool = True):
+    """A command's outputs as one transaction: ``with output_set(out, owns) as tmp:`` write every output into the
+    fresh directory ``tmp`` (beside ``out``); when the block succeeds they replace the command's outputs in ``out``
+    together, when it fails (or the process is killed) ``out`` is left as it was and ``tmp`` goes.
+
+    ``owns``: paths relative to ``out`` (files or directories) that belong to the command even if this run does
+    not write them (they are removed then: no stale plot beside a new table); whatever ``tmp`` holds is owned too.
+    Everything else in ``out`` is kept. The swap is one ``renameat2(RENAME_EXCHANGE)`` of the two directories
+    after the kept entries are hard-linked into ``tmp``, so a reader sees all old or all new outputs; it is used
+    when every kept entry is a file or a directory named in ``keeps`` (e.g. a sweep's ``cases``); otherwise, or
+    where the platform cannot exchange, or with ``swap=False`` (a directory others write into, e.g. ``reports/``),
+    the outputs are renamed into place one by one. ``out`` is locked for the block (:func:`locked`) unless ``lock``
+    is False (the caller holds the lock)."""
+    out = Path(out).absolute()
+    if out.is_symlink():
+        out = out.resolve()                            # swap the directory it names, not the link
+    with locked(out) if lock else contextlib.nullcontext():
+        for stale in out.parent.glob(f".{glob.escape(out.name)}.new-*"):     # left by a killed run (the lock is held)
+            shutil.rmtree(stale, ignore_errors=True)
+        try:
+            tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.new-"))
+        except OSError as err:
+            raise os_problem(err, "cannot write beside the output directory", out.parent) from None
+        try:
+            yield tmp
+            try:
+                _commit(tmp, out, set(owns), set(keeps), swap)
+            except OSError as err:
+                raise os_problem(err, "cannot put the outputs in place", out) from None
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def write_set(out: str | Path, files: dict[str, bytes | str], owns: Iterable[str] = (), *, keeps: Iterable[str] = (),
+              lock: bool = True, swap: bool = True) -> list[Path]:
+    """:func:`output_set` of outputs made beforehand (relative path → content): the temporary directory then
+    lives only while they are written and swapped in (about a millisecond), so even a SIGKILL almost never
+    leaves it behind (and the next command on ``out`` removes it). Returns the paths written."""
+    with output_set(out, [*owns, *files], keeps=keeps, lock=lock, swap=swap) as tmp:
+        for rel, data in files.items():
+            (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
+            (tmp / rel).write_bytes(data.encode() if isinstance(data, str) else data)
+    return [Path(out) / rel for rel in files]
+
+
+def _owned(rel: str, owns: set[str]) -> bool:
+    return any(rel == o or rel.startswith(o + "/") for o in owns)
+
+
+def _holds_owned(rel: str, owns: set[str]) -> bool:
+    return any(o.startswith(rel + "/") for o in owns)
+
+
+def _carry(src: Path, dst: Path, rel: str, owns: set[str], keeps: set[str]) -> bool:
+    """Hard-link (or copy) the entries of ``src`` that the command does not own into ``dst``; False if one is a
+    directory neither owned in part nor named in ``keeps`` (then the swap is not used)."""
+    for e in sorted(os.scandir(src), key=lambda e: e.name):
+        r = f"{rel}{e.name}"
+        if _owned(r, owns):
+            continue
+        target = dst / e.name
+        if e.is_dir(follow_symlinks=False):
+            if r in keeps:
+                shutil.copytree(e.path, target, symlinks=True, copy_function=_link, dirs_exist_ok=True)
+            elif _holds_owned(r, owns):
+                target.mkdir(exist_ok=True)
+                if not _carry(Path(e.path), target, r + "/", owns, keeps):
+                    return False
+            else:
+                return False
+        elif not target.exists():
+            if e.is_symlink():
+                os.symlink(os.readlink(e.path), target)
+            else:
+                _link(e.path, target)
+    return True
+
+
+def _link(src, dst) -> None:
+    try:
+        os.link(src, dst)
+    except OSError:
+        shutil.copy2(src, dst)
+
+
+_RENAME_EXCHANGE = 2
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two directories atomically (Linux renameat2); False where the platform or file system cannot."""
+    try:
+        fn = ctypes.CDLL(None, use_errno=True).renameat2
+    except (OSError, AttributeError):
+        return False
+    if fn(-100, os.fsencode(a), -100, os.fsencode(b), _RENAME_EXCHANGE) == 0:    # AT_FDCWD = -100
+        return True
+    e = ctypes.get_errno()
+    if e in (errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP, errno.EXDEV):
+        return False
+    raise OSError(e, os.strerror(e), str(b))
+
+
+def _commit(tmp: Path, out: Path, owns: set[str], keeps: set[str], swap: bool = True) -> None:
+    """Put the outputs in ``tmp`` in place of the owned entries of ``out`` (see :func:`output_set`)."""
+    owns = owns | {p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if not p.is_dir()}
+    os.chmod(tmp, stat.S_IMODE(os.stat(out).st_mode))
+    if swap and _carry(out, tmp, "", owns, keeps) and _exchange(tmp, out):
+        return                                        # tmp now holds the old outputs; the caller removes it
+    trash = Path(tempfile.mkdtemp(dir=tmp, prefix=".old-"))
+    tops = sorted(o for o in owns if not any(o.startswith(a + "/") for a in owns))
+    for i, rel in enumerate(tops):                    # one by one: each rename is atomic, the set is not
+        new, old = tmp / rel, out / rel
+        if old.is_dir() and not old.is_symlink():
+            os.replace(old, trash / str(i))           # a directory cannot be renamed over a full one
+        if new.exists():
+            old.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(new, old)
+        elif old.exists() or old.is_symlink():
+            os.unlink(old)

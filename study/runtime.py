@@ -5,16 +5,21 @@ Dr.Jit 1.5 on Debian 12 picks the system's libLLVM 15 and aborts the process ("L
 fminimum") — an abort no Python code can catch. :func:`configure` runs when :mod:`study` is imported and points
 ``DRJIT_LIBLLVM_PATH`` at the newest libLLVM >= 16 it finds: Debian's ``libllvm19`` or the PyPI wheel
 ``karellen-llvm-core`` (its library lies in the environment's ``lib/``). :func:`require` is called before
-anything touches the LLVM backend and raises one clear :class:`~study.errors.StudyError` when none was found.
+anything touches the LLVM backend and raises one clear :class:`~study.errors.EnvironmentProblem` (exit 3) when
+none was found, or when the one ``DRJIT_LIBLLVM_PATH`` names cannot be used: it must load (ctypes) and be LLVM 16 or
+newer by its file name or, failing that, its exported symbols (``LLVMGetVersion`` exists from LLVM 16 on). Checked
+here because Dr.Jit would abort the process on it.
 """
 from __future__ import annotations
 
+import ctypes
+import functools
 import glob
 import os
 import re
 import sys
 
-from study.errors import StudyError
+from study.errors import EnvironmentProblem
 
 MIN_VERSION = 16  # LLVM 15 and older crash Dr.Jit 1.5 on Debian 12
 _FIX = ("no usable libLLVM (>= 16) found for Dr.Jit's LLVM backend (Debian 12's libLLVM 15 crashes it); "
@@ -54,13 +59,42 @@ def path() -> str | None:
     return os.environ.get("DRJIT_LIBLLVM_PATH")
 
 
+@functools.lru_cache(maxsize=None)
+def problem(lib: str) -> str | None:
+    """Why the libLLVM file ``lib`` cannot serve Dr.Jit (None if it can): missing, not loadable, not LLVM, or
+    older than :data:`MIN_VERSION` (by its name, else by its symbols; a named old one is never loaded)."""
+    if not os.path.isfile(lib):
+        return "no such file"
+    named = _version(lib)
+    if 0 <= named < MIN_VERSION:
+        return f"it is libLLVM {named}, Dr.Jit needs >= {MIN_VERSION}"
+    try:
+        dll = ctypes.CDLL(lib)
+    except OSError as err:
+        return f"not a loadable library ({str(err).split(': ')[-1][:80]})"
+    if named >= MIN_VERSION:
+        return None
+    if hasattr(dll, "LLVMGetVersion"):                # LLVM >= 16
+        v = [ctypes.c_uint() for _ in range(3)]
+        dll.LLVMGetVersion(*[ctypes.byref(x) for x in v])
+        return None if v[0].value >= MIN_VERSION else f"it is libLLVM {v[0].value}, Dr.Jit needs >= {MIN_VERSION}"
+    if hasattr(dll, "LLVMContextCreate"):
+        return f"it is a libLLVM older than {MIN_VERSION} (no LLVMGetVersion), Dr.Jit needs >= {MIN_VERSION}"
+    return "not a libLLVM (no LLVM C API symbols)"
+
+
 def require() -> str:
-    """Return the libLLVM in use, or raise StudyError with the fix if none usable was found."""
+    """Return the libLLVM in use, or raise EnvironmentProblem with the fix if none usable was found."""
     p = configure()
-    if not p or not os.path.exists(p):
-        raise StudyError(_FIX)
+    if not p:
+        raise EnvironmentProblem(_FIX)
+    why = problem(p)
+    if why:
+        raise EnvironmentProblem(f"cannot use it for Dr.Jit's LLVM backend: {why}; unset it or point it at a "
+                                 f"libLLVM >= {MIN_VERSION} (e.g. `apt-get install libllvm19`)",
+                                 key=f"DRJIT_LIBLLVM_PATH={p}")
     if "drjit" in sys.modules and os.environ.get("DRJIT_LIBLLVM_PATH") != p:
-        raise StudyError("drjit was imported before study chose a libLLVM; import study first")
+        raise EnvironmentProblem("drjit was imported before study chose a libLLVM; import study first")
     return p
 
 

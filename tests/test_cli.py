@@ -11,6 +11,7 @@ from study.tables import read_csv
 SMALL = """
 positions = [[0.0, 1.5, 0.0], [0.8, 1.1, 0.5], [1.4, 0.7, 1.0]]
 grid = ["classical", "localized(iterations=10)"]
+outcome_panel = true
 
 [scene]
 room = {{ min = [-2.0, 0.0, -2.0], max = [2.0, 3.0, 2.0] }}
@@ -45,10 +46,29 @@ def fig4_small(tmp_path_factory):
 def test_fig4_small_writes_grid_and_table(fig4_small):
     d, rows = fig4_small
     assert (d / "out" / "fig4.png").stat().st_size > 10_000
-    assert len(rows) == 3 * 6                                         # 3 positions × (oracle + 5 methods)
+    assert len(rows) == 3 * 7                          # 3 positions × (oracle_map + truth_at_hit + 5 methods)
     for col in ("case", "method", "knob", "knob_value", "angle_median_deg", "angle_p95_deg", "angle_max_deg",
                 "dist_median", "rmse_oracle", "psnr_mitsuba", "ssim_mitsuba", "flip_mitsuba", "occluded_fraction"):
         assert col in rows[0]
+
+
+def test_fig4_small_outcome_columns(fig4_small):
+    """Every row carries the outcome classes (study.evaluate.outcomes) right after dist_median; the oracle is
+    correct on every ray; nothing is hidden in this convex room, so the hidden columns are empty (NaN)."""
+    d, rows = fig4_small
+    header = (d / "out" / "metrics.csv").read_text().splitlines()[0].split(",")
+    outcome_cols = ["correct_fraction", "wrong_fraction", "wrong_depth_fraction", "wrong_surface_fraction",
+                    "no_hit_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "hidden_fraction",
+                    "dist_p50", "dist_p95", "dist_p99", "depth_error_p95", "angle_p95_visible_deg",
+                    "angle_p95_hidden_deg"]
+    i = header.index("dist_median")
+    assert header[i + 1:i + 1 + len(outcome_cols)] == outcome_cols
+    for r in rows:
+        fr = [r[c] for c in ("correct_fraction", "wrong_depth_fraction", "wrong_surface_fraction", "no_hit_fraction")]
+        assert sum(fr) == pytest.approx(1.0) and r["wrong_fraction"] == pytest.approx(1 - r["correct_fraction"])
+        assert r["hidden_fraction"] == 0 and np.isnan(r["wrong_fraction_hidden"])
+        if r["method"] == "oracle_map":
+            assert r["correct_fraction"] == 1.0 and r["dist_p95"] == 0.0
 
 
 def test_fig4_small_paper_claims(fig4_small):
@@ -128,7 +148,7 @@ def test_figure_with_cases_runs_and_names_rows(tmp_path):
                               "--cache", str(tmp_path / "cache")])
     assert res.exit_code == 0, res.output
     rows = read_csv(tmp_path / "o" / "metrics.csv")
-    assert [r["case"] for r in rows[::3]] == ["fig6-glass", "fig6-torus"] and len(rows) == 6
+    assert [r["case"] for r in rows[::4]] == ["fig6-glass", "fig6-torus"] and len(rows) == 8   # 2 references + 2 methods
     assert (tmp_path / "o" / "fig6.png").exists()
     cfg.write_text("positions = [[0.0, 1.5, 0.0]]\n" + base + cases)
     res = runner.invoke(app, ["figure", "fig6", "--config", str(cfg), "--out", str(tmp_path / "o2")])

@@ -87,5 +87,6 @@ def test_proxy_sphere_fit_is_the_mean_room_distance(box_tex):
 def test_lookups_per_ray_of_the_new_methods():
     assert methods.make("proxy_box").lookups_per_ray() == 1
     assert methods.make("proxy_sphere").lookups_per_ray() == 1
-    assert methods.make("linear_secant", linear_steps=30, secant_steps=2).lookups_per_ray() == 34
-    assert methods.make("layered", layers=3, iterations=10).lookups_per_ray() == 3 * (1 + 30 + 2 * 11)
+    # before any search: the bound at max_steps (the march's length follows the cube resolution it meets)
+    assert methods.make("linear_secant", max_steps=100, secant_steps=2).lookups_per_ray() == 1 + 100 + 2 + 1
+    assert methods.make("layered", layers=3, iterations=10, max_steps=100).lookups_per_ray() == 3 * (1 + 100 + 10 + 1)

@@ -74,7 +74,7 @@ def test_plugin_method_reaches_sweep_figure_check_report_bench(tmp_path, plugin)
     assert res.exit_code == 0, res.output
     rows = read_csv(reports / "sweep-x" / "results.csv")
     by = {r["method"]: r for r in rows}
-    assert set(by) == {"oracle", *methods.names()}                  # every registered method, the plugin's too
+    assert set(by) == {"oracle_map", "truth_at_hit", *methods.names()}   # every registered method, the plugin's too
     assert by["throwaway_probe"]["angle_median_deg"] == pytest.approx(by["classical"]["angle_median_deg"])
     assert by["throwaway_probe"]["angle_median_deg"] > 1.0           # off the reference point: clearly wrong
 

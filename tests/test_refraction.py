@@ -222,8 +222,8 @@ def test_glass_sphere_end_to_end(glass_cases):
         assert by["localized(iterations=10)"]["rmse_oracle"] < 0.01
         assert by["classical"]["angle_median_deg"] > 1
     dbl, sgl = glass_cases["double"], glass_cases["single"]
-    e_dbl = {r["label"]: r for r in dbl.rows}["oracle"]["rmse_mitsuba"]
-    e_sgl = {r["label"]: r for r in sgl.rows}["oracle"]["rmse_mitsuba"]
+    e_dbl = {r["label"]: r for r in dbl.rows}["oracle_map"]["rmse_mitsuba"]
+    e_sgl = {r["label"]: r for r in sgl.rows}["oracle_map"]["rmse_mitsuba"]
     m = dbl.mask
     print(f"\nglass sphere 48²: oracle vs Mitsuba RMSE double {e_dbl:.4f}, single {e_sgl:.4f}; "
           f"mean radiance ratio oracle/Mitsuba {dbl.oracle[m].mean() / dbl.mitsuba[m].mean():.4f}")

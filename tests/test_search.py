@@ -1,12 +1,17 @@
-"""The search core (study.methods.search) against its slow per-ray twins on random cubics, and the object's
-distance map searched with it: the same exits on numpy and Dr.Jit, and as many lookups as it reports."""
+"""The search core (study.methods.search) against its slow per-ray twins on random cubics, the texel march
+(samples in equal angles along the arc, the first entry into nested layers), and the object's distance map searched
+with it: the same exits on numpy and Dr.Jit, and as many lookups as it reports."""
 import numpy as np
 import pytest
 
+from study.backend import V3
 from study.methods.search import (
     Bracket,
+    arc_samples,
     first_crossing,
     first_crossing_ref,
+    first_entry,
+    first_entry_ref,
     refine,
     refine_ref,
     secant_point,
@@ -163,3 +168,100 @@ def test_distance_map_spends_the_lookups_it_reports(B):
         "lookup": lambda self, v: calls.append("lookup") or env.lookup(v)})()
     dm.exit(x, d)
     assert len(calls) == dm.lookups_per_ray() == 2 + 7 + 5
+
+
+# ---------------------------------------------------------------------------------------------- texel march
+def nested(B, n, seed, K=3):
+    """Per ray K = 3 nested functions g_0 ≥ g_1 ≥ g_2 (as a layered map's layers, nearest first): a cubic minus
+    0, minus |a cubic|, minus that plus |another| — many sign changes, in both directions, of each; K = 2: the
+    first two, the second equal to the first on every other ray (a layer that repeats the one before)."""
+    (r0, c0), (r1, c1), (r2, c2) = cubics(n, seed), cubics(n, seed + 1), cubics(n, seed + 2)
+    if K == 2:
+        c1 = c1 * (np.arange(n) % 2)
+    h, d1, d2 = g_core(B, r0, c0), g_core(B, r1, c1 * 0.3), g_core(B, r2, c2 * 0.3)
+    core = lambda t: [h(t), h(t) - B.abs(d1(t)), h(t) - B.abs(d1(t)) - B.abs(d2(t))][:K]
+
+    def ref(i):
+        a, b, c = g_ref(r0, c0, i), g_ref(r1, c1 * 0.3, i), g_ref(r2, c2 * 0.3, i)
+        return lambda t: [a(t), a(t) - abs(b(t)), a(t) - abs(b(t)) - abs(c(t))][:K]
+    return core, ref
+
+
+@pytest.mark.parametrize("K", [2, 3])
+@pytest.mark.parametrize("hold", [0, 2, 4])
+def test_first_entry_matches_its_twin(B, hold, K):
+    """The first kept entry into the inside of nested functions (entries kept, dropped as skin, clips; with two,
+    behind both counts as inside only where they are equal) on the same samples as its per-ray twin: the same
+    found flags, brackets and entry functions."""
+    t0, dt, t0b, dtb = samples(B, seed=14)
+    core, ref = nested(B, N, 5, K)
+    dflt = (t0b, t0b - 1.0, t0b + 1.0, t0b + 1.0)
+    got, e = first_entry(B, core, t0b, core(t0b), dtb, STEPS, hold=hold, t_max=1.0, default=dflt)
+    want, want_e = [], []
+    for i in range(N):
+        gi = ref(i)
+        w, we = first_entry_ref(gi, float(t0[i]), gi(float(t0[i])), float(dt[i]), STEPS, hold=hold, t_max=1.0,
+                                default=(float(t0[i]), float(t0[i]) - 1.0, float(t0[i]) + 1.0, float(t0[i]) + 1.0))
+        want.append(w)
+        want_e.append(we)
+    found = np.array([w.found for w in want])
+    assert 0.2 < found.mean() < 1.0
+    assert set(np.array(want_e)[found]) == set(range(K))
+    assert_same(B, got, want)
+    np.testing.assert_array_equal(B.numpy(e), want_e)
+
+
+def _arcs(n, seed, top=179):
+    """Unit x̂ and R at 20°–``top``° from each other, and θ."""
+    rng = np.random.default_rng(seed)
+    xh = rng.normal(size=(n, 3))
+    xh /= np.linalg.norm(xh, axis=1, keepdims=True)
+    perp = np.cross(xh, rng.normal(size=(n, 3)))
+    perp /= np.linalg.norm(perp, axis=1, keepdims=True)
+    th = rng.uniform(np.radians(20), np.radians(top), n)
+    R = xh * np.cos(th)[:, None] + perp * np.sin(th)[:, None]
+    return xh, R, th
+
+
+def test_arc_samples_turn_the_direction_by_at_most_one_step(B):
+    """Consecutive samples' directions (1 − t) x̂ + t R are at most π/steps apart (float32 rounding aside), turn
+    by exactly that until the arc's end and reach R (t = 1) at the last step."""
+    steps = 805                                       # ⌈π 256⌉: one texel of a 256² cube map per step
+    xh, R, th = _arcs(300, 6)
+    at = arc_samples(B, B.array((xh * R).sum(1).astype(np.float32)), steps)
+    ts = np.stack([np.zeros(len(xh))] + [B.numpy(at(k)).astype(float) for k in range(1, steps + 1)])
+    d = (1 - ts)[..., None] * xh + ts[..., None] * R
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    turn = np.arccos(np.clip((d[1:] * d[:-1]).sum(-1), -1, 1))
+    assert turn.max() < np.pi / steps * 1.01
+    before_end = np.arange(1, steps + 1)[:, None] * np.pi / steps < th - 1e-3
+    np.testing.assert_allclose(turn[before_end], np.pi / steps, rtol=0.01)
+    assert np.all(ts[-1] == 1.0) and np.all(np.diff(ts, axis=0) >= 0)
+
+
+def test_a_texel_wide_bump_is_stepped_over_by_uniform_steps_but_not_by_the_texel_march(B):
+    """g(t) ≥ 0 only where the lookup direction p̂(t) lies within w/2 of f, a direction on the arc (x̂ and R up to
+    170° apart): a bump one texel of a 256² map wide (w = 1/256 rad). linear_secant's old search (n = max(30 (1 −
+    x̂·R)/2, 10) uniform steps in t) finds it on < 10 % of the rays; the march of 805 equal angles (one texel each)
+    on every ray, with the bump inside its bracket."""
+    n = 400
+    xh, R, th = _arcs(n, 7, top=170)
+    rng = np.random.default_rng(8)
+    phi = th * rng.uniform(0.1, 0.9, n)                   # the bump's centre along the arc
+    f = np.cos(phi)[:, None] * xh + np.sin(phi)[:, None] * np.cross(np.cross(xh, R), xh) / np.sin(th)[:, None]
+    w = 1 / 256
+    X, RR, F = B.vec(xh), B.vec(R), B.vec(f)
+    zero = B.array(np.zeros(n, np.float32))
+
+    def g(t):                                             # sin(w/2) − |p̂ × f| on f's side: no cancellation
+        p = X * (1.0 - t) + RR * t
+        cx = V3(p.y * F.z - p.z * F.y, p.z * F.x - p.x * F.z, p.x * F.y - p.y * F.x)
+        return B.select(p.dot(F) > 0.0, float(np.sin(w / 2)) - B.length(cx) / B.length(p), zero - 1.0)
+    cos = (xh * R).sum(1)
+    n_old = np.maximum(30 * (1 - cos) / 2, 10).astype(np.float32)
+    old = first_crossing(B, g, zero, g(zero), B.array(1 / n_old), 30, t_max=1.0)
+    new = first_crossing(B, g, zero, g(zero), arc_samples(B, B.array(cos.astype(np.float32)), 805), 805, t_max=1.0)
+    assert B.numpy(old.found).mean() < 0.1
+    assert B.numpy(new.found).all()
+    t_edge = np.sin(phi - w / 2) / (np.sin(phi - w / 2) + np.sin(th - phi + w / 2))    # where g turns ≥ 0
+    assert np.all((B.numpy(new.t_lo) <= t_edge + 1e-6) & (t_edge <= B.numpy(new.t_hi) + 1e-6))

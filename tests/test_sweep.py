@@ -49,6 +49,13 @@ def write(tmp_path, name="s.toml", zip="[]", **extra):
     return p
 
 
+def per_case(rows) -> int:
+    """Rows per case: one per method (3 here) and run_case's reference rows (the oracle's), as many as it makes."""
+    n = {r["case"] for r in rows}
+    assert len(rows) % len(n) == 0 and len(rows) // len(n) > 3
+    return len(rows) // len(n)
+
+
 def same_table(a, b):
     assert [r["case"] for r in a] == [r["case"] for r in b]
     for ra, rb in zip(a, b):
@@ -103,9 +110,9 @@ def test_rerun_recomputes_nothing(reference_run):
     assert stats["computed"] == 0 and stats["cached"] == 6
     same_table(rows, again)
     same_table(read_csv(d / "ref" / "results.csv"), read_csv(d / "ref" / "results.csv"))
-    assert len(read_csv(d / "ref" / "results.csv")) == 6 * 4
+    assert len(read_csv(d / "ref" / "results.csv")) == len(rows) == 6 * per_case(rows)
     meta = json.loads((d / "ref" / "metadata.json").read_text())
-    assert meta["seed"] == 0 and meta["versions"]["mitsuba"] and meta["config_sha256"]
+    assert meta["seed"] == 0 and meta["versions"]["mitsuba"] and meta["config_sha256"] and meta["code_hash"]
 
 
 def test_sigkill_and_resume_gives_the_same_table(reference_run, tmp_path):
@@ -126,7 +133,8 @@ def test_sigkill_and_resume_gives_the_same_table(reference_run, tmp_path):
     assert 1 <= len(finished) < 6, "the sweep should have been killed mid-run"
     if (out / "results.csv").exists():        # the table follows the case files; the kill may fall between
         partial = read_csv(out / "results.csv")
-        assert len(partial) % 4 == 0 and len(partial) <= 4 * len(finished)   # whole cases only, never half
+        n = per_case(rows)
+        assert len(partial) % n == 0 and len(partial) <= n * len(finished)   # whole cases only, never half
     again, stats = run_sweep(cfg, out, cache=d / "cache")
     assert stats["cached"] == len(finished) and stats["computed"] == 6 - len(finished)
     assert {p.name: p.stat().st_mtime_ns for p in (out / "cases").glob("*.json") if p.name in finished} == finished
@@ -138,7 +146,7 @@ def test_second_sweep_on_the_same_directory_stops(reference_run):
     d, cfg, _ = reference_run
     with open(d / "ref" / ".lock", "a+") as f:
         fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        with pytest.raises(StudyError, match="another sweep is writing to this directory"):
+        with pytest.raises(StudyError, match="another study command is writing to this directory"):
             run_sweep(cfg, d / "ref", cache=d / "cache")
 
 
@@ -164,14 +172,14 @@ def test_five_random_kills_then_resume(reference_run, tmp_path):
         finished_counts.append(len(list(out.glob("cases/*.json"))))
         if (out / "results.csv").exists():
             part = read_csv(out / "results.csv")
-            assert len(part) % 4 == 0 and len({(r["case"], r["label"]) for r in part}) == len(part)
+            assert len(part) % per_case(rows) == 0 and len({(r["case"], r["label"]) for r in part}) == len(part)
     print("finished cases after each kill:", finished_counts)
     assert finished_counts[0] < 6, "the first kill should land mid-run"
     again, stats = run_sweep(cfg, out, cache=cache)
     assert stats["cached"] == finished_counts[-1]
     same_table(rows, again)
     final = read_csv(out / "results.csv")
-    assert len(final) == 24 and len({(r["case"], r["label"]) for r in final}) == 24
+    assert len(final) == len(rows) and len({(r["case"], r["label"]) for r in final}) == len(rows)
     store = Cache(cache)
     for meta in cache.glob("*/*.json"):
         assert store.load(meta.parent.name, meta.stem) is not None, meta

@@ -3,13 +3,16 @@
 Columns of the main table: ms_per_call, mrays_per_s, ms_per_frame (a 1024² frame = 1 048 576 rays at the measured
 rate), x_vs_embree / x_vs_mitsuba (the exact tracer's time for the same rays over the method's; > 1: the method is
 faster). The Markdown file starts with the machine and the package versions.
+
+The main table (CSV + Markdown) and the scaling study (CSV + plot) are two output sets (:func:`study.io.output_set`),
+each replaced whole or not at all: the main table is kept when the scaling studies fail after it.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 from study import methods as registry
-from study.io import atomic_savefig, atomic_write
+from study.io import atomic_savefig, png_bytes, write_set
 from study.tables import markdown, to_csv
 
 BENCH_COLS = ["batch", "backend", "path", "label", "rays", "ms_per_call", "mrays_per_s", "ms_per_frame",
@@ -28,19 +31,25 @@ def bench_table(rows: list[dict]) -> str:
     return markdown(rows, BENCH_COLS, digits=4)
 
 
-def write_outputs(rows, scaling, info, out: Path) -> list[Path]:
-    """Write the main table (CSV, Markdown) and, if there are scaling rows, their CSV and plot; the paths."""
-    out = Path(out)
+def write_table(rows, info, out: Path, *, lock: bool = True) -> list[Path]:
+    """Replace the main table (``bench-<tag>.csv`` and ``.md``) in ``out``; the paths."""
     tag = info["tag"]
-    files = [out / f"bench-{tag}.csv", out / f"bench-{tag}.md"]
-    atomic_write(files[0], to_csv(rows))
-    atomic_write(files[1], f"# study bench ({tag})\n\n{header(info)}\n\n{bench_table(rows)}\n")
-    if scaling:
-        files.append(out / f"scaling-{tag}.csv")
-        atomic_write(files[-1], to_csv(scaling))
-        files.append(out / f"scaling-{tag}.png")
-        plot_scaling(scaling, files[-1], title=f"study bench scaling ({tag}: {info.get('gpu') or info['cpu']})")
-    return files
+    return write_set(out, {f"bench-{tag}.csv": to_csv(rows),
+                           f"bench-{tag}.md": f"# study bench ({tag})\n\n{header(info)}\n\n{bench_table(rows)}\n"},
+                     lock=lock)
+
+
+def write_scaling(scaling, info, out: Path, *, lock: bool = True) -> list[Path]:
+    """Replace the scaling study (``scaling-<tag>.csv`` and ``.png``) in ``out``; the paths."""
+    tag = info["tag"]
+    png = plot_scaling(scaling, None, title=f"study bench scaling ({tag}: {info.get('gpu') or info['cpu']})")
+    return write_set(out, {f"scaling-{tag}.csv": to_csv(scaling), f"scaling-{tag}.png": png}, lock=lock)
+
+
+def write_outputs(rows, scaling, info, out: Path, *, lock: bool = True) -> list[Path]:
+    """Write the main table (CSV, Markdown) and, if there are scaling rows, their CSV and plot; the paths."""
+    files = write_table(rows, info, out, lock=lock)
+    return files + (write_scaling(scaling, info, out, lock=lock) if scaling else [])
 
 
 def _method_of(rows: list[dict]) -> str:
@@ -54,9 +63,9 @@ def _knob_axis(rows: list[dict]) -> str:
     return f"{cls.knob.param} of {name}" if cls is not None and cls.knob is not None else "knob value"
 
 
-def plot_scaling(rows: list[dict], path: Path, *, title: str) -> None:
+def plot_scaling(rows: list[dict], path: Path | None, *, title: str) -> bytes | None:
     """Four log-scale panels (rays, knob, cube resolution, triangles), one line per backend × method;
-    exact tracers dashed."""
+    exact tracers dashed. With ``path`` None: the PNG's bytes."""
     import matplotlib  # heavy: only when a plot is made
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -81,4 +90,7 @@ def plot_scaling(rows: list[dict], path: Path, *, title: str) -> None:
             ax.legend(fontsize=7)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
+    if path is None:
+        return png_bytes(fig, dpi=100)
     atomic_savefig(fig, path, dpi=100)
+    return None

@@ -8,9 +8,12 @@ its defaults (the paper's ``localized``), also the plain traced path. numpy is t
 Exact rows: Embree on every core, and Mitsuba ``ray_intersect`` on the device of each backend asked for.
 Ratios: x_vs_embree / x_vs_mitsuba = the exact tracer's time for the same rays over the method's (> 1: the method
 is faster); Mitsuba is taken on the same device as the backend (LLVM for numpy and llvm, CUDA for cuda).
+The options are checked before anything runs (:func:`check_options`): ranges, and the memory the ray batches need
+against ``--max-memory`` (:mod:`study.harness.budget`).
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,7 +24,9 @@ from study.bench.batches import Batch, closeup_rays, distance_texels, room_trian
 from study.bench.machine import available_backends, machine_info
 from study.bench.scaling import knob_values, scaling_rows
 from study.bench.timing import FRAME, Exact, mitsuba_variant, rate_row, time_method
+from study.errors import StudyError
 from study.evaluate.case import env_info
+from study.harness import budget
 from study.methods import Method
 from study.scene import Scene
 
@@ -46,6 +51,29 @@ class BenchOptions:
     tag: str = ""                               # device tag in file names and tables (default: cpu / gpu name)
 
 
+#: Allowed ranges of the numeric options: (option, attribute, lowest, highest).
+RANGES = [("--repeats", "repeats", 1, 1000), ("--scene-res", "scene_res", 8, 4096), ("--rays", "synthetic", 1, 1 << 24),
+          ("--cube-res", "cube_res", 4, 4096), ("--numpy-max-rays", "numpy_max_rays", 1, 1 << 24)]
+
+
+def check_options(opt: BenchOptions) -> None:
+    """Refuse options out of range (a StudyError naming the option): 0, negative or huge counts, a tag that is
+    not a plain file-name part, ray batches that need more memory than ``--max-memory``."""
+    for key, attr, lo, hi in RANGES:
+        v = getattr(opt, attr)
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise StudyError(f"must be an integer in {lo}..{hi}, got {v!r}", key=key)
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}|", opt.tag):
+        raise StudyError(f"must be letters, digits, '_', '.', '-' (a part of file names), got {opt.tag!r}",
+                         key="--tag")
+    rays = 2 * opt.scene_res ** 2 + opt.synthetic
+    need = budget.BYTES_BASE + rays * budget.BYTES_PER_OBJECT_RAY + 6 * opt.cube_res ** 2 * budget.BYTES_PER_TEXEL
+    if need > budget.LIMITS.max_memory_gib * (1 << 30):
+        key = "--scene-res" if 2 * opt.scene_res ** 2 > opt.synthetic else "--rays"
+        raise StudyError(f"the ray batches would need about {need / (1 << 30):.1f} GiB, over the limit of "
+                         f"{budget.LIMITS.max_memory_gib:g} GiB (--max-memory): lower {key}", key=key)
+
+
 def method_list(opt: BenchOptions) -> list[Method]:
     """The methods timed: each one named (all registered by default) at each knob value of its ladder, or at
     its defaults only without ``opt.ladder``. An unknown name is a StudyError."""
@@ -56,9 +84,10 @@ def method_list(opt: BenchOptions) -> list[Method]:
 def run_bench(scene: Scene, opt: BenchOptions, log=print, on_table=None) -> tuple[list[dict], list[dict], dict]:
     """Time everything; returns (bench rows, scaling rows, machine info). ``on_table(rows, info)`` is called
     with the main table before the scaling studies start (so it is kept if they fail)."""
+    check_options(opt)
     names = list(opt.backends) or available_backends()
     for n in names:
-        backends.get(n)                                        # unknown or unavailable: StudyError now
+        budget.check_backend(n)                                # unknown or unavailable: StudyError now
     methods = method_list(opt)                                 # unknown methods: StudyError now
     plain_too = registry.make(opt.focus).label                 # also timed on the plain traced path
     if opt.scaling:

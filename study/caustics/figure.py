@@ -2,11 +2,13 @@
 
 The sweep runs on the shared case runner (:func:`study.harness.runner.run_cases`): one case per caustic-map
 resolution, resumed, locked and tabled like any sweep, under ``<out>/sweep/`` (``results.csv``, ``cases/``,
-``metadata.json``), with its curves in ``<out>/sweep.png``.
+``metadata.json``), with its curves in ``<out>/sweep.png``. A case's key is its content: the scene, the caustic
+and Mitsuba parameters, the methods, the resolution, the backend and the hash of the code that computes its rows.
+Figure 8's files and the sweep's table, metadata and curves are one output set (:func:`study.io.output_set`),
+swapped in together when all are written: a failed or killed run leaves the previous ones as they were.
 """
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 
 import numpy as np
@@ -22,11 +24,13 @@ from study.caustics.study import (
     radiance,
     sphere_radiance,
 )
+from study.codehash import code_hash
 from study.errors import StudyError
 from study.evaluate.metrics import to_ldr
+from study.harness import budget
 from study.harness.runner import metadata, run_cases
-from study.harness.sweep import CODE_VERSION, Case
-from study.io import atomic_savefig
+from study.harness.sweep import Case
+from study.io import atomic_savefig, output_set
 from study.tables import write_csv
 
 _SETUPS: dict[tuple, tuple] = {}          # (config, backend, cache) → (cfg, scene, methods, setup), per process
@@ -78,15 +82,24 @@ def fig8(config: str | Path, out: str | Path, *, backend: str = "numpy", cache: 
     ``<out>/sweep.png``) over the config's resolutions × methods. Returns the rows written."""
     cfg, scene, methods = load_caustic_config(config)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    budget.check_backend(backend)
     cache_s = str(cache) if cache else None
-    *_, S = _setup(str(config), backend, cache_s)
     show = next((m for m in methods if m.label == (cfg.show or methods[-1].label)), None)
     if show is None:
         raise StudyError(f"show names {cfg.show!r}, not among the methods", file=str(config), key="show")
+    *_, S = _setup(str(config), backend, cache_s)
+    owns = ["fig8.csv", "fig8.png"] + (["sweep.png", "sweep/results.csv", "sweep/metadata.json"] if sweep else [])
+    with output_set(out, owns, keeps=["sweep/cases"] if sweep else ["sweep"]) as tmp:
+        return _fig8_files(config, cfg, scene, methods, show, S, tmp, out, backend=backend, cache_s=cache_s,
+                           sweep=sweep, progress=progress)
+
+
+def _fig8_files(config, cfg, scene, methods, show, S, tmp: Path, out: Path, *, backend: str, cache_s: str | None,
+                sweep: bool, progress) -> list[dict]:
+    """Figure 8 and, with ``sweep``, the sweep, written into ``tmp`` (the case files under ``out/sweep/cases``)."""
     res = cfg.caustic.res
     rows = caustic_rows(cfg, scene, [show], resolutions=[res], setup=S)
-    write_csv(rows, out / "fig8.csv")
+    write_csv(rows, tmp / "fig8.csv")
     # ------------------------------------------------------------------ images
     cm = caustics.build_caustic_map(scene, show, S.env, S.uvmap, res=res)
     E = S.lightmaps(cm)
@@ -124,17 +137,27 @@ def fig8(config: str | Path, out: str | Path, *, backend: str = "numpy", cache: 
     fig.suptitle(f"fig8: glass sphere n={scene.object.material.ior}, caustic map {res}², {show.label}; "
                  f"image RMSE vs Mitsuba {r['img_rmse_mitsuba']:.3g} (Mitsuba noise {r['mitsuba_noise_rmse']:.3g}), "
                  f"light-map RMSE vs exact {r['lm_rmse']:.3g} W/m²", fontsize=10)
-    atomic_savefig(fig, out / "fig8.png", dpi=100)
+    atomic_savefig(fig, tmp / "fig8.png", dpi=100)
     if sweep:
-        digest = hashlib.sha256(Path(config).read_bytes()).hexdigest()
-        cases = [Case(i, f"r{res:04d}", scene, {"caustic.res": str(res)},
-                      key=content_key(digest, res, backend, CODE_VERSION, "caustics"))
+        labels = [m.label for m in methods]
+        code = code_hash(_resolution_case, *[type(m) for m in methods])
+        content = (scene.model_dump(mode="json"), cfg.caustic.model_dump(mode="json"),
+                   cfg.mitsuba.model_dump(mode="json"), labels, backend, code, "caustics")
+        cases = [Case(i, f"r{res:04d}", scene, {"caustic.res": str(res)}, key=content_key(*content, res))
                  for i, res in enumerate(cfg.resolutions)]
-        meta = metadata(config, backend=backend, seed=scene.render.seed, methods=[m.label for m in methods],
-                        cases=len(cases), kind="caustics")
+        meta = metadata(config, backend=backend, seed=scene.render.seed, methods=labels,
+                        cases=len(cases), kind="caustics", code_hash=code)
+
+        def check(c: Case, rows: list[dict]) -> bool:
+            """One row per method, as configured (+ exact photon tracing's, where Mitsuba renders are known),
+            all at the case's resolution."""
+            res, exact = int(c.labels["caustic.res"]), [r for r in rows if r.get("method") == "exact"]
+            return ([r.get("label") for r in rows if r.get("method") != "exact"] == labels
+                    and len(exact) == (S.mi is not None) and all(r.get("caustic_res") == res for r in rows))
         srows, _ = run_cases(cases, out / "sweep", meta, lambda c: (_resolution_case, (
             str(config), backend, cache_s, int(c.labels["caustic.res"]))),
-            progress=(lambda done, n, cid: progress(done, n)) if progress else None)
-        sweep_plot(srows, out / "sweep.png")
+            progress=(lambda done, n, cid: progress(done, n)) if progress else None, check=check,
+            into=tmp / "sweep")
+        sweep_plot(srows, tmp / "sweep.png")
         rows = rows + srows
     return rows

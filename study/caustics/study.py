@@ -165,10 +165,11 @@ def mitsuba_renders(scene: Scene, mp: MitsubaParams, cache: Cache) -> dict[str, 
         for seed in mp.seeds:
             key = content_key(*base, black, "ptracer", seed)
             out[f"pt_{'black' if black else 'glass'}_{seed}"] = cache.get(
-                "caustic_mitsuba", key, lambda: render(black, "ptracer", seed)).reshape(c.height, c.width, 3)
+                "caustic_mitsuba", key, lambda: render(black, "ptracer", seed), code=render
+            ).reshape(c.height, c.width, 3)
     key = content_key(*base, False, "path", mp.seeds[0])
     out["path"] = cache.get("caustic_mitsuba", key,
-                            lambda: render(False, "path", mp.seeds[0])).reshape(c.height, c.width, 3)
+                            lambda: render(False, "path", mp.seeds[0]), code=render).reshape(c.height, c.width, 3)
     D = [out[f"pt_glass_{s}"] - out[f"pt_black_{s}"] for s in mp.seeds[:2]]
     out["caustic"] = (D[0] + D[1]) / 2
     out["caustic_noise"] = (D[0] - D[1]) / 2

@@ -2,7 +2,8 @@
 
 A reader can follow one ray here: camera ray → object (``shading.object_rays``) → reflected ray (x, R) →
 ``method.trace`` on the chosen backend → shown point and radiance → Fresnel → composited image; the same ray →
-Embree exact hit → angular error; the images → image error against the oracle and against Mitsuba.
+Embree exact hit → outcome class and angular error; the images → image error against the oracle_map, the
+truth_at_hit and Mitsuba, and the error decomposition (:mod:`study.evaluate.truth`).
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import numpy as np
 
 from study import backend as backends
 from study.cache import Cache, content_key
-from study.evaluate import metrics
+from study.evaluate import metrics, outcomes, truth
 from study.impostor.capture import Impostor, capture_distance, impostor_key, render_cube
 from study.impostor.envmap import EnvMap
 from study.impostor.layers import layered_impostor
@@ -30,8 +31,11 @@ class CaseOutput:
     rows: list[dict]                                       # one per method (and one for the oracle)
     images: dict[str, np.ndarray] = field(default_factory=dict)      # label → (H, W, 3) linear RGB
     angle_maps: dict[str, np.ndarray] = field(default_factory=dict)  # label → (H, W) mean angular error, deg
+    outcome_maps: dict[str, np.ndarray] = field(default_factory=dict)  # label → (H, W) majority outcome class
+    #   (codes of study.evaluate.outcomes: 0 correct … 3 no hit; ties to the worse; NaN off the object)
     oracle: np.ndarray | None = None                       # (H, W, 3) what a perfect localization shows
-    mitsuba: np.ndarray | None = None                      # (H, W, 3) path-traced ground truth
+    mitsuba: np.ndarray | None = None                      # (H, W, 3) Mitsuba's render with the object (2 seeds)
+    truth: np.ndarray | None = None                        # (H, W, 3) truth_at_hit composited (study.evaluate.truth)
     occluded: np.ndarray | None = None                     # (H, W) fraction of sub-pixel rays occluded from o
     mask: np.ndarray | None = None                         # (H, W) pixels fully on the object
 
@@ -40,8 +44,8 @@ class CaseOutput:
 def impostor(scene: Scene, cache: Cache, tracer: Tracer | None = None) -> Impostor:
     r = scene.render
     key = impostor_key(scene)
-    rad = cache.get("radiance", key, lambda: render_cube(scene, r.cube_res, r.cube_spp))
-    dist = cache.get("distance", key, lambda: capture_distance(scene, r.cube_res, tracer))
+    rad = cache.get("radiance", key, lambda: render_cube(scene, r.cube_res, r.cube_spp), code=render_cube)
+    dist = cache.get("distance", key, lambda: capture_distance(scene, r.cube_res, tracer), code=capture_distance)
     return Impostor(np.asarray(scene.reference.point, float), rad.reshape(6, r.cube_res, r.cube_res, 3),
                     dist.reshape(6, r.cube_res, r.cube_res))
 
@@ -56,7 +60,7 @@ def camera_render(scene: Scene, cache: Cache, *, with_object: bool) -> np.ndarra
             parts.append("dielectric depth +2")           # see mitsuba.scene_dict
     key = content_key(*parts)
     img = cache.get("mitsuba" if with_object else "background", key,
-                    lambda: render_camera(scene, with_object=with_object))
+                    lambda: render_camera(scene, with_object=with_object), code=render_camera)
     return img.reshape(s.camera.height, s.camera.width, 3)
 
 
@@ -75,16 +79,28 @@ def knob_columns(m: Method) -> dict:
 # ---------------------------------------------------------------------------------------------- the case
 def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cache: Cache | None = None,
              case_id: str = "", keep_images: bool = True) -> CaseOutput:
+    from study.errors import StudyError
     cache = cache or Cache(None)
     B = backends.get(backend)
+    rays = shading.object_rays(scene)                  # first: a case that would be empty is refused before rendering
+    if int(rays.full.sum()) < 4:                       # too few object pixels: every image metric would be NaN
+        raise StudyError(f"the camera sees {int(rays.full.sum())} pixel(s) fully on the object, at least 4 are "
+                         "needed; move object.center into view, closer, or turn camera.target towards it (or raise "
+                         "camera.width/height)", key="object.center")
     tracer = Tracer(scene.mesh())
     o = np.asarray(scene.reference.point, float)
 
     # ------------------------------------------------------------------ inputs: impostor, renders, rays
     imp = impostor(scene, cache, tracer)
     background = camera_render(scene, cache, with_object=False)
-    truth = camera_render(scene, cache, with_object=True)
-    rays = shading.object_rays(scene)
+    seeds = [camera_render(sc, cache, with_object=True)                 # Mitsuba with the object, two seeds
+             for sc in (scene, scene.with_updates({"render.seed": scene.render.seed + truth.SEED_OFFSET}))]
+    for what, img in (("impostor radiance", imp.radiance), ("camera render", background), ("render", seeds[0]),
+                      ("render", seeds[1])):                # float32 overflow would still give plausible metrics
+        if not np.isfinite(img).all():
+            raise StudyError(f"the {what} is not finite (Mitsuba's float32 radiance overflows); lower "
+                             f"light.intensity (now {max(scene.light.intensity):g})", key="light.intensity")
+    mitsuba = (seeds[0] + seeds[1]) / 2
     F = shading.fresnel(scene, rays)
     mask = rays.full
 
@@ -97,7 +113,18 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
     nb = backends.get("numpy")
     env_np = EnvMap(imp.texels(), nb)
     oracle_rad = np.stack([np.asarray(c) for c in env_np.lookup(nb.vec(to_hit))[:3]], -1)
-    oracle_img = shading.composite(rays, oracle_rad * F, background)
+    oracle_img = shading.composite(rays, oracle_rad * F, background)   # oracle_map: what the map holds
+    ref = truth.build(scene, cache, rays, F, background, seeds)         # truth_at_hit and the noise images
+    visible = mask & (rays.per_pixel(occluded.astype(float), fill=1.0) == 0)  # pixels whose hits o sees
+
+    def image_columns(img, reference=False):                          # one image against every reference
+        cols = {**metrics.image_errors(img, oracle_img, mask=mask, suffix="oracle"),
+                **metrics.image_errors(img, ref.image, mask=mask, suffix="truth"),
+                **metrics.image_errors(img, mitsuba, mask=mask, suffix="mitsuba"),
+                **truth.columns(img, oracle_img, ref, mitsuba, mask=mask, visible=visible)}
+        if reference:                                                 # the truth is not split against itself
+            cols.update({k: np.nan for k in cols if k.startswith("dec_")})
+        return cols
 
     base = {"case": case_id, "cube_res": scene.render.cube_res, "object_x": scene.object.center[0],
             "object_y": scene.object.center[1], "object_z": scene.object.center[2], "backend": backend,
@@ -105,13 +132,20 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
                                   / np.linalg.norm(np.subtract(scene.room.max, scene.room.min))),
             "rays": len(rays.x), "occluded_fraction": float(occluded.mean()) if len(occluded) else np.nan,
             **rays.stats}
-    out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=truth, mask=mask,
+    out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=mitsuba, truth=ref.image, mask=mask,
                      occluded=rays.per_pixel(occluded.astype(float), fill=0.0))
-    out.rows.append({**base, "method": "oracle", "label": "oracle", "family": "oracle", "knob": "", "knob_value": np.nan,
-                     **metrics.summary(np.zeros(len(rays.x)), "angle", "_deg"), "dist_median": 0.0,
-                     **metrics.image_errors(oracle_img, oracle_img, mask=mask, suffix="oracle"),
-                     **metrics.image_errors(oracle_img, truth, mask=mask, suffix="mitsuba"),
-                     "valid_fraction": 1.0, "ratio_residual_median": 0.0, "lookups_per_ray": 1, "seconds": 0.0})
+    eps = outcomes.tolerance(o, exact, scene.render.cube_res)        # per ray: max(1 cm, one texel at the hit)
+
+    def classify(shown):                                              # outcome classes against the exact hits
+        return outcomes.classify(rays.x, rays.R, shown, exact, eps=eps, exact_origin=rays.exact_x)
+
+    for name, img in (("oracle_map", oracle_img), ("truth_at_hit", ref.image)):   # the exact hit, two radiances
+        out.rows.append({**base, "method": name, "label": name, "family": name, "knob": "", "knob_value": np.nan,
+                         **metrics.summary(np.zeros(len(rays.x)), "angle", "_deg"), "dist_median": 0.0,
+                         **outcomes.outcome_columns(classify(exact), occluded, np.zeros(len(rays.x))),  # correct
+                         **image_columns(img, reference=name == "truth_at_hit"),
+                         "valid_fraction": 1.0, "ratio_residual_median": 0.0,
+                         "lookups_per_ray": 1 if name == "oracle_map" else 0, "seconds": 0.0})
 
     # ------------------------------------------------------------------ every method on the same rays
     env = EnvMap(imp.texels(), B, info=env_info(scene))
@@ -132,11 +166,12 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
         seconds = time.perf_counter() - t0
         img = shading.composite(rays, np.nan_to_num(rad) * F, background)
         ang = metrics.angular_error(rays.x, shown, exact)
+        oc = classify(shown)
         row = {**base, "method": m.name, "label": m.label, **knob_columns(m),
                **metrics.summary(ang, "angle", "_deg"),
                "dist_median": float(np.nanmedian(np.linalg.norm(shown - exact, axis=-1))),
-               **metrics.image_errors(img, oracle_img, mask=mask, suffix="oracle"),
-               **metrics.image_errors(img, truth, mask=mask, suffix="mitsuba"),
+               **outcomes.outcome_columns(oc, occluded, ang),
+               **image_columns(img),
                "valid_fraction": float(valid.mean()),
                "ratio_residual_median": float(np.nanmedian(np.abs(ratio - 1))),
                "lookups_per_ray": m.lookups_per_ray(), "seconds": seconds}
@@ -144,4 +179,5 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
         if keep_images:
             out.images[m.label] = img
             out.angle_maps[m.label] = rays.per_pixel(ang, fill=np.nan)
+            out.outcome_maps[m.label] = outcomes.majority(rays.per_pixel(outcomes.class_fractions(oc), fill=np.nan))
     return out

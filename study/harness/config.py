@@ -24,15 +24,17 @@ with an optional ``name`` (``configs/fig6.toml``)::
     "object.material" = { type = "dielectric", ior = 1.5 }
     "render.refraction" = "single"
 
-Unknown keys, unknown methods and unknown method parameters are errors naming the file and the key.
+Unknown keys, unknown methods and unknown method parameters are errors naming the file and the key; so are
+method parameters that are not finite (``inf``, ``nan``) and booleans or strings given for numbers.
 """
 from __future__ import annotations
 
 import itertools
+import math
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, model_validator
 
 from study import methods as registry
 from study.errors import StudyError
@@ -49,7 +51,8 @@ class FigureConfig(BaseModel):
     cases: list[dict[str, Any]] | None = Field(None, min_length=1)
     methods: MethodSpecs = "all"
     grid: list[str] | None = None
-    occlusion_panel: bool = False       # add a column showing which rays' exact hits are hidden from o
+    occlusion_panel: StrictBool = False  # add a column showing which rays' exact hits are hidden from o
+    outcome_panel: StrictBool = False    # add per grid method a map of its per-ray outcome classes
 
     @model_validator(mode="after")
     def _one_of(self):
@@ -109,12 +112,30 @@ def expand_methods(specs: MethodSpecs, *, source: str) -> list[Method]:
         keys = list(spec)
         values = [v if isinstance(v, list) else [v] for v in spec.values()]
         for combo in itertools.product(*values):
+            for k, v in zip(keys, combo):
+                _check_param(registry.REGISTRY.get(name), k, v, source=source, key=f"methods[{i}].{k}")
             try:
                 out.append(registry.make(name, **dict(zip(keys, combo))))
             except StudyError as err:
                 raise StudyError(err.detail, file=source, key=f"methods[{i}]" + (
                     "." + err.key.split(".", 1)[1] if err.key and "." in err.key else ".name")) from None
     return list({m.label: m for m in reversed(out)}.values())[::-1]
+
+
+def _check_param(cls, name: str, value, *, source: str, key: str) -> None:
+    """A method parameter's value holds no non-finite number, and no boolean or string where the parameter
+    takes numbers (pydantic would read true as 1 and inf as a valid float)."""
+    field = getattr(getattr(cls, "Params", None), "model_fields", {}).get(name)
+    text = repr(field.annotation) if field is not None else ""
+    for v in (value if isinstance(value, (list, tuple)) else [value]):
+        if isinstance(v, (list, tuple)):
+            _check_param(cls, name, v, source=source, key=key)
+        elif isinstance(v, float) and not math.isfinite(v):
+            raise StudyError(f"Input should be a finite number, got {v}", file=source, key=key)
+        elif isinstance(v, bool) and field is not None and "bool" not in text:
+            raise StudyError("Input should be a valid number, not a boolean", file=source, key=key)
+        elif isinstance(v, str) and field is not None and "str" not in text and "Literal" not in text:
+            raise StudyError("Input should be a valid number, not a string", file=source, key=key)
 
 
 def load_figure_config(path: str | Path) -> tuple[FigureConfig, Scene, list[Method]]:

@@ -1,13 +1,21 @@
 """Running a sweep: cases in this process, in local processes or on a Dask cluster; resume; the results table.
 
-A finished case is stored under ``<out>/cases/<key>.json`` (atomically) and never recomputed, so a killed sweep
-resumes where it stopped. After each case the table ``<out>/results.csv`` is rewritten atomically from the finished
-cases, in case order; ``<out>/metadata.json`` records versions, config hash, seed, git commit, backend. One sweep at
-a time may write to an output directory (a lock file; a second one stops with a clear message).
+A finished case is stored under ``<out>/cases/<key>.json`` (atomically) and not recomputed, so a killed sweep
+resumes where it stopped. A case file is used only if it names the case's key and holds a non-empty list of rows
+that the caller's check accepts (for a sweep: run_case's reference rows, then one row per method, labelled as
+configured); anything else is recomputed. The rows' case id and ``axis:*`` columns always come from the config as
+expanded now, never from the file. Worker processes (``jobs`` > 1) exit when the sweep's process dies.
+
+Before anything runs the backend and every case are checked (:mod:`study.harness.budget`: in view, memory, time).
+The table ``<out>/results.csv`` (in case order), ``<out>/metadata.json`` (versions, config hash, code hash, seed,
+git commit, backend) and the caller's extras (the sweep's ``plots/``) are one output set
+(:func:`study.io.output_set`): written when every case is done and swapped in together, so a failed or killed
+sweep leaves the previous table, metadata and plots as they were. One command at a time may write to an output
+directory (a lock file; a second one stops with a clear message).
 """
 from __future__ import annotations
 
-import fcntl
+import contextlib
 import hashlib
 import json
 import os
@@ -20,11 +28,13 @@ from typing import Callable
 
 from study import methods as registry
 from study.cache import Cache
-from study.errors import StudyError
+from study.codehash import code_hash
+from study.errors import StudyError, os_problem
 from study.evaluate.case import run_case
-from study.harness.sweep import CODE_VERSION, Case, load_sweep
+from study.harness import budget
+from study.harness.sweep import Case, load_sweep
 from study.impostor.capture import impostor_key
-from study.io import atomic_write
+from study.io import atomic_write, locked, output_set
 from study.scene import scene_from_dict
 from study.tables import write_csv
 
@@ -49,18 +59,10 @@ def _run_one(scene_json: dict, method_specs: list[tuple[str, dict]], backend: st
     _limit_threads(jobs)
     scene = scene_from_dict(scene_json)
     ms = [registry.make(n, **p) for n, p in method_specs]
-    return run_case(scene, ms, backend=backend, cache=Cache(cache), case_id=case_id, keep_images=False).rows
-
-
-def _lock(out: Path):
-    f = open(out / ".lock", "a+")
     try:
-        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        f.close()
-        raise StudyError("another sweep is writing to this directory; wait for it or choose another --out",
-                         file=str(out)) from None
-    return f
+        return run_case(scene, ms, backend=backend, cache=Cache(cache), case_id=case_id, keep_images=False).rows
+    except StudyError as err:          # which case refused, for the sweep's one line
+        raise type(err)(f"{err.detail} (case {case_id})", file=err.file, key=err.key, code=err.code) from None
 
 
 def _git_commit() -> str:
@@ -85,83 +87,132 @@ def metadata(config: str | Path, *, backend: str, seed: int, methods: list[str],
             "seed": seed, "git_commit": _git_commit(), "backend": backend, "versions": vers,
             "python": platform.python_version(), "machine": platform.machine(), "cpus": os.cpu_count(),
             "command": "study " + " ".join(sys.argv[1:]) if Path(sys.argv[0]).name in ("study", "cli.py") else None,
-            "cases": cases, "methods": methods, "code_version": CODE_VERSION, **extra}
+            "cases": cases, "methods": methods, **extra}
 
 
 def _case_file(out: Path, case: Case) -> Path:
     return out / "cases" / f"{case.key}.json"
 
 
-def _load_case(out: Path, case: Case) -> list[dict] | None:
-    try:
-        data = json.loads(_case_file(out, case).read_text())
-        if data.get("key") != case.key or not isinstance(data.get("rows"), list):
-            return None
-        return data["rows"]
-    except (OSError, ValueError):
-        return None
-
-
 #: A case's work, as something a worker process can run: (module-level function, its arguments).
 Task = tuple[Callable[..., list[dict]], tuple]
+#: Whether rows (from a case file, or just computed) are what ``case`` produces under today's config.
+Check = Callable[[Case, list[dict]], bool]
+
+
+def sweep_check(methods: list) -> Check:
+    """The rows of a sweep case: first :func:`run_case`'s reference rows (at least one; rows of no configured
+    method, e.g. the oracle's, each label once), then exactly one row per method, its label as configured, in
+    order. Which references a case has is fixed by the code, whose hash is part of the case's key."""
+    names, labels = {m.name for m in methods}, [m.label for m in methods]
+
+    def check(case: Case, rows: list[dict]) -> bool:
+        n = len(rows) - len(labels)
+        refs, own = rows[:n], rows[n:]
+        return (n >= 1 and [r.get("label") for r in own] == labels and all(r.get("method") in names for r in own)
+                and all(r.get("method") not in names for r in refs) and len({r.get("label") for r in refs}) == n)
+    return check
+
+
+def _identify(case: Case, rows: list[dict]) -> list[dict]:
+    """The rows with their identity from ``case``: its id and one ``axis:<key>`` column per label (others go)."""
+    for r in rows:
+        for k in [k for k in r if k.startswith("axis:")]:
+            del r[k]
+        r.update({f"axis:{k}": v for k, v in case.labels.items()})
+        r["case"] = case.id
+    return rows
+
+
+def _load_case(out: Path, case: Case, check: Check | None = None) -> list[dict] | None:
+    """The rows of ``case``'s file, relabelled from ``case``; None (recompute) unless the file names the case's
+    key and holds a non-empty list of rows that ``check`` accepts."""
+    try:
+        data = json.loads(_case_file(out, case).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or data.get("key") != case.key:
+        return None
+    rows = data.get("rows")
+    if not isinstance(rows, list) or not rows or not all(isinstance(r, dict) for r in rows):
+        return None
+    if check is not None and not check(case, rows):
+        return None
+    return _identify(case, rows)
+
+
+def prepare_sweep(path: str | Path, *, backend: str = "numpy", jobs: int = 1):
+    """The sweep, validated, with the backend and every case checked (:mod:`study.harness.budget`)."""
+    sweep = load_sweep(path, backend=backend)
+    budget.check_backend(backend)
+    budget.check([(c.id, c.scene) for c in sweep.cases], sweep.methods, source=str(sweep.path), jobs=jobs)
+    return sweep
 
 
 def run_sweep(path: str | Path, out: str | Path, *, backend: str = "numpy", cache: str | Path | None = ".cache",
-              jobs: int = 1, dask: str | None = None,
-              progress: Callable[[int, int, str], None] | None = None) -> tuple[list[dict], dict]:
+              jobs: int = 1, dask: str | None = None, progress: Callable[[int, int, str], None] | None = None,
+              extra: Callable[[list[dict], Path], None] | None = None) -> tuple[list[dict], dict]:
     """Run (or resume) a sweep; returns (rows, stats) with stats = {cases, cached, computed, seconds}.
+    ``extra(rows, dir)`` writes more outputs (the curves, under ``dir/plots``) into the sweep's output set.
 
     Cases run in this process (``jobs=1``), in ``jobs`` local processes, or on a Dask distributed cluster
     (``dask`` = a scheduler address, or ``"local"`` for a LocalCluster of ``jobs`` single-threaded worker
     processes). The table is the same either way: rows are ordered by case, not by completion."""
-    sweep = load_sweep(path, backend=backend)
+    sweep = prepare_sweep(path, backend=backend, jobs=jobs)
     specs = [(m.name, m.params.model_dump(exclude_unset=True)) for m in sweep.methods]
     cache_s = str(cache) if cache else None
+    labels = [m.label for m in sweep.methods]
     meta = metadata(sweep.path, backend=backend, seed=sweep.cases[0].scene.render.seed, jobs=jobs,
-                    methods=[m.label for m in sweep.methods], cases=len(sweep.cases))
+                    methods=labels, cases=len(sweep.cases),
+                    code_hash=code_hash(run_case, *[type(m) for m in sweep.methods]))
 
     def task(c: Case) -> Task:
         return _run_one, (c.scene.model_dump(mode="json"), specs, backend, cache_s, c.id, jobs)
-    return run_cases(sweep.cases, out, meta, task, jobs=jobs, dask=dask, progress=progress,
-                     batches=_first_of_each_impostor)
+    try:
+        return run_cases(sweep.cases, out, meta, task, jobs=jobs, dask=dask, progress=progress,
+                         batches=_first_of_each_impostor, check=sweep_check(sweep.methods), extra=extra)
+    except StudyError as err:                        # a case's refusal names the sweep file
+        if err.file:
+            raise
+        raise type(err)(err.detail, file=str(sweep.path), key=err.key, code=err.code) from None
+
+
+#: What a sweep's output set holds besides its cases (:func:`study.io.output_set`).
+OWNS = ("results.csv", "metadata.json", "plots")
 
 
 def run_cases(cases: list[Case], out: str | Path, meta: dict, task: Callable[[Case], Task], *, jobs: int = 1,
               dask: str | None = None, progress: Callable[[int, int, str], None] | None = None,
-              batches: Callable[[list[Case]], tuple[list[Case], ...]] = lambda todo: (todo,)
-              ) -> tuple[list[dict], dict]:
-    """Run the cases not yet finished under ``out`` and write ``<out>/results.csv`` (+ ``metadata.json``).
+              batches: Callable[[list[Case]], tuple[list[Case], ...]] = lambda todo: (todo,),
+              check: Check | None = None, extra: Callable[[list[dict], Path], None] | None = None,
+              into: Path | None = None) -> tuple[list[dict], dict]:
+    """Run the cases not yet finished under ``out`` and write ``<out>/results.csv`` (+ ``metadata.json``, and
+    what ``extra(rows, dir)`` writes) as one output set, swapped in at the end (:func:`study.io.output_set`); with
+    ``into`` they go to that directory instead, part of the caller's output set (the case files stay in ``out``).
 
     ``task(case)`` gives the function and arguments that compute a case's rows (run here, in ``jobs`` processes or
-    on Dask); each row gets the case id and one ``axis:<key>`` column per label of the case. ``batches`` splits
-    the cases to run into groups run one after the other (e.g. the first case of each impostor first). The
-    output directory is locked for the run. Returns (rows, stats = {cases, cached, computed, seconds})."""
+    on Dask); each row gets the case id and one ``axis:<key>`` column per label of the case. A case file is reused
+    only if ``check(case, rows)`` accepts its rows (e.g. :func:`sweep_check`); computed rows must pass it too.
+    ``batches`` splits the cases to run into groups run one after the other (e.g. the first case of each impostor
+    first). The output directory is locked for the run. Returns (rows, stats = {cases, cached, computed, seconds})."""
     t0 = time.perf_counter()
     out = Path(out)
-    try:
-        (out / "cases").mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise StudyError(f"cannot create the output directory ({err.strerror})", file=str(out)) from None
-    if not os.access(out, os.W_OK):
-        raise StudyError("the output directory is not writable", file=str(out))
-    lock = _lock(out)
-    try:
-        atomic_write(out / "metadata.json", json.dumps(meta, indent=2).encode())
+    with locked(out) if into is None else _locked_into(out, into):
         done: dict[int, list[dict]] = {}
         for c in cases:
-            rows = _load_case(out, c)
+            rows = _load_case(out, c, check)
             if rows is not None:
                 done[c.index] = rows
         cached = len(done)
         todo = [c for c in cases if c.index not in done]
 
         def finish(c: Case, rows: list[dict]):
-            for r in rows:
-                r.update({f"axis:{k}": v for k, v in c.labels.items()})
-                r["case"] = c.id
+            if not rows or (check and not check(c, rows)):
+                raise RuntimeError(f"case {c.id}: its computed rows ({[r.get('label') for r in rows]}) are not "
+                                   "what the runner's check expects")
+            _identify(c, rows)
             atomic_write(_case_file(out, c), json.dumps({"key": c.key, "rows": rows}, default=float).encode())
             done[c.index] = rows
-            _write_table(done, out)
             if progress:
                 progress(len(done), len(cases), c.id)
 
@@ -175,12 +226,28 @@ def run_cases(cases: list[Case], out: str | Path, meta: dict, task: Callable[[Ca
                 finish(c, fn(*args))
         else:
             _run_parallel(batches(todo), task, jobs, finish)
-        _write_table(done, out)
         rows = [r for i in sorted(done) for r in done[i]]
-        return rows, {"cases": len(cases), "cached": cached, "computed": len(todo),
-                      "seconds": time.perf_counter() - t0}
-    finally:
-        lock.close()
+        outputs = (output_set(out, OWNS, keeps=("cases",), lock=False) if into is None     # when every case is done
+                   else contextlib.nullcontext(into))
+        with outputs as dest:
+            if rows:                                   # metadata only with the table it describes
+                write_csv(rows, dest / "results.csv")
+                atomic_write(dest / "metadata.json", json.dumps(meta, indent=2).encode())
+            if extra:
+                extra(rows, dest)
+    return rows, {"cases": len(cases), "cached": cached, "computed": len(todo), "seconds": time.perf_counter() - t0}
+
+
+@contextlib.contextmanager
+def _locked_into(out: Path, dest: Path):
+    """``out`` created and locked for the case files; the outputs go to ``dest`` (a caller's output set)."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise os_problem(err, "cannot create the output directory", out) from None
+    with locked(out):
+        dest.mkdir(parents=True, exist_ok=True)
+        yield dest
 
 
 def _run_parallel(batches, task, jobs, finish) -> None:
@@ -188,13 +255,36 @@ def _run_parallel(batches, task, jobs, finish) -> None:
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn")) as pool:
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"), initializer=_die_with_parent,
+                             initargs=(os.getpid(),)) as pool:
         for batch in batches:
             futs = {pool.submit(*_flat(task(c))): c for c in batch}
             while futs:
                 fin, _ = wait(futs, return_when=FIRST_COMPLETED)
                 for f in fin:
                     finish(futs.pop(f), f.result())
+
+
+def _die_with_parent(parent: int, poll: float = 0.5) -> None:
+    """Worker initializer: exit as soon as the process ``parent`` (the sweep) is gone, never blocking forever on
+    a queue nobody writes to. Linux: the kernel kills the worker (PR_SET_PDEATHSIG); everywhere: a daemon thread
+    sees the worker re-parented (``os.getppid()`` no longer ``parent``) and exits."""
+    import threading
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            import signal
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)   # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):  # pragma: no cover - no libc.so.6: the watchdog alone
+            pass
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(poll)
+        os._exit(3)
+    if os.getppid() != parent:                      # the parent died while this worker was starting
+        os._exit(3)
+    threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
 
 
 def _flat(t: Task) -> tuple:
@@ -228,16 +318,10 @@ def _run_dask(batches, task, jobs, address: str, finish) -> None:
             raise StudyError(f"cannot reach the Dask scheduler ({err})", key="--dask") from None
     try:
         for batch in batches:
-            futs = {client.submit(*_flat(task(c)), key=f"study-{c.key}", pure=False): c for c in batch}
+            futs = {client.submit(*_flat(task(c)), key=f"study-{c.key}-{c.index}", pure=False): c for c in batch}
             for f in as_completed(list(futs)):
                 finish(futs[f], f.result())
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
-
-
-def _write_table(done: dict[int, list[dict]], out: Path) -> None:
-    rows = [r for i in sorted(done) for r in done[i]]
-    if rows:
-        write_csv(rows, out / "results.csv")

@@ -19,11 +19,15 @@ A sweep file (TOML)::
     iterations = [0, 1, 3, 10]
 
 Each case (one combination of axis values) is run (:mod:`study.harness.runner`) by
-:func:`study.evaluate.case.run_case` with every method; its rows get one column per axis holding the value's label. Cases are identified by a content key (scene, methods, backend,
-code version): a finished case is stored under ``<out>/cases/<key>.json`` (atomically) and never recomputed, so a
-killed sweep resumes where it stopped. After each case the table ``<out>/results.csv`` is rewritten atomically from
-the finished cases, in case order; ``<out>/metadata.json`` records versions, config hash, seed, git commit, backend.
-One sweep at a time may write to an output directory (a lock file; a second one stops with a clear message).
+:func:`study.evaluate.case.run_case` with every method; its rows get one column per axis holding the value's label.
+Cases are identified by a content key (scene, methods, backend, and the hash of the code that computes them,
+:func:`study.codehash.code_hash`): a finished case is stored under ``<out>/cases/<key>.json`` (atomically) and not
+recomputed while its key, methods and rows still match, so a killed sweep resumes where it stopped, and a change of
+code recomputes what it touches. A case's id and axis labels are not part of its identity: they come from the
+expansion of the config as it is now. When every case is done, the table ``<out>/results.csv`` (in case order),
+``<out>/metadata.json`` (versions, config hash, seed, git commit, backend) and the curves are swapped in together;
+a failed or killed sweep leaves the previous ones as they were. One command at a time may write to an output
+directory (a lock file; a second one stops with a clear message).
 """
 from __future__ import annotations
 
@@ -36,21 +40,21 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from study.codehash import code_hash
 from study.errors import StudyError
+from study.evaluate.case import run_case
 from study.harness.config import MethodSpecs, configured_scene, expand_methods
 from study.methods import Method
 from study.scene import Scene
+from study.scene.schema import MAX_SEED, Int, Vec3
 from study.validation import validate_file
-
-#: Bump when a change of code changes results, so cached cases are not reused across it.
-CODE_VERSION = 1
 
 
 class Line(BaseModel):
-    model_config = ConfigDict(extra="forbid", populate_by_name=True)
-    start: tuple[float, float, float] = Field(alias="from")
-    end: tuple[float, float, float] = Field(alias="to")
-    steps: int = Field(ge=1, le=1000)
+    model_config = ConfigDict(extra="forbid", populate_by_name=True, allow_inf_nan=False)
+    start: Vec3 = Field(alias="from")
+    end: Vec3 = Field(alias="to")
+    steps: Int = Field(ge=1, le=1000)
 
 
 class Axis(BaseModel):
@@ -63,7 +67,7 @@ class Axis(BaseModel):
 class SweepConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
     scene: str | dict[str, Any]
-    seed: int | None = Field(default=None, ge=0)
+    seed: Int | None = Field(default=None, ge=0, le=MAX_SEED)
     overrides: dict[str, Any] = {}
     axes: dict[str, list[Any] | Axis] = {}
     zip: list[list[str]] = []
@@ -76,7 +80,7 @@ class Case:
     id: str                  # c0000, c0001, … in sweep order
     scene: Scene
     labels: dict[str, str]   # axis key → value label
-    key: str = ""            # content key (scene, methods, backend, code version)
+    key: str = ""            # content key (scene, methods, backend, code hash)
 
 
 @dataclass
@@ -89,8 +93,10 @@ class Sweep:
 
 
 def _label(v) -> str:
+    """A value's label in the table; an integral float keeps its point (16.0), so it never reads as the int 16."""
     if isinstance(v, float):
-        return f"{v:g}"
+        s = f"{v:g}"
+        return s + ".0" if s.lstrip("-").isdigit() else s
     if isinstance(v, (list, tuple)) and all(isinstance(x, (int, float)) for x in v):
         return "(" + ", ".join(f"{x:g}" for x in v) + ")"
     return json.dumps(v, sort_keys=True) if not isinstance(v, str) else v
@@ -157,6 +163,9 @@ def load_sweep(path: str | Path, *, backend: str = "numpy") -> Sweep:
 
 
 def case_key(scene: Scene, methods: list[Method], backend: str) -> str:
+    """The content key of a case: its scene, the methods' labels, the backend, and the hash of the code that
+    computes its rows (run_case and everything it imports, and each method's class and module)."""
     blob = json.dumps({"scene": scene.model_dump(mode="json"), "methods": [m.label for m in methods],
-                       "backend": backend, "v": CODE_VERSION}, sort_keys=True)
+                       "backend": backend, "code": code_hash(run_case, *[type(m) for m in methods])},
+                      sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:20]

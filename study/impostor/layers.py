@@ -24,7 +24,7 @@ from study.errors import StudyError
 from study.impostor import cubemap
 from study.impostor.capture import impostor_key
 from study.reference.embree import Tracer
-from study.reference.mitsuba import mi, scene_dict, sensor
+from study.reference.mitsuba import radiance_along
 from study.scene import Scene
 
 EPS = 1e-4          # restart offset along the ray beyond a hit (m)
@@ -71,28 +71,11 @@ def depth_jump(dist: np.ndarray) -> np.ndarray:
     return jump
 
 
-def surface_radiance(scene: Scene, point: np.ndarray, normal: np.ndarray, spp: int, *, seed: int = 0,
-                     chunk: int = 1 << 20) -> np.ndarray:
+def surface_radiance(scene: Scene, point: np.ndarray, normal: np.ndarray, spp: int, *, seed: int = 0) -> np.ndarray:
     """Radiance leaving surface points towards their free side, path traced by Mitsuba: (N, 3) float32.
 
-    Each point is seen by ``spp`` rays from p + 1e-3 n along −n (``integrator.sample``, independent sampler)."""
-    m = mi()
-    o = np.asarray(scene.reference.point, float)
-    sc = m.load_dict(scene_dict(scene, with_object=False,
-                                sensor=sensor(o, o + [0, 0, 1], [0, 1, 0], 90.0, 8, 8, 1, seed)))
-    integ = sc.integrator()
-    out = np.zeros((len(point), 3), np.float32)
-    per = max(1, chunk // spp)
-    for s in range(0, len(point), per):
-        p, n = point[s:s + per], normal[s:s + per]
-        org = np.repeat(p + 1e-3 * n, spp, axis=0).astype(np.float32)
-        d = np.repeat(-n, spp, axis=0).astype(np.float32)
-        sampler = m.load_dict({"type": "independent"})
-        sampler.seed(seed + s, len(org))
-        ray = m.Ray3f(m.Point3f(*org.T), m.Vector3f(*d.T))
-        rgb, _, _ = integ.sample(sc, sampler, ray)
-        out[s:s + per] = np.array(rgb, np.float32).T.reshape(-1, spp, 3).mean(1)
-    return out
+    Each point is seen by ``spp`` rays from p + 1e-3 n along −n (:func:`study.reference.mitsuba.radiance_along`)."""
+    return radiance_along(scene, point + 1e-3 * normal, -normal, spp=spp, seed=seed)
 
 
 def capture_layers(scene: Scene, layers: int, radiance0: np.ndarray, *, res: int | None = None,
@@ -128,5 +111,5 @@ def layered_impostor(scene: Scene, cache: Cache, layers: int, radiance0: np.ndar
     """:func:`capture_layers` through the cache: (K, 6, R, R, 5)."""
     r = scene.render.cube_res
     a = cache.get("layers", layers_key(scene, layers),
-                  lambda: capture_layers(scene, layers, radiance0, tracer=tracer))
+                  lambda: capture_layers(scene, layers, radiance0, tracer=tracer), code=capture_layers)
     return a.reshape(layers, 6, r, r, 5)

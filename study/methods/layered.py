@@ -1,54 +1,76 @@
-"""Layered distance maps (GPU Gems 3 ch. 17; Hakura and Snyder 2001): every depth layer searched, nearest clean
-hit kept.
+"""Layered distance maps (GPU Gems 3 ch. 17; Hakura and Snyder 2001): all depth layers marched together, texel by
+texel, and the first entry into a solid kept.
 
 Layers come from ``env.info["layers"]`` (:mod:`study.impostor.layers`: layer k holds the (k+1)-th surface seen from the
 reference point o, channels R, G, B, jump, distance); on a bare impostor without layers, the impostor itself is
-the only layer (no jump channel, so no hit is ever rejected as skin).
+the only layer.
 
-Search (per layer, all layers on the same samples): the linear search of :mod:`study.methods.linear_secant` (the
-t = d/(d + a) parameterization, n = max(n_max (1 − x̂·R)/2, n_min) steps along the arc) on
-g_k(t) = |p(t)| − (1 − t) |p(t)'|_k, recording the first TWO sign changes of each layer in either direction
-(under → over: the ray passes a surface that faces o; over → under: a surface that faces away from o, such as a
-column top seen from below, which is how a layer behind the first holds it); each is refined by ``iterations``
-Illinois secant steps (both phases from the search core :mod:`study.methods.search`). One lookup at each refined
-point reads q = |l|/|l'|_k, the layer's relative depth jump and the radiance. A crossing is *clean* where
-|q − 1| ≤ ``tolerance`` and the jump is below ``max_jump``; a crossing on a depth discontinuity is the "skin" that
-bilinear interpolation stretches from a silhouette to what lies behind it, not a surface.
+Search: the linear search of :mod:`study.methods.linear_secant` (the t = d/(d + a) parameterization, samples in equal
+angles along the arc, no farther apart than 1/``steps_per_texel`` texels, n = ⌈π res ``steps_per_texel``⌉ for a half
+turn, at most ``max_steps``) on every layer's g_k(t) = |p(t)| − (1 − t) |p(t)'|_k at once. Layers are nested
+(g_0 ≥ g_1 ≥ …): at each sample, c = the number of layers the ray point is behind, and the point is *inside* a solid
+where c is odd (behind a surface that faces o, in front of the next, which faces away: a column between its front
+face and its top seen from below), or behind every layer where the last repeats the one before (the room's wall).
+The hit is the first step from outside to inside (:func:`study.methods.search.first_entry`): on layer c where the
+point went behind it (a surface facing o), on layer c − 1 where it came back in front of it (a surface facing away
+from o, such as a column top seen from below, which is how a layer behind the first holds it). That is the
+rejection of depth jumps: the *skin* that bilinear interpolation stretches from a silhouette to what lies behind it
+makes a ray passing behind the silhouette go behind two layers within a texel or two (inside, then out on the far
+side). An entry is dropped when the ray leaves to the far side within ``hold`` texels of arc; kept when it stays
+inside that long, or when it comes back out in front (it clipped an edge) and then nothing changes for ``hold``
+texels (the skin is a saddle that a ray can cut twice within a texel). The kept entry's layer is refined by
+``iterations`` Illinois secant steps (search core :func:`~study.methods.search.refine`); one lookup at the refined
+point reads the shown point's distance and radiance on that layer (``trace`` is overridden for that). valid: an
+entry was found.
 
 Why not the paper's false position on each layer: on the layer that holds a column top (seen from below), a ray
 coming down onto the top first crosses the skin along the top's silhouette edge and then the top itself; false
 position converges on the skin (the first root of its first bracket) and never reaches the top (see
-tests/test_methods_layered.py). Recording two crossings per layer lets the skin be rejected and the top kept.
+tests/test_methods_layered.py). Why not the first two sign changes of each layer, each tested against the jump
+channel, nearest clean one kept (this method until issue 17): a uniform 30-step search in t steps over the thin
+crossing near the column's top edge on 45 % of the rays whose hit o does not see (fig5 p0); with 2000 steps 14 %
+stay wrong, as the jump test rejects true top hits within a texel of the edge and a third crossing goes unrecorded;
+the entry rule leaves 2.4 % (scripts/compare_layered.py).
 
-Kept: the nearest clean crossing over all layers; where none is clean, the nearest crossing with |q − 1| ≤
-``tolerance``; where none is, the first crossing of the first layer. valid: some crossing was found. The shown
-point and radiance come from the layer the hit was kept from (``trace`` is overridden for that).
+Cost: every layer is looked up at every sample (a vectorized loop of n steps on every ray) and, since the kept
+layer differs between rays, at every secant step and at the final lookup: layers × (1 + n + iterations + 1) per
+ray; n depends on the cube resolution, so :meth:`Layered.lookups_per_ray` reports what the last search spent
+(before any search: the most it can spend, n = ``max_steps``).
 """
 from __future__ import annotations
 
-from functools import partial
+import math
 from typing import Annotated
 
 from pydantic import Field
 
 from study.backend import V3
+from study.impostor import cubemap
+from study.impostor.envmap import EnvMap
 from study.methods.base import Knob, Localization, Method, Trace, register
-from study.methods.linear_secant import LinearSearchParams
-from study.methods.search import refine, secant_point, sign_changes
+from study.methods.linear_secant import TexelMarchParams, march_steps
+from study.methods.search import arc_samples, first_entry, refine, secant_point
 
 
-class Params(LinearSearchParams):                                # + linear_steps, min_linear_steps
+class Params(TexelMarchParams):                                  # + steps_per_texel, max_steps
     layers: Annotated[int, Field(ge=1, le=16)] = 3               # depth layers searched
-    iterations: Annotated[int, Field(ge=0, le=1000)] = 10        # secant steps per crossing
-    tolerance: Annotated[float, Field(gt=0)] = 0.01              # |q − 1| of a converged crossing
-    max_jump: Annotated[float, Field(gt=0)] = 0.1                # relative depth jump above which it is skin
+    iterations: Annotated[int, Field(ge=0, le=1000)] = 10        # secant steps on the kept entry
+    hold: Annotated[float, Field(ge=0, le=64)] = 4.0             # texels of arc that decide an entry (see above)
+
+
+def _pick(B, e, values):
+    """values[e] per ray (e an array of layer indices)."""
+    out = values[-1]
+    for i in range(len(values) - 2, -1, -1):
+        out = B.select(e == float(i), values[i], out)
+    return out
 
 
 @register
 class Layered(Method):
     name = "layered"
     Params = Params
-    knob = Knob("linear_steps", (15, 30, 60, 120))    # a finer linear search steps over fewer thin crossings
+    knob = Knob("steps_per_texel", (0.25, 0.5, 1.0, 2.0))   # below 1, thin crossings can fall between samples
 
     def layers_needed(self) -> int:
         return self.params.layers
@@ -57,51 +79,41 @@ class Layered(Method):
         """Returns (l, valid, [r, g, b], distance) of the kept hit."""
         p = self.params
         maps = list(env.info.get("layers") or [env])[:p.layers]
-        # ------------------------------------------------------------- parameterization and step count
+        # ------------------------------------------------------------- parameterization and samples
         xl = B.length(x)
         a = B.maximum(xl, 1e-6)                        # a = |x|
         cos = x.dot(R) / a                             # x̂·R
-        n = B.maximum(p.linear_steps * (1.0 - cos) * 0.5, float(p.min_linear_steps))
-        dt = 1.0 / B.minimum(n, float(p.linear_steps))
+        res = getattr(maps[0], "res", 0)
+        n = march_steps(res, p)
+        per_texel = n / (math.pi * res) if res else p.steps_per_texel   # samples per texel after the cap
+        hold = round(p.hold * per_texel)               # in samples
+        self._spent = len(maps) * (1 + n + p.iterations + 1)
         zero = xl * 0.0
 
         def point(t):                                  # p(t) = (1 − t) x + t a R
             return x * (1.0 - t) + R * (a * t)
 
-        def g(m, t):
+        shared = all(isinstance(m, EnvMap) and m.res == res for m in maps)   # one face/uv for every layer
+
+        def gs(t):
             pt = point(t)
-            return B.length(pt) - (1.0 - t) * m.distance(pt)
+            lp = B.length(pt)
+            if shared:
+                face, u, w = cubemap.face_uv(B, pt.x, pt.y, pt.z)
+                return [lp - (1.0 - t) * B.sample(m.dist, face, u, w)[0] for m in maps]
+            return [lp - (1.0 - t) * m.distance(pt) for m in maps]
 
-        # ------------------------------------------------------------- linear search: first two sign changes
-        # per layer, two brackets (a harmless dummy bracket until found, so that refining it stays finite)
-        dummy = (zero, zero - 1.0, zero + 1.0, zero + 1.0)
-        cross = sign_changes(B, lambda t: [g(m, t) for m in maps], zero, [g(m, zero) for m in maps], dt,
-                             p.linear_steps, count=2, t_max=1.0, default=dummy)
+        # ------------------------------------------------------------- march: the first entry that is not skin
+        br, e = first_entry(B, gs, zero, gs(zero), arc_samples(B, cos, n), n, hold=hold, t_max=1.0,
+                            default=(zero, zero - 1.0, zero + 1.0, zero + 1.0))   # harmless dummy bracket
 
-        # ------------------------------------------------------------- secant refinement, test, nearest kept
-        big = 1e30
-        best = None
-        for i, m in enumerate(maps):
-            for j, br in enumerate(cross[i]):
-                br = refine(B, partial(g, m), br, p.iterations)      # Illinois secant steps
-                t, found = secant_point(br), br.found
-                l = point(t) / B.maximum(1.0 - t, 1e-7)          # x + R d(t)
-                ch = m.lookup(l)
-                dist = ch[-1]
-                jump = ch[3] if m.channels == 5 else zero
-                conv = found & B.isfinite(t) & (B.abs(B.length(l) / dist - 1.0) <= p.tolerance)
-                clean = conv & (jump < p.max_jump)
-                # rank: clean crossings by t, then converged ones, then the first layer's first crossing
-                key = B.select(clean, t, B.select(conv, t + 10.0, zero + (100.0 if i == j == 0 else big)))
-                key = B.select(found, key, zero + big * 2)
-                cand = (l.x, l.y, l.z, ch[0], ch[1], ch[2], dist, key)
-                if best is None:
-                    best = cand
-                else:
-                    take = cand[-1] < best[-1]
-                    best = tuple(B.select(take, c, b) for c, b in zip(cand, best))
-        lx, ly, lz, r, gg, b, dist, key = best
-        return V3(lx, ly, lz), key < big, [r, gg, b], dist
+        # ------------------------------------------------------------- secant steps on the entry's layer
+        br = refine(B, lambda t: _pick(B, e, gs(t)), br, p.iterations)
+        t = secant_point(br)
+        l = point(t) / B.maximum(1.0 - t, 1e-7)        # x + R d(t)
+        chs = [m.lookup(l) for m in maps]
+        ch = [_pick(B, e, [c[i] for c in chs]) for i in range(len(chs[0]))]
+        return l, br.found & B.isfinite(t), ch[:3], ch[-1]
 
     def localize(self, B, env, x, R):
         l, valid, _, _ = self._search(B, env, x, R)
@@ -120,7 +132,7 @@ class Layered(Method):
         return Trace(l, shown, rad, B.length(l) / dist, valid)
 
     def lookups_per_ray(self) -> int:
-        # per layer: g(0), n_max linear steps, two crossings × (secant steps + the final lookup that gives the
-        # test, the jump and the shown point's distance and radiance)
+        # per layer: g(0), the n steps (all of them on every ray), the secant steps and the final lookup (every
+        # layer, as the kept layer differs between rays); n from the last search, max_steps before any
         p = self.params
-        return p.layers * (1 + p.linear_steps + 2 * (p.iterations + 1))
+        return getattr(self, "_spent", p.layers * (1 + p.max_steps + p.iterations + 1))

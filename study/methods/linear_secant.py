@@ -1,8 +1,9 @@
-"""Linear search then secant steps (Umenhoffer, Patow, Szirmay-Kalos, GPU Gems 3 ch. 17, 2007).
+"""Linear search then secant steps (Umenhoffer, Patow, Szirmay-Kalos, GPU Gems 3 ch. 17, 2007), the linear search
+marched texel by texel.
 
 The ray x + R d is parameterized by t ∈ [0, 1]: d(t) = a t / (1 − t) with a = |x|, so that the ray point is
-p(t) / (1 − t) with p(t) = (1 − t) x + t a R; uniform steps in t walk the great-circle arc from x̂ to R on the
-direction sphere. The step count of a ray comes from the arc length, n = max(n_max (1 − x̂·R) / 2, n_min).
+p(t) / (1 − t) with p(t) = (1 − t) x + t a R; as t runs from 0 to 1 the lookup direction p̂(t) walks the
+great-circle arc from x̂ to R on the direction sphere.
 
 The surface test is written on p, which stays finite up to t = 1 (the point at infinity in direction R):
 g(t) = |p(t)| − (1 − t) |p(t)'| (|v'| the stored distance towards v), g < 0 in front of the environment surface
@@ -10,37 +11,50 @@ g(t) = |p(t)| − (1 − t) |p(t)'| (|v'| the stored distance towards v), g < 0 
 surface has a crossing.
 
 Phases (both from the search core :mod:`study.methods.search`): (1) linear search for the FIRST pair of consecutive
-samples with g < 0 then g ≥ 0; (2) ``secant_steps`` secant (false-position) steps on g inside that bracket, keeping
-the side by the sign of g, by default with the Illinois rule (when the same end is replaced twice in a row, the
-other end's g is halved; plain false position stalls on one side and left errors of centimetres after 10 steps on a
-column face); the result is the secant point of the final bracket. The secant works on g(t) instead of the chapter's
-q(d) because q is infinite at t = 1; both vanish at the same points. Invalid (NaN shown point) where no crossing is
-found (x itself behind the environment surface and the ray never comes out in front of it).
+samples with g < 0 then g ≥ 0, on samples in equal angles along the arc (:func:`~study.methods.search.arc_samples`)
+no farther apart than 1/``steps_per_texel`` texels: a texel spans at least about 1/res radians of the cube map
+(0.94/res at a face's corners, 1/res at its edge midpoints, 2/res at its centre), so n = ⌈π res
+``steps_per_texel``⌉ steps cover a half turn (the longest arc) and no crossing wider than a texel lies between two
+samples (uniform steps in t, as in the chapter, turn the direction by up to 1/cos²(θ/2) times more in the middle of
+a long arc than at its ends, and steps over thin crossings); n is capped at ``max_steps`` (the step then grows);
+(2) ``secant_steps`` secant (false-position) steps on g inside that bracket, keeping the side by the sign of g, by
+default with the Illinois rule (when the same end is replaced twice in a row, the other end's g is halved; plain
+false position stalls on one side and left errors of centimetres after 10 steps on a column face); the result is
+the secant point of the final bracket. The secant works on g(t) instead of the chapter's q(d) because q is infinite
+at t = 1; both vanish at the same points. Invalid (NaN shown point) where no crossing is found (x itself behind the
+environment surface and the ray never comes out in front of it).
+
+Cost: the vectorized loop runs all n steps on every ray (a ray whose arc ends earlier repeats t = 1; a per-ray
+loop on a GPU would stop there); n depends on the cube resolution, so :meth:`LinearSecant.lookups_per_ray` reports
+what the last search spent (before any search: the most it can spend, with n = ``max_steps``).
 """
 from __future__ import annotations
 
+import math
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field
 
 from study.methods.base import Knob, Localization, Method, register
-from study.methods.search import first_crossing, refine, secant_point
+from study.methods.search import arc_samples, first_crossing, refine, secant_point
 
 
-class LinearSearchParams(BaseModel):
-    """The linear search's step counts (shared with ``layered``)."""
+class TexelMarchParams(BaseModel):
+    """The linear search's sampling (shared with ``layered``)."""
     model_config = ConfigDict(extra="forbid", frozen=True)
-    linear_steps: Annotated[int, Field(ge=1, le=4096)] = 30     # n_max: steps for a half-turn arc
-    min_linear_steps: Annotated[int, Field(ge=1, le=4096)] = 10  # n_min
-
-    @model_validator(mode="after")
-    def _order(self):
-        if self.min_linear_steps > self.linear_steps:
-            raise ValueError("min_linear_steps must not exceed linear_steps")
-        return self
+    steps_per_texel: Annotated[float, Field(gt=0, le=16)] = 1.0   # samples per texel of arc (≥ 1: none stepped over)
+    max_steps: Annotated[int, Field(ge=1, le=65536)] = 4096      # cap on the steps for a half turn
 
 
-class Params(LinearSearchParams):
+def march_steps(res: int, p: TexelMarchParams) -> int:
+    """Steps for a half-turn arc at cube resolution ``res``: ⌈π res steps_per_texel⌉, at most ``max_steps``
+    (``max_steps`` where the map has no texels, as an analytic environment)."""
+    if not res:
+        return p.max_steps
+    return max(1, min(p.max_steps, math.ceil(math.pi * res * p.steps_per_texel)))
+
+
+class Params(TexelMarchParams):
     secant_steps: Annotated[int, Field(ge=0, le=100)] = 4        # secant lookups after the linear search
     illinois: bool = True                                        # Illinois rule against one-sided stagnation
 
@@ -49,16 +63,16 @@ class Params(LinearSearchParams):
 class LinearSecant(Method):
     name = "linear_secant"
     Params = Params
-    knob = Knob("linear_steps", (10, 30, 60, 120))    # a finer linear search steps over fewer thin crossings
+    knob = Knob("steps_per_texel", (0.25, 0.5, 1.0, 2.0))   # below 1, thin crossings can fall between samples
 
     def localize(self, B, env, x, R):
         p = self.params
-        # ------------------------------------------------------------- parameterization and step count
+        # ------------------------------------------------------------- parameterization and samples
         xl = B.length(x)                               # |x|
         a = B.maximum(xl, 1e-6)                        # a = |x| (kept > 0: rays from o walk along R itself)
         cos = x.dot(R) / a                             # x̂·R
-        n = B.maximum(p.linear_steps * (1.0 - cos) * 0.5, float(p.min_linear_steps))
-        dt = 1.0 / B.minimum(n, float(p.linear_steps))  # step in t of this ray
+        n = march_steps(getattr(env, "res", 0), p)
+        self._steps = n
 
         def g(t):
             pt = x * (1.0 - t) + R * (a * t)           # p(t)
@@ -68,7 +82,8 @@ class LinearSecant(Method):
         zero = xl * 0.0
         g0 = g(zero)
         # bracket: last undershoot, first overshoot (no crossing: the whole arc, t = 0 to the point at infinity)
-        br = first_crossing(B, g, zero, g0, dt, p.linear_steps, t_max=1.0, default=(zero, g0, zero + 1.0, a))
+        br = first_crossing(B, g, zero, g0, arc_samples(B, cos, n), n, t_max=1.0,
+                            default=(zero, g0, zero + 1.0, a))
 
         # ------------------------------------------------------------- secant steps inside the bracket
         br = refine(B, g, br, p.secant_steps, illinois=p.illinois, rising=True)
@@ -77,6 +92,7 @@ class LinearSecant(Method):
         return Localization(l=l, valid=br.found & B.isfinite(t))
 
     def lookups_per_ray(self) -> int:
-        # g(0), the linear steps (the vectorized loop spends n_max on every ray; rays with a shorter arc repeat
-        # t = 1 and a per-ray loop on a GPU would stop after n of them), the secant steps, the shown point
-        return 1 + self.params.linear_steps + self.params.secant_steps + 1
+        # g(0), the n linear steps (the vectorized loop spends all n on every ray), the secant steps, the shown
+        # point; n from the last search (it depends on the cube resolution), max_steps before any
+        n = getattr(self, "_steps", self.params.max_steps)
+        return 1 + n + self.params.secant_steps + 1

@@ -8,27 +8,33 @@ Contract (backend ``B``, N rays, every array 1-D float32 of length N unless said
     g        callable t ↦ g(t) (an (N,) array of t → an (N,) array). For :func:`first_crossing` and
              :func:`sign_changes` it may instead return a list of arrays: several functions sampled at the same t
              (the layers of a layered map), searched in one pass (one kernel per step on Dr.Jit); ``g0`` is then a
-             list too and so is the result, one entry per function.
+             list too and so is the result, one entry per function. :func:`first_entry` always takes a list.
     t0, g0   start of the search and g(t0). g0 is passed in, not evaluated here: the caller counts that lookup and
              may adjust it (the distance map forces its start to count as g < 0).
     dt       step per ray ((N,) array or float); samples t_k = t0 + k dt for k = 1..``steps``, each clamped to
-             ``t_max`` when given (a ray whose range ends earlier repeats t_max). g is evaluated ``steps`` times on
-             every ray: the cost of the scan is ``steps`` lookups per function, plus the caller's g0.
+             ``t_max`` when given (a ray whose range ends earlier repeats t_max). Or a callable k ↦ t_k, called once
+             per k in order (:func:`arc_samples`: equal angles along the arc of the t = d/(d+a) parameterization).
+             g is evaluated ``steps`` times on every ray: the cost of the scan is ``steps`` lookups per function,
+             plus the caller's g0.
     default  (t_lo, g_lo, t_hi, g_hi): the bracket of rays where no sign change is found; None: the whole range,
              (t0, g0, last sample, g at it).
 
 A :class:`Bracket` (t_lo, g_lo, t_hi, g_hi, found) holds two consecutive samples t_lo < t_hi with the sign
 change between them where ``found`` ((N,) bool), the default elsewhere. "Sign" means g < 0 against g ≥ 0:
 :func:`first_crossing` finds the first step from g < 0 to g ≥ 0 (the ray passes from in front of a surface to
-behind it), :func:`sign_changes` the first ``count`` changes in either direction. :func:`refine` spends
+behind it), :func:`sign_changes` the first ``count`` changes in either direction, :func:`first_entry` the first
+step into the inside of nested surfaces (the layers of a layered map) that is not skin. :func:`refine` spends
 ``steps`` more evaluations of g on secant steps inside a bracket and returns the final bracket;
 :func:`secant_point` gives its secant point t_lo − g_lo (t_hi − t_lo) / (g_hi − g_lo), the estimate of the root
 (not finite where g_hi = g_lo, as on a bracket without a sign change).
 
-Each function has a slow, obvious ``_ref`` twin (one ray, plain Python floats) that the tests compare it with.
+Each search function has a slow, obvious ``_ref`` twin (one ray, plain Python floats) that the tests compare it
+with (``dt`` may be a callable there too, giving plain floats); :func:`arc_samples` is checked against the arc's
+geometry.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
@@ -69,8 +75,7 @@ def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first):
     cross = [[[never, *s] for _ in range(count)] for s in start]
     t_prev = t0                                        # the previous sample
     for k in range(1, steps + 1):
-        t = t0 + dt * float(k)
-        t = B.minimum(t, t_max) if t_max is not None else t
+        t = _sample(B, t0, dt, k, t_max)
         gts = g(t) if many else [g(t)]
         for i, gt in enumerate(gts):
             if rising:
@@ -92,6 +97,119 @@ def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first):
     out = [[Bracket(t_lo, g_lo, t_hi, g_hi, f) for f, t_lo, g_lo, t_hi, g_hi in c] for c in cross]
     out = [c[0] for c in out] if first else out
     return out if many else out[0]
+
+
+def _sample(B, t0, dt, k, t_max):
+    t = dt(k) if callable(dt) else t0 + dt * float(k)
+    return B.minimum(t, t_max) if t_max is not None else t
+
+
+def arc_samples(B, cos_theta, steps: int) -> Callable:
+    """Samples in equal angles along the arc that the t = d/(d+a) parameterization walks (p(t) = (1 − t) x + t a R
+    turns from x̂ to R; θ the angle between them, ``cos_theta`` = x̂·R per ray): a callable k ↦ t_k for
+    k = 1..``steps`` (called in order) where p(t_k) has turned by φ_k = k π/``steps`` (a half turn in ``steps``
+    steps), t_k = 1 from the arc's end on (φ_k ≥ θ). On the arc t(φ) = sin φ / (sin φ + sin(θ − φ)) = sin φ /
+    (sin θ cos φ + (1 − cos θ) sin φ), so a step never turns the lookup direction by more than π/``steps``
+    (uniform steps in t turn it up to 1/cos²(θ/2) times faster in the middle of the arc than at its ends).
+    (cos φ_k, sin φ_k) is carried from step to step by a rotation by π/``steps`` (the same constants at every
+    step, so that Dr.Jit compiles one kernel for all of them, and no data comes from the host, so that a frozen
+    function can replay it); t is homogeneous in it, so the rounding drift of its length cancels."""
+    c = cos_theta
+    s = B.sqrt(B.maximum(1.0 - c * c, 0.0))
+    one = c * 0.0 + 1.0
+    cd, sd = math.cos(math.pi / steps), math.sin(math.pi / steps)
+    big = B.maximum(c, 2.0)                            # = 2, but computed: Dr.Jit must not fold the rotation
+    rot = [big * 0.5, big - 2.0]                       # cos φ_k, sin φ_k (φ_0 = 0), not literals
+
+    def at(k: int):
+        if k >= steps:                                 # φ = π: every arc has ended
+            return one
+        cp, sp = rot
+        cp, sp = cp * cd - sp * sd, sp * cd + cp * sd
+        B.eval(cp, sp)
+        rot[:] = [cp, sp]
+        t = sp / B.maximum(s * cp + (1.0 - c) * sp, 1e-30)
+        return B.select(cp > c, B.minimum(t, 1.0), one)
+    return at
+
+
+def first_entry(B, g: Callable, t0, g0: list, dt, steps: int, *, hold: int, t_max: float | None = None,
+                default: tuple | None = None):
+    """The first step into the inside of nested surfaces that is not skin: a (:class:`Bracket`, e) pair.
+
+    ``g`` returns K functions ordered g_0 ≥ g_1 ≥ … (the layers of a layered map, nearest first: behind layer k
+    means behind every nearer one). At each sample, c = how many have g ≥ 0 (the layers the point is behind);
+    the point is *inside* where c is odd (between a surface facing o and the next, facing away: inside a solid),
+    or where c = K and the last two functions are equal (the last layer repeats the one before: the room's wall,
+    beyond which all is solid; behind a last layer of its own, a solid's far face, the point is outside).
+
+    An entry is a step from outside to inside; it is *kept* when the ray is still inside ``hold`` samples later, or
+    comes back out in front (c back at or below its value before the entry: the ray clipped a solid's edge) and c
+    then stays put for ``hold`` samples; it is *dropped* when the ray leaves to the far side first (c above it: the
+    ray passed behind a silhouette, through the skin that bilinear interpolation stretches across the depth jump of
+    two layers at once), or when c changes again within ``hold`` samples of such a clip (the bilinear skin is a
+    saddle that a ray can cut twice within a texel); the search then goes on. An entry still pending at the last
+    sample is kept.
+
+    The bracket is that of the function e whose sign changed at the entry (e = c before the entry where c rose,
+    c after it where c fell; an (N,) float array), on the kept entry's two samples; ``default`` (or the start,
+    as for :func:`sign_changes`) and e = 0 where none was kept. Cost: ``steps`` evaluations of every function."""
+    K = len(g0)
+    zero = t0 * 0.0
+
+    def count(gs):
+        c = zero
+        for gi in gs:
+            c = c + B.select(gi >= 0.0, zero + 1.0, zero)
+        return c
+
+    def inside(c, gs):
+        m = (c == float(K)) & (gs[-1] == gs[-2]) if K > 1 else c == float(K)
+        for v in range(1, K + 1, 2):
+            m = m | (c == float(v))
+        return m
+
+    def pick(gs, e):                                   # gs[e] per ray
+        out = gs[-1]
+        for i in range(K - 2, -1, -1):
+            out = B.select(e == float(i), gs[i], out)
+        return out
+
+    g_prev, c_prev = list(g0), count(g0)
+    in_prev = inside(c_prev, g_prev)
+    never = in_prev & ~in_prev
+    res = (*(default if default is not None else (t0, pick(g0, zero), t0, pick(g0, zero))), zero)
+    found, pend, clip, age, c_pend, t_prev = never, never, never, zero, zero, t0
+    pb = res                                           # the pending entry: t_lo, g_lo, t_hi, g_hi, e
+    for k in range(1, steps + 1):
+        t = _sample(B, t0, dt, k, t_max)
+        gs = list(g(t))
+        c = count(gs)
+        ins = inside(c, gs)
+        # ---------------------------------------------------- decide the pending entries
+        age = age + 1.0
+        held = pend & ~clip & (age >= float(hold))                     # still inside (or through) after hold
+        out = pend & ~clip & ~held & ~ins
+        back = out & (c <= c_pend)                                     # came back out in front: a clip …
+        quiet = clip & (c == c_pend) & (age >= float(hold))            # … kept once c stays put for hold
+        drop = (out & ~back) | (clip & (c != c_pend))
+        keep = held | quiet | (back if hold <= 0 else never)
+        res = tuple(B.select(keep, v, r) for v, r in zip(pb, res))
+        found, pend = found | keep, pend & ~keep & ~drop
+        clip = pend & (clip | back)
+        c_pend, age = B.select(back, c, c_pend), B.select(back, zero, age)
+        # ---------------------------------------------------- a new entry
+        new = ~found & ~pend & ins & ~in_prev
+        e = B.select(c > c_prev, c_prev, c)
+        pb = tuple(B.select(new, v, o) for v, o in zip((t_prev, pick(g_prev, e), t, pick(gs, e), e), pb))
+        c_pend, age, pend = B.select(new, c_prev, c_pend), B.select(new, zero, age), pend | new
+        if hold <= 0:
+            res, found, pend = tuple(B.select(new, v, r) for v, r in zip(pb, res)), found | new, pend & ~new
+        g_prev, c_prev, in_prev, t_prev = gs, c, ins, t
+        B.eval(*g_prev, c_prev, in_prev, t_prev, found, pend, clip, age, c_pend, *res, *pb)   # one kernel per step
+    res = tuple(B.select(pend, v, r) for v, r in zip(pb, res))
+    found = found | pend
+    return Bracket(*res[:4], found), res[4]
 
 
 # ---------------------------------------------------------------------------------------------- secant steps
@@ -135,7 +253,7 @@ def sign_changes_ref(g: Callable[[float], float], t0: float, g0: float, dt: floa
     found = []
     t_prev, g_prev = t0, g0
     for k in range(1, steps + 1):
-        t = t0 + dt * k
+        t = dt(k) if callable(dt) else t0 + dt * k
         if t_max is not None:
             t = min(t, t_max)
         gt = g(t)
@@ -171,3 +289,52 @@ def refine_ref(g: Callable[[float], float], bracket: Bracket, steps: int, *, ill
                 g_lo *= 0.5
             t_hi, g_hi, last = t, gt, -1
     return Bracket(t_lo, g_lo, t_hi, g_hi, found)
+
+
+def first_entry_ref(g: Callable[[float], list], t0: float, g0: list, dt, steps: int, *, hold: int,
+                    t_max: float | None = None, default: tuple | None = None) -> tuple[Bracket, int]:
+    """One ray, plain floats: the first kept entry into the inside of nested surfaces (see :func:`first_entry`)."""
+    K = len(g0)
+
+    def count(gs):
+        return sum(1 for v in gs if v >= 0)
+
+    def inside(c, gs):
+        return c % 2 == 1 or (c == K and (K == 1 or gs[-1] == gs[-2]))
+
+    g_prev, t_prev = list(g0), t0
+    pending = None                                     # [age, c before the entry (after a clip), bracket, e, clip]
+    for k in range(1, steps + 1):
+        t = dt(k) if callable(dt) else t0 + dt * k
+        if t_max is not None:
+            t = min(t, t_max)
+        gs = list(g(t))
+        c, c_prev = count(gs), count(g_prev)
+        ins, in_prev = inside(c, gs), inside(c_prev, g_prev)
+        if pending is not None:
+            pending[0] += 1
+            age, c_pend, br, e, clip = pending
+            if clip:                                   # waiting for c to stay put after a clip
+                if c != c_pend:
+                    pending = None
+                elif age >= hold:
+                    return br, e
+            elif age >= hold:
+                return br, e
+            elif not ins:
+                if c > c_pend:
+                    pending = None                     # left to the far side: skin
+                elif hold <= 0:
+                    return br, e
+                else:
+                    pending = [0, c, br, e, True]
+        if pending is None and ins and not in_prev:
+            e = min(c, c_prev)
+            pending = [0, c_prev, Bracket(t_prev, g_prev[e], t, gs[e], True), e, False]
+            if hold <= 0:
+                return pending[2], e
+        g_prev, t_prev = gs, t
+    if pending is not None:
+        return pending[2], pending[3]
+    fill = tuple(default) if default is not None else (t0, g0[0], t0, g0[0])
+    return Bracket(*fill, False), 0

@@ -3,10 +3,12 @@
 The check file (``configs/check.toml``) names the sweep, the baseline directory, the paper's claims that must hold
 (:mod:`study.outputs.claims`) and a tolerance per metric: a metric passes when |new − baseline| ≤ abs + rel·|baseline|
 (NaN equals NaN). Rows are matched by (case, label); a row missing on either side is a failure. ``update=True``
-rewrites the baseline (results.csv + metadata.json) instead of comparing.
+rewrites the baseline (results.csv + metadata.json, one output set: both or neither) instead of comparing. A
+malformed baseline is bad input (a StudyError naming the file, exit 2), never a regression (exit 1).
 """
 from __future__ import annotations
 
+import csv
 import json
 import math
 import tempfile
@@ -15,18 +17,19 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from study.errors import StudyError
+from study.errors import StudyError, os_problem
 from study.harness.runner import run_sweep
-from study.io import atomic_write
+from study.io import write_set
 from study.outputs import claims as claim_registry
-from study.tables import read_csv, without_timing, write_csv
+from study.scene.schema import Float
+from study.tables import read_csv, to_csv, without_timing, write_csv
 from study.validation import validate_file
 
 
 class Tolerance(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    abs: float = Field(ge=0)
-    rel: float = Field(ge=0)
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    abs: Float = Field(ge=0)
+    rel: Float = Field(ge=0)
 
 
 class CheckConfig(BaseModel):
@@ -83,19 +86,20 @@ def run_check(path: str | Path = "configs/check.toml", *, update: bool = False, 
               backend: str = "numpy") -> tuple[list[Failure], list[str]]:
     """Returns (failures, report lines). With ``update`` the baseline is rewritten and failures are empty."""
     cfg, sweep_path, base_dir = load_check(path)
+    if not update:                                   # a missing or malformed baseline stops before the sweep runs
+        if not (base_dir / "results.csv").is_file():
+            raise StudyError("no baseline yet; create it with `study check --update`",
+                             file=str(base_dir / "results.csv"))
+        base = read_table(base_dir / "results.csv", numeric=list(cfg.tolerance))
     with tempfile.TemporaryDirectory(prefix="study-check-") as tmp:
         rows, stats = run_sweep(sweep_path, Path(tmp) / "run", backend=backend, cache=cache)
         meta = json.loads((Path(tmp) / "run" / "metadata.json").read_text())
     lines = [f"check: {stats['cases']} cases × {len(meta['methods'])} methods in {stats['seconds']:.1f} s"]
     if update:
-        base_dir.mkdir(parents=True, exist_ok=True)
-        write_csv(without_timing(rows), base_dir / "results.csv")       # timing is not a regression
-        atomic_write(base_dir / "metadata.json", json.dumps(meta, indent=2).encode())
+        write_set(base_dir, {"results.csv": to_csv(without_timing(rows)),       # timing is not a regression
+                             "metadata.json": json.dumps(meta, indent=2)})
         lines.append(f"baseline written: {base_dir / 'results.csv'} ({len(rows)} rows)")
         return [], lines
-    if not (base_dir / "results.csv").is_file():
-        raise StudyError("no baseline yet; create it with `study check --update`", file=str(base_dir / "results.csv"))
-    base = read_csv(base_dir / "results.csv")
     parsed = read_csv_rows(rows)
     fails = compare(parsed, base, cfg.tolerance)
     verdicts = {c.id: (c, v) for c, v in claim_registry.evaluate(parsed)}
@@ -109,6 +113,43 @@ def run_check(path: str | Path = "configs/check.toml", *, update: bool = False, 
             fails.append(Failure(f"claim {cid} ({c.text}) does not hold: {v.number}"))
     lines.append(f"{len(parsed)} rows × {len(cfg.tolerance)} metrics compared with {base_dir / 'results.csv'}")
     return fails, lines
+
+
+def read_table(path: str | Path, *, required: tuple[str, ...] = ("case", "label"),
+               numeric: list[str] = ()) -> list[dict]:
+    """A results table (:func:`study.tables.read_csv`) that must be well formed: UTF-8 CSV with a header, every
+    row as long as the header, the ``required`` columns, and numbers (or empty cells) in the ``numeric`` columns
+    it has. Anything else is one StudyError naming the file (bad input, exit 2)."""
+    path = Path(path)
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            raw = list(csv.reader(f))
+    except UnicodeDecodeError:
+        raise StudyError("not UTF-8 text, expected a results table (CSV)", file=str(path)) from None
+    except IsADirectoryError:
+        raise StudyError("is a directory, expected a results table (CSV)", file=str(path)) from None
+    except csv.Error as err:
+        raise StudyError(f"malformed CSV ({err})", file=str(path)) from None
+    except OSError as err:
+        raise os_problem(err, "cannot read the results table", path) from None
+    header = raw[0] if raw else []
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise StudyError(f"malformed results table: no column {missing[0]!r} (header: "
+                         f"{','.join(header)[:60] or 'empty'})", file=str(path))
+    for i, cells in enumerate(raw[1:]):
+        if cells and len(cells) != len(header):
+            raise StudyError(f"malformed results table: line {i + 2} has {len(cells)} cells, the header "
+                             f"{len(header)}", file=str(path))
+    rows = read_csv(path)
+    for i, r in enumerate(rows):
+        bad = next((c for c in numeric if c in r and not isinstance(r[c], float)), None)
+        if bad:
+            raise StudyError(f"malformed results table: line {i + 2}, column {bad!r} holds {str(r[bad])[:20]!r}, "
+                             "not a number", file=str(path))
+    if not rows:
+        raise StudyError("malformed results table: no rows", file=str(path))
+    return rows
 
 
 def read_csv_rows(rows: list[dict]) -> list[dict]:

@@ -1,4 +1,9 @@
-"""Figures like the paper's: image grids with error heatmaps, and the metrics CSV behind them."""
+"""Figures like the paper's: image grids with error heatmaps, and the metrics CSV behind them.
+
+A figure's files (``<name>.png``, ``metrics.csv``, ``metadata.json``) are one output set
+(:func:`study.io.output_set`): written when every case is done and swapped in together, so a failed or killed run
+leaves the previous figure as it was. Every case is checked (:mod:`study.harness.budget`) before any runs.
+"""
 from __future__ import annotations
 
 import json
@@ -11,10 +16,12 @@ from study.cache import Cache
 from study.errors import StudyError
 from study.evaluate.case import CaseOutput, run_case
 from study.evaluate.metrics import to_ldr
+from study.evaluate.outcomes import NAMES as OUTCOME_NAMES
+from study.harness import budget
 from study.harness.config import load_figure_config
 from study.harness.runner import metadata
-from study.io import atomic_savefig, atomic_write
-from study.tables import write_csv
+from study.io import atomic_savefig, locked, png_bytes, write_set
+from study.tables import to_csv
 
 
 def _crop_box(mask: np.ndarray, margin: float = 0.35) -> tuple[slice, slice]:
@@ -30,18 +37,41 @@ def _crop_box(mask: np.ndarray, margin: float = 0.35) -> tuple[slice, slice]:
     return slice(y0, y0 + int(2 * half)), slice(x0, x0 + int(2 * half))
 
 
-def image_grid(cases: list[CaseOutput], labels: list[str], path: Path, *, title: str,
-               occlusion_panel: bool = False, row_labels: list[str] | None = None) -> None:
+#: Colours of the outcome classes (study.evaluate.outcomes codes 0..3): correct, wrong depth, wrong surface, no hit.
+OUTCOME_COLORS = ("#9fd39a", "#f28e2b", "#d62728", "#3b3b3b")
+
+
+def _outcome_legend(fig, first, last) -> None:
+    """The outcome classes' legend, centred under the outcome columns (axes ``first`` … ``last`` of the last row)."""
+    from matplotlib.patches import Patch
+    a, b = first.get_position(), last.get_position()
+    handles = [Patch(facecolor=c, edgecolor="0.4", label=n) for c, n in zip(OUTCOME_COLORS, OUTCOME_NAMES)]
+    fig.legend(handles=handles, loc="upper center", ncol=4, fontsize=8, frameon=False,
+               bbox_to_anchor=((a.x0 + b.x1) / 2, a.y0 - 0.01),
+               title="outcome per pixel: most frequent class of its rays (ε = max(1 cm, one texel at the hit))",
+               title_fontsize=8)
+
+
+def image_grid(cases: list[CaseOutput], labels: list[str], path: Path | None, *, title: str,
+               occlusion_panel: bool = False, outcome_panel: bool = False,
+               row_labels: list[str] | None = None) -> bytes | None:
     """Rows: cases; columns: each method's image, the ray-traced (Mitsuba) image, each method's angular-error
-    heatmap (degrees, log scale 0.01°–30°) and, with ``occlusion_panel``, the fraction of each pixel's rays whose
-    exact hit is hidden from the reference point. Images are tone mapped by clipping at 1 and sRGB encoding."""
+    heatmap (degrees, log scale 0.01°–30°), with ``outcome_panel`` each method's outcome-class map (per pixel the
+    most frequent class of its rays: correct / wrong depth / wrong surface / no hit, :mod:`study.evaluate.outcomes`)
+    and, with ``occlusion_panel``, the fraction of each pixel's rays whose exact hit is hidden from the reference
+    point. Images are tone mapped by clipping at 1 and sRGB encoding. With ``path`` None: the PNG's bytes."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.colors import LogNorm
+    from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
 
-    ncol = 2 * len(labels) + 1 + int(occlusion_panel)
-    fig, axes = plt.subplots(len(cases), ncol, figsize=(2.3 * ncol, 2.3 * len(cases) + 0.6), squeeze=False)
+    n_out = len(labels) if outcome_panel else 0
+    ncol = 2 * len(labels) + 1 + n_out + int(occlusion_panel)
+    legend_h = 0.5 if outcome_panel else 0.0                  # inches under the grid for the outcome legend
+    height = 2.3 * len(cases) + 0.6 + legend_h
+    fig, axes = plt.subplots(len(cases), ncol, figsize=(2.3 * ncol, height), squeeze=False)
+    ocmap = ListedColormap(OUTCOME_COLORS).with_extremes(bad="white")
+    onorm = BoundaryNorm(np.arange(-0.5, 4), ocmap.N)
     norm = LogNorm(vmin=0.01, vmax=30)
     hm = None
     for r, case in enumerate(cases):
@@ -57,6 +87,11 @@ def image_grid(cases: list[CaseOutput], labels: list[str], path: Path, *, title:
             hm = ax.imshow(err, norm=norm, cmap="magma", interpolation="nearest")
             if r == 0:
                 ax.set_title(f"angle error: {lab}", fontsize=8)
+        for k, lab in enumerate(labels[:n_out]):
+            ax = axes[r, 2 * len(labels) + 1 + k]
+            ax.imshow(case.outcome_maps[lab][sy, sx], cmap=ocmap, norm=onorm, interpolation="nearest")
+            if r == 0:
+                ax.set_title(f"outcome: {lab}", fontsize=8)
         if occlusion_panel:
             ax = axes[r, -1]
             occ = np.where(case.mask | (case.occluded > 0), case.occluded, np.nan)[sy, sx]
@@ -68,11 +103,16 @@ def image_grid(cases: list[CaseOutput], labels: list[str], path: Path, *, title:
         for ax in axes[r]:
             ax.set_xticks([]); ax.set_yticks([])
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout(rect=(0, 0, 0.93, 1))
+    fig.tight_layout(rect=(0, legend_h / height, 0.93, 1))
+    if outcome_panel:
+        _outcome_legend(fig, axes[-1, 2 * len(labels) + 1], axes[-1, 2 * len(labels) + n_out])
     if hm is not None:
         cax = fig.add_axes((0.94, 0.15, 0.012, 0.7))
         fig.colorbar(hm, cax=cax, label="angular error (deg)")
+    if path is None:
+        return png_bytes(fig, dpi=110)
     atomic_savefig(fig, path, dpi=110)
+    return None
 
 
 def figure_positions(config: str | Path, out: str | Path, *, name: str, backend: str = "numpy",
@@ -87,30 +127,34 @@ def figure_positions(config: str | Path, out: str | Path, *, name: str, backend:
     if unknown:
         raise StudyError(f"grid names {unknown[0]!r}, which is not among the methods "
                          f"({', '.join(m.label for m in methods)})", file=str(config), key="grid")
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise StudyError(f"cannot create the output directory ({err.strerror})", file=str(out)) from None
-    store = Cache(cache)
-    cases, rows = [], []
     todo = cfg.case_list()
-    for i, (suffix, _, over) in enumerate(todo):
-        t0 = time.perf_counter()
-        sc = scene.with_updates(over, source=str(config))
-        case = run_case(sc, methods, backend=backend, cache=store, case_id=f"{name}-{suffix}")
-        for r in case.rows:
-            r["case_seconds"] = time.perf_counter() - t0
-        cases.append(case)
-        rows += case.rows
-        if progress:
-            progress(i + 1, len(todo))
-    write_csv(rows, out / "metrics.csv")
-    meta = metadata(config, backend=backend, seed=scene.render.seed, methods=[m.label for m in methods],
-                    cases=len(todo), figure=name)
-    atomic_write(out / "metadata.json", json.dumps(meta, indent=2).encode())
-    image_grid(cases, labels, out / f"{name}.png", title=f"{name}: {scene.room.min}..{scene.room.max} room, "
-               f"reference point {list(scene.reference.point)}, cube {scene.render.cube_res}², backend {backend}",
-               occlusion_panel=cfg.occlusion_panel,
-               row_labels=None if cfg.positions is not None else [lab for _, lab, _ in todo])
+    what = "positions" if cfg.positions is not None else "cases"
+    scenes = [(f"{name}-{suffix}", scene.with_updates(over, source=str(config))) for suffix, _, over in todo]
+    budget.check_backend(backend)
+    budget.check(scenes, methods, source=str(config))
+    store = Cache(cache)
+    with locked(out):                    # one command at a time here; the files are written together at the end
+        cases, rows = [], []
+        for i, (case_id, sc) in enumerate(scenes):
+            t0 = time.perf_counter()
+            try:
+                case = run_case(sc, methods, backend=backend, cache=store, case_id=case_id)
+            except StudyError as err:                # which row of the config refused
+                if err.file:
+                    raise
+                raise type(err)(err.detail, file=f"{config} {what}[{i}]", key=err.key, code=err.code) from None
+            for r in case.rows:
+                r["case_seconds"] = time.perf_counter() - t0
+            cases.append(case)
+            rows += case.rows
+            if progress:
+                progress(i + 1, len(todo))
+        meta = metadata(config, backend=backend, seed=scene.render.seed, methods=[m.label for m in methods],
+                        cases=len(todo), figure=name)
+        png = image_grid(cases, labels, None, title=f"{name}: {scene.room.min}..{scene.room.max} room, "
+                         f"reference point {list(scene.reference.point)}, cube {scene.render.cube_res}², "
+                         f"backend {backend}", occlusion_panel=cfg.occlusion_panel, outcome_panel=cfg.outcome_panel,
+                         row_labels=None if cfg.positions is not None else [lab for _, lab, _ in todo])
+        write_set(out, {"metrics.csv": to_csv(rows), "metadata.json": json.dumps(meta, indent=2),
+                        f"{name}.png": png}, lock=False)
     return rows

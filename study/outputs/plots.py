@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from study.io import atomic_savefig
-from study.tables import write_csv
+from study.tables import REFERENCE_ROWS, write_csv
 
 METRICS = ("angle_median_deg", "angle_p95_deg")
 
@@ -66,7 +66,7 @@ def sweep_plots(rows: list[dict], out: str | Path) -> list[Path]:
     """Write the curves a sweep's table supports into ``out``; returns the PNG paths."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    rows = [r for r in rows if r["method"] != "oracle"]
+    rows = [r for r in rows if r["method"] not in REFERENCE_ROWS]
     made = []
     pos_axis = "axis:object.center" if rows and "axis:object.center" in rows[0] else None
 

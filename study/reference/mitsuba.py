@@ -110,3 +110,30 @@ def triangle_scene(V: np.ndarray, F: np.ndarray, variant: str = "llvm_ad_rgb"):
     m = mi(variant)
     mesh = triangle_mesh(m, "room", V, F, np.zeros((len(V), 2), np.float32), m.load_dict({"type": "diffuse"}))
     return m, m.load_dict({"type": "scene", "room": mesh})
+
+
+def radiance_along(scene: Scene, origins: np.ndarray, dirs: np.ndarray, *, spp: int, seed: int = 0,
+                   max_depth: int | None = None, chunk: int = 1 << 20) -> np.ndarray:
+    """Radiance arriving at ``origins`` along −``dirs`` (what a ray o + t d sees), path traced by Mitsuba in the
+    scene without the object: (N, 3) float32, the mean of ``spp`` samples per ray.
+
+    The scene's ``path`` integrator with ``max_depth`` (default ``render.max_depth``) counted from the ray's origin,
+    as for the impostor's faces captured from the reference point: a ray leaving the object gets the same bounce
+    budget as the impostor. Each sample is ``integrator.sample`` on the ray itself (independent sampler)."""
+    m = mi()
+    o = np.asarray(scene.reference.point, float)
+    integrator = {"type": "path", "max_depth": max_depth or scene.render.max_depth}
+    sc = m.load_dict(scene_dict(scene, with_object=False, integrator=integrator,
+                                sensor=sensor(o, o + [0, 0, 1], [0, 1, 0], 90.0, 8, 8, 1, seed)))
+    integ = sc.integrator()
+    out = np.zeros((len(origins), 3), np.float32)
+    per = max(1, chunk // spp)
+    for s in range(0, len(origins), per):
+        org = np.repeat(np.asarray(origins[s:s + per], np.float32), spp, axis=0)
+        d = np.repeat(np.asarray(dirs[s:s + per], np.float32), spp, axis=0)
+        sampler = m.load_dict({"type": "independent"})
+        sampler.seed(seed + s, len(org))
+        ray = m.Ray3f(m.Point3f(*org.T), m.Vector3f(*d.T))
+        rgb, _, _ = integ.sample(sc, sampler, ray)
+        out[s:s + per] = np.array(rgb, np.float32).T.reshape(-1, spp, 3).mean(1)
+    return out

@@ -50,6 +50,7 @@ Meshes: ``object.shape = "torus" | "knot" | "blob"`` with ``rotation = [rx, ry, 
 ``radius`` is then the bounding-sphere radius, which the placement checks use.
 
 Every error is a :class:`~study.errors.StudyError` whose message names the file, the key and what is allowed.
+Numbers are strict: a boolean or a string is not a number (``radius = true`` is an error, not 1.0).
 """
 from __future__ import annotations
 
@@ -57,16 +58,33 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
 from study.errors import StudyError
 from study.io import read_toml
 from study.scene.room import RoomMesh, room_mesh
 from study.validation import KeyedError, first_error
 
-Vec3 = tuple[float, float, float]
-Vec2 = tuple[float, float]
-PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+
+def _number(kind: str):
+    """A before-validator: booleans and strings are not numbers (pydantic would read true as 1, "2" as 2)."""
+    def check(v):
+        if isinstance(v, (bool, np.bool_, str, bytes)):
+            what = "a boolean" if isinstance(v, (bool, np.bool_)) else "a string"
+            raise PydanticCustomError(f"{kind}_type", f"Input should be a valid {kind}, not {what}")
+        return v
+    return BeforeValidator(check)
+
+
+Float = Annotated[float, _number("number")]
+Int = Annotated[int, _number("integer")]
+Vec3 = tuple[Float, Float, Float]
+Vec2 = tuple[Float, Float]
+PosFloat = Annotated[Float, Field(gt=0, allow_inf_nan=False)]
+MAX_SEED = 2 ** 31 - 1          # Mitsuba's seeds are 32-bit; study adds offsets (second seeds, ray chunks)
+MAX_SAMPLES = 2 ** 31 - 1       # per pixel or texel (Mitsuba's sample counts are 32-bit)
 
 
 class _Strict(BaseModel):
@@ -113,12 +131,12 @@ class Mirror(_Strict):
 class Conductor(_Strict):
     type: Literal["conductor"]
     n: tuple[PosFloat, PosFloat, PosFloat]  # real part of the refraction index per RGB channel
-    k: tuple[Annotated[float, Field(ge=0)], ...] = Field(min_length=3, max_length=3)  # extinction coefficient
+    k: tuple[Annotated[Float, Field(ge=0)], ...] = Field(min_length=3, max_length=3)  # extinction coefficient
 
 
 class Dielectric(_Strict):
     type: Literal["dielectric"]
-    ior: Annotated[float, Field(gt=1, le=4, allow_inf_nan=False)] = 1.5   # index of refraction inside (outside: 1)
+    ior: Annotated[Float, Field(gt=1, le=4, allow_inf_nan=False)] = 1.5   # index of refraction inside (outside: 1)
 
 
 Material = Annotated[Union[Mirror, Conductor, Dielectric], Field(discriminator="type")]
@@ -133,7 +151,7 @@ class Sphere(_Strict):
     radius: PosFloat = 0.4                       # sphere radius, or bounding-sphere radius of a mesh
     material: Material = Mirror(type="mirror")
     rotation: Vec3 = (0.0, 0.0, 0.0)             # meshes: Euler angles x, y, z in degrees
-    detail: Annotated[int, Field(ge=1, le=6)] = 3  # meshes: tessellation level
+    detail: Annotated[Int, Field(ge=1, le=6)] = 3  # meshes: tessellation level
 
 
 Object = Sphere
@@ -143,23 +161,23 @@ class Camera(_Strict):
     eye: Vec3 = (0.0, 1.5, -1.9)
     target: Vec3 = (0.6, 1.0, 0.5)
     up: Vec3 = (0.0, 1.0, 0.0)
-    fov: Annotated[float, Field(gt=0, lt=180)] = 70.0
-    width: Annotated[int, Field(ge=8, le=4096)] = 256
-    height: Annotated[int, Field(ge=8, le=4096)] = 256
+    fov: Annotated[Float, Field(gt=0, lt=180)] = 70.0
+    width: Annotated[Int, Field(ge=8, le=4096)] = 256
+    height: Annotated[Int, Field(ge=8, le=4096)] = 256
 
 
 class Render(_Strict):
-    cube_res: Annotated[int, Field(ge=4, le=4096)] = 256
-    cube_spp: Annotated[int, Field(ge=1)] = 64
-    spp: Annotated[int, Field(ge=1)] = 64
-    max_depth: Annotated[int, Field(ge=2, le=64)] = 4
-    supersample: Annotated[int, Field(ge=1, le=8)] = 2
-    seed: Annotated[int, Field(ge=0)] = 0
+    cube_res: Annotated[Int, Field(ge=4, le=4096)] = 256
+    cube_spp: Annotated[Int, Field(ge=1, le=MAX_SAMPLES)] = 64
+    spp: Annotated[Int, Field(ge=1, le=MAX_SAMPLES)] = 64
+    max_depth: Annotated[Int, Field(ge=2, le=64)] = 4
+    supersample: Annotated[Int, Field(ge=1, le=8)] = 2
+    seed: Annotated[Int, Field(ge=0, le=MAX_SEED)] = 0
     fresnel: Literal["exact", "approx"] = "exact"   # object shading: exact conductor Fresnel or the paper's
     refraction: Literal["single", "double"] = "double"  # dielectric objects: paper's single refraction or in-and-out
     exit: Literal["auto", "exact", "distance_map"] = "auto"  # double refraction: how the far side is found
-    internal_bounces: Annotated[int, Field(ge=0, le=16)] = 8   # total internal reflections followed, then dropped
-    object_res: Annotated[int, Field(ge=4, le=2048)] = 128     # face resolution of the object's own distance map
+    internal_bounces: Annotated[Int, Field(ge=0, le=16)] = 8   # total internal reflections followed, then dropped
+    object_res: Annotated[Int, Field(ge=4, le=2048)] = 128     # face resolution of the object's own distance map
 
 
 class Scene(_Strict):

@@ -1,0 +1,108 @@
+"""The references a method's image is measured against, their noise, and the split of its error into parts.
+
+Three images of the object's pixels, all built from the very sub-pixel rays the methods shade (same pixel
+sampling) and composited over the same object-free background:
+
+* ``oracle_map`` — the exact hit's direction, radiance read from the impostor: what the map holds. A method that
+  localizes perfectly shows this; for a hit hidden from the reference point it shows the occluder.
+* ``truth_at_hit`` — the radiance arriving along each exact secondary ray, path traced by Mitsuba in the scene
+  *without* the object (:func:`study.reference.mitsuba.radiance_along`), with the impostor's bounce budget
+  (``render.max_depth`` counted from the ray's origin, as the impostor's faces were from the reference point).
+  Neither it nor the methods see the object's own shadow or interreflection. Rendered with two seeds
+  (``render.spp`` samples per ray each): the mean is the truth, half their difference its noise.
+* ``mitsuba`` — Mitsuba's own camera render with the object (kept: the end-to-end comparison a user would make);
+  it differs from the methods' setting by the object's shadow and interreflection and by one bounce on the
+  reflected path. Also rendered with two seeds, so its noise is stated too.
+
+Noise-debiased RMSE: √max(0, RMSE² − σ²), σ² the mean squared noise of the reference over the same pixels
+(σ² of a two-seed mean from the seeds' half difference). relMSE: mean((a − b)² / (b² + ε)), ε = :data:`REL_EPS`.
+
+Error decomposition (over the object's pixels whose rays all hit points visible from the reference point):
+``dec_total`` = method vs truth_at_hit; ``dec_localization`` = method vs oracle_map (where it looked up);
+``dec_representation`` = oracle_map vs truth_at_hit, noise-debiased (what the map cannot hold: resolution,
+filtering, capture noise); ``dec_noise`` = truth_at_hit's own noise. If the parts are uncorrelated,
+dec_total² = localization² + representation² + noise²; ``dec_ratio`` = √(sum of the parts²) / dec_total says how
+well that holds.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from study.cache import Cache, content_key
+from study.optics import shading
+from study.reference.mitsuba import radiance_along
+from study.scene import Scene
+
+REL_EPS = 1e-2          # ε of relMSE, (W/m²/sr)²
+SEED_OFFSET = 7919      # the second seed of every two-seed Mitsuba reference
+
+
+@dataclass
+class Truth:
+    image: np.ndarray            # (H, W, 3) truth_at_hit composited: Fresnel-weighted, over the background
+    noise: np.ndarray            # (H, W, 3) its noise: half the two seeds' difference (Fresnel-weighted)
+    mitsuba_noise: np.ndarray    # (H, W, 3) the same for Mitsuba's camera render with the object
+
+
+def truth_at_hit(scene: Scene, cache: Cache, rays: shading.ObjectRays) -> tuple[np.ndarray, np.ndarray]:
+    """Radiance along each exact secondary ray, (K, 3) twice: seeds ``render.seed`` and ``+ SEED_OFFSET``."""
+    origins, dirs = rays.exact_rays()
+    s = scene.model_dump(mode="json")
+    s["render"] = {k: v for k, v in s["render"].items() if k not in ("cube_res", "cube_spp", "object_res")}
+    out = []
+    for seed in (scene.render.seed, scene.render.seed + SEED_OFFSET):
+        key = content_key(s, seed, "truth-at-hit-v1")
+        out.append(cache.get("truth_at_hit", key, lambda: radiance_along(
+            scene, origins, dirs, spp=scene.render.spp, seed=seed), code=radiance_along).reshape(-1, 3))
+    return out[0], out[1]
+
+
+def build(scene: Scene, cache: Cache, rays: shading.ObjectRays, F: np.ndarray, background: np.ndarray,
+          mitsuba: tuple[np.ndarray, np.ndarray]) -> Truth:
+    """The truth image and the noise images (module docstring); ``mitsuba`` = the camera render's two seeds."""
+    t1, t2 = truth_at_hit(scene, cache, rays)
+    zero = np.zeros_like(background)
+    return Truth(image=shading.composite(rays, (t1 + t2) / 2 * F, background),
+                 noise=shading.composite(rays, (t1 - t2) / 2 * F, zero),
+                 mitsuba_noise=(mitsuba[0] - mitsuba[1]) / 2)
+
+
+def noise_rms(noise: np.ndarray, mask: np.ndarray) -> float:
+    """σ: root mean square of a noise image over the masked pixels (NaN if none)."""
+    d = noise[mask]
+    return float(np.sqrt(np.mean(d * d))) if d.size else np.nan
+
+
+def debiased(rmse: float, sigma: float) -> float:
+    """√max(0, rmse² − σ²): the RMSE the reference's own noise σ does not explain."""
+    return float(np.sqrt(max(0.0, rmse * rmse - sigma * sigma)))
+
+
+def _rmse(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
+    d = (a - b)[mask]
+    return float(np.sqrt(np.mean(d * d))) if d.size else np.nan
+
+
+def relmse(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
+    """mean((a − b)² / (b² + ε)) over the masked pixels and channels, ε = REL_EPS."""
+    d, r = (a - b)[mask], b[mask]
+    return float(np.mean(d * d / (r * r + REL_EPS))) if d.size else np.nan
+
+
+def columns(img: np.ndarray, oracle: np.ndarray, truth: Truth, mitsuba: np.ndarray, *, mask: np.ndarray,
+            visible: np.ndarray) -> dict[str, float]:
+    """The truth columns of one method's image (or the oracle's): errors against truth_at_hit (raw, debiased,
+    relMSE), against Mitsuba debiased, and the decomposition on ``visible`` pixels (module docstring)."""
+    sigma, sigma_v = noise_rms(truth.noise, mask), noise_rms(truth.noise, visible)
+    total, loc = _rmse(img, truth.image, visible), _rmse(img, oracle, visible)
+    rep = debiased(_rmse(oracle, truth.image, visible), sigma_v)
+    parts = np.sqrt(loc * loc + rep * rep + sigma_v * sigma_v)
+    rmse_truth = _rmse(img, truth.image, mask)
+    return {"rmse_truth": rmse_truth, "rmse_truth_debiased": debiased(rmse_truth, sigma),
+            "relmse_truth": relmse(img, truth.image, mask), "truth_noise_rmse": sigma,
+            "rmse_mitsuba_debiased": debiased(_rmse(img, mitsuba, mask), noise_rms(truth.mitsuba_noise, mask)),
+            "mitsuba_noise_rmse": noise_rms(truth.mitsuba_noise, mask),
+            "dec_total": total, "dec_localization": loc, "dec_representation": rep, "dec_noise": sigma_v,
+            "dec_ratio": float(parts / total) if total > 0 else np.nan}
