@@ -29,6 +29,9 @@ from study import runtime
 from study.errors import EnvironmentProblem, StudyError, os_problem
 
 LOCK = ".lock"
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+_FILE_MODE = 0o666 & ~_UMASK
 
 
 @contextlib.contextmanager
@@ -37,6 +40,7 @@ def _temp_beside(path: Path, suffix: str):
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=suffix)
     os.close(fd)
+    os.chmod(tmp, _FILE_MODE)                        # mkstemp's 0600 → what open() would have made (umask)
     try:
         yield tmp
         os.replace(tmp, path)
@@ -207,6 +211,7 @@ def output_set(out: str | Path, owns: Iterable[str] = (), *, keeps: Iterable[str
             shutil.rmtree(stale, ignore_errors=True)
         try:
             tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.new-"))
+            os.chmod(tmp, 0o777 & ~_UMASK)           # mkdtemp's 0700 → a directory as mkdir would make it
         except OSError as err:
             raise os_problem(err, "cannot write beside the output directory", out.parent) from None
         try:

@@ -231,3 +231,17 @@ def test_bench_failure_keeps_the_table(tmp_path):
     res = CliRunner().invoke(app, ["bench", "--out", str(tmp_path / "b"), "--repeats", "0"])
     assert res.exit_code == 2 and "--repeats" in res.output and files(tmp_path / "b") == before
     assert os.listdir(tmp_path) == ["b"]
+
+
+def test_outputs_get_ordinary_permissions(tmp_path):
+    """Atomic writes and output sets make files and directories as open() and mkdir() would (umask), not mkstemp's
+    private 0600 / 0700."""
+    import os
+    from study.io import atomic_write, write_set
+    umask = os.umask(0)
+    os.umask(umask)
+    atomic_write(tmp_path / "a.txt", "x")
+    assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o666 & ~umask
+    write_set(tmp_path / "new", {"t.csv": "a,b\n"}, owns=["t.csv"])
+    assert (tmp_path / "new").stat().st_mode & 0o777 == 0o777 & ~umask
+    assert (tmp_path / "new" / "t.csv").stat().st_mode & 0o777 == 0o666 & ~umask

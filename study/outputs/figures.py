@@ -24,6 +24,11 @@ from study.io import atomic_savefig, locked, png_bytes, write_set
 from study.tables import to_csv
 
 
+def _wrap(label: str) -> str:
+    """A method label on two lines (name, then its parameters), so that panel titles do not run into each other."""
+    return label.replace("(", "\n(", 1)
+
+
 def _crop_box(mask: np.ndarray, margin: float = 0.35) -> tuple[slice, slice]:
     """A square around the object's pixels, with a margin, inside the image."""
     ys, xs = np.nonzero(mask)
@@ -80,24 +85,24 @@ def image_grid(cases: list[CaseOutput], labels: list[str], path: Path | None, *,
         for c, (lab, img) in enumerate(panels):
             axes[r, c].imshow(img[sy, sx], interpolation="nearest")
             if r == 0:
-                axes[r, c].set_title(lab, fontsize=8)
+                axes[r, c].set_title(_wrap(lab), fontsize=8)
         for k, lab in enumerate(labels):
             ax = axes[r, len(labels) + 1 + k]
             err = np.clip(case.angle_maps[lab][sy, sx], 0.01, None)
             hm = ax.imshow(err, norm=norm, cmap="magma", interpolation="nearest")
             if r == 0:
-                ax.set_title(f"angle error: {lab}", fontsize=8)
+                ax.set_title(f"angle error: {_wrap(lab)}", fontsize=8)
         for k, lab in enumerate(labels[:n_out]):
             ax = axes[r, 2 * len(labels) + 1 + k]
             ax.imshow(case.outcome_maps[lab][sy, sx], cmap=ocmap, norm=onorm, interpolation="nearest")
             if r == 0:
-                ax.set_title(f"outcome: {lab}", fontsize=8)
+                ax.set_title(f"outcome: {_wrap(lab)}", fontsize=8)
         if occlusion_panel:
             ax = axes[r, -1]
             occ = np.where(case.mask | (case.occluded > 0), case.occluded, np.nan)[sy, sx]
             ax.imshow(occ, vmin=0, vmax=1, cmap="viridis", interpolation="nearest")
             if r == 0:
-                ax.set_title("hidden from reference point", fontsize=8)
+                ax.set_title("hidden from\nreference point", fontsize=8)
         cx, cy, cz = case.scene.object.center
         axes[r, 0].set_ylabel(row_labels[r] if row_labels else f"({cx:g}, {cy:g}, {cz:g})", fontsize=8)
         for ax in axes[r]:
