@@ -41,3 +41,17 @@ def small_scene_dict(**over):
     }
     d.update(over)
     return d
+
+
+def scene_toml(d: dict) -> str:
+    """A scene dict (as :func:`small_scene_dict` makes) written as a TOML file's text."""
+    def val(v):
+        if isinstance(v, str):
+            return f'"{v}"'
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{k} = {val(x)}" for k, x in v.items()) + " }"
+        if isinstance(v, (list, tuple)):
+            return "[" + ", ".join(val(x) for x in v) + "]"
+        return repr(v)
+    return "\n".join(f"[{t}]\n" + "\n".join(f"{k} = {val(v)}" for k, v in tab.items()) + "\n"
+                     for t, tab in d.items())

@@ -23,22 +23,9 @@ from study.codehash import code_hash
 from study.harness.runner import run_sweep
 from study.harness.sweep import load_sweep
 from study.tables import read_csv
-from tests.conftest import small_scene_dict
+from tests.conftest import scene_toml, small_scene_dict
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _toml(d: dict) -> str:
-    def val(v):
-        if isinstance(v, str):
-            return f'"{v}"'
-        if isinstance(v, dict):
-            return "{ " + ", ".join(f"{k} = {val(x)}" for k, x in v.items()) + " }"
-        if isinstance(v, (list, tuple)):
-            return "[" + ", ".join(val(x) for x in v) + "]"
-        return repr(v)
-    return "\n".join(f"[{t}]\n" + "\n".join(f"{k} = {val(v)}" for k, v in tab.items()) + "\n"
-                     for t, tab in d.items())
 
 
 def write_sweep(d: Path, axes: str, methods_: str = '[{ name = "classical" }]', name: str = "s.toml") -> Path:
@@ -46,7 +33,7 @@ def write_sweep(d: Path, axes: str, methods_: str = '[{ name = "classical" }]', 
     scene = small_scene_dict()
     scene["camera"].update(width=24, height=24)
     scene["render"].update(cube_res=16, cube_spp=2, spp=2)
-    (d / "scene.toml").write_text(_toml(scene))
+    (d / "scene.toml").write_text(scene_toml(scene))
     p = d / name
     p.write_text(f'scene = "scene.toml"\nmethods = {methods_}\n\n[axes]\n{axes}\n')
     return p

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from study import methods
 from study.cli import app
 from study.tables import read_csv
-from tests.conftest import small_scene_dict
+from tests.conftest import scene_toml, small_scene_dict
 
 PLUGIN = textwrap.dedent('''
     """A throwaway method: look up the ray direction (classical environment mapping, under another name)."""
@@ -31,19 +31,6 @@ PLUGIN = textwrap.dedent('''
 ''')
 
 
-def _scene_toml(d: dict) -> str:
-    def val(v):
-        if isinstance(v, str):
-            return f'"{v}"'
-        if isinstance(v, dict):
-            return "{ " + ", ".join(f"{k} = {val(x)}" for k, x in v.items()) + " }"
-        if isinstance(v, (list, tuple)):
-            return "[" + ", ".join(val(x) for x in v) + "]"
-        return repr(v)
-    return "\n".join(f"[{t}]\n" + "\n".join(f"{k} = {val(v)}" for k, v in tab.items()) + "\n"
-                     for t, tab in d.items())
-
-
 @pytest.fixture
 def plugin(tmp_path, monkeypatch):
     (tmp_path / "throwaway_plugin.py").write_text(PLUGIN)
@@ -59,7 +46,7 @@ def test_plugin_method_reaches_sweep_figure_check_report_bench(tmp_path, plugin)
     assert "throwaway_probe" not in methods.names()
     scene = small_scene_dict()
     scene["render"]["cube_res"] = 16
-    (tmp_path / "scene.toml").write_text(_scene_toml(scene))
+    (tmp_path / "scene.toml").write_text(scene_toml(scene))
     (tmp_path / "sweep.toml").write_text('scene = "scene.toml"\n\n[axes]\n"object.center" = [[0.6, 1.2, 0.3]]\n')
     (tmp_path / "fig.toml").write_text('scene = "scene.toml"\npositions = [[0.6, 1.2, 0.3]]\n'
                                        'grid = ["classical", "throwaway_probe"]\n')
