@@ -14,7 +14,30 @@ import numpy as np
 from study.io import atomic_savefig
 from study.tables import REFERENCE_ROWS, write_csv
 
-METRICS = ("angle_median_deg", "angle_p95_deg")
+#: metric → (axis label, floor of the log axis: values at or below it are marked at the bottom, not hidden)
+METRICS = {"wrong_fraction": ("fraction of wrong rays", 1e-4),
+           "angle_median_deg": ("median angular error (deg)", 1e-6),
+           "angle_p95_deg": ("p95 angular error (deg)", 1e-6)}
+_COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
+            "#17becf"]
+_MARKERS = ["o", "s", "^", "D", "P", "X", "*"]
+_LINES = ["-", "--", ":", "-."]
+
+
+def style(i: int) -> dict:
+    """Colour, marker and line style of series ``i``: no two of the first 40 series share all three."""
+    return {"color": _COLOURS[i % 10], "marker": _MARKERS[i % 7], "linestyle": _LINES[(i // 10) % 4]}
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[int]:
+    """Indices of the (cost, error) points no other point beats in both (lower is better), by rising cost."""
+    order = sorted(range(len(points)), key=lambda i: (points[i][0], points[i][1]))
+    front, best = [], np.inf
+    for i in order:
+        if points[i][1] < best:
+            front.append(i)
+            best = points[i][1]
+    return front
 
 
 def _axes_of(rows: list[dict]) -> list[str]:
@@ -37,25 +60,75 @@ def _hold(rows: list[dict], vary: set[str]) -> tuple[list[dict], dict]:
     return [r for r in rows if all(r.get(k) == v for k, v in held.items())], held
 
 
-def _plot(path: Path, series: dict[str, list[tuple[float, float]]], *, xlabel: str, ylabel: str, title: str,
-          logx: bool = False) -> None:
+def _plot(path: Path, series: dict[str, list[tuple[float, float]]], *, xlabel: str, metric: str, title: str,
+          logx: bool = False) -> int:
+    """Curves on a log y axis; points at or below the metric's floor are drawn as open ▽ on the axis's bottom.
+    Returns how many points were drawn that way."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    for name, pts in series.items():
-        pts = sorted(pts)
-        ax.plot([p[0] for p in pts], [max(p[1], 1e-6) for p in pts], marker="o", ms=3, label=name)
+    ylabel, floor = METRICS[metric]
+    fig, ax = plt.subplots(figsize=(7.2, 4.6))
+    n_low = 0
+    for i, (name, pts) in enumerate(series.items()):
+        pts = sorted(p for p in pts if np.isfinite(p[1]))
+        st = style(i)
+        xs, ys = [p[0] for p in pts], [max(p[1], floor) for p in pts]
+        ax.plot(xs, ys, ms=4, lw=1.2, label=name, **st)
+        low = [(x, floor) for x, y in pts if y <= floor]
+        if low:
+            n_low += len(low)
+            ax.plot(*zip(*low), ls="none", marker="v", ms=8, mfc="none", mec=st["color"])
     ax.set_yscale("log")
+    ax.set_ylim(bottom=floor * 0.6)
     if logx:
         ax.set_xscale("log", base=2)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize=8)
+    ax.set_title(title + (f"\n▽ on the bottom edge: value ≤ {floor:g} (0 included)" if n_low else ""), fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=6, ncol=2)
+    ax.legend(fontsize=6, ncol=2, loc="best")
     fig.tight_layout()
     atomic_savefig(fig, path, dpi=110)
+    return n_low
+
+
+def cost_plot(rows: list[dict], path: Path, *, metric: str, title: str) -> list[dict]:
+    """Error (median over the rows of each method) against cube-map lookups per ray, one point per method, the
+    Pareto front (no method cheaper and better) drawn as a line. Returns the table behind it."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    ylabel, floor = METRICS[metric]
+    labels = list(dict.fromkeys(r["label"] for r in rows))
+    table = []
+    for lab in labels:
+        sel = [r for r in rows if r["label"] == lab]
+        table.append({"method": lab, "lookups_per_ray": float(np.nanmedian([r["lookups_per_ray"] for r in sel])),
+                      metric: float(np.nanmedian([r[metric] for r in sel]))})
+    pts = [(t["lookups_per_ray"], t[metric]) for t in table]
+    front = pareto_front(pts)
+    for i, t in enumerate(table):
+        t["pareto"] = i in front
+    fig, ax = plt.subplots(figsize=(7.2, 4.6))
+    fx = [pts[i][0] for i in front]
+    fy = [max(pts[i][1], floor) for i in front]
+    ax.step(fx, fy, where="post", color="0.6", lw=1, zorder=1, label="Pareto front")
+    for i, (t, (x, y)) in enumerate(zip(table, pts)):
+        st = style(i)
+        ax.plot([x], [max(y, floor)], ls="none", ms=8 if i in front else 6, marker="v" if y <= floor else st["marker"],
+                color=st["color"], mfc=st["color"] if y > floor else "none", label=t["method"], zorder=2)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_ylim(bottom=floor * 0.6)
+    ax.set_xlabel("cube-map lookups per ray (cost)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(f"{title}\nmedian over the cases; ▽: value ≤ {floor:g}", fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6, ncol=2, loc="best")
+    fig.tight_layout()
+    atomic_savefig(fig, path, dpi=110)
+    return table
 
 
 def _held_title(held: dict) -> str:
@@ -77,14 +150,14 @@ def sweep_plots(rows: list[dict], out: str | Path) -> list[Path]:
         if len({r["knob_value"] for r in k_rows}) < 2:
             continue
         sel, held = _hold(k_rows, {pos_axis} if pos_axis else set())
-        for metric in METRICS:
+        for metric in [m for m in METRICS if m in k_rows[0]]:
             series, table = {}, []
             for r in sel:
                 name = r["family"] + (f" @ {r[pos_axis]}" if pos_axis else "")
                 series.setdefault(name, []).append((r["knob_value"], r[metric]))
                 table.append({"series": name, knob: r["knob_value"], metric: r[metric]})
             p = out / f"{metric}_vs_{knob}.png"
-            _plot(p, series, xlabel=knob, ylabel=f"{metric} (deg)", title=_held_title(held))
+            _plot(p, series, xlabel=knob, metric=metric, title=_held_title(held))
             write_csv(table, p.with_suffix(".csv"))
             made.append(p)
 
@@ -96,13 +169,20 @@ def sweep_plots(rows: list[dict], out: str | Path) -> list[Path]:
         if len({r[x] for r in rows}) < 2:
             continue
         sel, held = _hold(rows, vary)
-        for metric in METRICS:
+        for metric in [m for m in METRICS if m in rows[0]]:
             series, table = {}, []
             for r in sel:
                 series.setdefault(r["label"], []).append((r[x], r[metric]))
                 table.append({"series": r["label"], x: r[x], metric: r[metric]})
             p = out / f"{metric}_vs_{x}.png"
-            _plot(p, series, xlabel=xlabel, ylabel=f"{metric} (deg)", title=_held_title(held), logx=logx)
+            _plot(p, series, xlabel=xlabel, metric=metric, title=_held_title(held), logx=logx)
             write_csv(table, p.with_suffix(".csv"))
+            made.append(p)
+
+    # ------------------------------------------------------------------ error against cost, Pareto front
+    for metric in ("wrong_fraction", "angle_p95_deg"):
+        if rows and metric in rows[0]:
+            p = out / f"{metric}_vs_lookups.png"
+            write_csv(cost_plot(rows, p, metric=metric, title="every case of the sweep"), p.with_suffix(".csv"))
             made.append(p)
     return made
