@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from study.cache import Cache, content_key
+from study.evaluate.metrics import rmse
 from study.optics import shading
 from study.reference.mitsuba import radiance_along
 from study.scene import Scene
@@ -75,14 +76,9 @@ def noise_rms(noise: np.ndarray, mask: np.ndarray) -> float:
     return float(np.sqrt(np.mean(d * d))) if d.size else np.nan
 
 
-def debiased(rmse: float, sigma: float) -> float:
-    """√max(0, rmse² − σ²): the RMSE the reference's own noise σ does not explain."""
-    return float(np.sqrt(max(0.0, rmse * rmse - sigma * sigma)))
-
-
-def _rmse(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
-    d = (a - b)[mask]
-    return float(np.sqrt(np.mean(d * d))) if d.size else np.nan
+def debiased(error: float, sigma: float) -> float:
+    """√max(0, error² − σ²): the RMSE the reference's own noise σ does not explain."""
+    return float(np.sqrt(max(0.0, error * error - sigma * sigma)))
 
 
 def relmse(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
@@ -96,13 +92,13 @@ def columns(img: np.ndarray, oracle: np.ndarray, truth: Truth, mitsuba: np.ndarr
     """The truth columns of one method's image (or the oracle's): errors against truth_at_hit (raw, debiased,
     relMSE), against Mitsuba debiased, and the decomposition on ``visible`` pixels (module docstring)."""
     sigma, sigma_v = noise_rms(truth.noise, mask), noise_rms(truth.noise, visible)
-    total, loc = _rmse(img, truth.image, visible), _rmse(img, oracle, visible)
-    rep = debiased(_rmse(oracle, truth.image, visible), sigma_v)
+    total, loc = rmse(img, truth.image, mask=visible), rmse(img, oracle, mask=visible)
+    rep = debiased(rmse(oracle, truth.image, mask=visible), sigma_v)
     parts = np.sqrt(loc * loc + rep * rep + sigma_v * sigma_v)
-    rmse_truth = _rmse(img, truth.image, mask)
+    rmse_truth = rmse(img, truth.image, mask=mask)
     return {"rmse_truth": rmse_truth, "rmse_truth_debiased": debiased(rmse_truth, sigma),
             "relmse_truth": relmse(img, truth.image, mask), "truth_noise_rmse": sigma,
-            "rmse_mitsuba_debiased": debiased(_rmse(img, mitsuba, mask), noise_rms(truth.mitsuba_noise, mask)),
+            "rmse_mitsuba_debiased": debiased(rmse(img, mitsuba, mask=mask), noise_rms(truth.mitsuba_noise, mask)),
             "mitsuba_noise_rmse": noise_rms(truth.mitsuba_noise, mask),
             "dec_total": total, "dec_localization": loc, "dec_representation": rep, "dec_noise": sigma_v,
             "dec_ratio": float(parts / total) if total > 0 else np.nan}
