@@ -398,7 +398,7 @@ def test_corpus_size():
 
 def test_internal_error_is_one_line_unless_debug(workdir, monkeypatch):
     """An unexpected exception (a bug) is one line with exit code 4; --debug lets its traceback through."""
-    import study.cli as cli
+    import study.cli.commands as cli
 
     def broken(*a, **k):
         raise ValueError("something\nunexpected")

@@ -1,29 +1,19 @@
-"""The ``study`` command line. Argument parsing only: every command calls one function of the package.
-
-Every error prints one line (``error: <file>: <key>: <what is allowed>``), never a traceback (``study --debug``
-shows it), and ends with a distinct exit code: 2 bad input, 3 a problem of the environment (libLLVM, GPU, disk
-full, permissions, memory, another command writing to the same directory), 1 a regression found by ``check``,
-4 an internal error (a bug), 130 interrupted.
-"""
+"""The commands that make results: ``figure``, ``sweep``, ``check``, ``report``, ``bench``, ``caustics-sweep``,
+``methods``. Argument parsing only: every command calls one function of the package."""
 from __future__ import annotations
 
-import functools
-import signal
-import sys
 import time
 from pathlib import Path
 from typing import Optional
 
 import typer
-from rich.console import Console
 
-from study import __version__, methods, runtime
+from study import methods
 from study.bench.output import bench_table, write_scaling, write_table
 from study.bench.run import BenchOptions, check_options, run_bench
-from study.cache import Cache
 from study.caustics.figure import fig8
-from study.errors import StudyError, user_error
-from study.harness import budget
+from study.cli.app import FIGURES, app, console, err_console, guarded
+from study.errors import StudyError
 from study.harness.config import load_figure_config
 from study.harness.runner import prepare_sweep, run_sweep
 from study.io import locked
@@ -31,79 +21,6 @@ from study.outputs.check import run_check
 from study.outputs.figures import figure_positions
 from study.outputs.plots import sweep_plots
 from study.outputs.report import build_report
-
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
-                  help="Measure how close GPU-friendly approximations of ray tracing come to ray tracing.")
-err_console = Console(stderr=True)
-console = Console()
-
-
-def _version(value: bool) -> None:
-    if value:
-        console.print(f"study {__version__}", highlight=False)
-        raise typer.Exit()
-
-
-#: Global options of this run (set by the callback before the command).
-DEBUG = {"on": False}
-
-
-@app.callback()
-def _options(plugin: list[str] = typer.Option([], "--plugin", metavar="MODULE",
-                                              help="import MODULE first: methods it registers join every command "
-                                                   "(repeatable; also $STUDY_PLUGINS)"),
-             debug: bool = typer.Option(False, "--debug", help="show the traceback of an error"),
-             max_memory: float = typer.Option(budget.DEFAULT_MAX_MEMORY_GIB, "--max-memory", metavar="GIB",
-                                              help="refuse a case estimated to need more memory (GiB)"),
-             max_minutes: float = typer.Option(budget.DEFAULT_MAX_MINUTES, "--max-minutes", metavar="MIN",
-                                               help="refuse a command estimated to take longer (minutes)"),
-             version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
-                                          help="print the version and exit")):
-    """Measure how close GPU-friendly approximations of ray tracing come to ray tracing."""
-    DEBUG["on"] = debug
-    try:
-        budget.configure(max_memory, max_minutes)
-        methods.load_plugins(plugin)
-    except StudyError as err:
-        _fail(err)
-
-FIGURES = {"fig4": "configs/fig4.toml", "fig5": "configs/fig5.toml", "fig6": "configs/fig6.toml",
-           "fig8": "configs/fig8.toml"}
-
-
-def _line(text: str) -> str:
-    return " ".join(str(text).split()) or "(no message)"
-
-
-def _fail(err: StudyError) -> None:
-    from rich.text import Text
-    err_console.print(Text("error: ", style="bold red") + Text(_line(str(err))), highlight=False, soft_wrap=True)
-    raise typer.Exit(err.code)
-
-
-def guarded(llvm: bool = False):
-    """A command whose errors are one line each (:func:`study.errors.user_error`); ``llvm``: it renders, so the
-    libLLVM that Mitsuba and Dr.Jit will load is checked first (exit 3 where it would abort the process)."""
-    def wrap(fn):
-        @functools.wraps(fn)
-        def run(*args, **kwargs):
-            try:
-                if llvm:
-                    runtime.require()
-                return fn(*args, **kwargs)
-            except (typer.Exit, typer.Abort, typer.TyperException):
-                raise
-            except KeyboardInterrupt:
-                if DEBUG["on"]:
-                    raise
-                err_console.print("error: interrupted", highlight=False)
-                raise typer.Exit(130)
-            except Exception as err:
-                if DEBUG["on"]:
-                    raise
-                _fail(user_error(err))
-        return run
-    return wrap
 
 
 @app.command()
@@ -281,65 +198,3 @@ def list_methods():
         knob = (f"  knob: {cls.knob.param} ∈ {{{', '.join(map(str, cls.knob.ladder))}}}" if cls.knob
                 else "  knob: none")
         console.print(f"{name}({params})\n{knob}", highlight=False, soft_wrap=True)
-
-
-cache_app = typer.Typer(no_args_is_help=True, help="The cache of impostors and renders: what it holds, clearing it.")
-app.add_typer(cache_app, name="cache")
-
-
-def _size(n: int) -> str:
-    return next(f"{n / f:.1f} {u}" for f, u in ((1 << 30, "GiB"), (1 << 20, "MiB"), (1 << 10, "KiB"), (1, "B"))
-                if n >= f or u == "B")
-
-
-@cache_app.command("info")
-@guarded()
-def cache_info(cache: Path = typer.Option(Path(".cache"), help="cache directory")):
-    """Entries and bytes per kind (radiance, distance, mitsuba, …)."""
-    kinds = Cache(cache).info()
-    for k, (n, size) in kinds.items():
-        console.print(f"{k}: {n} entries, {_size(size)}", highlight=False, soft_wrap=True)
-    total = sum(n for n, _ in kinds.values()), sum(s for _, s in kinds.values())
-    console.print(f"cache {cache}: {total[0]} entries, {_size(total[1])}", highlight=False, soft_wrap=True)
-
-
-@cache_app.command("clear")
-@guarded()
-def cache_clear(cache: Path = typer.Option(Path(".cache"), help="cache directory"),
-                kind: Optional[str] = typer.Option(None, help="remove only the entries of this kind")):
-    """Remove the cache's entries (all, or those of one --kind); anything else in the directory stays."""
-    gone = Cache(cache).clear(kind)
-    for k, (n, size) in gone.items():
-        console.print(f"{k}: removed {n} entries, {_size(size)}", highlight=False, soft_wrap=True)
-    console.print(f"cache {cache}: removed {sum(n for n, _ in gone.values())} entries", highlight=False, soft_wrap=True)
-
-
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
-def main() -> None:
-    """The ``study`` executable: like ``app()``, but usage errors too are one line (exit 2), and SIGTERM
-    interrupts like Ctrl-C (the output sets of :mod:`study.io` then clean up)."""
-    signal.signal(signal.SIGTERM, _interrupt)
-    try:
-        rc = app(standalone_mode=False)
-    except typer.Abort:
-        err_console.print("error: interrupted", highlight=False)
-        sys.exit(130)
-    except typer.TyperException as err:                   # bad option or argument: one line, not a panel
-        msg = err.format_message() if hasattr(err, "format_message") else str(err)
-        hint = f"{err.param_hint}: " if isinstance(getattr(err, "param_hint", None), str) else ""
-        err_console.print(f"error: {_line(hint + msg)}", highlight=False, soft_wrap=True, markup=False)
-        sys.exit(getattr(err, "exit_code", 2))
-    except KeyboardInterrupt:
-        err_console.print("error: interrupted", highlight=False)
-        sys.exit(130)
-    except StudyError as err:                             # raised outside a command's own handler
-        err_console.print(f"error: {_line(str(err))}", highlight=False, soft_wrap=True, markup=False)
-        sys.exit(err.code)
-    sys.exit(rc if isinstance(rc, int) else 0)
-
-
-if __name__ == "__main__":
-    main()

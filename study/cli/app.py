@@ -1,0 +1,122 @@
+"""The ``study`` application: global options, one-line errors and exit codes, and the executable's ``main``.
+
+Commands live beside this module (one module per group) and register themselves on :data:`app`.
+
+Every error prints one line (``error: <file>: <key>: <what is allowed>``), never a traceback (``study --debug``
+shows it), and ends with a distinct exit code: 2 bad input, 3 a problem of the environment (libLLVM, GPU, disk
+full, permissions, memory, another command writing to the same directory), 1 a regression found by ``check``,
+4 an internal error (a bug), 130 interrupted.
+"""
+from __future__ import annotations
+
+import functools
+import signal
+import sys
+
+import typer
+from rich.console import Console
+
+from study import __version__, methods, runtime
+from study.errors import StudyError, user_error
+from study.harness import budget
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="Measure how close GPU-friendly approximations of ray tracing come to ray tracing.")
+err_console = Console(stderr=True)
+console = Console()
+
+
+def _version(value: bool) -> None:
+    if value:
+        console.print(f"study {__version__}", highlight=False)
+        raise typer.Exit()
+
+
+#: Global options of this run (set by the callback before the command).
+DEBUG = {"on": False}
+
+
+@app.callback()
+def _options(plugin: list[str] = typer.Option([], "--plugin", metavar="MODULE",
+                                              help="import MODULE first: methods it registers join every command "
+                                                   "(repeatable; also $STUDY_PLUGINS)"),
+             debug: bool = typer.Option(False, "--debug", help="show the traceback of an error"),
+             max_memory: float = typer.Option(budget.DEFAULT_MAX_MEMORY_GIB, "--max-memory", metavar="GIB",
+                                              help="refuse a case estimated to need more memory (GiB)"),
+             max_minutes: float = typer.Option(budget.DEFAULT_MAX_MINUTES, "--max-minutes", metavar="MIN",
+                                               help="refuse a command estimated to take longer (minutes)"),
+             version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                          help="print the version and exit")):
+    """Measure how close GPU-friendly approximations of ray tracing come to ray tracing."""
+    DEBUG["on"] = debug
+    try:
+        budget.configure(max_memory, max_minutes)
+        methods.load_plugins(plugin)
+    except StudyError as err:
+        _fail(err)
+
+#: The figures ``study figure`` makes and their default configs.
+FIGURES = {"fig4": "configs/fig4.toml", "fig5": "configs/fig5.toml", "fig6": "configs/fig6.toml",
+           "fig8": "configs/fig8.toml"}
+
+
+def _line(text: str) -> str:
+    return " ".join(str(text).split()) or "(no message)"
+
+
+def _fail(err: StudyError) -> None:
+    from rich.text import Text
+    err_console.print(Text("error: ", style="bold red") + Text(_line(str(err))), highlight=False, soft_wrap=True)
+    raise typer.Exit(err.code)
+
+
+def guarded(llvm: bool = False):
+    """A command whose errors are one line each (:func:`study.errors.user_error`); ``llvm``: it renders, so the
+    libLLVM that Mitsuba and Dr.Jit will load is checked first (exit 3 where it would abort the process)."""
+    def wrap(fn):
+        @functools.wraps(fn)
+        def run(*args, **kwargs):
+            try:
+                if llvm:
+                    runtime.require()
+                return fn(*args, **kwargs)
+            except (typer.Exit, typer.Abort, typer.TyperException):
+                raise
+            except KeyboardInterrupt:
+                if DEBUG["on"]:
+                    raise
+                err_console.print("error: interrupted", highlight=False)
+                raise typer.Exit(130)
+            except Exception as err:
+                if DEBUG["on"]:
+                    raise
+                _fail(user_error(err))
+        return run
+    return wrap
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def main() -> None:
+    """The ``study`` executable: like ``app()``, but usage errors too are one line (exit 2), and SIGTERM
+    interrupts like Ctrl-C (the output sets of :mod:`study.io` then clean up)."""
+    signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        rc = app(standalone_mode=False)
+    except typer.Abort:
+        err_console.print("error: interrupted", highlight=False)
+        sys.exit(130)
+    except typer.TyperException as err:                   # bad option or argument: one line, not a panel
+        msg = err.format_message() if hasattr(err, "format_message") else str(err)
+        hint = f"{err.param_hint}: " if isinstance(getattr(err, "param_hint", None), str) else ""
+        err_console.print(f"error: {_line(hint + msg)}", highlight=False, soft_wrap=True, markup=False)
+        sys.exit(getattr(err, "exit_code", 2))
+    except KeyboardInterrupt:
+        err_console.print("error: interrupted", highlight=False)
+        sys.exit(130)
+    except StudyError as err:                             # raised outside a command's own handler
+        err_console.print(f"error: {_line(str(err))}", highlight=False, soft_wrap=True, markup=False)
+        sys.exit(err.code)
+    sys.exit(rc if isinstance(rc, int) else 0)
