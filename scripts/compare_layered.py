@@ -1,11 +1,11 @@
 """Figure 5 check (issue 17): how often ``layered``, ``localized`` and ``linear_secant`` show a wrong point.
 
-Runs the real pipeline's pieces (study.evaluate.case: the cached impostor and layered impostor, the object's
+Runs the real pipeline's pieces (study.measure.case: the cached impostor and layered impostor, the object's
 secondary rays, Embree exact hits, ``method.trace``) on the cases of a figure config (default configs/fig5.toml)
 and prints, per case and method:
 
 - wrong_hidden: share of the rays whose exact hit is hidden from the reference point o (``occluded`` as in
-  study.evaluate.case) whose shown point is not *correct*, |shown − exact| > eps with
+  study.measure.case) whose shown point is not *correct*, |shown − exact| > eps with
   eps = max(0.01 m, |exact − o| · 2 / cube_res); an invalid ray (NaN) counts as wrong;
 - wrong_visible: the same share over the rays whose exact hit o sees;
 - lookups per ray (the method's report) and seconds of ``method.trace`` (backend included, no capture);
@@ -32,10 +32,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))     # this checkout
 from study import backend as backends
 from study import methods
 from study.cache import Cache
-from study.evaluate.case import env_info, impostor
 from study.harness.config import load_figure_config
 from study.impostor.envmap import EnvMap
 from study.impostor.layers import layered_impostor
+from study.measure.case import env_info, impostor
 from study.optics import shading
 from study.reference.embree import Tracer
 

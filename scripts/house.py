@@ -13,7 +13,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 BEGIN, END = "<!-- house:begin (scripts/house.py) -->", "<!-- house:end -->"
 #: top to bottom, as the layers of pyproject.toml
-ORDER = ["cli", "outputs", "bench", "caustics", "harness", "evaluate", "optics", "methods", "impostor",
+ORDER = ["cli", "api.py", "outputs", "bench", "caustics", "harness", "measure", "optics", "methods", "impostor",
          "reference", "scene", "cache.py", "validation.py", "tables.py", "backend.py", "io.py", "runtime.py",
          "codehash.py",
          "errors.py"]

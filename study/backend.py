@@ -47,6 +47,7 @@ class Backend:
     def minimum(self, a, b): ...
     def maximum(self, a, b): ...
     def isfinite(self, a): ...
+    def floor(self, a): ...
     def texture(self, texels: np.ndarray): ...
     def sample(self, tex, face, u, v) -> list: ...
     def eval(self, *arrays) -> None: ...
@@ -81,6 +82,7 @@ class NumpyBackend(Backend):
     def minimum(self, a, b): return np.minimum(a, b)
     def maximum(self, a, b): return np.maximum(a, b)
     def isfinite(self, a): return np.isfinite(a)
+    def floor(self, a): return np.floor(a)
     def eval(self, *arrays): pass
     def sync(self): pass
     def freeze(self, fn): return fn
@@ -139,6 +141,7 @@ class DrJitBackend(Backend):
     def minimum(self, a, b): return self.dr.minimum(a, b)
     def maximum(self, a, b): return self.dr.maximum(a, b)
     def isfinite(self, a): return self.dr.isfinite(a)
+    def floor(self, a): return self.dr.floor(a)
     def eval(self, *arrays): self.dr.eval(*arrays)
     def sync(self): self.dr.sync_thread()
 
@@ -165,7 +168,8 @@ class DrJitBackend(Backend):
     def sample(self, tex, face, u, v):
         R = tex.shape[1]
         lo, hi = 0.5 / R, 1 - 0.5 / R
-        pos = self.m.Array2f(self.dr.clip(u, lo, hi), (face + self.dr.clip(v, lo, hi)) / 6.0)
+        faces = tex.shape[0] // R                      # 6 for a cube map; more for stacked cube maps (probes)
+        pos = self.m.Array2f(self.dr.clip(u, lo, hi), (face + self.dr.clip(v, lo, hi)) / float(faces))
         return list(tex.eval(pos))
 
 

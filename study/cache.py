@@ -2,8 +2,9 @@
 
 An entry is ``<root>/<kind>/<key>.exr`` (float32 EXR through Mitsuba's Bitmap) and ``<key>.json`` holding its
 full key, the array's shape and SHA-256. The key is the caller's content key folded with the hash of the code
-that produces the array (:func:`study.codehash.code_hash` of ``code``), so an entry made by other code is never
-found. Both files are written atomically (temporary file + rename), the JSON last; an entry whose JSON names
+that produces the array (:func:`study.codehash.code_hash` of ``code``) and, off the CPU, the render device's
+Mitsuba variant (:func:`study.runtime.current_variant`), so an entry made by other code or on another device is
+never found. Both files are written atomically (temporary file + rename), the JSON last; an entry whose JSON names
 another key (a file copied or renamed), or whose EXR is missing, unreadable, of another shape or another
 checksum is recomputed, never trusted. :meth:`Cache.info` and :meth:`Cache.clear` serve ``study cache``.
 """
@@ -16,6 +17,7 @@ from typing import Callable
 
 import numpy as np
 
+from study import runtime
 from study.codehash import code_hash
 from study.errors import StudyError
 from study.io import atomic_write, read_exr, write_exr
@@ -24,6 +26,13 @@ from study.io import atomic_write, read_exr, write_exr
 def content_key(*parts) -> str:
     """A short stable hash of JSON-serialisable parts."""
     return hashlib.sha256(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()[:20]
+
+
+def _variant_part() -> tuple:
+    """The render device's Mitsuba variant as a key part, left out for the default (``llvm_ad_rgb``) so entries
+    made on the CPU keep their keys: a render or exact hit made on CUDA (OptiX) is never taken for a CPU one."""
+    v = runtime.current_variant()
+    return () if v == runtime.VARIANTS["cpu"] else (v,)
 
 
 def _digest(a: np.ndarray) -> str:
@@ -76,7 +85,7 @@ class Cache:
 
         ``code`` is the function that produces the array (or a tuple of functions, classes, modules): its
         module's source and that of every study module it imports are part of the key."""
-        key = content_key(key, code_hash(*(code if isinstance(code, (tuple, list)) else (code,))))
+        key = content_key(key, code_hash(*(code if isinstance(code, (tuple, list)) else (code,))), *_variant_part())
         a = self.load(kind, key)
         if a is not None:
             self.hits += 1

@@ -6,6 +6,7 @@
 * :func:`atomic_write` / :func:`atomic_savefig` / :func:`write_exr`: a temporary file beside the target, renamed
   over it at the end, so a reader (or a killed run) never sees half a file, and no temporary file is left behind.
 * :func:`read_toml`: a TOML file, or a :class:`~study.errors.StudyError` naming the file.
+* :func:`json_text`: strict JSON (NaN and ±inf as null), the one way study writes JSON files.
 * :func:`write_exr` / :func:`read_exr`: float32 EXR through Mitsuba's ``Bitmap`` (:func:`study.runtime.mitsuba`).
 """
 from __future__ import annotations
@@ -94,6 +95,25 @@ def read_toml(path: str | Path, *, what: str = "config file") -> dict:
         raise StudyError(f"not UTF-8 text, expected a {what} (TOML)", file=str(path)) from None
     except tomllib.TOMLDecodeError as err:
         raise StudyError(f"not valid TOML ({err})", file=str(path)) from None
+
+
+def json_text(obj, *, nonfinite: str = "null", **kw) -> str:
+    """``obj`` as strict JSON (``allow_nan=False``: no ``NaN``/``Infinity`` tokens, which most parsers refuse): NaN
+    and ±inf become null (``nonfinite="text"``: the strings "NaN", "Infinity", "-Infinity", which ``float()`` reads
+    back), numpy scalars and arrays plain numbers and lists. ``kw`` goes to :func:`json.dumps`."""
+    import json
+
+    def plain(v):
+        if isinstance(v, dict):
+            return {k: plain(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple, np.ndarray)):
+            return [plain(x) for x in (v.tolist() if isinstance(v, np.ndarray) else v)]
+        if isinstance(v, np.generic):
+            v = v.item()
+        if isinstance(v, float) and not np.isfinite(v):
+            return None if nonfinite == "null" else "NaN" if v != v else "Infinity" if v > 0 else "-Infinity"
+        return v
+    return json.dumps(plain(obj), allow_nan=False, **kw)
 
 
 def write_exr(path: str | Path, array: np.ndarray) -> None:

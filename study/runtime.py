@@ -1,5 +1,6 @@
 """The native runtimes as study loads them: a libLLVM that Dr.Jit's LLVM backend (and Mitsuba's ``llvm_ad_rgb``)
-can use, and the mitsuba module with its variant set (:func:`mitsuba`).
+can use, the render device (CPU or CUDA: which Mitsuba variant renders and traces exact hits) and the mitsuba
+module with its variant set (:func:`mitsuba`).
 
 Dr.Jit 1.5 on Debian 12 picks the system's libLLVM 15 and aborts the process ("LLVM ERROR: Cannot select ...
 fminimum") — an abort no Python code can catch. :func:`configure` runs when :mod:`study` is imported and points
@@ -12,6 +13,7 @@ here because Dr.Jit would abort the process on it.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import functools
 import glob
@@ -98,14 +100,58 @@ def require() -> str:
     return p
 
 
+# ---------------------------------------------------------------------------------------------- render device
+#: Render device → the Mitsuba variant that renders there (and whose ray queries give the exact hits on the GPU).
+VARIANTS = {"cpu": "llvm_ad_rgb", "cuda": "cuda_ad_rgb"}
+_ENV = "STUDY_RENDER_DEVICE"          # inherited by worker processes (``--jobs``, local Dask workers)
+
+
+def set_render_device(device: str) -> None:
+    """Where Mitsuba renders and exact hits are computed: ``"cpu"`` (``llvm_ad_rgb`` + Embree, the default) or
+    ``"cuda"`` (``cuda_ad_rgb`` + OptiX through Mitsuba). Process-wide; worker processes started later inherit it
+    (environment variable ``STUDY_RENDER_DEVICE``). The CLI sets it from ``--backend cuda``."""
+    if device not in VARIANTS:
+        raise ValueError(f"render device must be one of {', '.join(VARIANTS)}, got {device!r}")
+    os.environ[_ENV] = device
+
+
+@contextlib.contextmanager
+def using_render_device(device: str | None):
+    """:func:`set_render_device` for the duration of a ``with`` block (a command run in-process, e.g. by a test),
+    the previous setting restored after it; ``None`` changes nothing."""
+    before = os.environ.get(_ENV)
+    if device is not None:
+        set_render_device(device)
+    try:
+        yield
+    finally:
+        if device is not None:
+            if before is None:
+                os.environ.pop(_ENV, None)
+            else:
+                os.environ[_ENV] = before
+
+
+def render_device() -> str:
+    d = os.environ.get(_ENV, "cpu")
+    return d if d in VARIANTS else "cpu"
+
+
+def current_variant() -> str:
+    """The Mitsuba variant of the render device (what :func:`mitsuba` sets when no variant is named)."""
+    return VARIANTS[render_device()]
+
+
 # ---------------------------------------------------------------------------------------------- Mitsuba
 _variant: str | None = None
 
 
-def mitsuba(variant: str = "llvm_ad_rgb"):
-    """The mitsuba module with ``variant`` set (libLLVM checked first for LLVM variants, so Dr.Jit never loads
-    Debian's libLLVM 15). The one place study imports mitsuba: every renderer and the EXR I/O go through it."""
+def mitsuba(variant: str | None = None):
+    """The mitsuba module with ``variant`` (default :func:`current_variant`) set (libLLVM checked first for LLVM
+    variants, so Dr.Jit never loads Debian's libLLVM 15). The one place study imports mitsuba: every renderer and
+    the EXR I/O go through it."""
     global _variant
+    variant = variant or current_variant()
     if variant.startswith("llvm"):
         require()
     import mitsuba as mi

@@ -1,7 +1,10 @@
-"""Tables: the tidy results table (one row per case × method) as CSV, written atomically, and Markdown tables.
+"""Tables: the tidy results table (one row per case × method) as CSV and Parquet, written atomically, and Markdown
+tables.
 
 Every CSV study writes goes through :func:`write_csv` (fixed column order, NaN as an empty cell) and is read back
-by :func:`read_csv`; every Markdown table through :func:`markdown`."""
+by :func:`read_csv`; a results table (``metrics.csv``, ``results.csv``) also goes out as Parquet beside it
+(:func:`table_files` / :func:`write_table`: the same columns, ``pd.read_parquet(path)`` in one line); every
+Markdown table through :func:`markdown`."""
 from __future__ import annotations
 
 import csv
@@ -59,6 +62,41 @@ def to_csv(rows: list[dict]) -> str:
 
 def write_csv(rows: list[dict], path: str | Path) -> None:
     atomic_write(Path(path), to_csv(rows).encode())
+
+
+def to_parquet(rows: list[dict]) -> bytes:
+    """The rows as a Parquet file's bytes (pyarrow): the columns of :func:`to_csv` in its order; a column of numbers
+    is float64 (int64 when every row has an integer), missing or NaN cells NaN, as :func:`read_csv` reads the CSV;
+    any other column is text (missing cells null; a cell that is not text written as the CSV writes it)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    arrays = {}
+    for c in columns_of(rows):
+        vals = [r.get(c) for r in rows]
+        real = [v for v in vals if v is not None and not (isinstance(v, float) and math.isnan(v))]
+        if all(isinstance(v, int) and not isinstance(v, bool) for v in vals) and vals:
+            arrays[c] = pa.array(vals, pa.int64())
+        elif all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in real):
+            arrays[c] = pa.array([math.nan if v is None else float(v) for v in vals], pa.float64())
+        else:
+            arrays[c] = pa.array([None if v is None else v if isinstance(v, str) else str(_fmt(v)) for v in vals],
+                                 pa.string())
+    buf = pa.BufferOutputStream()
+    pq.write_table(pa.table(arrays), buf)
+    return buf.getvalue().to_pybytes()
+
+
+def table_files(rows: list[dict], stem: str) -> dict[str, bytes]:
+    """A results table's files for an output set: ``<stem>.csv`` and ``<stem>.parquet`` (the same rows)."""
+    return {f"{stem}.csv": to_csv(rows).encode(), f"{stem}.parquet": to_parquet(rows)}
+
+
+def write_table(rows: list[dict], path: str | Path) -> None:
+    """A results table at ``path`` (``….csv``) and beside it as Parquet (``….parquet``), each atomically."""
+    path = Path(path)
+    for name, data in table_files(rows, path.stem).items():
+        atomic_write(path.with_name(name), data)
 
 
 def read_csv(path: str | Path) -> list[dict]:

@@ -418,3 +418,14 @@ def test_usage_error_is_one_line():
     assert res.returncode == 2, res.stderr
     text = (res.stdout + res.stderr).strip()
     assert text.startswith("error: ") and "\n" not in text and "'--repeats'" in text and "valid integer" in text, text
+
+
+def test_methods_by_bare_name_and_a_misspelt_one():
+    """``methods = ["classical", …]`` names a method with its defaults; a misspelt name is one line listing names."""
+    from study.errors import StudyError
+    from study.harness.config import expand_methods
+    assert [m.label for m in expand_methods(["classical", {"name": "localized", "iterations": 2}], source="c")] == \
+        ["classical", "localized(iterations=2)"]
+    with pytest.raises(StudyError) as e:
+        expand_methods(["all", "clasical"], source="c.toml")
+    assert str(e.value).startswith("c.toml: methods[1]: unknown method 'clasical'; allowed: \"all\", classical")

@@ -53,7 +53,7 @@ def test_fig4_small_writes_grid_and_table(fig4_small):
 
 
 def test_fig4_small_outcome_columns(fig4_small):
-    """Every row carries the outcome classes (study.evaluate.outcomes) right after dist_median; the oracle is
+    """Every row carries the outcome classes (study.measure.outcomes) right after dist_median; the oracle is
     correct on every ray; nothing is hidden in this convex room, so the hidden columns are empty (NaN)."""
     d, rows = fig4_small
     header = (d / "out" / "metrics.csv").read_text().splitlines()[0].split(",")

@@ -86,10 +86,10 @@ def test_code_hash_follows_imports_transitively(fake_study):
 
 def test_code_hash_of_study_and_of_outside_modules(tmp_path, monkeypatch):
     """Study's own closure (a method class adds its module), and a module outside study by its file, re-read."""
-    from study.evaluate.case import run_case
+    from study.measure.case import run_case
     from study.methods.localized import Localized
-    assert "study.methods.base" in codehash._study_closure("study.evaluate.case")
-    assert "study.methods.localized" not in codehash._study_closure("study.evaluate.case")   # dynamic import
+    assert "study.methods.base" in codehash._study_closure("study.measure.case")
+    assert "study.methods.localized" not in codehash._study_closure("study.measure.case")   # dynamic import
     assert code_hash(run_case) != code_hash(run_case, Localized) == code_hash(Localized, run_case)
     (tmp_path / "outside_mod_ch.py").write_text("def f():\n    return 1\n")
     monkeypatch.syspath_prepend(str(tmp_path))

@@ -156,7 +156,7 @@ def test_case_gives_layered_its_layers(tmp_path):
     """run_case with layered(layers=2) captures two layers through the cache (nothing recomputed on a second
     run) and reports a row for it with every ray valid."""
     from study.cache import Cache
-    from study.evaluate.case import run_case
+    from study.measure.case import run_case
     s = scene_from_dict(small_scene_dict(columns=[COLUMN]))
     cache = Cache(tmp_path)
     ms = [methods.make("localized"), methods.make("layered", layers=2)]

@@ -3,7 +3,6 @@ import numpy as np
 import pytest
 from conftest import small_scene_dict
 
-from study import backend as backends
 from study import methods
 from study.impostor.capture import capture_distance
 from study.impostor.envmap import EnvMap

@@ -1,4 +1,4 @@
-"""Per-ray outcome classes (study.evaluate.outcomes), the acceptance test of issue 17: a ray whose exact hit (a
+"""Per-ray outcome classes (study.measure.outcomes), the acceptance test of issue 17: a ray whose exact hit (a
 column top) is hidden from the reference point, on which ``localized`` shows a point of the very same ray at the
 wrong depth — angle ≈ 0, class WRONG_DEPTH. Exact answers come from an analytic room with one column, not from the
 methods."""
@@ -8,10 +8,10 @@ from conftest import BOX_HI, BOX_LO
 
 from study import backend as backends
 from study import methods
-from study.evaluate import metrics, outcomes
-from study.evaluate.outcomes import CORRECT, NO_HIT, WRONG_DEPTH, WRONG_SURFACE
 from study.impostor import analytic, cubemap
 from study.impostor.envmap import EnvMap
+from study.measure import metrics, outcomes
+from study.measure.outcomes import CORRECT, NO_HIT, WRONG_DEPTH, WRONG_SURFACE
 
 RES = 256
 #: fig5's column (footprint 0.6 m at (−0.9, −0.9), 1.7 m tall) relative to the reference point (1.5 m above the

@@ -80,7 +80,7 @@ def test_plugin_method_reaches_sweep_figure_check_report_bench(tmp_path, plugin)
                     "--no-ladder", "--no-scaling", "--backends", "numpy", "--tag", "cpu"])
     assert res.exit_code == 0, res.output
     bench = [r for r in read_csv(tmp_path / "bench" / "bench-cpu.csv") if r["label"] == "throwaway_probe"]
-    assert len(bench) == 3 and all(r["ms_per_call"] > 0 for r in bench)     # one row per ray batch
+    assert len(bench) == 4 and all(r["ms_per_call"] > 0 for r in bench)     # one row per ray batch (4 batches)
     # without the plugin, its baseline rows are missing from the results: check says so and fails
     methods.REGISTRY.pop("throwaway_probe")
     os.environ.pop(methods.PLUGIN_ENV, None)

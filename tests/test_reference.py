@@ -5,7 +5,7 @@ from conftest import small_scene_dict
 
 from study.cache import Cache
 from study.errors import StudyError
-from study.impostor import analytic, cubemap
+from study.impostor import analytic
 from study.impostor.capture import Impostor, capture_distance, read_exr, write_exr
 from study.reference.embree import Tracer
 from study.scene import scene_from_dict

@@ -197,7 +197,7 @@ def test_distance_map_exit_of_a_sphere_is_close_to_the_closed_form():
 @pytest.fixture(scope="module")
 def glass_cases(tmp_path_factory):
     from study.cache import Cache
-    from study.evaluate.case import run_case
+    from study.measure.case import run_case
     cache = Cache(tmp_path_factory.mktemp("cache"))
     ms = [methods.make("classical"), methods.make("localized", iterations=10)]
     kw = dict(camera={"eye": [-0.3, 1.7, -1.9], "target": [0.6, 1.2, 0.3], "fov": 30.0, "width": 48, "height": 48})

@@ -1,9 +1,9 @@
-"""The truth references (study/evaluate/truth.py): truth_at_hit against analytic radiance, the noise-debiased
+"""The truth references (study/measure/truth.py): truth_at_hit against analytic radiance, the noise-debiased
 RMSE, relMSE and the error decomposition on constructed images."""
 import numpy as np
 import pytest
 
-from study.evaluate import truth as T
+from study.measure import truth as T
 from study.reference import mitsuba as mref
 from study.scene import scene_from_dict
 from tests.conftest import small_scene_dict
@@ -77,7 +77,7 @@ def test_real_case_decomposition_adds_up_and_oracle_map_is_near_the_truth(tmp_pa
     carries the object's shadow and one bounce less on the reflected path)."""
     from study import methods
     from study.cache import Cache
-    from study.evaluate.case import run_case
+    from study.measure.case import run_case
     d = small_scene_dict()
     d["render"].update(spp=64, cube_spp=64)                         # noise well below the systematic parts
     scene = scene_from_dict(d)

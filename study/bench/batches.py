@@ -6,7 +6,7 @@ Batches
     close-up  : the same with the camera zoomed onto the object (every pixel sees it: a full frame of coherent
                 secondary rays);
     synthetic : origins uniform in a cube of ±``extent`` m around the reference point, uniform unit directions,
-                fixed seed.
+                fixed seed; and the same rays sorted by direction (:func:`direction_sorted`, ray reordering).
 Impostor: exact distances from the reference point through every texel centre (:func:`study.impostor.capture.
 distances_from`, Embree on the same triangles); the RGB channels are a stand-in (|direction|): what a lookup
 costs does not depend on texel values.
@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from study import backend as backends
 from study.impostor import analytic, cubemap
 from study.impostor.capture import distances_from
 from study.optics.shading import object_rays
@@ -59,6 +60,16 @@ def closeup_rays(scene: Scene, position, res: int) -> Batch:
 def synthetic_rays(scene: Scene, n: int, *, extent: float = 0.6, seed: int = 0) -> Batch:
     x, d = analytic.random_rays(n, extent=extent, seed=seed)
     return Batch(f"synthetic {n}", x + np.asarray(scene.reference.point), d)
+
+
+def direction_sorted(b: Batch, res: int = 64) -> Batch:
+    """``b``'s rays reordered by the cube-map texel (of a res² cube) their direction points at — ray reordering, as a
+    renderer sorts incoherent rays so that neighbouring lanes fetch neighbouring texels. The sort is not timed."""
+    face, u, v = cubemap.face_uv(backends.get("numpy"), *np.asarray(b.R, np.float64).T)
+    key = (face.astype(np.int64) * res + np.minimum(v * res, res - 1).astype(np.int64)) * res \
+        + np.minimum(u * res, res - 1).astype(np.int64)
+    order = np.argsort(key, kind="stable")
+    return Batch(f"{b.name} sorted by direction", b.x[order], b.R[order])
 
 
 def heightfield(scene: Scene, triangles: int) -> tuple[np.ndarray, np.ndarray]:

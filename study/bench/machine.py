@@ -31,6 +31,20 @@ def gpu_name() -> str:
     return q.stdout.strip().splitlines()[0] if q.returncode == 0 and q.stdout.strip() else ""
 
 
+#: Data-centre GPUs without RT cores: OptiX traverses BVHs in software (CUDA cores) on them.
+NO_RT_CORES = ("H100", "H200", "H800", "GH200", "A100", "A800", "A30", "V100", "B100", "B200", "GB200")
+
+
+def rt_cores_line(gpu: str) -> str:
+    """Whether the GPU named ``gpu`` has RT cores, and what that means for the exact side of the ratios."""
+    if not gpu:
+        return "no GPU: the exact tracers run on the CPU (Embree; Mitsuba llvm_ad_rgb uses Embree too)"
+    if any(k in gpu for k in NO_RT_CORES):
+        return (f"{gpu.split(',')[0]} has no RT cores: OptiX traverses in software here; on an RT-core GPU the "
+                "exact side would be faster")
+    return f"{gpu.split(',')[0]}: RT cores assumed present (OptiX traverses in hardware)"
+
+
 def machine_info() -> dict:
     """cpu, cores, gpu, python, the versions of numpy / drjit / mitsuba / embreex ('-' if missing), libllvm."""
     cpu = platform.processor() or "?"
@@ -49,4 +63,5 @@ def machine_info() -> dict:
         except importlib.metadata.PackageNotFoundError:
             info[pkg] = "-"
     info["libllvm"] = os.environ.get("DRJIT_LIBLLVM_PATH", "")
+    info["rt_cores"] = rt_cores_line(info["gpu"])
     return info

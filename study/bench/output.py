@@ -16,14 +16,25 @@ from study.io import atomic_savefig, png_bytes, write_set
 from study.tables import markdown, to_csv
 
 BENCH_COLS = ["batch", "backend", "path", "label", "rays", "ms_per_call", "mrays_per_s", "ms_per_frame",
-              "x_vs_embree", "x_vs_mitsuba"]
+              "floor_ms_per_frame", "x_floor", "x_vs_embree", "x_vs_mitsuba", "x_vs_preliminary", "x_vs_ray_test"]
+HEADLINE_COLS = ["batch", "backend", "label", "ms_per_frame", "floor_ms_per_frame", "x_floor", "x_vs_preliminary",
+                 "x_vs_ray_test", "x_vs_mitsuba"]
+FLOOR_COLS = ["backend", "cube_res", "quantity", "value", "unit"]
 
 
 def header(info: dict) -> str:
     gpu = info.get("gpu") or "none"
     return (f"machine: {info['cpu']}, {info['cores']} cores; GPU: {gpu}\n\n"
             f"versions: Python {info['python']}, numpy {info['numpy']}, drjit {info['drjit']}, "
-            f"mitsuba {info['mitsuba']}, embreex {info['embreex']}; libLLVM {info['libllvm'] or '-'}")
+            f"mitsuba {info['mitsuba']}, embreex {info['embreex']}; libLLVM {info['libllvm'] or '-'}\n\n"
+            f"{info.get('rt_cores', '')}")
+
+
+def headline(rows: list[dict]) -> list[dict]:
+    """The headline rows: each method's frozen (Dr.Jit) row on the full-frame batches (close-up, synthetic)
+    that has a floor, with its floor, its ratio to the floor and to the exact queries."""
+    return [r for r in rows if r.get("path") == "frozen" and r.get("x_floor") not in ("", None)
+            and ("close-up" in r["batch"] or r["batch"].startswith("synthetic"))]
 
 
 def bench_table(rows: list[dict]) -> str:
@@ -34,9 +45,16 @@ def bench_table(rows: list[dict]) -> str:
 def write_table(rows, info, out: Path, *, lock: bool = True) -> list[Path]:
     """Replace the main table (``bench-<tag>.csv`` and ``.md``) in ``out``; the paths."""
     tag = info["tag"]
-    return write_set(out, {f"bench-{tag}.csv": to_csv(rows),
-                           f"bench-{tag}.md": f"# study bench ({tag})\n\n{header(info)}\n\n{bench_table(rows)}\n"},
-                     lock=lock)
+    fl = info.get("floors") or []
+    md = (f"# study bench ({tag})\n\n{header(info)}\n\n## Headline: ms per 1024² frame, floor, ratios\n\n"
+          f"x_floor = time / floor (1 = at the floor); x_vs_* = the exact query's time / the method's "
+          f"(> 1: the method is faster)\n\n{markdown(headline(rows), HEADLINE_COLS, digits=3)}\n\n"
+          f"## Measured floors\n\n{markdown(fl, FLOOR_COLS, digits=4) if fl else '(none measured)'}\n\n"
+          f"## Every row\n\n{bench_table(rows)}\n")
+    files = {f"bench-{tag}.csv": to_csv(rows), f"bench-{tag}.md": md}
+    if fl:
+        files[f"floors-{tag}.csv"] = to_csv(fl)
+    return write_set(out, files, lock=lock)
 
 
 def write_scaling(scaling, info, out: Path, *, lock: bool = True) -> list[Path]:

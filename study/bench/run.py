@@ -5,9 +5,13 @@ Method rows: every registered method (or those named in ``methods``), each at ev
 path (``Backend.freeze``: recorded kernels replayed, no Python tracing per call) and, for the ``focus`` method at
 its defaults (the paper's ``localized``), also the plain traced path. numpy is timed on at most
 ``numpy_max_rays`` rays of a batch.
-Exact rows: Embree on every core, and Mitsuba ``ray_intersect`` on the device of each backend asked for.
-Ratios: x_vs_embree / x_vs_mitsuba = the exact tracer's time for the same rays over the method's (> 1: the method
-is faster); Mitsuba is taken on the same device as the backend (LLVM for numpy and llvm, CUDA for cuda).
+Exact rows: Embree on every core, and Mitsuba's ``ray_intersect`` (full SurfaceInteraction) and the cheapest exact
+queries for the same question, ``ray_intersect_preliminary`` (hit distance) and ``ray_test`` (occlusion), on the
+device of each backend asked for.
+Ratios: x_vs_embree / x_vs_mitsuba / x_vs_preliminary / x_vs_ray_test = the exact query's time for the same rays over
+the method's (> 1: the method is faster); Mitsuba is taken on the same device as the backend (LLVM for numpy and
+llvm, CUDA for cuda). Floors (:mod:`study.bench.floors`, measured in the same run on each Dr.Jit backend):
+floor_ms_per_frame and x_floor = the method's time over its floor.
 The options are checked before anything runs (:func:`check_options`): ranges, and the memory the ray batches need
 against ``--max-memory`` (:mod:`study.harness.budget`).
 """
@@ -20,13 +24,22 @@ import numpy as np
 
 from study import backend as backends
 from study import methods as registry
-from study.bench.batches import Batch, closeup_rays, distance_texels, room_triangles, scene_rays, synthetic_rays
+from study.bench import floors as floor_model
+from study.bench.batches import (
+    Batch,
+    closeup_rays,
+    direction_sorted,
+    distance_texels,
+    room_triangles,
+    scene_rays,
+    synthetic_rays,
+)
 from study.bench.machine import available_backends, machine_info
 from study.bench.scaling import knob_values, scaling_rows
-from study.bench.timing import FRAME, Exact, mitsuba_variant, rate_row, time_method
+from study.bench.timing import FRAME, QUERIES, Exact, mitsuba_variant, rate_row, time_method
 from study.errors import StudyError
-from study.evaluate.case import env_info
 from study.harness import budget
+from study.measure.case import env_info
 from study.methods import Method
 from study.scene import Scene
 
@@ -49,6 +62,7 @@ class BenchOptions:
     cube_resolutions: tuple = (64, 128, 256, 512, 1024)
     triangles: tuple = (0, 100, 1000, 10_000, 100_000, 1_000_000)
     tag: str = ""                               # device tag in file names and tables (default: cpu / gpu name)
+    floors: bool = True                         # measure fetch-rate and bandwidth floors (Dr.Jit backends)
 
 
 #: Allowed ranges of the numeric options: (option, attribute, lowest, highest).
@@ -100,6 +114,7 @@ def run_bench(scene: Scene, opt: BenchOptions, log=print, on_table=None) -> tupl
     tex = distance_texels(exact.tracer, o, opt.cube_res)
     batches = [scene_rays(scene, opt.position, opt.scene_res), closeup_rays(scene, opt.position, opt.scene_res),
                synthetic_rays(scene, opt.synthetic)]
+    batches.append(direction_sorted(batches[-1]))             # ray reordering of the incoherent batch
     rows = []
 
     # ------------------------------------------------------------------ exact ray casting of each batch
@@ -109,11 +124,24 @@ def run_bench(scene: Scene, opt: BenchOptions, log=print, on_table=None) -> tupl
                               "label": "exact: Embree", "triangles": len(F), "cube_res": ""}, exact.embree(b), n))
         for dev in sorted({"cuda" if nm == "cuda" else "llvm" for nm in names}):
             v = mitsuba_variant(dev)
-            t = exact.mitsuba(b, v)
-            if np.isfinite(t):
-                rows.append(rate_row({"batch": b.name, "backend": dev, "path": "ray_intersect",
-                                      "label": f"exact: Mitsuba {v}", "triangles": len(F), "cube_res": ""}, t, n))
+            for q in QUERIES:                        # full SurfaceInteraction, then the cheapest exact queries
+                t = exact.mitsuba(b, v, q)
+                if np.isfinite(t):
+                    rows.append(rate_row({"batch": b.name, "backend": dev, "path": q, "label": f"exact: Mitsuba {v}",
+                                          "triangles": len(F), "cube_res": ""}, t, n))
         log(f"exact ray casting of {b.name} timed")
+
+    # ------------------------------------------------------------------ measured floors (Dr.Jit backends)
+    floors = {}
+    for nm in (names if opt.floors else []):
+        if nm == "numpy":
+            continue
+        big = nm == "cuda"
+        floors[nm] = floor_model.measure(backends.get(nm), opt.cube_res, n_lanes=1 << (22 if big else 16),
+                                         fetches=64 if big else 16, copy_floats=1 << (28 if big else 24),
+                                         repeats=opt.repeats)
+        log(f"floors on {nm}: " + ", ".join(f"{k} {v / 1e9:.3g} G/s" for k, v in floors[nm].items()))
+    info["floors"] = [r for nm, f in floors.items() for r in floor_model.floor_rows(f, opt.cube_res, nm)]
 
     # ------------------------------------------------------------------ every method on every backend
     info_env = env_info(scene)
@@ -137,7 +165,7 @@ def run_bench(scene: Scene, opt: BenchOptions, log=print, on_table=None) -> tupl
                         t = time_method(m, B, tex, x, R, frozen=False, repeats=opt.repeats, info=info_env)
                     row = rate_row({"batch": b.name, "backend": nm, "path": path, "label": m.label,
                                     "triangles": len(F), "cube_res": opt.cube_res}, t, len(x))
-                    rows.append(with_ratios(row, exact, b, nm))
+                    rows.append(with_floor(with_ratios(row, exact, b, nm), m, floors.get(nm), b))
             log(f"methods on {nm}, {b.name} timed")
 
     if on_table:
@@ -152,4 +180,21 @@ def with_ratios(row: dict, exact: Exact, b: Batch, backend: str) -> dict:
     n = len(b.x)
     row["x_vs_embree"] = exact.embree(b) * 1e3 / n / per_ray
     row["x_vs_mitsuba"] = exact.mitsuba(b, mitsuba_variant(backend)) * 1e3 / n / per_ray
+    row["x_vs_preliminary"] = exact.mitsuba(b, mitsuba_variant(backend), "ray_intersect_preliminary") * 1e3 / n / per_ray
+    row["x_vs_ray_test"] = exact.mitsuba(b, mitsuba_variant(backend), "ray_test") * 1e3 / n / per_ray
     return row
+
+
+def batch_pattern(b: Batch) -> str:
+    """The fetch pattern of a batch's floor: random for the synthetic batch, coherent for the scene's rays and for
+    rays sorted by direction."""
+    return "random" if b.name.startswith("synthetic") and "sorted" not in b.name else "coherent"
+
+
+def with_floor(row: dict, m: Method, floors: dict | None, b: Batch) -> dict:
+    """``row`` plus floor_ms_per_frame (:func:`study.bench.floors.method_floor` of a 1024² frame) and x_floor (the
+    method's time over its floor; 1 = at the floor); empty where no floor was measured (numpy)."""
+    if not floors:
+        return {**row, "floor_ms_per_frame": "", "x_floor": ""}
+    fl = floor_model.method_floor(m, floors, batch_pattern(b), FRAME) * 1e3
+    return {**row, "floor_ms_per_frame": fl, "x_floor": row["ms_per_frame"] / fl}

@@ -17,7 +17,7 @@ from study import backend as backends
 from study import methods as registry
 from study.bench.batches import closeup_rays, distance_texels, room_triangles, synthetic_rays
 from study.bench.timing import Exact, mitsuba_variant, rate_row, time_method
-from study.evaluate.case import env_info
+from study.measure.case import env_info
 
 if TYPE_CHECKING:
     from study.bench.run import BenchOptions

@@ -5,8 +5,8 @@ chosen so one repeat lasts ≥ 20 ms), each call's outputs evaluated, the device
 before the clock is read; the median per call is reported.
 
 Exact tracers: Embree (:class:`study.reference.embree.Tracer`, chunks cast on every core: embreex releases the GIL)
-and Mitsuba ``scene.ray_intersect`` (``llvm_ad_rgb`` on the CPU, ``cuda_ad_rgb``/OptiX on the GPU), both on the
-same triangles; :class:`Exact` times each batch once and shares the numbers between tables.
+and Mitsuba's ray queries (:data:`QUERIES`: full ``ray_intersect``, ``ray_intersect_preliminary``, ``ray_test``;
+``llvm_ad_rgb`` on the CPU, ``cuda_ad_rgb``/OptiX on the GPU), all on the same triangles; :class:`Exact` times each batch once and shares the numbers between tables.
 """
 from __future__ import annotations
 
@@ -99,17 +99,27 @@ def time_embree(tracer: Tracer, x, R, *, repeats: int) -> float:
     return median_time(lambda: tracer.distance(o, d), lambda out: None, repeats=repeats)
 
 
-def time_mitsuba(m, scene, x, R, *, repeats: int) -> float:
+#: Mitsuba's ray queries, dearest first: the full SurfaceInteraction, the hit distance (and primitive) only, and
+#: occlusion only — the cheapest exact answer to "where is the first hit" is ``ray_intersect_preliminary``.
+QUERIES = ("ray_intersect", "ray_intersect_preliminary", "ray_test")
+
+
+def time_mitsuba(m, scene, x, R, *, repeats: int, query: str = "ray_intersect") -> float:
     import drjit as dr  # optional: only where Mitsuba is timed
     ray = m.Ray3f(m.Point3f(np.ascontiguousarray(x.T, np.float32)), m.Vector3f(np.ascontiguousarray(R.T, np.float32)))
     dr.eval(ray)
+    fn = getattr(scene, query)
 
-    def finish(si):
-        if si is None:
+    def finish(out):
+        if out is None:
             dr.sync_thread()
+        elif query == "ray_intersect":
+            dr.eval(out.t, out.p)
+        elif query == "ray_intersect_preliminary":
+            dr.eval(out.t, out.prim_index)
         else:
-            dr.eval(si.t, si.p)
-    return median_time(lambda: scene.ray_intersect(ray), finish, repeats=repeats)
+            dr.eval(out)
+    return median_time(lambda: fn(ray), finish, repeats=repeats)
 
 
 def mitsuba_variant(backend: str) -> str:
@@ -134,16 +144,17 @@ class Exact:
             self.t[key] = time_embree(self.tracer, batch.x, batch.R, repeats=self.repeats)
         return self.t[key]
 
-    def mitsuba(self, batch, variant: str) -> float:
-        """Seconds per ``ray_intersect`` of the batch in ``variant``; NaN (and a log line) where it is missing."""
-        key = (variant, batch.name)
+    def mitsuba(self, batch, variant: str, query: str = "ray_intersect") -> float:
+        """Seconds per ``query`` (one of :data:`QUERIES`) of the batch in ``variant``; NaN (and a log line) where
+        it is missing."""
+        key = (variant, batch.name, query)
         if key not in self.t:
             try:
                 if variant not in self.scenes:
                     self.scenes[variant] = mitsuba_ref.triangle_scene(self.V, self.F, variant)
                 m, sc = self.scenes[variant]
                 mitsuba_ref.mi(variant)                     # the variant current while its scene is timed
-                self.t[key] = time_mitsuba(m, sc, batch.x, batch.R, repeats=self.repeats)
+                self.t[key] = time_mitsuba(m, sc, batch.x, batch.R, repeats=self.repeats, query=query)
             except Exception as err:        # a variant missing on this machine: no number, say why
                 self.log(f"mitsuba {variant} unavailable: {str(err).splitlines()[0][:120]}")
                 self.t[key] = math.nan

@@ -22,12 +22,13 @@ import numpy as np
 from study.backend import V3, Backend
 from study.impostor import cubemap
 from study.reference.embree import Tracer
+from study.reference.tracer import make_tracer
 from study.scene import RoomMesh, Scene, texture
 
 
 def uv_map_texels(scene: Scene, res: int, tracer: Tracer | None = None) -> np.ndarray:
     """(6, R, R, 4) float32: (texture id, u, v, id²) of the point seen from the reference point per texel."""
-    tracer = tracer or Tracer(scene.mesh())
+    tracer = tracer or make_tracer(scene.mesh())
     dirs = cubemap.texel_directions(res).reshape(-1, 3)
     hit = tracer.intersect(np.broadcast_to(np.asarray(scene.reference.point, float), dirs.shape), dirs)
     sid = hit["surface"].astype(np.float64)

@@ -29,16 +29,19 @@ from study.cache import Cache, content_key
 from study.caustics import lightmap
 from study.caustics import photons as caustics
 from study.errors import StudyError
-from study.evaluate.case import impostor, knob_columns
 from study.harness.config import MethodSpecs, configured_scene, expand_methods
 from study.impostor.analytic import angle_deg
 from study.impostor.envmap import EnvMap
+from study.measure.case import impostor, knob_columns
 from study.methods import Method
 from study.optics import interfaces as optics
 from study.reference.embree import Tracer
 from study.reference.mitsuba import mi, scene_dict, sensor
+from study.reference.tracer import make_tracer
 from study.scene import Scene, camera_rays
+from study.scene.environment import env_key
 from study.scene.objects import intersect_sphere
+from study.scene.sources import key_fields
 from study.validation import validate_file
 
 
@@ -149,8 +152,7 @@ def mitsuba_renders(scene: Scene, mp: MitsubaParams, cache: Cache) -> dict[str, 
     and ``path`` for the sphere's pixels. Cached by content."""
     m = mi()
     c = scene.camera
-    base = [scene.room.model_dump(), [x.model_dump() for x in scene.columns], scene.light.model_dump(),
-            scene.object.model_dump(), c.model_dump(), mp.spp, mp.max_depth, "caustic-v1"]
+    base = [env_key(scene), scene.light.model_dump(), key_fields(scene.object), c.model_dump(), mp.spp, mp.max_depth, "caustic-v1"]
 
     def render(black: bool, integrator: str, seed: int) -> np.ndarray:
         cam = sensor(c.eye, c.target, c.up, c.fov, c.width, c.height, mp.spp, seed)
@@ -202,9 +204,12 @@ class CausticSetup:
 
     def __init__(self, cfg: CausticConfig, scene: Scene, *, backend: str, cache: Cache, mitsuba: bool = True):
         self.cfg, self.scene = cfg, scene
+        if scene.environment.type != "box":        # light maps are laid out on the box room's six walls and columns
+            raise StudyError(f"caustic maps need the box room; environment.type is {scene.environment.type!r}",
+                             key="environment.type")
         cp = cfg.caustic
         sc = scene.with_updates({"render.cube_res": cp.cube_res})
-        self.tracer = Tracer(scene.mesh())
+        self.tracer = make_tracer(scene.mesh())
         self.B = backends.get(backend)
         self.imp = impostor(sc, cache, self.tracer)
         self.env = EnvMap(self.imp.texels(), self.B)

@@ -19,6 +19,7 @@ from rich.console import Console
 from study import __version__, methods, runtime
 from study.errors import StudyError, user_error
 from study.harness import budget
+from study.harness.config import shipped
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Measure how close GPU-friendly approximations of ray tracing come to ray tracing.")
@@ -55,9 +56,19 @@ def _options(plugin: list[str] = typer.Option([], "--plugin", metavar="MODULE",
     except StudyError as err:
         _fail(err)
 
+class _Shipped(dict):
+    """name → config path, looked up with :func:`study.harness.config.shipped`: the shipped config is found from
+    any working directory (and stays the relative path it is written as when run from the repository)."""
+
+    def __getitem__(self, name):
+        return str(shipped(super().__getitem__(name)))
+
+
 #: The figures ``study figure`` makes and their default configs.
-FIGURES = {"fig4": "configs/fig4.toml", "fig5": "configs/fig5.toml", "fig6": "configs/fig6.toml",
-           "fig8": "configs/fig8.toml"}
+FIGURES = _Shipped({"fig4": "configs/fig4.toml", "fig5": "configs/fig5.toml", "fig6": "configs/fig6.toml",
+                    "fig8": "configs/fig8.toml", "fig_cornell": "configs/fig_cornell.toml",
+                    "fig_lroom": "configs/fig_lroom.toml", "fig_atrium": "configs/fig_atrium.toml",
+                    "fig_probes": "configs/fig_probes.toml"})
 
 
 def _line(text: str) -> str:
@@ -79,7 +90,9 @@ def guarded(llvm: bool = False):
             try:
                 if llvm:
                     runtime.require()
-                return fn(*args, **kwargs)
+                cuda = "cuda" if kwargs.get("backend") == "cuda" else None   # renders and exact hits on the GPU too
+                with runtime.using_render_device(cuda):
+                    return fn(*args, **kwargs)
             except (typer.Exit, typer.Abort, typer.TyperException):
                 raise
             except KeyboardInterrupt:

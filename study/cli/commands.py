@@ -64,8 +64,9 @@ def sweep(config: Path = typer.Argument(..., help="sweep file (TOML), e.g. confi
           backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
           cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
           jobs: int = typer.Option(1, min=1, max=64, help="cases run in parallel processes"),
-          dask: Optional[str] = typer.Option(None, help="run cases on a Dask cluster: scheduler address, or "
-                                                       "'local' for a local cluster of --jobs workers"),
+          dask: Optional[str] = typer.Option(None, help="run cases on a Dask cluster: scheduler address, "
+                                                       "'local' for a local cluster of --jobs workers, or "
+                                                       "'local-gpus' for --jobs workers per visible GPU"),
           plots: bool = typer.Option(True, help="write the error curves next to the table")):
     """Run (or resume) a sweep: one row per case × method in <out>/results.csv, curves beside it."""
     from rich.progress import (

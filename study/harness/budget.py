@@ -6,7 +6,7 @@ cold run (nothing cached) from the rough rates below, measured on the developmen
 backend, ``configs/sweep.toml``-like cases). The limits are the global options ``study --max-memory GIB`` (per
 case, times ``--jobs``) and ``study --max-minutes MIN`` (for the whole command); the refusal names the scene key
 whose value drives the estimate. :func:`preflight` also refuses a case whose camera cannot see the object at all
-(its bounding sphere outside the view); :func:`study.evaluate.case.run_case` counts the object's pixels exactly.
+(its bounding sphere outside the view); :func:`study.measure.case.run_case` counts the object's pixels exactly.
 """
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ import numpy as np
 from study import backend as backends
 from study.errors import EnvironmentProblem, StudyError
 from study.impostor.capture import impostor_key
+from study.impostor.views import Views
 from study.methods import Method
 from study.scene import Scene
 
@@ -93,7 +94,7 @@ def object_pixels(scene: Scene) -> float:
 
 
 def estimate(scene: Scene, methods: list[Method], *, impostor: bool = True) -> Estimate:
-    """Memory and time of one case (:func:`study.evaluate.case.run_case`) with ``methods``; ``impostor``: count
+    """Memory and time of one case (:func:`study.measure.case.run_case`) with ``methods``; ``impostor``: count
     capturing its impostor (False when another case of the same command captures the same one)."""
     c, r = scene.camera, scene.render
     sub = c.width * c.height * r.supersample ** 2
@@ -111,6 +112,12 @@ def estimate(scene: Scene, methods: list[Method], *, impostor: bool = True) -> E
             "methods": rays * lookups * SECONDS_PER_LOOKUP}
     if impostor:
         time["render.cube_spp"] = SECONDS_PER_IMPOSTOR + texels * r.cube_spp / rate
+    probes = sum(len(p.points) if p.points is not None else int(np.prod(p.grid))        # cube maps at more points
+                 for p in Views.merge(*(m.views_needed() for m in methods)).probes)   # (at most: grid cells)
+    if probes:
+        mem["render.cube_res"] += probes * texels * BYTES_PER_TEXEL
+        if impostor:
+            time["render.cube_spp"] += probes * (SECONDS_PER_IMPOSTOR + texels * r.cube_spp / rate)
     return Estimate(BYTES_BASE + sum(mem.values()), sum(time.values()), mem, time)
 
 

@@ -83,7 +83,7 @@ def base_scene(spec: str | dict, *, config_path: Path) -> Scene:
     return load_scene(p if p.is_absolute() else config_path.parent / p)
 
 
-MethodSpecs = Literal["all"] | list[Literal["all"] | dict[str, Any]]
+MethodSpecs = Literal["all"] | list[str | dict[str, Any]]
 
 
 def configured_scene(cfg, path: Path) -> Scene:
@@ -97,13 +97,18 @@ def configured_scene(cfg, path: Path) -> Scene:
 
 def expand_methods(specs: MethodSpecs, *, source: str) -> list[Method]:
     """The methods a config asks for. ``"all"`` (alone or as a list entry) is every registered method with its
-    default parameters; a table is {name, param = value | [values]}, lists expanding into the Cartesian product.
+    default parameters; a name is that method with its defaults; a table is {name, param = value | [values]}, lists expanding into the Cartesian product.
     A method that two entries ask for is kept once, where it first appears."""
     out = []
     for i, spec in enumerate([specs] if isinstance(specs, str) else specs):
         if spec == "all":
             out += registry.all_methods()
             continue
+        if isinstance(spec, str):                       # a bare name: the method with its defaults
+            if spec not in registry.REGISTRY:
+                raise StudyError(f"unknown method {spec!r}; allowed: \"all\", {', '.join(registry.names())} (or a "
+                                 "table { name = …, parameter = value })", file=source, key=f"methods[{i}]")
+            spec = {"name": spec}
         spec = dict(spec)
         name = spec.pop("name", None)
         if not isinstance(name, str):
@@ -138,8 +143,23 @@ def _check_param(cls, name: str, value, *, source: str, key: str) -> None:
             raise StudyError("Input should be a valid number, not a string", file=source, key=key)
 
 
-def load_figure_config(path: str | Path) -> tuple[FigureConfig, Scene, list[Method]]:
+#: the directory that holds the shipped ``configs/`` and ``scenes/`` (the repository root of this package)
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def shipped(path: str | Path) -> Path:
+    """``path`` as given where it exists (absolute, or relative to the working directory); else, for a relative
+    path, the shipped file of that name under :data:`ROOT` (``configs/fig4.toml`` from any working directory);
+    else ``path`` unchanged (reading it then says it is not found)."""
     path = Path(path)
+    if path.exists() or path.is_absolute() or not (ROOT / path).exists():
+        return path
+    return ROOT / path
+
+
+def load_figure_config(path: str | Path) -> tuple[FigureConfig, Scene, list[Method]]:
+    """A figure config (``path``: see :func:`shipped`), its base scene with the overrides, and its methods."""
+    path = shipped(path)
     cfg = validate_file(FigureConfig, path)
     scene = configured_scene(cfg, path)
     for i, (_, _, over) in enumerate(cfg.case_list()):

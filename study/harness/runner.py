@@ -27,16 +27,18 @@ from pathlib import Path
 from typing import Callable
 
 from study import methods as registry
+from study import runtime
 from study.cache import Cache
 from study.codehash import code_hash
 from study.errors import StudyError, os_problem
-from study.evaluate.case import run_case
 from study.harness import budget
+from study.harness.cluster import run_dask
 from study.harness.sweep import Case, load_sweep
 from study.impostor.capture import impostor_key
-from study.io import atomic_write, locked, output_set
+from study.io import atomic_write, json_text, locked, output_set
+from study.measure.case import run_case
 from study.scene import scene_from_dict
-from study.tables import write_csv
+from study.tables import write_table
 
 
 def _limit_threads(jobs: int) -> None:
@@ -59,8 +61,9 @@ def _run_one(scene_json: dict, method_specs: list[tuple[str, dict]], backend: st
     _limit_threads(jobs)
     scene = scene_from_dict(scene_json)
     ms = [registry.make(n, **p) for n, p in method_specs]
-    try:
-        return run_case(scene, ms, backend=backend, cache=Cache(cache), case_id=case_id, keep_images=False).rows
+    try:                                             # a remote worker: renders and exact hits on its GPU too
+        with runtime.using_render_device("cuda" if backend == "cuda" else None):
+            return run_case(scene, ms, backend=backend, cache=Cache(cache), case_id=case_id, keep_images=False).rows
     except StudyError as err:          # which case refused, for the sweep's one line
         raise type(err)(f"{err.detail} (case {case_id})", file=err.file, key=err.key, code=err.code) from None
 
@@ -124,6 +127,9 @@ def _identify(case: Case, rows: list[dict]) -> list[dict]:
     return rows
 
 
+_NONFINITE = ("NaN", "Infinity", "-Infinity")      # how a case file holds NaN and ±inf (strict JSON)
+
+
 def _load_case(out: Path, case: Case, check: Check | None = None) -> list[dict] | None:
     """The rows of ``case``'s file, relabelled from ``case``; None (recompute) unless the file names the case's
     key and holds a non-empty list of rows that ``check`` accepts."""
@@ -136,6 +142,7 @@ def _load_case(out: Path, case: Case, check: Check | None = None) -> list[dict] 
     rows = data.get("rows")
     if not isinstance(rows, list) or not rows or not all(isinstance(r, dict) for r in rows):
         return None
+    rows = [{k: float(v) if v in _NONFINITE else v for k, v in r.items()} for r in rows]   # strict JSON: as text
     if check is not None and not check(case, rows):
         return None
     return _identify(case, rows)
@@ -178,7 +185,7 @@ def run_sweep(path: str | Path, out: str | Path, *, backend: str = "numpy", cach
 
 
 #: What a sweep's output set holds besides its cases (:func:`study.io.output_set`).
-OWNS = ("results.csv", "metadata.json", "plots")
+OWNS = ("results.csv", "results.parquet", "metadata.json", "plots")
 
 
 def run_cases(cases: list[Case], out: str | Path, meta: dict, task: Callable[[Case], Task], *, jobs: int = 1,
@@ -211,7 +218,8 @@ def run_cases(cases: list[Case], out: str | Path, meta: dict, task: Callable[[Ca
                 raise RuntimeError(f"case {c.id}: its computed rows ({[r.get('label') for r in rows]}) are not "
                                    "what the runner's check expects")
             _identify(c, rows)
-            atomic_write(_case_file(out, c), json.dumps({"key": c.key, "rows": rows}, default=float).encode())
+            atomic_write(_case_file(out, c), json_text({"key": c.key, "rows": rows}, nonfinite="text",
+                                                       default=float).encode())
             done[c.index] = rows
             if progress:
                 progress(len(done), len(cases), c.id)
@@ -219,7 +227,7 @@ def run_cases(cases: list[Case], out: str | Path, meta: dict, task: Callable[[Ca
         if progress:
             progress(len(done), len(cases), "")
         if dask:
-            _run_dask(batches(todo), task, jobs, dask, finish)
+            run_dask(batches(todo), task, jobs, dask, finish)
         elif jobs <= 1 or len(todo) <= 1:
             for c in todo:
                 fn, args = task(c)
@@ -231,8 +239,8 @@ def run_cases(cases: list[Case], out: str | Path, meta: dict, task: Callable[[Ca
                    else contextlib.nullcontext(into))
         with outputs as dest:
             if rows:                                   # metadata only with the table it describes
-                write_csv(rows, dest / "results.csv")
-                atomic_write(dest / "metadata.json", json.dumps(meta, indent=2).encode())
+                write_table(rows, dest / "results.csv")              # and results.parquet beside it
+                atomic_write(dest / "metadata.json", json_text(meta, indent=2).encode())
             if extra:
                 extra(rows, dest)
     return rows, {"cases": len(cases), "cached": cached, "computed": len(todo), "seconds": time.perf_counter() - t0}
@@ -299,29 +307,3 @@ def _first_of_each_impostor(todo: list[Case]) -> tuple[list[Case], list[Case]]:
         (rest if k in seen else first).append(c)
         seen.add(k)
     return first, rest
-
-
-def _run_dask(batches, task, jobs, address: str, finish) -> None:
-    """Cases as tasks on a Dask distributed cluster; the cache directory must be shared by the workers."""
-    try:
-        from distributed import Client, LocalCluster, as_completed  # optional dependency (study[cluster])
-    except ImportError:
-        raise StudyError("needs dask[distributed] (pip install 'dask[distributed]')", key="--dask") from None
-    cluster = None
-    if address == "local":
-        cluster = LocalCluster(n_workers=max(jobs, 1), threads_per_worker=1, processes=True, dashboard_address=None)
-        client = Client(cluster)
-    else:
-        try:
-            client = Client(address, timeout="20s")
-        except OSError as err:
-            raise StudyError(f"cannot reach the Dask scheduler ({err})", key="--dask") from None
-    try:
-        for batch in batches:
-            futs = {client.submit(*_flat(task(c)), key=f"study-{c.key}-{c.index}", pure=False): c for c in batch}
-            for f in as_completed(list(futs)):
-                finish(futs[f], f.result())
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()

@@ -19,7 +19,7 @@ A sweep file (TOML)::
     iterations = [0, 1, 3, 10]
 
 Each case (one combination of axis values) is run (:mod:`study.harness.runner`) by
-:func:`study.evaluate.case.run_case` with every method; its rows get one column per axis holding the value's label.
+:func:`study.measure.case.run_case` with every method; its rows get one column per axis holding the value's label.
 Cases are identified by a content key (scene, methods, backend, and the hash of the code that computes them,
 :func:`study.codehash.code_hash`): a finished case is stored under ``<out>/cases/<key>.json`` (atomically) and not
 recomputed while its key, methods and rows still match, so a killed sweep resumes where it stopped, and a change of
@@ -42,11 +42,12 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from study.codehash import code_hash
 from study.errors import StudyError
-from study.evaluate.case import run_case
 from study.harness.config import MethodSpecs, configured_scene, expand_methods
+from study.measure.case import run_case
 from study.methods import Method
 from study.scene import Scene
 from study.scene.schema import MAX_SEED, Int, Vec3
+from study.scene.sources import key_fields
 from study.validation import validate_file
 
 
@@ -165,7 +166,7 @@ def load_sweep(path: str | Path, *, backend: str = "numpy") -> Sweep:
 def case_key(scene: Scene, methods: list[Method], backend: str) -> str:
     """The content key of a case: its scene, the methods' labels, the backend, and the hash of the code that
     computes its rows (run_case and everything it imports, and each method's class and module)."""
-    blob = json.dumps({"scene": scene.model_dump(mode="json"), "methods": [m.label for m in methods],
+    blob = json.dumps({"scene": key_fields(scene), "methods": [m.label for m in methods],
                        "backend": backend, "code": code_hash(run_case, *[type(m) for m in methods])},
                       sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:20]

@@ -19,7 +19,9 @@ from study.impostor import cubemap
 from study.io import atomic_write, read_exr, write_exr
 from study.reference import mitsuba as mitsuba_ref
 from study.reference.embree import Tracer
+from study.reference.tracer import make_tracer
 from study.scene import Scene
+from study.scene.environment import env_key
 
 
 @dataclass
@@ -62,19 +64,26 @@ class Impostor:
         return cls(ref, np.ascontiguousarray(a[..., :3]), np.ascontiguousarray(a[..., 3]))
 
 
-def distances_from(tracer: Tracer, o, res: int) -> np.ndarray:
+#: At most this fraction of the texel rays from the reference point may leave the scene (an open side).
+MAX_OPEN = 0.5
+
+
+def distances_from(tracer: Tracer, o, res: int, *, key: str = "reference.point") -> np.ndarray:
     """Exact distances from the point ``o`` through every texel centre of a res² cube map, by ``tracer``:
-    (6, R, R) float32. A texel ray that hits nothing is a StudyError (the point is not inside the room)."""
+    (6, R, R) float32; :data:`study.impostor.cubemap.FAR` where a texel ray leaves the scene ("no surface").
+    More than :data:`MAX_OPEN` of them leaving is a StudyError on ``key`` (no closed region around ``o``)."""
     dirs = cubemap.texel_directions(res).reshape(-1, 3)
     t = tracer.distance(np.broadcast_to(np.asarray(o, float), dirs.shape), dirs)
-    if not np.all(np.isfinite(t)):
-        raise StudyError("some texel rays from the reference point escape the room", key="reference.point")
-    return t.reshape(6, res, res).astype(np.float32)
+    open_ = ~np.isfinite(t)
+    if open_.mean() > MAX_OPEN:
+        raise StudyError(f"no closed region around it: {100 * open_.mean():.0f} % of the texel rays leave the scene "
+                         f"(at most {100 * MAX_OPEN:.0f} % may)", key=key)
+    return np.where(open_, cubemap.FAR, t).reshape(6, res, res).astype(np.float32)
 
 
 def capture_distance(scene: Scene, res: int, tracer: Tracer | None = None) -> np.ndarray:
     """Exact distances from the reference point through every texel centre: (6, R, R) float32."""
-    return distances_from(tracer or Tracer(scene.mesh()), scene.reference.point, res)
+    return distances_from(tracer or make_tracer(scene.mesh()), scene.reference.point, res)
 
 
 def capture(scene: Scene, *, res: int | None = None, spp: int | None = None, tracer: Tracer | None = None) -> Impostor:
@@ -104,8 +113,7 @@ def render_cube(scene: Scene, res: int, spp: int) -> np.ndarray:
 
 def impostor_key(scene: Scene, res: int | None = None, spp: int | None = None) -> str:
     """Content key of an impostor: everything that affects it, and nothing that does not (the object)."""
-    fields = {"room": scene.room.model_dump(), "columns": [c.model_dump() for c in scene.columns],
-              "light": scene.light.model_dump(), "reference": scene.reference.model_dump(),
+    fields = {"environment": env_key(scene), "light": scene.light.model_dump(), "reference": scene.reference.model_dump(),
               "res": res or scene.render.cube_res, "spp": spp or scene.render.cube_spp,
               "max_depth": scene.render.max_depth, "seed": scene.render.seed, "v": 2}
     return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:16]

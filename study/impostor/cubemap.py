@@ -23,11 +23,22 @@ Lookups are bilinear between the four nearest texel centres of the same face; co
 face's outermost texel centres, so a lookup never bleeds into a neighbouring face (the half-texel band along each
 edge is constant rather than blended across the edge).
 
+**No surface.** Where a texel's ray leaves the scene (an open environment such as the Cornell box's front), the
+map stores the radiance arriving from there (the background) and the distance :data:`FAR`: a finite stand-in for
+infinity, so that every method's arithmetic stays finite (|r| = ∞ in the paper's eq. 2 would give ∞·0 = NaN) and
+a point x + R·FAR looked up from the reference point lies, to float32 precision, in direction R. A distance
+≥ :data:`FAR_MIN` means "no surface": the shown point is at infinity in that direction.
+
 These functions are backend-generic: ``xp`` is a :class:`study.backend.Backend`, vectors are 1-D arrays.
 """
 from __future__ import annotations
 
 import numpy as np
+
+#: The distance stored where a texel sees no surface (its square, 1e12, is far inside float32's range).
+FAR = 1.0e6
+#: Distances at or beyond this are "no surface" (bilinear lookups between a surface and FAR give values in between).
+FAR_MIN = 0.5 * FAR
 
 #: (forward, right, up) per face, in face order.
 FACES = np.array([

@@ -2,7 +2,7 @@
 
 For every texel-centre direction ω of the cube map (:mod:`study.impostor.cubemap`), layer k holds the (k+1)-th surface
 that the ray o + t ω crosses (Embree, each ray restarted just beyond the previous hit). Where a ray has fewer
-surfaces (it left the closed room), the layer repeats the last one, so every layer is a complete environment
+surfaces (it left the room), the layer repeats the last one (a ray that meets no surface at all holds FAR), so every layer is a complete environment
 surface that a search can run on. Channels per texel: (R, G, B, jump, distance):
 
 - radiance: layer 0 is the ordinary impostor's radiance (so the first layer is exactly what ``localized`` sees);
@@ -20,11 +20,11 @@ from __future__ import annotations
 import numpy as np
 
 from study.cache import Cache, content_key
-from study.errors import StudyError
 from study.impostor import cubemap
 from study.impostor.capture import impostor_key
 from study.reference.embree import Tracer
 from study.reference.mitsuba import radiance_along
+from study.reference.tracer import make_tracer
 from study.scene import Scene
 
 EPS = 1e-4          # restart offset along the ray beyond a hit (m)
@@ -50,11 +50,9 @@ def peel(tracer: Tracer, o: np.ndarray, dirs: np.ndarray, layers: int):
     for k in range(layers):
         h = tracer.intersect(start, dirs)
         hit = h["prim"] >= 0
-        if k == 0 and not hit.all():
-            raise StudyError("some texel rays from the reference point escape the room", key="reference.point")
-        p = np.where(hit[:, None], h["point"], point[k - 1] if k else 0.0)
+        p = np.where(hit[:, None], h["point"], point[k - 1] if k else o + dirs * cubemap.FAR)   # no surface: FAR
         point[k], new[k] = p, hit
-        dist[k] = np.where(hit, np.linalg.norm(p - o, axis=1), dist[k - 1] if k else 0.0)
+        dist[k] = np.where(hit, np.linalg.norm(p - o, axis=1), dist[k - 1] if k else cubemap.FAR)
         normal[k] = np.where(hit[:, None], fn[np.maximum(h["prim"], 0)], normal[k - 1] if k else 0.0)
         start = np.where(hit[:, None], p + dirs * EPS, start)
     return dist, point, normal, new
@@ -85,7 +83,7 @@ def capture_layers(scene: Scene, layers: int, radiance0: np.ndarray, *, res: int
     ``radiance0`` (6, R, R, 3) is the ordinary impostor's radiance, used for layer 0."""
     res = res or scene.render.cube_res
     spp = spp or scene.render.cube_spp
-    tracer = tracer or Tracer(scene.mesh())
+    tracer = tracer or make_tracer(scene.mesh())
     o = np.asarray(scene.reference.point, float)
     dirs = cubemap.texel_directions(res).reshape(-1, 3)
     dist, point, normal, new = peel(tracer, o, dirs, layers)

@@ -24,14 +24,26 @@ What the harness needs to know about a method it reads from the class, never fro
                            curves, the bench and claims try (None: the method has no such parameter)
     lookups_per_ray()      the cost measure of the method-comparison table
     layers_needed()        depth layers of the impostor it searches (captured by the caller when > 1)
+    views_needed()         every view it searches (:class:`study.impostor.views.Views`: layers, probe sets, the
+                           camera's buffer); by default the layers of ``layers_needed()``
 
-Scene knowledge (optional): ``env.info`` is a dict that the caller (``study.evaluate.case``) fills with what it knows; a
+Scene knowledge (optional): ``env.info`` is a dict that the caller (``study.measure.case``) fills with what it knows; a
 method must still run when a key is missing (on a bare impostor, as in the analytic tests) and says what it falls
 back to. Keys, all in world coordinates (metres):
     "reference" : (3,) the reference point o (methods work relative to it)
-    "room"      : ((3,), (3,)) the room box (min, max)
+    "room"      : ((3,), (3,)) the room box (min, max): the proxy box (``reference.box``, else the environment's bounds)
+    "open"      : bool, some texels of the impostor see no surface (distance ``cubemap.FAR``: an open environment);
+                  then :meth:`Method.trace` lets a ray that a method found no hit for, and whose direction R sees no
+                  surface from o, escape: shown at infinity in direction R with the background's radiance
     "layers"    : list[EnvMap] the layered impostor, nearest layer first (see :mod:`study.impostor.layers`); present when
                   some method's :meth:`Method.layers_needed` asked for more than one layer
+    "probes"    : {ProbeSpec: ProbeSet} cube maps at several points, probe 0 the impostor (:mod:`study.impostor.probes`);
+                  one set per :class:`~study.impostor.views.ProbeSpec` some method's views_needed() asked for
+    "screen"    : ScreenView the camera's depth and colour buffer (:mod:`study.impostor.screen`), when asked for
+
+A method that reads the shown point or its radiance from another view than ``env`` overrides :meth:`Method.trace`
+(as ``layered``, ``ssr`` and ``multi_probe`` do): the shown point is then the hit it found, its radiance read from
+the view that saw it.
 """
 from __future__ import annotations
 
@@ -43,7 +55,9 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 
 from study.backend import V3, Backend
 from study.errors import StudyError
+from study.impostor.cubemap import FAR, FAR_MIN
 from study.impostor.envmap import EnvMap
+from study.impostor.views import Views
 from study.validation import first_error
 
 
@@ -136,12 +150,22 @@ class Method(ABC):
         ``env.info["layers"]`` when more than one is asked for); 1 for the plain impostor."""
         return 1
 
+    def views_needed(self) -> Views:
+        """The views this method searches (:mod:`study.impostor.views`); the caller merges the requests of all
+        methods of a case, captures them and puts them into ``env.info``. Default: ``layers_needed()`` layers."""
+        return Views(layers=self.layers_needed())
+
     def trace(self, B: Backend, env: EnvMap, x: V3, R: V3, *, check_origin: bool = True) -> Trace:
         """Localize, then read the shown point and its radiance. With ``check_origin`` (one more lookup, not
         counted in :meth:`lookups_per_ray`), rays whose origin lies beyond the environment surface as seen from
         the reference point (|x| > |x'|: outside the room, inside geometry, or hidden behind it) are flagged
         invalid rather than shaded: no method can localize them."""
         loc = self.localize(B, env, x, R)
+        if getattr(env, "info", {}).get("open"):        # open environment: a ray with no hit whose direction sees no surface escapes
+            escape = ~loc.valid & (env.distance(R) >= FAR_MIN)          # (one more lookup, only where it is open)
+            loc = Localization(V3(*(B.select(escape, c * FAR, a) for c, a in zip((R.x, R.y, R.z),
+                                                                                    (loc.l.x, loc.l.y, loc.l.z)))),
+                               loc.valid | escape)
         valid = loc.valid & B.isfinite(B.length(R))
         if check_origin:
             valid = valid & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)   # x is an undershoot

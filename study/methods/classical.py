@@ -1,6 +1,9 @@
 """Classical environment mapping (Blinn and Newell 1976): look up the ray direction R itself.
 
 Exact when the ray starts at the reference point (x = 0) or the environment is infinitely far away.
+
+Open environments: where direction R sees no surface, the lookup reads the background and the shown
+point lies at infinity along R (exact for the escaping rays, whatever x).
 """
 from __future__ import annotations
 

@@ -36,6 +36,9 @@ Cost: every layer is looked up at every sample (a vectorized loop of n steps on 
 layer differs between rays, at every secant step and at the final lookup: layers × (1 + n + iterations + 1) per
 ray; n depends on the cube resolution, so :meth:`Layered.lookups_per_ray` reports what the last search spent
 (before any search: the most it can spend, n = ``max_steps``).
+
+Open environments: no-surface texels hold FAR in every layer, so such rays find no entry into a solid and
+escape through :meth:`Method.trace`, as for ``linear_secant``.
 """
 from __future__ import annotations
 

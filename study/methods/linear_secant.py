@@ -27,6 +27,9 @@ environment surface and the ray never comes out in front of it).
 Cost: the vectorized loop runs all n steps on every ray (a ray whose arc ends earlier repeats t = 1; a per-ray
 loop on a GPU would stop there); n depends on the cube resolution, so :meth:`LinearSecant.lookups_per_ray` reports
 what the last search spent (before any search: the most it can spend, with n = ``max_steps``).
+
+Open environments: samples whose texel holds FAR (no surface) are undershoots, so a ray that leaves the scene
+finds no crossing; :meth:`Method.trace` then lets it escape when its direction R sees no surface from o.
 """
 from __future__ import annotations
 

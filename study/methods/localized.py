@@ -4,6 +4,10 @@ Faithful to the HLSL listing with the errata of shared/paper/NOTES.md: the first
 overshoot at infinity (the point r seen in direction R), then NITER steps of false position between the last
 undershooting and overshooting guesses (eq. 3), leaving a guess alone inside the band 0.999 < |l|/|l'| < 1.001.
 Before any overshoot has been seen, eq. 2 is used again from the current undershoot.
+
+Open environments: a texel with no surface holds FAR (:data:`study.impostor.cubemap.FAR`); eq. 2 then starts at
+d = FAR·(1 − q(0)), i.e. at infinity along R, where q = 1 and the search stops: the ray escapes. A ray that in
+truth hits a wall near the open side, while R seen from o escapes, is shown at infinity (wrong depth).
 """
 from __future__ import annotations
 

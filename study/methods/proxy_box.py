@@ -7,6 +7,10 @@ is l = x + R t*. Exact when the room is the proxy; wrong wherever the scene depa
 The proxy: ``box_min``/``box_max`` (world coordinates) when given; otherwise the room (``env.info["room"]``);
 on a bare impostor without scene information, the box through the six walls seen along ±x, ±y, ±z (the room
 itself when nothing stands on those axes). Invalid (NaN shown point) where x lies outside the box.
+
+Open environments: the proxy box closes the open side, so an escaping ray hits the box there and is looked up
+in the direction of that hit from the capture point — the background seen in another direction (wrong surface
+in the outcome classes; right only where the background is uniform, as the Cornell box's black).
 """
 from __future__ import annotations
 

@@ -10,6 +10,9 @@ the room in the least-squares sense over directions: ρ = the mean distance from
 (the minimiser of ∫ (ρ − dist(ω))² dω), the room taken from ``env.info["room"]`` or, on a bare impostor, the
 impostor's own stored distances. Invalid (NaN shown point) where the ray misses the sphere (x outside it, pointing
 away).
+
+Open environments: as ``proxy_box``, the proxy sphere is closed: an escaping ray is looked up in the direction of
+its exit through the sphere, which sees the background in another direction.
 """
 from __future__ import annotations
 

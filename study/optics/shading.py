@@ -81,12 +81,18 @@ class ObjectRays:
         return np.where(np.isnan(red), fill, red)
 
 
-def object_rays(scene: Scene) -> ObjectRays:
+def object_rays(scene: Scene, occluder=None) -> ObjectRays:
+    """The camera's sub-pixel rays that hit the object, and their reflected rays. ``occluder(o, d) → t`` (the
+    environment's nearest-hit distance, e.g. :meth:`study.reference.embree.Tracer.distance`) drops camera rays
+    that meet the environment before the object (a wall between a camera anywhere and the object)."""
     o, d = camera_rays(scene.camera, scene.render.supersample)
     H, W, S, _ = d.shape
     geom = objects.geometry(scene)
     t, n = geom.intersect(o.reshape(-1, 3), d.reshape(-1, 3))
     hit = np.isfinite(t)
+    if occluder is not None and hit.any():
+        o_all = np.broadcast_to(o, d.shape).reshape(-1, 3)
+        hit[hit] = t[hit] < np.asarray(occluder(o_all[hit], d.reshape(-1, 3)[hit]))
     V = d.reshape(-1, 3)[hit]
     x = o.reshape(-1, 3)[hit] + V * t[hit, None]
     N = n[hit]

@@ -1,12 +1,12 @@
-"""Figures like the paper's: image grids with error heatmaps, and the metrics CSV behind them.
+"""Figures like the paper's: image grids with error heatmaps, and the metrics table behind them.
 
-A figure's files (``<name>.png``, ``metrics.csv``, ``metadata.json``) are one output set
-(:func:`study.io.output_set`): written when every case is done and swapped in together, so a failed or killed run
-leaves the previous figure as it was. Every case is checked (:mod:`study.harness.budget`) before any runs.
+A figure's files (``<name>.png``, ``metrics.csv`` and ``metrics.parquet``, ``metadata.json``, and per case its EXRs
+under ``exr/<case>/`` and the report viewer's images under ``viewer/``, :mod:`study.outputs.viewer`) are one output
+set (:func:`study.io.output_set`): written when every case is done and swapped in together, so a failed or killed
+run leaves the previous figure as it was. Every case is checked (:mod:`study.harness.budget`) before any runs.
 """
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -14,36 +14,23 @@ import numpy as np
 
 from study.cache import Cache
 from study.errors import StudyError
-from study.evaluate.case import CaseOutput, run_case
-from study.evaluate.metrics import to_ldr
-from study.evaluate.outcomes import NAMES as OUTCOME_NAMES
 from study.harness import budget
 from study.harness.config import load_figure_config
 from study.harness.runner import metadata
-from study.io import atomic_savefig, locked, png_bytes, write_set
-from study.tables import to_csv
+from study.io import atomic_savefig, json_text, locked, output_set, png_bytes
+from study.measure.case import CaseOutput, run_case
+from study.measure.metrics import to_ldr
+from study.measure.outcomes import NAMES as OUTCOME_NAMES
+from study.outputs import viewer
+from study.outputs.viewer import OUTCOME_COLORS
+from study.outputs.viewer import crop_box as _crop_box
+from study.scene.environment import describe
+from study.tables import table_files
 
 
 def _wrap(label: str) -> str:
     """A method label on two lines (name, then its parameters), so that panel titles do not run into each other."""
     return label.replace("(", "\n(", 1)
-
-
-def _crop_box(mask: np.ndarray, margin: float = 0.35) -> tuple[slice, slice]:
-    """A square around the object's pixels, with a margin, inside the image."""
-    ys, xs = np.nonzero(mask)
-    H, W = mask.shape
-    if ys.size == 0:
-        return slice(0, H), slice(0, W)
-    cy, cx = (ys.min() + ys.max()) / 2, (xs.min() + xs.max()) / 2
-    half = max(ys.max() - ys.min(), xs.max() - xs.min()) / 2 * (1 + margin) + 2
-    half = min(half, H / 2, W / 2)
-    y0 = int(np.clip(cy - half, 0, H - 2 * half)); x0 = int(np.clip(cx - half, 0, W - 2 * half))
-    return slice(y0, y0 + int(2 * half)), slice(x0, x0 + int(2 * half))
-
-
-#: Colours of the outcome classes (study.evaluate.outcomes codes 0..3): correct, wrong depth, wrong surface, no hit.
-OUTCOME_COLORS = ("#9fd39a", "#f28e2b", "#d62728", "#3b3b3b")
 
 
 def _outcome_legend(fig, first, last) -> None:
@@ -62,7 +49,7 @@ def image_grid(cases: list[CaseOutput], labels: list[str], path: Path | None, *,
                row_labels: list[str] | None = None) -> bytes | None:
     """Rows: cases; columns: each method's image, the ray-traced (Mitsuba) image, each method's angular-error
     heatmap (degrees, log scale 0.01°–30°), with ``outcome_panel`` each method's outcome-class map (per pixel the
-    most frequent class of its rays: correct / wrong depth / wrong surface / no hit, :mod:`study.evaluate.outcomes`)
+    most frequent class of its rays: correct / wrong depth / wrong surface / no hit, :mod:`study.measure.outcomes`)
     and, with ``occlusion_panel``, the fraction of each pixel's rays whose exact hit is hidden from the reference
     point. Images are tone mapped by clipping at 1 and sRGB encoding. With ``path`` None: the PNG's bytes."""
     import matplotlib
@@ -156,10 +143,16 @@ def figure_positions(config: str | Path, out: str | Path, *, name: str, backend:
                 progress(i + 1, len(todo))
         meta = metadata(config, backend=backend, seed=scene.render.seed, methods=[m.label for m in methods],
                         cases=len(todo), figure=name)
-        png = image_grid(cases, labels, None, title=f"{name}: {scene.room.min}..{scene.room.max} room, "
+        png = image_grid(cases, labels, None, title=f"{name}: {describe(scene)}, "
                          f"reference point {list(scene.reference.point)}, cube {scene.render.cube_res}², "
                          f"backend {backend}", occlusion_panel=cfg.occlusion_panel, outcome_panel=cfg.outcome_panel,
                          row_labels=None if cfg.positions is not None else [lab for _, lab, _ in todo])
-        write_set(out, {"metrics.csv": to_csv(rows), "metadata.json": json.dumps(meta, indent=2),
-                        f"{name}.png": png}, lock=False)
+        files = {**table_files(rows, "metrics"), "metadata.json": json_text(meta, indent=2), f"{name}.png": png}
+        every = [m.label for m in methods]
+        titles = [None] * len(todo) if cfg.positions is not None else [lab for _, lab, _ in todo]
+        with output_set(out, [*files, "exr", "viewer"], lock=False) as tmp:
+            for rel, data in files.items():
+                (tmp / rel).write_bytes(data.encode() if isinstance(data, str) else data)
+            viewer.write_manifest(tmp, name, [viewer.write_case(tmp, name, cid, case, every, title=t or "")
+                                              for (cid, _), case, t in zip(scenes, cases, titles)])
     return rows

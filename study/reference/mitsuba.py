@@ -1,7 +1,8 @@
 """Mitsuba 3 renders of a :class:`~study.scene.Scene`: the ground truth and the impostor's radiance.
 
-The room is built from :func:`study.scene.room_mesh` (the very triangles Embree intersects), each surface with its
-procedural texture on a two-sided diffuse BSDF; the light is a point light; the object is a Mitsuba sphere with
+The environment is built from :func:`study.scene.environment.geometry` (the very triangles Embree intersects): the
+box room's surfaces with their procedural textures, a mesh file's parts with their textures or colours (two-sided
+diffuse BSDFs), or a Mitsuba scene's own shapes, BSDFs and emitters; box and mesh environments get the point light; the object is a Mitsuba sphere with
 its real material (``conductor`` with per-channel eta and k, a perfect mirror, or a ``dielectric``), or a mesh with
 smooth vertex normals for mesh shapes. A dielectric object gets ``max_depth + 2`` (in and out of the glass). Rendering uses the
 ``llvm_ad_rgb`` variant on the CPU (``cuda_ad_rgb`` on a GPU) and the ``path`` integrator.
@@ -11,26 +12,41 @@ from __future__ import annotations
 import numpy as np
 
 from study import runtime
-from study.scene import SURFACES, Scene, texture
+from study.scene import Scene
+from study.scene.environment import geometry
 from study.scene.objects import object_mesh as make_object_mesh
 
 
-def mi(variant: str = "llvm_ad_rgb"):
-    """The mitsuba module with ``variant`` set (:func:`study.runtime.mitsuba`)."""
+def mi(variant: str | None = None):
+    """The mitsuba module with ``variant`` set, by default the render device's (:func:`study.runtime.mitsuba`)."""
     return runtime.mitsuba(variant)
 
 
-def triangle_mesh(m, name, V, F, UV, bsdf):
-    """A Mitsuba mesh of triangles (V, F) with texture coordinates UV and a loaded BSDF."""
+def triangle_mesh(m, name, V, F, UV, bsdf, colors=None):
+    """A Mitsuba mesh of triangles (V, F) with texture coordinates UV, a loaded BSDF and, optionally, per-vertex
+    ``colors`` (V, 3) as the attribute ``vertex_color``."""
     props = m.Properties()
     props["bsdf"] = bsdf
     mesh = m.Mesh(name, len(V), len(F), props=props, has_vertex_texcoords=True)
+    if colors is not None:
+        mesh.add_attribute("vertex_color", 3, np.ascontiguousarray(colors, np.float32).ravel())
     p = m.traverse(mesh)
     p["vertex_positions"] = np.ascontiguousarray(V, np.float32).ravel()
     p["faces"] = np.ascontiguousarray(F, np.uint32).ravel()
     p["vertex_texcoords"] = np.ascontiguousarray(UV, np.float32).ravel()
     p.update()
     return mesh
+
+
+def part_bsdf(m, part) -> object:
+    """A two-sided diffuse BSDF from a surface's texture, constant colour or vertex colours."""
+    if part.albedo is not None:
+        refl = {"type": "bitmap", "bitmap": m.Bitmap(part.albedo), "raw": True, "filter_type": "bilinear"}
+    elif part.vertex_colors:
+        refl = {"type": "mesh_attribute", "name": "vertex_color"}
+    else:
+        refl = {"type": "rgb", "value": list(map(float, part.color))}
+    return m.load_dict({"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": refl}})
 
 
 def object_bsdf(scene: Scene) -> dict:
@@ -44,22 +60,31 @@ def object_bsdf(scene: Scene) -> dict:
 
 
 def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dict | None = None) -> dict:
+    """The Mitsuba scene dict of ``scene``: its environment (:func:`study.scene.environment.geometry`: the box
+    room's textured surfaces, a mesh file's parts, or a Mitsuba scene's own shapes and emitters), the point light
+    where the environment uses ``[light]``, ``sensor``, the ``path`` integrator and, ``with_object``, the object."""
     m = mi()
-    mesh = scene.mesh()
+    env = geometry(scene)
     depth = scene.render.max_depth
     if with_object and scene.object.material.type == "dielectric":
         depth += 2                        # entering and leaving the glass: the room behind gets max_depth as well
     d = {"type": "scene", "sensor": sensor,
-         "integrator": integrator or {"type": "path", "max_depth": depth},
-         "light": {"type": "point", "position": list(scene.light.position),
-                   "intensity": {"type": "rgb", "value": list(scene.light.intensity)}}}
-    for sid, name in enumerate(SURFACES):
+         "integrator": integrator or {"type": "path", "max_depth": depth}}
+    if env.point_light:
+        d["light"] = {"type": "point", "position": list(scene.light.position),
+                      "intensity": {"type": "rgb", "value": list(scene.light.intensity)}}
+    for i, e in enumerate(env.emitters):  # a Mitsuba scene's own emitters (area lights come with their shapes)
+        d[f"emitter_{i}"] = e
+    mesh = env.mesh
+    for sid, part in enumerate(env.parts):
         if not np.any(mesh.surface == sid):
             continue
+        if part.native is not None:       # a Mitsuba scene's shape, with its BSDF and area light
+            d[f"surface_{sid}"] = part.native
+            continue
         V, F, UV = mesh.part(sid)
-        bsdf = m.load_dict({"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": {
-            "type": "bitmap", "bitmap": m.Bitmap(texture(name)), "raw": True, "filter_type": "bilinear"}}})
-        d[f"surface_{sid}"] = triangle_mesh(m, name, V, F, UV, bsdf)
+        d[f"surface_{sid}"] = triangle_mesh(m, part.name, V, F, UV, part_bsdf(m, part),
+                                            colors=mesh.part_colors(sid) if part.vertex_colors else None)
     if with_object and scene.object.shape == "sphere":
         d["object"] = {"type": "sphere", "center": list(scene.object.center), "radius": scene.object.radius,
                        "bsdf": object_bsdf(scene)}
@@ -105,7 +130,7 @@ def render_camera(scene: Scene, *, with_object: bool = True, spp: int | None = N
     return np.array(m.render(sc, seed=scene.render.seed), dtype=np.float32)
 
 
-def triangle_scene(V: np.ndarray, F: np.ndarray, variant: str = "llvm_ad_rgb"):
+def triangle_scene(V: np.ndarray, F: np.ndarray, variant: str | None = None):
     """(mitsuba module, scene) holding the triangles (V, F) as one diffuse mesh, in ``variant``: for ray queries."""
     m = mi(variant)
     mesh = triangle_mesh(m, "room", V, F, np.zeros((len(V), 2), np.float32), m.load_dict({"type": "diffuse"}))

@@ -1,8 +1,10 @@
-"""What is rendered: the one scene description (schema and validation), the room as triangles with their
-textures, the camera's rays, and the shaded object (sphere or mesh) as geometry.
+"""What is rendered: the one scene description (schema and validation), the environment behind one interface —
+the box room, a mesh file or a Mitsuba scene as triangles with their materials (``sources``, ``environment``,
+``room``), placement checks by ray casting (``placement``) — the camera's rays, and the shaded object (sphere or
+mesh) as geometry.
 
 Owns: :class:`Scene` (``schema``), :class:`RoomMesh` (``room``), :func:`camera_rays` (``camera``), object meshes
-and their exact ray queries (``objects``). Imports nothing of study but the bottom modules (errors, io, validation).
+and their exact ray queries (``objects``). Imports nothing of study but the bottom modules (errors, io, validation; runtime to load Mitsuba scenes).
 """
 from study.scene.camera import camera_rays, look_at_basis
 from study.scene.room import SURFACES, RoomMesh, room_mesh, texture

@@ -16,14 +16,23 @@ moved to ``center``):
 
 * ``torus``: major radius 0.7, minor 0.3 (bounding radius 1), axis along y before rotation;
 * ``knot``: a trefoil knot tube (radius 0.12 of the bounding radius), swept along the curve;
-* ``blob``: an icosphere subdivided ``detail + 1`` times and displaced radially by a smooth sum of sines.
+* ``blob``: an icosphere subdivided ``detail + 1`` times and displaced radially by a smooth sum of sines;
+* ``mesh``: the triangles of ``object.file`` (OBJ/PLY/GLB/STL/OFF, ``trimesh.load(path, force="mesh")``: a file of
+  several parts is joined into one), welded (vertices that share a position become one, whatever their texture
+  coordinates or normals in the file, so that the normals are smooth across seams), degenerate faces dropped, wound
+  consistently, centred on its bounding box like the built-in shapes. The file's own normals are not used: every
+  mesh gets trimesh's area-weighted vertex normals. A file that trimesh cannot read, or that holds no faces, is a
+  :class:`~study.errors.StudyError` naming the file and ``object.file``.
 """
 from __future__ import annotations
 
+import functools
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from study.errors import StudyError
 from study.scene.schema import Scene, Sphere
 
 EPS = 1e-4          # ray-origin offset (m) when leaving a surface
@@ -79,10 +88,46 @@ def _blob(detail: int):
     return trimesh.Trimesh(v * r[:, None], m.faces, process=True)
 
 
-def unit_shape(shape: str, detail: int = 3):
-    """The shape as a trimesh.Trimesh centred at the origin with bounding radius 1 and outward winding."""
+def read_mesh_file(path: str):
+    """The triangles of a mesh file as a welded trimesh.Trimesh (not yet centred or scaled): see the module
+    docstring. Read once per file version (path, modification time, size)."""
+    try:
+        st = os.stat(path)
+    except OSError as err:
+        raise StudyError(f"cannot read the mesh file ({os.strerror(err.errno)})", file=path, key="object.file") \
+            from None
+    return _read_mesh(str(path), st.st_mtime_ns, st.st_size).copy()
+
+
+@functools.lru_cache(maxsize=8)
+def _read_mesh(path: str, mtime_ns: int, size: int):
     import trimesh
-    if shape == "torus":
+    try:
+        m = trimesh.load(path, force="mesh")
+    except Exception as err:                       # trimesh raises many kinds on a damaged file
+        first = (str(err).strip().splitlines() or [type(err).__name__])[0][:160]
+        raise StudyError(f"unreadable mesh file ({first})", file=path, key="object.file") from None
+    faces = np.asarray(getattr(m, "faces", np.zeros((0, 3))))
+    if not isinstance(m, trimesh.Trimesh) or faces.ndim != 2 or len(faces) == 0:
+        raise StudyError("the mesh file holds no faces (triangles or polygons); a point cloud or an empty file "
+                         "cannot be shaded", file=path, key="object.file")
+    m = trimesh.Trimesh(np.asarray(m.vertices, float), faces, process=True)   # welded by position only
+    m.update_faces(m.nondegenerate_faces())
+    m.remove_unreferenced_vertices()
+    if len(m.faces) == 0 or not np.isfinite(m.vertices).all() or np.ptp(m.vertices, axis=0).max() <= 0:
+        raise StudyError("the mesh file holds no faces of non-zero area", file=path, key="object.file")
+    return m
+
+
+def unit_shape(shape: str, detail: int = 3, file: str | None = None):
+    """The shape as a trimesh.Trimesh centred at the origin with bounding radius 1 and outward winding
+    (``file``: the mesh file of shape "mesh")."""
+    import trimesh
+    if shape == "mesh":
+        if file is None:
+            raise StudyError('shape "mesh" needs a mesh file', key="object.file")
+        m = read_mesh_file(file)
+    elif shape == "torus":
         m = trimesh.creation.torus(0.7, 0.3, major_sections=16 * detail, minor_sections=8 * detail)
         m.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))  # axis z → y
     elif shape == "knot":
@@ -109,7 +154,7 @@ def rotation_matrix(degrees) -> np.ndarray:
 def object_mesh(obj: Sphere) -> ObjectMesh:
     """The object's triangles in world space with smooth outward vertex normals (trimesh's area-weighted
     average of the face normals around each vertex)."""
-    m = unit_shape(obj.shape, obj.detail)
+    m = unit_shape(obj.shape, obj.detail, obj.file)
     Rm = rotation_matrix(obj.rotation)
     V = (m.vertices @ Rm.T) * obj.radius + np.asarray(obj.center, float)
     N = np.asarray(m.vertex_normals) @ Rm.T

@@ -22,12 +22,20 @@ class RoomMesh:
     uv : (V, 2) float32, texture coordinates in [0, 1]^2 of each vertex on its surface
     surface : (F,) int32, index into ``surfaces`` (the texture id of each triangle)
     surfaces : names of the textured surfaces, in texture-id order
+    colors : (V, 3) float32 linear RGB per vertex, or None (mesh files with vertex or face colours)
     """
     vertices: np.ndarray
     faces: np.ndarray
     uv: np.ndarray
     surface: np.ndarray
     surfaces: tuple[str, ...]
+    colors: np.ndarray | None = None
+
+    def part_colors(self, surface_id: int) -> np.ndarray | None:
+        """Vertex colours of one surface, in the vertex order of :meth:`part` (None without colours)."""
+        if self.colors is None:
+            return None
+        return self.colors[np.unique(self.faces[self.surface == surface_id])]
 
     def part(self, surface_id: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(vertices, faces, uv) of one surface, re-indexed."""

@@ -46,6 +46,13 @@ A scene is a TOML file (or dict) validated on load; y is up, units are metres. E
     internal_bounces = 8                 # total internal reflections followed before a ray is dropped (counted)
     object_res = 128                     # face resolution of the object's own distance map
 
+The environment is the box ``[room]`` with its ``[[columns]]`` unless ``[environment]`` names another source
+(:mod:`study.scene.sources`): ``type = "mesh"`` with ``file = "rooms/l_room.ply"`` (any format trimesh reads; its
+colours and textures are used) or ``type = "mitsuba"`` with ``file = "scene.xml"`` or ``builtin = "cornell_box"``
+(its own shapes, BSDFs and emitters; ``[light]`` is then ignored). Placement in those is checked by ray casting
+(:mod:`study.scene.placement`); ``reference.box = [[x0, y0, z0], [x1, y1, z1]]`` gives the proxy methods a box
+other than the environment's bounds.
+
 Meshes: ``object.shape = "torus" | "knot" | "blob"`` with ``rotation = [rx, ry, rz]`` (degrees) and ``detail``;
 ``radius`` is then the bounding-sphere radius, which the placement checks use.
 
@@ -55,7 +62,7 @@ Numbers are strict: a boolean or a string is not a number (``radius = true`` is 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, Optional, Union
 
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -63,9 +70,9 @@ from pydantic_core import PydanticCustomError
 
 from study.errors import StudyError
 from study.io import read_toml
-from study.scene.room import RoomMesh, room_mesh
+from study.scene.room import RoomMesh
+from study.scene.sources import BoxEnv, Environment, resolve
 from study.validation import KeyedError, first_error
-
 
 
 def _number(kind: str):
@@ -122,6 +129,13 @@ class Light(_Strict):
 
 class Reference(_Strict):
     point: Vec3 = (0.0, 1.5, 0.0)
+    box: Optional[tuple[Vec3, Vec3]] = None    # the proxy box of proxy methods (min, max); default: the bounds
+
+    @model_validator(mode="after")
+    def _box(self):
+        if self.box is not None and any(a >= b for a, b in zip(*self.box)):
+            raise ValueError("reference.box: the second corner must exceed the first on every axis")
+        return self
 
 
 class Mirror(_Strict):
@@ -142,16 +156,43 @@ class Dielectric(_Strict):
 Material = Annotated[Union[Mirror, Conductor, Dielectric], Field(discriminator="type")]
 
 
+#: mesh file formats an object may be read from (through trimesh)
+MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".stl", ".off")
+
+
 class Sphere(_Strict):
     """The shaded object. ``shape`` "sphere" is analytic; "torus", "knot" and "blob" are triangle meshes with
     smooth vertex normals (:mod:`study.scene.objects`), scaled so that ``radius`` is their bounding-sphere radius,
-    turned by ``rotation`` (Euler angles in degrees about x, then y, then z) and tessellated finer with ``detail``."""
-    shape: Literal["sphere", "torus", "knot", "blob"] = "sphere"
+    turned by ``rotation`` (Euler angles in degrees about x, then y, then z) and tessellated finer with ``detail``.
+    ``shape = "mesh"`` reads the triangles from ``file`` (OBJ, PLY, GLB/glTF, STL, OFF through trimesh; relative to
+    the scene file; ``shape`` may be left out when ``file`` is given), centred on its bounding box and scaled
+    in the same way; ``detail`` does not apply to it. Cache keys hash the file's bytes, not its path."""
+    shape: Literal["mesh", "sphere", "torus", "knot", "blob"] = "sphere"
     center: Vec3 = (0.5, 1.2, 0.3)
     radius: PosFloat = 0.4                       # sphere radius, or bounding-sphere radius of a mesh
     material: Material = Mirror(type="mirror")
     rotation: Vec3 = (0.0, 0.0, 0.0)             # meshes: Euler angles x, y, z in degrees
     detail: Annotated[Int, Field(ge=1, le=6)] = 3  # meshes: tessellation level
+    file: str | None = None                      # shape "mesh": the mesh file (stored as an absolute path)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _mesh_by_file(cls, data):                # a file alone means shape "mesh"
+        implied = isinstance(data, dict) and data.get("file") and "shape" not in data
+        return {**data, "shape": "mesh"} if implied else data
+
+    @field_validator("file", mode="before")
+    @classmethod
+    def _file(cls, v, info):
+        return resolve(v, info)
+
+    @model_validator(mode="after")
+    def _file_for_mesh(self):
+        known = (self.file or ".obj").lower().endswith(MESH_SUFFIXES)
+        if (self.shape == "mesh") != (self.file is not None) or not known:
+            raise KeyedError("object.file", f"a mesh file ({', '.join(MESH_SUFFIXES)}) for shape \"mesh\", and only "
+                             f"for it (shape {self.shape!r}, file {self.file!r})")
+        return self
 
 
 Object = Sphere
@@ -181,6 +222,8 @@ class Render(_Strict):
 
 
 class Scene(_Strict):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, arbitrary_types_allowed=True)
+    environment: Environment = BoxEnv()          # box room (default), mesh file or Mitsuba scene (study.scene.sources)
     room: Room = Room()
     columns: tuple[Column, ...] = ()
     light: Light = Light()
@@ -196,6 +239,8 @@ class Scene(_Strict):
 
     @model_validator(mode="after")
     def _placement(self):
+        if self.environment.type != "box":
+            return self._placement_any()
         lo, hi = np.array(self.room.min), np.array(self.room.max)
         c, r = np.array(self.object.center), self.object.radius
         mesh = self.object.shape != "sphere"         # meshes are checked by their bounding sphere
@@ -226,6 +271,11 @@ class Scene(_Strict):
             raise KeyedError("camera.up", "must not be parallel to the viewing direction")
         return self
 
+    def _placement_any(self):
+        from study.scene.placement import check_scene
+        check_scene(self)
+        return self
+
     # ------------------------------------------------------------------ derived geometry
     def with_updates(self, updates: dict[str, Any], *, source: str = "<override>") -> "Scene":
         """A new scene with dotted-key overrides (``{"object.center": [1, 1, 0]}``), validated again."""
@@ -242,8 +292,15 @@ class Scene(_Strict):
         return scene_from_dict(data, source=source)
 
     def mesh(self) -> RoomMesh:
-        """The room and its columns as triangles (:func:`study.scene.room.room_mesh`)."""
-        return room_mesh(self)
+        """The environment as triangles (:func:`study.scene.environment.geometry`): the box room and its columns,
+        a mesh file's or a Mitsuba scene's triangles."""
+        from study.scene.environment import geometry
+        return geometry(self).mesh
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(min, max) of the environment: the room box, or the bounding box of the environment's triangles."""
+        from study.scene.environment import geometry
+        return geometry(self).bounds
 
 
 def _box_sphere_distance(lo, hi, p) -> float:
@@ -251,15 +308,20 @@ def _box_sphere_distance(lo, hi, p) -> float:
 
 
 # ---------------------------------------------------------------------------------------------- loading
-def scene_from_dict(data: dict, *, source: str = "<scene>") -> Scene:
-    """Validate a scene dict; the first problem is one StudyError naming ``source`` and the dotted key."""
+def scene_from_dict(data: dict, *, source: str = "<scene>", base: str | Path | None = None) -> Scene:
+    """Validate a scene dict; the first problem is one StudyError naming ``source`` and the dotted key. Relative
+    ``file`` paths resolve against ``base`` (the scene file's directory; the working directory by default)."""
     try:
-        return Scene.model_validate(data)
+        return Scene.model_validate(data, context={"base": str(base) if base is not None else None})
     except ValidationError as err:
-        key, msg = first_error(err, Scene, skip=("mirror", "conductor", "dielectric"))
+        key, msg = first_error(err, Scene, skip=("mirror", "conductor", "dielectric", "box", "mesh", "mitsuba"))
         raise StudyError(msg, file=source, key=key or "(top level)") from None
+    except StudyError as err:                      # an environment that cannot be loaded (study.scene.environment)
+        if err.file:
+            raise
+        raise StudyError(err.detail, file=source, key=err.key) from None
 
 
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene TOML file."""
-    return scene_from_dict(read_toml(path, what="scene file"), source=str(path))
+    return scene_from_dict(read_toml(path, what="scene file"), source=str(path), base=Path(path).parent)

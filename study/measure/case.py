@@ -3,7 +3,7 @@
 A reader can follow one ray here: camera ray → object (``shading.object_rays``) → reflected ray (x, R) →
 ``method.trace`` on the chosen backend → shown point and radiance → Fresnel → composited image; the same ray →
 Embree exact hit → outcome class and angular error; the images → image error against the oracle_map, the
-truth_at_hit and Mitsuba, and the error decomposition (:mod:`study.evaluate.truth`).
+truth_at_hit and Mitsuba, and the error decomposition (:mod:`study.measure.truth`).
 """
 from __future__ import annotations
 
@@ -14,15 +14,21 @@ import numpy as np
 
 from study import backend as backends
 from study.cache import Cache, content_key
-from study.evaluate import metrics, outcomes, truth
+from study.impostor import probes, screen
 from study.impostor.capture import Impostor, capture_distance, impostor_key, render_cube
+from study.impostor.cubemap import FAR, FAR_MIN
 from study.impostor.envmap import EnvMap
 from study.impostor.layers import layered_impostor
+from study.impostor.views import Views
+from study.measure import metrics, outcomes, truth
 from study.methods import Method
 from study.optics import shading
 from study.reference.embree import Tracer
 from study.reference.mitsuba import render_camera
+from study.reference.tracer import make_tracer
 from study.scene import Scene
+from study.scene.environment import env_key
+from study.scene.sources import key_fields
 
 
 @dataclass
@@ -32,10 +38,12 @@ class CaseOutput:
     images: dict[str, np.ndarray] = field(default_factory=dict)      # label → (H, W, 3) linear RGB
     angle_maps: dict[str, np.ndarray] = field(default_factory=dict)  # label → (H, W) mean angular error, deg
     outcome_maps: dict[str, np.ndarray] = field(default_factory=dict)  # label → (H, W) majority outcome class
-    #   (codes of study.evaluate.outcomes: 0 correct … 3 no hit; ties to the worse; NaN off the object)
+    #   (codes of study.measure.outcomes: 0 correct … 3 no hit; ties to the worse; NaN off the object)
+    flip_maps: dict[str, np.ndarray] = field(default_factory=dict)   # label → (H, W) LDR-FLIP against truth_at_hit
+    #   (metrics.flip_map over the whole frame; the flip_truth column is its mean over ``mask``)
     oracle: np.ndarray | None = None                       # (H, W, 3) what a perfect localization shows
     mitsuba: np.ndarray | None = None                      # (H, W, 3) Mitsuba's render with the object (2 seeds)
-    truth: np.ndarray | None = None                        # (H, W, 3) truth_at_hit composited (study.evaluate.truth)
+    truth: np.ndarray | None = None                        # (H, W, 3) truth_at_hit composited (study.measure.truth)
     occluded: np.ndarray | None = None                     # (H, W) fraction of sub-pixel rays occluded from o
     mask: np.ndarray | None = None                         # (H, W) pixels fully on the object
 
@@ -52,10 +60,10 @@ def impostor(scene: Scene, cache: Cache, tracer: Tracer | None = None) -> Impost
 
 def camera_render(scene: Scene, cache: Cache, *, with_object: bool) -> np.ndarray:
     s = scene
-    parts = [s.room.model_dump(), [c.model_dump() for c in s.columns], s.light.model_dump(),
+    parts = [env_key(s), s.light.model_dump(),
              s.camera.model_dump(), s.render.spp, s.render.max_depth, s.render.seed, "v2"]
     if with_object:
-        parts.append(s.object.model_dump())
+        parts.append(key_fields(s.object))              # a mesh file by its bytes
         if s.object.material.type == "dielectric":
             parts.append("dielectric depth +2")           # see mitsuba.scene_dict
     key = content_key(*parts)
@@ -65,8 +73,15 @@ def camera_render(scene: Scene, cache: Cache, *, with_object: bool) -> np.ndarra
 
 
 def env_info(scene: Scene) -> dict:
-    """The scene knowledge methods may use (``env.info``, keys in study.methods.base): reference point, room."""
-    return {"reference": np.asarray(scene.reference.point, float), "room": (scene.room.min, scene.room.max)}
+    """The scene knowledge methods may use (``env.info``, keys in study.methods.base): reference point, room (the
+    proxy box: ``reference.box`` where given, else the environment's bounds)."""
+    box = scene.reference.box or tuple(tuple(map(float, b)) for b in scene.bounds())
+    return {"reference": np.asarray(scene.reference.point, float), "room": box}
+
+
+def open_environment(imp: Impostor) -> bool:
+    """Whether some texels of the impostor see no surface (distance FAR: an open environment)."""
+    return bool(np.any(imp.distance >= FAR_MIN))
 
 
 def knob_columns(m: Method) -> dict:
@@ -82,12 +97,12 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
     from study.errors import StudyError
     cache = cache or Cache(None)
     B = backends.get(backend)
-    rays = shading.object_rays(scene)                  # first: a case that would be empty is refused before rendering
+    tracer = make_tracer(scene.mesh())
+    rays = shading.object_rays(scene, occluder=tracer.distance)                  # a case that would be empty is refused before rendering
     if int(rays.full.sum()) < 4:                       # too few object pixels: every image metric would be NaN
         raise StudyError(f"the camera sees {int(rays.full.sum())} pixel(s) fully on the object, at least 4 are "
                          "needed; move object.center into view, closer, or turn camera.target towards it (or raise "
                          "camera.width/height)", key="object.center")
-    tracer = Tracer(scene.mesh())
     o = np.asarray(scene.reference.point, float)
 
     # ------------------------------------------------------------------ inputs: impostor, renders, rays
@@ -105,7 +120,10 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
     mask = rays.full
 
     # ------------------------------------------------------------------ exact references: Embree and oracle
-    exact = tracer.intersect(*rays.exact_rays())["point"]            # dielectrics: the exactly traced rays
+    ex_o, ex_d = rays.exact_rays()                                    # dielectrics: the exactly traced rays
+    exact = tracer.intersect(ex_o, ex_d)["point"]
+    escapes = ~np.all(np.isfinite(exact), axis=-1)                    # open environments: the ray leaves the scene
+    exact[escapes] = ex_o[escapes] + ex_d[escapes] * FAR              # "no surface": at infinity (cubemap.FAR)
     to_hit = exact - o
     hit_dist = np.linalg.norm(to_hit, axis=-1)
     seen = tracer.distance(np.broadcast_to(o, to_hit.shape), to_hit / hit_dist[:, None])
@@ -117,9 +135,9 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
     ref = truth.build(scene, cache, rays, F, background, seeds)         # truth_at_hit and the noise images
     visible = mask & (rays.per_pixel(occluded.astype(float), fill=1.0) == 0)  # pixels whose hits o sees
 
-    def image_columns(img, reference=False):                          # one image against every reference
-        cols = {**metrics.image_errors(img, oracle_img, mask=mask, suffix="oracle"),
-                **metrics.image_errors(img, ref.image, mask=mask, suffix="truth"),
+    def image_columns(img, reference=False, fmap=None):               # one image against every reference
+        cols = {**metrics.image_errors(img, oracle_img, mask=mask, suffix="oracle"),               # fmap: its
+                **metrics.image_errors(img, ref.image, mask=mask, suffix="truth", flip_emap=fmap),  # FLIP map
                 **metrics.image_errors(img, mitsuba, mask=mask, suffix="mitsuba"),
                 **truth.columns(img, oracle_img, ref, mitsuba, mask=mask, visible=visible)}
         if reference:                                                 # the truth is not split against itself
@@ -129,7 +147,7 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
     base = {"case": case_id, "cube_res": scene.render.cube_res, "object_x": scene.object.center[0],
             "object_y": scene.object.center[1], "object_z": scene.object.center[2], "backend": backend,
             "displacement": float(np.linalg.norm(np.subtract(scene.object.center, o))
-                                  / np.linalg.norm(np.subtract(scene.room.max, scene.room.min))),
+                                  / np.linalg.norm(np.subtract(*scene.bounds()))),
             "rays": len(rays.x), "occluded_fraction": float(occluded.mean()) if len(occluded) else np.nan,
             **rays.stats}
     out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=mitsuba, truth=ref.image, mask=mask,
@@ -143,16 +161,24 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
         out.rows.append({**base, "method": name, "label": name, "family": name, "knob": "", "knob_value": np.nan,
                          **metrics.summary(np.zeros(len(rays.x)), "angle", "_deg"), "dist_median": 0.0,
                          **outcomes.outcome_columns(classify(exact), occluded, np.zeros(len(rays.x))),  # correct
+                         **outcomes.offscreen_columns(classify(exact), outcomes.off_screen(scene.camera, exact)),
                          **image_columns(img, reference=name == "truth_at_hit"),
                          "valid_fraction": 1.0, "ratio_residual_median": 0.0,
                          "lookups_per_ray": 1 if name == "oracle_map" else 0, "seconds": 0.0})
 
     # ------------------------------------------------------------------ every method on the same rays
-    env = EnvMap(imp.texels(), B, info=env_info(scene))
-    n_layers = max((m.layers_needed() for m in methods), default=1)
-    if n_layers > 1:                                                  # depth layers for the methods that search them
+    env = EnvMap(imp.texels(), B, info={**env_info(scene), "open": open_environment(imp)})
+    views = Views.merge(*(m.views_needed() for m in methods))         # what the methods search besides env
+    if views.layers > 1:                                              # depth layers for the methods that search them
         env.info["layers"] = [EnvMap(t, B) for t in
-                              layered_impostor(scene, cache, n_layers, imp.radiance, tracer)]
+                              layered_impostor(scene, cache, views.layers, imp.radiance, tracer)]
+    if views.probes:                                                  # cube maps at several points (probe 0: env)
+        env.info["probes"] = {spec: probes.ProbeSet.around(*probes.capture_probes(scene, spec, cache, imp.texels(),
+                                                                                  tracer), o, B)
+                              for spec in views.probes}
+    if views.screen:                                                  # the camera's depth + colour (no object)
+        env.info["screen"] = screen.ScreenView.of_scene(scene, background, tracer, B)
+    offscreen = outcomes.off_screen(scene.camera, exact)              # exact hits the camera's frame does not show
     x, R = B.vec(rays.x - o), B.vec(rays.R)
     for m in methods:
         t0 = time.perf_counter()
@@ -167,11 +193,12 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
         img = shading.composite(rays, np.nan_to_num(rad) * F, background)
         ang = metrics.angular_error(rays.x, shown, exact)
         oc = classify(shown)
+        fmap = metrics.flip_map(img, ref.image) if keep_images else None
         row = {**base, "method": m.name, "label": m.label, **knob_columns(m),
                **metrics.summary(ang, "angle", "_deg"),
                "dist_median": float(np.nanmedian(np.linalg.norm(shown - exact, axis=-1))),
-               **outcomes.outcome_columns(oc, occluded, ang),
-               **image_columns(img),
+               **outcomes.outcome_columns(oc, occluded, ang), **outcomes.offscreen_columns(oc, offscreen),
+               **image_columns(img, fmap=fmap),
                "valid_fraction": float(valid.mean()),
                "ratio_residual_median": float(np.nanmedian(np.abs(ratio - 1))),
                "lookups_per_ray": m.lookups_per_ray(), "seconds": seconds}
@@ -179,5 +206,6 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
         if keep_images:
             out.images[m.label] = img
             out.angle_maps[m.label] = rays.per_pixel(ang, fill=np.nan)
+            out.flip_maps[m.label] = fmap
             out.outcome_maps[m.label] = outcomes.majority(rays.per_pixel(outcomes.class_fractions(oc), fill=np.nan))
     return out

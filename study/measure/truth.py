@@ -31,10 +31,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from study.cache import Cache, content_key
-from study.evaluate.metrics import rmse
+from study.measure.metrics import rmse
 from study.optics import shading
 from study.reference.mitsuba import radiance_along
 from study.scene import Scene
+from study.scene.sources import key_fields
 
 REL_EPS = 1e-2          # ε of relMSE, (W/m²/sr)²
 SEED_OFFSET = 7919      # the second seed of every two-seed Mitsuba reference
@@ -50,7 +51,7 @@ class Truth:
 def truth_at_hit(scene: Scene, cache: Cache, rays: shading.ObjectRays) -> tuple[np.ndarray, np.ndarray]:
     """Radiance along each exact secondary ray, (K, 3) twice: seeds ``render.seed`` and ``+ SEED_OFFSET``."""
     origins, dirs = rays.exact_rays()
-    s = scene.model_dump(mode="json")
+    s = key_fields(scene)                       # files by their bytes
     s["render"] = {k: v for k, v in s["render"].items() if k not in ("cube_res", "cube_spp", "object_res")}
     out = []
     for seed in (scene.render.seed, scene.render.seed + SEED_OFFSET):

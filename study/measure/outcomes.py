@@ -1,6 +1,6 @@
 """Per-ray outcome classes: did a method show the exact hit, the right ray at the wrong depth, another surface, or nothing.
 
-The angular error (:func:`study.evaluate.metrics.angular_error`) is blind to a wrong depth on the same ray: a
+The angular error (:func:`study.measure.metrics.angular_error`) is blind to a wrong depth on the same ray: a
 shown point anywhere on the ray x + t R, t > 0, has angle 0 at x. The classes here are not:
 
 ========================  ====  ==============================================================================
@@ -12,6 +12,14 @@ class                     code  the shown point …
 :data:`WRONG_SURFACE`     2     lies anywhere else, > ε from the exact hit and > ε off the ray
 :data:`NO_HIT`            3     is NaN: the method found nothing (``Trace.valid`` False)
 ========================  ====  ==============================================================================
+
+**Rays that leave the scene** (open environments): an exact ray that hits nothing has its "hit" at infinity,
+given as a point at distance ≥ :data:`~study.impostor.cubemap.FAR_MIN` along it (``x + d·FAR``), and a method's
+shown point that far away means "no surface, at infinity in that direction". Where either is at infinity the
+comparison is by direction: the shown point is *correct* when both are at infinity and the directions differ by
+at most ε/|exact − x| (one texel's angle); *wrong depth* when it lies on the exact ray (within that angle, or
+within max(ε_fixed, that angle × its distance) of the line for a finite point) but at the other depth (finite
+against infinite); else *wrong surface*. ``dist`` and ``depth_error`` are NaN there (no finite distance).
 
 The tolerance is per ray, ``ε = max(EPS_FIXED, texel_footprint(o, exact, res))`` with ``EPS_FIXED = 0.01`` m:
 one centimetre, or the world-space size of one cube-map texel at the exact hit seen from the reference point o,
@@ -34,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from study.impostor import cubemap
+from study.impostor.cubemap import FAR_MIN
 
 #: Outcome class codes, in order of severity (a pixel's map shows its most frequent class, ties to the worse).
 CORRECT, WRONG_DEPTH, WRONG_SURFACE, NO_HIT = 0, 1, 2, 3
@@ -136,11 +145,21 @@ def classify(x, R, shown, exact, *, eps, exact_origin=None) -> Outcomes:
     off_line = np.linalg.norm(rel - t_shown[:, None] * d, axis=-1)
     dist = np.linalg.norm(shown - exact, axis=-1)
     missing = ~np.all(np.isfinite(shown), axis=-1)
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore"):
         cls = np.where(dist <= eps, CORRECT,
                        np.where((off_line <= eps) & (t_shown > 0), WRONG_DEPTH, WRONG_SURFACE))
+        # ------------------------------------------------------- at infinity (open environments): by direction
+        r_shown, r_exact = np.linalg.norm(rel, axis=-1), np.linalg.norm(exact - x0, axis=-1)
+        far_e, far_s = r_exact >= FAR_MIN, ~missing & (r_shown >= FAR_MIN)
+        tol = eps / r_exact                                         # the tolerance as an angle, radians
+        along = np.arccos(np.clip(t_shown / r_shown, -1, 1)) <= tol   # shown direction within it of the ray's
+        near_line = (off_line <= np.fmax(EPS_FIXED, tol * r_shown)) & (t_shown > 0)
+        cls = np.where(far_e & far_s, np.where(along, CORRECT, WRONG_SURFACE), cls)
+        cls = np.where(far_e & ~far_s, np.where(near_line, WRONG_DEPTH, WRONG_SURFACE), cls)
+        cls = np.where(~far_e & far_s, np.where(along, WRONG_DEPTH, WRONG_SURFACE), cls)
+    finite = ~missing & ~far_e & ~far_s
     cls = np.where(missing, NO_HIT, cls).astype(np.int8)
-    return Outcomes(cls, np.where(missing, np.nan, dist), np.where(missing, np.nan, t_shown - t_exact), eps)
+    return Outcomes(cls, np.where(finite, dist, np.nan), np.where(finite, t_shown - t_exact, np.nan), eps)
 
 
 def classify_ref(x, R, shown, exact, *, eps, exact_origin=None) -> Outcomes:
@@ -159,6 +178,22 @@ def classify_ref(x, R, shown, exact, *, eps, exact_origin=None) -> Outcomes:
             d = [c / ln for c in d]
         if not all(math.isfinite(c) for c in s):
             cls[i], dist[i], depth[i] = NO_HIT, np.nan, np.nan
+            continue
+        rs = sum((s[k] - o[k]) ** 2 for k in range(3)) ** 0.5
+        re = sum((e[k] - o[k]) ** 2 for k in range(3)) ** 0.5
+        if rs >= FAR_MIN or re >= FAR_MIN:                          # at infinity: compared by direction
+            tol = eps[i] / re
+            cos = sum((s[k] - o[k]) * d[k] for k in range(3)) / rs
+            along = math.acos(max(-1.0, min(1.0, cos))) <= tol
+            ts = sum((s[k] - o[k]) * d[k] for k in range(3))
+            off = sum((s[k] - o[k] - ts * d[k]) ** 2 for k in range(3)) ** 0.5
+            if rs >= FAR_MIN and re >= FAR_MIN:
+                cls[i] = CORRECT if along else WRONG_SURFACE
+            elif re >= FAR_MIN:
+                cls[i] = WRONG_DEPTH if off <= max(EPS_FIXED, tol * rs) and ts > 0 else WRONG_SURFACE
+            else:
+                cls[i] = WRONG_DEPTH if along else WRONG_SURFACE
+            dist[i], depth[i] = np.nan, np.nan
             continue
         dist[i] = sum((s[k] - e[k]) ** 2 for k in range(3)) ** 0.5
         ts = sum((s[k] - o[k]) * d[k] for k in range(3))
@@ -194,7 +229,7 @@ def outcome_columns(outcomes: Outcomes, hidden, angle) -> dict[str, float]:
     outcomes : Outcomes
         :func:`classify` of N rays.
     hidden : (N,) bool array
-        The exact hit is hidden from the reference point (``occluded`` in :func:`study.evaluate.case.run_case`).
+        The exact hit is hidden from the reference point (``occluded`` in :func:`study.measure.case.run_case`).
     angle : (N,) array
         The angular error of each ray, degrees (NaN where nothing is shown).
 
@@ -239,3 +274,35 @@ def majority(fractions: np.ndarray) -> np.ndarray:
     f = np.nan_to_num(np.asarray(fractions, float))
     best = 3 - np.argmax(f[..., ::-1], axis=-1)
     return np.where(f.sum(-1) > 0, best.astype(float), np.nan)
+
+
+def off_screen(camera, points) -> np.ndarray:
+    """Which points the camera does not see in its frame: (N,) bool, True where a point projects outside the
+    image (or lies behind the camera's eye plane, or is not finite). The projection is the pinhole camera of
+    :mod:`study.scene.camera` (horizontal ``fov``); whether something nearer hides the point is not asked.
+
+    Parameters
+    ----------
+    camera : study.scene.schema.Camera
+        eye, target, up, fov (degrees, horizontal), width, height.
+    points : (N, 3) array
+        World points (the exact hits).
+    """
+    from study.scene.camera import look_at_basis
+    f, r, u = look_at_basis(camera.eye, camera.target, camera.up)
+    c = np.asarray(points, float) - np.asarray(camera.eye, float)
+    z = c @ f
+    tan = math.tan(math.radians(camera.fov) / 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sx, sy = (c @ r) / (z * tan), (c @ u) / (z * tan * camera.height / camera.width)
+        inside = (z > 0) & (np.abs(sx) < 1) & (np.abs(sy) < 1)
+    return ~inside
+
+
+def offscreen_columns(outcomes: Outcomes, offscreen) -> dict[str, float]:
+    """The screen-space columns of a results table: ``offscreen_fraction`` (rays whose exact hit projects off the
+    camera's screen, :func:`off_screen`) and ``wrong_fraction_offscreen`` (the fraction of those rays the method
+    got wrong, NaN where there are none), as ``wrong_fraction_hidden`` is for the rays hidden from o."""
+    offscreen = np.asarray(offscreen, bool)
+    return {"offscreen_fraction": _frac(offscreen),
+            "wrong_fraction_offscreen": _frac(np.asarray(outcomes.cls) != CORRECT, offscreen)}

@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# The GPU measurements of reports/performance.md (issue 15), run on a lent GPU machine from the repository root:
+#
+#   bash scripts/device_run.sh [bench] [studies] [dask] [cpuref]      (default: bench studies)
+#
+#   bench   : `study bench --backends cuda` — methods, exact queries (ray_intersect, _preliminary, ray_test) and
+#             the measured floors (texture fetch rates, copy bandwidth) → perf/
+#   studies : fig4, fig5, fig6 and the main sweep with --backend cuda (renders cuda_ad_rgb, exact hits OptiX),
+#             cold (fresh cache, fresh Dr.Jit kernel cache), each timed → studies/
+#   dask    : configs/sweep_large.toml on a Dask cluster of $DASK_PER_GPU (4) workers per GPU (--dask local-gpus):
+#             1 GPU on a 104-case subset, then every visible GPU on all 512 cases; cases/s → dask/
+#
+# Wheels: the machine has Python 3.12 without mitsuba/drjit/embreex/pydantic/dask; cp312 wheels are installed
+# from $WHEELS/a and $WHEELS/b (default .devcarry; how to make them: ../shared/field-notes.md, "Device (GPU) runs").
+# Everything is written under $OUT (default ./out-device): one log per part and one results-<part>.tgz each.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+OUT=${OUT:-$PWD/out-device}; mkdir -p "$OUT"
+WHEELS=${WHEELS:-.devcarry}
+export PYTHONUNBUFFERED=1 NCCL_NVLS_ENABLE=0
+if ! python3 -c "import mitsuba, drjit, embreex, pydantic" 2>/dev/null; then
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site \
+    "$WHEELS"/a/*.whl "$WHEELS"/b/*.whl || exit 3
+  export PYTHONPATH=/tmp/site:$PWD
+fi
+export PYTHONPATH=${PYTHONPATH:-}:$PWD
+S="python3 -m study.cli"
+parts=${*:-bench studies}
+nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$OUT/gpu.txt" 2>&1
+W=/tmp/study-work; rm -rf "$W"; mkdir -p "$W"
+
+timed() {   # timed NAME command...: wall seconds of the command appended to $OUT/times.csv
+  local name=$1; shift
+  local t0; t0=$(date +%s.%N)
+  "$@"; local rc=$?
+  echo "$name,$(python3 -c "import time; print(f'{time.time() - $t0:.1f}')"),$rc" | tee -a "$OUT/times.csv"
+  return 0
+}
+
+for part in $parts; do
+  case $part in
+  bench)
+    timed bench $S bench --out "$W/perf" --tag gpu --backends cuda --repeats 5 2>&1 | tee "$OUT/log-bench.txt"
+    tar czf "$OUT/results-bench.tgz" -C "$W" perf ;;
+  studies)
+    export HOME=$W/home; mkdir -p "$HOME"                                     # a fresh Dr.Jit kernel cache
+    for f in fig4 fig5 fig6; do
+      timed "$f" $S figure $f --backend cuda --cache "$W/cache" --out "$W/studies/$f" 2>&1 | tail -40
+    done
+    python3 -m cProfile -o "$OUT/fig4-warm.prof" -m study.cli figure fig4 --backend cuda --cache "$W/cache" \
+      --out "$W/fig4-warm" > /dev/null 2>&1                   # where a warm run's time goes (not timed)
+    find "$W/studies" -name "*.png" -size +2M -delete
+    tar czf "$OUT/results-figures.tgz" -C "$W" studies
+    timed sweep timeout "${SWEEP_LIMIT:-300}" $S sweep configs/sweep.toml --backend cuda --cache "$W/cache" \
+      --out "$W/sweep" --jobs "${SWEEP_JOBS:-8}" --no-plots 2>&1 | tail -5
+    tar czf "$OUT/results-sweep.tgz" -C "$W" --exclude=cases sweep ;;
+  dask)   # 1 GPU on a 104-case subset (every 5th position of the full line), then all GPUs on all 512 cases
+    per=${DASK_PER_GPU:-4}; n=$(nvidia-smi -L | grep -c "^GPU ")
+    sed 's/steps = 256/steps = 52/' configs/sweep_large.toml > configs/sweep_large_subset.toml
+    for run in "1 0 configs/${DASK_1GPU_CONFIG:-sweep_large_subset}.toml ${LIMIT_1:-170}" \
+               "$n $(seq -s, 0 $((n - 1))) configs/sweep_large.toml ${LIMIT_N:-380}"; do
+      set -- $run; k=$1
+      export HOME=$W/home-$k; mkdir -p "$HOME"
+      CUDA_VISIBLE_DEVICES=$2 timed "dask-${k}gpu" timeout "$4" $S sweep "$3" --backend cuda --cache "$W/dcache-$k" \
+        --out "$W/dask/gpus$k" --dask local-gpus --jobs "$per" --no-plots 2>&1 | tail -3
+      echo "dask-${k}gpu-cases,$(ls "$W/dask/gpus$k/cases" 2>/dev/null | wc -l)" | tee -a "$OUT/times.csv"
+    done
+    tar czf "$OUT/results-dask.tgz" -C "$W" dask ;;
+  single)  # the 104-case subset in one process on GPU 0, no Dask: the reference table for the Dask runs
+    sed 's/steps = 256/steps = 52/' configs/sweep_large.toml > configs/sweep_large_subset.toml
+    export HOME=$W/home-single; mkdir -p "$HOME"
+    CUDA_VISIBLE_DEVICES=0 timed single timeout "${LIMIT_S:-200}" $S sweep configs/sweep_large_subset.toml \
+      --backend cuda --cache "$W/scache" --out "$W/single" --no-plots 2>&1 | tail -2
+    tar czf "$OUT/results-single.tgz" -C "$W" --exclude=cases single ;;
+  *) echo "unknown part $part"; exit 2 ;;
+  esac
+done
+cat "$OUT/times.csv"

@@ -1,0 +1,283 @@
+"""The Python API for notebooks and scripts: :func:`load_scene` and :func:`evaluate`, which returns a :class:`Result`.
+
+    import study
+    scene = study.load_scene("scenes/room.toml", **{"object.radius": 0.3, "render.cube_res": 64})
+    res = study.evaluate(scene, methods=["classical", "localized(iterations=3)"])
+    res.table                    # pandas DataFrame: one row per method, and the oracle_map / truth_at_hit rows
+    res.images["classical"]      # (H, W, 3) linear RGB; also "oracle_map", "truth_at_hit", "mitsuba"
+    res.error_maps["classical"]  # (H, W) per-pixel RMS radiance error against truth_at_hit (NaN off the object)
+    res.save("reports/my-run")   # table.csv + table.parquet + EXR images, written as one set
+
+:func:`load_scene` reads a scene TOML, a mesh file (the environment: OBJ/PLY/GLB/STL/OFF), a Mitsuba XML file, a
+Mitsuba scene dict (``{"type": "scene", ...}``, e.g. ``mitsuba.cornell_box()``) or a study scene dict; for mesh
+and Mitsuba sources the reference point, object, light and camera are placed by
+:func:`study.scene.environment.suggest` (the Mitsuba scene's own camera where it has one). Overrides are dotted
+scene keys, as keyword arguments (``**{"object.radius": 0.3}``) or an ``overrides`` dict. Methods registered from
+outside the package (``@study.methods.register`` in a notebook cell, ``--plugin``, entry points) are part of
+``methods="all"``. Errors are :class:`~study.errors.StudyError` (one line naming file and key).
+"""
+from __future__ import annotations
+
+import base64
+import io as _io
+import json
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from study import methods as registry
+from study.errors import StudyError
+from study.scene import Scene
+
+#: file suffixes that :func:`load_scene` reads as an environment mesh, and as a Mitsuba scene
+MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".stl", ".off")
+MITSUBA_SUFFIXES = (".xml",)
+#: the columns :class:`Result` shows first (``__repr__``, ``_repr_html_``, ``study run``)
+SHOWN = ["label", "wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95",
+         "angle_median_deg", "rmse_truth", "flip_truth", "rmse_mitsuba", "lookups_per_ray"]
+REFERENCES = ("oracle_map", "truth_at_hit")
+
+
+# ---------------------------------------------------------------------------------------------- scenes
+def _set_dotted(data: dict, key: str, value: Any, *, source: str) -> None:
+    node, parts = data, key.split(".")
+    for p in parts[:-1]:
+        node = node.setdefault(p, {})
+        if not isinstance(node, dict):
+            raise StudyError("not a table of the scene", file=source, key=key)
+    node[parts[-1]] = value
+
+
+def _environment_scene(env: dict, updates: dict, *, source: str) -> Scene:
+    """A scene in a mesh or Mitsuba environment: the environment's suggested placement, then ``updates``."""
+    from pydantic import TypeAdapter, ValidationError
+
+    from study.scene import environment, scene_from_dict, sources
+    try:
+        model = TypeAdapter(sources.Environment).validate_python(env)
+    except ValidationError as err:
+        raise StudyError(err.errors()[0]["msg"], file=source, key="environment") from None
+    try:
+        suggested = environment.suggest(model)
+    except StudyError as err:
+        raise StudyError(err.detail, file=err.file or source, key=err.key, code=err.code) from None
+    data: dict = {"environment": env}
+    for k, v in {**suggested, **updates}.items():
+        _set_dotted(data, k, v, source=source)
+    return scene_from_dict(data, source=source)
+
+
+def load_scene(source: str | Path | dict | Scene, overrides: dict[str, Any] | None = None, **more: Any) -> Scene:
+    """A validated :class:`~study.scene.Scene` from ``source`` with dotted-key ``overrides`` (and ``**more``).
+
+    Parameters
+    ----------
+    source : str, Path, dict or Scene
+        A scene TOML file (a relative path missing from the working directory is looked up among the shipped
+        ones: ``"scenes/room.toml"`` works from anywhere); a mesh file (OBJ, PLY, GLB, STL, OFF: the
+        environment); a Mitsuba XML file; a Mitsuba scene dict (``"type": "scene"``); a study scene dict (the
+        tables of a scene TOML); or a Scene.
+    overrides, **more : dotted scene keys → values, e.g. ``{"object.radius": 0.3, "camera.width": 64}``.
+    """
+    updates = {**(overrides or {}), **more}
+    if isinstance(source, Scene):
+        return source.with_updates(updates) if updates else source
+    if isinstance(source, dict):
+        if source.get("type") == "scene":                        # a Mitsuba scene dict
+            return _environment_scene({"type": "mitsuba", "scene": source}, updates, source="<mitsuba dict>")
+        from study.scene import scene_from_dict
+        data = json.loads(json.dumps(source, default=list)) if updates else source
+        for k, v in updates.items():
+            _set_dotted(data, k, v, source="<scene dict>")
+        return scene_from_dict(data, source="<scene dict>")
+    if not isinstance(source, (str, Path)):
+        raise StudyError(f"a scene source is a path, a dict or a Scene, not {type(source).__name__}", key="source")
+    from study.harness.config import shipped
+    path = shipped(Path(source).expanduser())               # "scenes/room.toml" from any working directory
+    if not path.is_file():
+        raise StudyError("scene source not found", file=str(path))
+    suffix = path.suffix.lower()
+    if suffix in MESH_SUFFIXES:
+        return _environment_scene({"type": "mesh", "file": str(path.resolve())}, updates, source=str(path))
+    if suffix in MITSUBA_SUFFIXES:
+        return _environment_scene({"type": "mitsuba", "file": str(path.resolve())}, updates, source=str(path))
+    if suffix != ".toml":
+        raise StudyError(f"not a scene source; allowed: .toml, {', '.join(MESH_SUFFIXES + MITSUBA_SUFFIXES)}",
+                         file=str(path))
+    from study.scene import load_scene as load_toml
+    scene = load_toml(path)
+    return scene.with_updates(updates, source=str(path)) if updates else scene
+
+
+# ---------------------------------------------------------------------------------------------- methods
+def method_list(spec: Any = "all", *, key: str = "methods") -> list:
+    """Methods from ``"all"``, a name, a label (``"localized(iterations=3)"``: parameters as TOML values), a
+    :class:`~study.methods.Method`, a config table (``{"name": "localized", "iterations": [0, 1, 3]}``) or a list
+    of these; a method asked for twice is kept once. Errors name ``key`` (and the entry's index)."""
+    from study.harness.config import expand_methods
+    out = []
+    for i, s in enumerate(spec if isinstance(spec, (list, tuple)) else [spec]):
+        try:
+            out += _methods_of(s, expand_methods)
+        except StudyError as err:
+            raise StudyError(err.detail, key=f"{key}[{i}]" if isinstance(spec, (list, tuple)) else key) from None
+    first: dict = {}
+    for m in out:
+        first.setdefault(m.label, m)
+    return list(first.values())
+
+
+def _methods_of(s: Any, expand_methods) -> list:
+    """The methods of one entry of :func:`method_list`."""
+    if isinstance(s, registry.Method):
+        return [s]
+    if isinstance(s, str) and s != "all":
+        m = re.fullmatch(r"\s*([A-Za-z_]\w*)\s*(?:\((.*)\))?\s*", s)
+        if not m:
+            raise StudyError(f"not a method name or label: {s!r}; allowed: {', '.join(registry.names())}")
+        try:
+            params = tomllib.loads(f"p = {{{m.group(2)}}}")["p"] if m.group(2) else {}
+        except tomllib.TOMLDecodeError as err:
+            raise StudyError(f"the parameters of {s!r} are not TOML values ({err})") from None
+        s = {"name": m.group(1), **params}
+    if not (s == "all" or isinstance(s, dict)):
+        raise StudyError(f"not a method: {s!r}; a name, a label, a Method or a table")
+    try:
+        return expand_methods([s], source=None)
+    except StudyError as err:
+        what = err.key.split(".", 1)[1] if err.key and "." in err.key else ""
+        raise StudyError(f"{what + ': ' if what and what != 'name' else ''}{err.detail}") from None
+
+
+# ---------------------------------------------------------------------------------------------- results
+def _slug(label: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.=-]+", "_", label).strip("_") or "method"
+
+
+@dataclass(eq=False)
+class Result:
+    """What :func:`evaluate` measured on one scene.
+
+    ``table``: pandas DataFrame, one row per method and the reference rows ``oracle_map`` (exact hit, impostor
+    radiance) and ``truth_at_hit`` (exact hit, Mitsuba radiance); every column of a results table
+    (``README.md``: *What is measured*). Arrays are keyed by method label, (H, W) over the camera image:
+    ``images`` (H, W, 3) linear RGB, with the references ``oracle_map``, ``truth_at_hit`` and ``mitsuba`` (Mitsuba's
+    render with the object); ``error_maps``: RMS over RGB of the image minus ``truth_at_hit``; ``flip_maps``: LDR-FLIP
+    against ``truth_at_hit``; ``angle_maps``: mean angular error at the shading point (degrees);
+    ``outcome_maps``: majority outcome class (0 correct, 1 wrong depth, 2 wrong surface, 3 no hit). Error maps are
+    NaN off the object (``mask``: the pixels fully on it)."""
+    scene: Scene
+    table: Any
+    images: dict[str, np.ndarray] = field(default_factory=dict)
+    error_maps: dict[str, np.ndarray] = field(default_factory=dict)
+    flip_maps: dict[str, np.ndarray] = field(default_factory=dict)
+    angle_maps: dict[str, np.ndarray] = field(default_factory=dict)
+    outcome_maps: dict[str, np.ndarray] = field(default_factory=dict)
+    mask: np.ndarray | None = None
+    backend: str = "numpy"
+
+    @property
+    def labels(self) -> list[str]:
+        return list(self.table["label"])
+
+    def summary(self) -> str:
+        s, r = self.scene, self.scene.render
+        env = getattr(getattr(s, "environment", None), "type", "box")
+        obj = s.object.shape if s.object.shape != "mesh" else f"mesh {Path(s.object.file).name}"
+        return (f"{env} environment, {obj} (radius {s.object.radius:g}, {s.object.material.type}), camera "
+                f"{s.camera.width}×{s.camera.height}, cube {r.cube_res}², backend {self.backend}, "
+                f"{len(self.table) - len(REFERENCES)} method(s)")
+
+    def shown(self):
+        """The table's leading columns (:data:`SHOWN`) for display."""
+        return self.table[[c for c in SHOWN if c in self.table.columns]]
+
+    def __repr__(self) -> str:
+        return f"Result({self.summary()})\n" + self.shown().to_string(index=False, float_format=lambda v: f"{v:.4g}")
+
+    def _repr_html_(self) -> str:
+        from study.measure.metrics import to_ldr
+        thumbs = []
+        for label in ["mitsuba", *self.labels]:
+            if label in self.images:
+                buf = _io.BytesIO()
+                from PIL import Image
+                Image.fromarray((to_ldr(self.images[label]) * 255 + 0.5).astype(np.uint8)).save(buf, "PNG")
+                src = base64.b64encode(buf.getvalue()).decode()
+                thumbs.append(f'<figure style="display:inline-block;margin:2px;text-align:center">'
+                              f'<img src="data:image/png;base64,{src}" width="96" style="image-rendering:pixelated">'
+                              f'<figcaption style="font-size:75%">{label}</figcaption></figure>')
+        table = self.shown().to_html(index=False, float_format=lambda v: f"{v:.4g}", na_rep="–")
+        return f"<div><b>study result</b>: {self.summary()}{table}<div>{''.join(thumbs)}</div></div>"
+
+    def save(self, out: str | Path) -> list[Path]:
+        """Write the table (``table.csv``, ``table.parquet``), the scene (``scene.json``), every image and map as
+        EXR (``images/``, ``error_maps/``, ``flip_maps/``, ``angle_maps/``, ``outcome_maps/``, ``mask.exr``) and
+        ``index.json`` (label → file name) into ``out``, as one output set (:func:`study.io.output_set`): an
+        error leaves what ``out`` held before. Returns the files written."""
+        from study.io import output_set, write_exr
+        from study.tables import to_csv
+        groups = {"images": self.images, "error_maps": self.error_maps, "flip_maps": self.flip_maps,
+                  "angle_maps": self.angle_maps, "outcome_maps": self.outcome_maps}
+        index = {g: {label: f"{g}/{_slug(label)}.exr" for label in maps} for g, maps in groups.items()}
+        buf = _io.BytesIO()
+        self.table.to_parquet(buf, index=False)
+        owns = ["table.csv", "table.parquet", "scene.json", "index.json", "mask.exr", *groups]
+        with output_set(out, owns) as tmp:
+            (tmp / "table.csv").write_text(to_csv(self.table.to_dict("records")))
+            (tmp / "table.parquet").write_bytes(buf.getvalue())
+            (tmp / "scene.json").write_text(self.scene.model_dump_json(indent=2))
+            (tmp / "index.json").write_text(json.dumps(index, indent=2))
+            if self.mask is not None:
+                write_exr(tmp / "mask.exr", self.mask.astype(np.float32)[..., None])
+            for g, maps in groups.items():
+                for label, a in maps.items():
+                    a = np.asarray(a, np.float32)
+                    write_exr(tmp / index[g][label], a if a.ndim == 3 else a[..., None])
+        return sorted(p for p in Path(out).rglob("*") if p.is_file() and not p.name.startswith("."))
+
+
+def evaluate(scene: str | Path | dict | Scene, methods: Any = "all", *, backend: str = "numpy",
+             cache: str | Path | None = ".cache", overrides: dict[str, Any] | None = None) -> Result:
+    """Run every method on ``scene`` (anything :func:`load_scene` takes) and measure it (one case,
+    :func:`study.measure.case.run_case`).
+
+    Parameters
+    ----------
+    methods : ``"all"`` (every registered method at its defaults, the notebook's own too), or a list of names,
+        labels (``"localized(iterations=3)"``), Method objects or config tables (:func:`method_list`).
+    backend : ``"numpy"``, ``"llvm"`` or ``"cuda"``: where the methods run.
+    cache : directory of cached impostors and Mitsuba renders (None: no cache).
+    overrides : dotted scene keys applied first.
+
+    Returns
+    -------
+    Result
+    """
+    import pandas as pd
+
+    from study.cache import Cache
+    from study.harness import budget
+    from study.measure.case import run_case
+    from study.measure.metrics import flip_map
+    from study.tables import columns_of
+    scene = load_scene(scene, overrides)
+    ms = method_list(methods)
+    budget.check_backend(backend)
+    budget.check([("run", scene)], ms, source="evaluate")
+    case = run_case(scene, ms, backend=backend, cache=Cache(cache) if cache else None, case_id="run")
+    mask = np.asarray(case.mask, bool)
+    images = {"oracle_map": case.oracle, "truth_at_hit": case.truth, "mitsuba": case.mitsuba, **case.images}
+    flips = {"oracle_map": flip_map(case.oracle, case.truth), **case.flip_maps}
+    errors = {k: np.where(mask, np.sqrt(np.mean((np.asarray(v, float) - case.truth) ** 2, axis=-1)), np.nan)
+              for k, v in images.items() if k not in ("truth_at_hit",)}
+    rows = case.rows
+    table = pd.DataFrame(rows, columns=columns_of(rows))
+    return Result(scene, table, images=images, error_maps=errors,
+                  flip_maps={k: np.where(mask, v, np.nan) for k, v in flips.items()},
+                  angle_maps=dict(case.angle_maps), outcome_maps=dict(case.outcome_maps), mask=mask,
+                  backend=backend)

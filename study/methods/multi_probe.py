@@ -1,0 +1,203 @@
+"""Tracing through several distance probes (after McGuire et al., "Real-Time Global Illumination using Precomputed
+Light Field Probes", I3D 2017, with cube maps of radiance and radial distance): segment by segment, each in a probe
+that sees it, switching probe where the segment passes behind a surface that probe sees.
+
+Probes come from ``env.info["probes"][spec]`` (:class:`study.impostor.probes.ProbeSet`, N cube maps, probe 0 the
+impostor at o; ``spec`` = :class:`~study.impostor.views.ProbeSpec` of ``grid`` / ``points`` / ``clearance``); on a
+bare impostor without probes, the impostor is the only probe.
+
+Per ray x + R d (relative to o), starting at d₀ = 0 in the *nearest probe that sees the start point*
+(|p − c_k| ≤ |p − c_k|', an undershoot; every probe is tested, N lookups):
+
+1. **march** the segment from x + R d₀ on probe k as ``linear_secant`` does on the impostor (the t = d/(d + a)
+   parameterization about the probe's centre c_k, samples in equal angles no farther apart than
+   1/``steps_per_texel`` texels, n = ⌈π res steps_per_texel⌉ for a half turn, at most ``max_steps``): the first step
+   from in front of probe k's surface to behind it, then ``secant_steps`` Illinois steps → the crossing l
+   (relative to c_k), r = |l|.
+2. **classify** the crossing by the texels of probe k whose centres are nearest to l and to l̂ turned by ±6/res
+   radians along the arc (3 texels at a face's centre, up to 6 at its corners; distances D, D_lo, D_hi, no
+   interpolation), τ = ``thickness`` + r·``slack``/res: **UNKNOWN** where the depth *drops* across the crossing
+   like a step, D_lo − D_hi > τ and |D_lo + D_hi − 2D| > (D_lo − D_hi)/2 (the crossing lies on the interpolated
+   *skin* across a depth jump: the ray passed behind a nearer surface this probe sees, a column's silhouette, and
+   what it hits there is hidden from this probe; a surface seen obliquely is a ramp instead, whose second
+   difference is small), or where the probe's depth there is not the ray's, |r − D| > τ + |D_hi − D_lo|/4 (the
+   ramp's slope allows for the texel's quantization); **HIT** otherwise. **MISS**: no crossing (the ray leaves an
+   open environment).
+3. on UNKNOWN, d₀ moves to the last sample in front of probe k's surface (that stretch of the ray is free) and the
+   trace goes on in the nearest untried probe that sees the new start (N lookups); none left: the ray is resolved
+   by the first crossing it found (what a single probe shows), as an engine would shade it.
+
+In a config, ``grid`` and ``points`` are lists and so must be wrapped once more (lists expand into variants):
+``{ name = "multi_probe", grid = [[3, 2, 3]] }``, ``points = [[[-0.9, 2.3, -0.9], [1.0, 2.3, 1.0]]]``.
+
+Shown point of a hit: the point probe k holds in the crossing's direction, c_k + l̂·|l|'_k; its radiance is probe
+k's (``trace`` is overridden for that). Rays whose origin no probe sees are invalid (the origin check of
+:meth:`~study.methods.base.Method.trace`, generalized). Cost, counted per ray for the rounds it takes (a GPU thread
+stops when its ray is resolved; the vectorized march spends all n steps per round): N (choice of the first probe)
++ per round 1 + n + ``secant_steps`` + 3 (g(0), march, secant, the three nearest texels) + N per switch + 1 (the
+shown point); :meth:`MultiProbe.lookups_per_ray` reports the mean of the last trace (before any: N rounds).
+"""
+from __future__ import annotations
+
+from typing import Annotated
+
+import numpy as np
+from pydantic import Field
+
+from study.backend import V3
+from study.impostor import cubemap
+from study.impostor.views import ProbeSpec, Views
+from study.methods.base import Knob, Localization, Method, Trace, register
+from study.methods.linear_secant import TexelMarchParams, march_steps
+from study.methods.search import arc_samples, first_crossing, refine, secant_point
+
+Vec3 = tuple[float, float, float]
+
+
+class Params(TexelMarchParams):                                  # + steps_per_texel, max_steps
+    grid: tuple[Annotated[int, Field(ge=1, le=8)], Annotated[int, Field(ge=1, le=8)],
+                Annotated[int, Field(ge=1, le=8)]] = (2, 2, 2)    # probes on a grid in the environment's bounds
+    points: tuple[Vec3, ...] | None = None                    # or at these world points (besides o)
+    clearance: Annotated[float, Field(ge=0, le=10)] = 0.1        # grid probes at least this far from surfaces, m
+    secant_steps: Annotated[int, Field(ge=0, le=100)] = 4        # Illinois steps on each crossing
+    thickness: Annotated[float, Field(ge=0, le=10)] = 0.05       # HIT tolerance, m …
+    slack: Annotated[float, Field(ge=0, le=64)] = 4.0            # … + r·slack/res (texels of arc)
+
+
+class _Single:
+    """The impostor as the only probe (a bare impostor without ``env.info["probes"]``)."""
+
+    def __init__(self, env):
+        self.env, self.B, self.n, self.res = env, env.B, 1, getattr(env, "res", 0)
+        self.centres = np.zeros((1, 3))
+
+    def distance(self, k, v): return self.env.distance(v)
+    def lookup(self, k, v): return self.env.lookup(v)
+    def centre(self, k): return V3(k * 0.0, k * 0.0, k * 0.0)
+
+    def nearest(self, k, v):
+        if not self.res or not hasattr(self.env, "dist"):
+            return self.env.distance(v)
+        B, R = self.B, float(self.res)
+        face, u, w = cubemap.face_uv(B, v.x, v.y, v.z)
+        uc = (B.minimum(B.floor(u * R), R - 1.0) + 0.5) / R
+        wc = (B.minimum(B.floor(w * R), R - 1.0) + 0.5) / R
+        return B.sample(self.env.dist, face, uc, wc)[0]
+
+
+def _sel(B, m, a: V3, b: V3) -> V3:
+    return V3(B.select(m, a.x, b.x), B.select(m, a.y, b.y), B.select(m, a.z, b.z))
+
+
+@register
+class MultiProbe(Method):
+    name = "multi_probe"
+    Params = Params
+    knob = Knob("steps_per_texel", (0.25, 0.5, 1.0, 2.0))
+
+    def spec(self) -> ProbeSpec:
+        p = self.params
+        pts = tuple(tuple(float(c) for c in q) for q in p.points) if p.points is not None else None
+        return ProbeSpec(grid=tuple(p.grid), points=pts, clearance=p.clearance)
+
+    def views_needed(self) -> Views:
+        return Views(probes=(self.spec(),))
+
+    def _choose(self, B, P, pt: V3, untried: list):
+        """Index of the nearest untried probe that sees ``pt`` (−1: none), and the lookups it took (N)."""
+        best, best_d = pt.x * 0.0 - 1.0, pt.x * 0.0 + 3e38
+        for i in range(P.n):
+            k = pt.x * 0.0 + float(i)
+            v = pt - P.centre(k)
+            dist = B.length(v)
+            ok = untried[i] & (dist <= P.distance(k, v) * 1.0001 + 1e-6) & (dist < best_d)
+            best, best_d = B.select(ok, k, best), B.select(ok, dist, best_d)
+        return best
+
+    def trace(self, B, env, x, R, *, check_origin: bool = True) -> Trace:
+        p = self.params
+        P = (getattr(env, "info", {}).get("probes") or {}).get(self.spec()) or _Single(env)
+        N, res = P.n, P.res
+        n = march_steps(res, p)
+        zero = x.x * 0.0
+        never = B.isfinite(zero) & ~B.isfinite(zero)          # all False
+        nan = float("nan")
+        # ------------------------------------------------------------- the first probe: nearest that sees x
+        untried = [~never for _ in range(N)]
+        k = self._choose(B, P, x, untried)
+        active = (k >= 0.0) & B.isfinite(B.length(R))
+        untried = [u & (k != float(i)) for i, u in enumerate(untried)]
+        spent = zero + float(N)
+        d0 = zero                                      # ray parameter where the current segment starts
+        found, have_first = never, never
+        hit_l, hit_k, first_l, first_k = x, zero, x, zero
+        for _ in range(N):
+            if not B.numpy(active).any():
+                break
+            # --------------------------------------------------------- march the segment on probe k
+            c = P.centre(k)
+            xs = x + R * d0 - c
+            a = B.maximum(B.length(xs), 1e-6)
+            kk = k
+
+            def g(t, xs=xs, a=a, kk=kk):
+                pt = xs * (1.0 - t) + R * (a * t)
+                return B.length(pt) - (1.0 - t) * P.distance(kk, pt)
+
+            g0 = g(zero)
+            br = first_crossing(B, g, zero, g0, arc_samples(B, xs.dot(R) / a, n), n, t_max=1.0,
+                                default=(zero, g0, zero + 1.0, a))
+            br = refine(B, g, br, p.secant_steps, rising=True)
+            t = secant_point(br)
+            l = (xs * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)      # the crossing, from c_k
+            # --------------------------------------------------------- HIT, UNKNOWN or MISS
+            r = B.length(l)
+            tol = p.thickness + (r * (p.slack / res) if res else zero)
+            cross = br.found & B.isfinite(t)
+            w = l / B.maximum(r, 1e-9)                                        # texels either side along the arc
+            tan = R - w * w.dot(R)
+            tan = tan * ((2.0 / max(res, 1)) / B.maximum(B.length(tan), 1e-9))
+            d_lo, d_at, d_hi = P.nearest(k, w - tan), P.nearest(k, l), P.nearest(k, w + tan)
+            step = (d_lo - d_hi > tol) & (B.abs(d_lo + d_hi - 2.0 * d_at) > 0.5 * (d_lo - d_hi))
+            ok = cross & ~step & (B.abs(r - d_at) <= tol + 0.25 * B.abs(d_hi - d_lo))
+            hit = active & ok
+            unknown = active & cross & ~ok
+            spent = spent + B.select(active, zero + float(n + p.secant_steps + 4), zero)
+            found = found | hit
+            hit_l, hit_k = _sel(B, hit, l + c, hit_l), B.select(hit, k, hit_k)
+            first = unknown & ~have_first
+            first_l, first_k = _sel(B, first, l + c, first_l), B.select(first, k, first_k)
+            have_first = have_first | first
+            # --------------------------------------------------------- UNKNOWN: on in the next probe
+            t_lo = br.t_lo
+            d0 = B.select(unknown, d0 + a * t_lo / B.maximum(1.0 - t_lo, 1e-7), d0)
+            k_next = self._choose(B, P, x + R * d0, untried)
+            spent = spent + B.select(unknown, zero + float(N), zero)
+            active = unknown & (k_next >= 0.0)
+            k = B.select(active, k_next, k)
+            untried = [u & ~(active & (k == float(i))) for i, u in enumerate(untried)]
+            B.eval(d0, k, active, found, spent, hit_l.x, hit_l.y, hit_l.z, hit_k)
+        # ------------------------------------------------------------- the shown point, from the probe that saw it
+        use_first = ~found & have_first
+        valid = found | use_first
+        kf = B.select(use_first, first_k, hit_k)
+        v = _sel(B, use_first, first_l, hit_l) - P.centre(kf)
+        v = _sel(B, valid, v, R)                        # finite everywhere (numpy gathers every ray)
+        ch = P.lookup(kf, v)
+        shown = P.centre(kf) + B.normalize(v) * ch[-1]
+        self._spent = float(np.mean(B.numpy(spent))) + 1.0 if B.numpy(spent).size else 1.0
+        shown = V3(*(B.select(valid, s, nan) for s in (shown.x, shown.y, shown.z)))
+        rad = V3(*(B.select(valid, s, nan) for s in ch[:3]))
+        return Trace(shown, shown, rad, B.select(valid, B.length(v) / ch[-1], nan), valid)
+
+    def localize(self, B, env, x, R) -> Localization:
+        tr = self.trace(B, env, x, R, check_origin=False)
+        return Localization(l=tr.shown, valid=tr.valid)
+
+    def lookups_per_ray(self) -> float:
+        # the mean over rays of the last trace (module docstring); before any: N rounds of n = max_steps
+        if hasattr(self, "_spent"):
+            return self._spent
+        p = self.params
+        N = 1 + (len(p.points) if p.points is not None else int(np.prod(p.grid)))
+        return N + N * (p.max_steps + p.secant_steps + 4 + N) + 1

@@ -1,0 +1,168 @@
+"""Screen-space ray tracing (McGuire and Mara, "Efficient GPU Screen-Space Ray Tracing", JCGT 3(4) 2014): a
+perspective-correct DDA through the camera's own depth buffer, with the fallbacks engines ship.
+
+The view searched is the camera's buffer (``env.info["screen"]``, :class:`study.impostor.screen.ScreenView`: z-depth
+and colour of the environment without the object, per pixel). The ray x + R d (relative to the reference point o) is
+clipped to d ≤ ``max_distance`` (default: the diagonal of ``env.info["room"]``, else 100 m) and to the near plane
+z ≥ 0.01 m (a ray turning towards the camera ends there); both ends are projected to pixel coordinates P0, P1 with
+k = 1/z at each. 1/z and the pixel position are affine along the projected segment, so the DDA steps ``stride``
+pixels along its major axis (n = |P1 − P0|∞ / stride steps, step s = 0 … n, P0 + s·ΔP) and knows the ray's exact
+depth range at step s, z ∈ [1/k(s − ½), 1/k(s + ½)] (clamped to the segment), without a division per pixel for the
+position. At each step the pixel under the ray (floor of its coordinates) gives the buffer's depth z_b; the step
+is a hit when the ray's range overlaps [z_b, z_b + ``thickness``] (the surface is taken to be ``thickness`` metres
+thick behind its depth), the first such step along the ray is kept.
+
+No hit ("no hit": NaN shown point) where the ray leaves the screen (the answer is off screen), reaches the segment's
+end, passes behind geometry by more than ``thickness`` until then (what it would hit is hidden from the camera), or
+exhausts ``max_steps``; also where its origin is off screen or behind the near plane. ``fallback`` traces those rays
+with another method on the impostor, as engines fall back to a reflection probe: ``"proxy_box"`` (the room box as
+a proxy; the default, as engines ship it, so the plain name is the hybrid) or ``"localized"`` (the paper's search);
+``"none"`` shows nothing (screen-space tracing alone). On a bare impostor without a camera buffer every ray goes to
+the fallback.
+
+Shown point of a hit: the ray point at depth clamp(z_b, range) of the hit step (perspective-correct parameter
+along the segment), so a hit lies on the ray; its radiance is the colour buffer at the hit pixel (``trace`` is
+overridden for that). Cost: one depth fetch per step actually taken (the loop stops at the hit or the exit; the
+mean over rays is reported), one colour fetch, plus the fallback's lookups on the rays it traces
+(:meth:`SSR.lookups_per_ray` reports what the last trace spent; before any trace, the most it can spend).
+"""
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from study.backend import V3
+from study.impostor.views import Views
+from study.methods.base import REGISTRY, Knob, Localization, Method, Trace, register
+
+NEAR = 0.01           # near plane of the clipped ray, metres
+
+
+class Params(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    max_steps: Annotated[int, Field(ge=1, le=16384)] = 512       # DDA step budget
+    stride: Annotated[float, Field(ge=1, le=64)] = 1.0           # pixels per step
+    thickness: Annotated[float, Field(gt=0, le=100)] = 0.25      # assumed surface thickness behind its depth, m
+    max_distance: Annotated[float, Field(gt=0)] | None = None   # ray length, m (default: room diagonal)
+    fallback: Literal["none", "proxy_box", "localized"] = "proxy_box"   # for the rays without a screen hit
+
+
+@register
+class SSR(Method):
+    name = "ssr"
+    Params = Params
+    knob = Knob("max_steps", (16, 32, 64, 128, 256, 512))
+
+    def _fallback(self) -> Method | None:
+        return REGISTRY[self.params.fallback]() if self.params.fallback != "none" else None
+
+    def views_needed(self) -> Views:
+        fb = self._fallback()
+        return Views.merge(Views(screen=True), *([fb.views_needed()] if fb else []))
+
+    # ---------------------------------------------------------------------------------------------- the march
+    def _march(self, B, scr, x: V3, R: V3, d_max: float):
+        """(found, d, rgb, spent): hit flag, ray parameter of the shown point, colour at the hit pixel, steps."""
+        p = self.params
+        W, H = float(scr.width), float(scr.height)
+        f = scr.forward
+        # ------------------------------------------------------------- clip the ray and project its ends
+        px0, py0, z0 = scr.project(x)
+        Rz = R.x * float(f[0]) + R.y * float(f[1]) + R.z * float(f[2])
+        d_near = (NEAR - z0) / B.select(Rz < -1e-9, Rz, Rz * 0.0 - 1.0)
+        d_end = B.select(Rz < -1e-9, B.minimum(d_near, d_max), z0 * 0.0 + d_max)
+        px1, py1, z1 = scr.project(x + R * d_end)
+        k0, k1 = 1.0 / z0, 1.0 / z1
+        dx, dy = px1 - px0, py1 - py0
+        length = B.maximum(B.maximum(B.abs(dx), B.abs(dy)), 1e-6) / p.stride      # steps to the end
+        sx, sy, sk = dx / length, dy / length, (k1 - k0) / length                  # per step
+        start = (z0 > NEAR) & scr.on_screen(px0, py0) & B.isfinite(length) & (d_end > 0.0)
+        zero = z0 * 0.0
+
+        # ------------------------------------------------------------- DDA over pixels
+        def step(s, found, stop, hs, hj, hi, hz, spent):
+            px, py = px0 + sx * s, py0 + sy * s
+            active = ~found & ~stop
+            leave = (s > length) | ~scr.on_screen(px, py)
+            stop = stop | (active & leave)
+            active = active & ~leave
+            j = B.minimum(B.maximum(B.floor(px), 0.0), W - 1.0)
+            i = B.minimum(B.maximum(B.floor(py), 0.0), H - 1.0)
+            zb = scr.fetch(j, i)[3]
+            za = 1.0 / (k0 + sk * B.maximum(s - 0.5, 0.0))
+            zc = 1.0 / (k0 + sk * B.minimum(s + 0.5, length))
+            hit = active & (B.maximum(za, zc) >= zb) & (B.minimum(za, zc) <= zb + p.thickness)
+            spent = spent + B.select(active, zero + 1.0, zero)
+            found = found | hit
+            hs, hj, hi, hz = (B.select(hit, a, b) for a, b in ((s, hs), (j, hj), (i, hi), (zb, hz)))
+            return s + 1.0, found, stop, hs, hj, hi, hz, spent
+
+        never = start & ~start
+        out = B.loop(p.max_steps, (zero, never, ~start, zero, zero, zero, zero, zero), step)
+        _, found, _, hs, hj, hi, hz, spent = out
+        # ------------------------------------------------------------- the shown point on the ray, its colour
+        za = 1.0 / (k0 + sk * B.maximum(hs - 0.5, 0.0))
+        zc = 1.0 / (k0 + sk * B.minimum(hs + 0.5, length))
+        zh = B.minimum(B.maximum(hz, B.minimum(za, zc)), B.maximum(za, zc))
+        s = B.select(B.abs(sk) > 1e-12, (1.0 / zh - k0) / B.select(B.abs(sk) > 1e-12, sk, zero + 1.0), hs)
+        s = B.minimum(B.maximum(s, B.maximum(hs - 0.5, 0.0)), B.minimum(hs + 0.5, length))
+        a = s / length                                  # fraction of the projected segment
+        beta = a * k1 / (a * k1 + (1.0 - a) * k0)       # perspective-correct fraction of the ray
+        rgbz = scr.fetch(hj, hi)
+        return found & B.isfinite(beta), d_end * beta, rgbz[:3], spent
+
+    def trace(self, B, env, x, R, *, check_origin: bool = True) -> Trace:
+        """The DDA's hit where there is one (shown point on the ray, colour buffer radiance), the fallback's trace
+        elsewhere; the origin check of :meth:`Method.trace`."""
+        p = self.params
+        info = getattr(env, "info", {})
+        scr = info.get("screen")
+        nan = float("nan")
+        n = B.numpy(x.x).shape[0]
+        if scr is not None:
+            if p.max_distance is not None:
+                d_max = p.max_distance
+            elif "room" in info:
+                d_max = float(np.linalg.norm(np.subtract(info["room"][1], info["room"][0])))
+            else:
+                d_max = 100.0
+            found, d, rgb, spent = self._march(B, scr, x, R, d_max)
+            self._spent = float(np.mean(B.numpy(spent))) + 1.0 if n else 1.0
+        else:                                          # no camera buffer: nothing on screen
+            found, d, rgb = B.isfinite(x.x) & ~B.isfinite(x.x), x.x * nan, [x.x * nan] * 3
+            self._spent = 0.0
+        found = found & B.isfinite(B.length(R))
+        if check_origin:
+            found = found & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)   # x is an undershoot
+        shown = x + R * d
+        shown = V3(*(B.select(found, c, nan) for c in (shown.x, shown.y, shown.z)))
+        rad = V3(*(B.select(found, c, nan) for c in rgb))
+        valid, l = found, shown
+        fb = self._fallback()
+        if fb is not None:                              # engines: a reflection probe where the screen has nothing
+            tr = fb.trace(B, env, x, R, check_origin=check_origin)
+            shown = V3(*(B.select(found, a, b) for a, b in zip((shown.x, shown.y, shown.z),
+                                                                (tr.shown.x, tr.shown.y, tr.shown.z))))
+            rad = V3(*(B.select(found, a, b) for a, b in zip((rad.x, rad.y, rad.z),
+                                                              (tr.radiance.x, tr.radiance.y, tr.radiance.z))))
+            l = V3(*(B.select(found, a, b) for a, b in zip((l.x, l.y, l.z), (tr.l.x, tr.l.y, tr.l.z))))
+            rest = float(np.mean(~B.numpy(found).astype(bool))) if n else 0.0
+            self._spent += rest * fb.lookups_per_ray()
+            valid = found | tr.valid
+        safe = V3(*(B.select(valid, a, b) for a, b in zip((shown.x, shown.y, shown.z), (R.x, R.y, R.z))))
+        ratio = B.select(valid, B.length(safe) / env.distance(safe), nan)   # diagnostic: 1 on the impostor
+        return Trace(l, shown, rad, ratio, valid)
+
+    def localize(self, B, env, x, R) -> Localization:
+        tr = self.trace(B, env, x, R, check_origin=False)
+        return Localization(l=tr.shown, valid=tr.valid)
+
+    def lookups_per_ray(self) -> float:
+        # depth fetches of the steps taken (mean over rays) + the colour fetch + the fallback's on its rays; before
+        # any trace: every step, and the fallback on every ray
+        if hasattr(self, "_spent"):
+            return self._spent
+        fb = self._fallback()
+        return self.params.max_steps + 1 + (fb.lookups_per_ray() if fb else 0)

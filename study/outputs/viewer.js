@@ -1,0 +1,315 @@
+// study's report (index.html): sortable tables and per-case image viewers. Inlined by study/outputs/html.py.
+// Images arrive as RGBE-coded PNGs (study/outputs/viewer.py: mantissas left, shared exponent right, value =
+// m * 2^(E - 136); E = 0 & m = 255 is NaN) in data URLs, set by each case's script <fig>/viewer/<case>.js.
+"use strict";
+(function () {
+  // ------------------------------------------------------------------ sortable tables
+  function sortBy(th) {
+    const table = th.closest("table"), idx = Array.prototype.indexOf.call(th.parentNode.children, th);
+    const asc = th.dataset.sort !== "asc";
+    table.querySelectorAll("th").forEach(h => { delete h.dataset.sort; });
+    th.dataset.sort = asc ? "asc" : "desc";
+    const tbody = table.tBodies[0], rows = Array.from(tbody.rows);
+    const key = r => {
+      const td = r.cells[idx];
+      if (!td) return null;
+      if (td.dataset.v === undefined) return td.textContent;
+      return td.dataset.v === "" ? null : parseFloat(td.dataset.v);
+    };
+    rows.sort((a, b) => {
+      const x = key(a), y = key(b);
+      if (x === null || y === null) return (x === null) - (y === null);      // empty cells last, either way
+      const c = (typeof x === "number" && typeof y === "number") ? x - y : String(x).localeCompare(String(y));
+      return asc ? c : -c;
+    });
+    rows.forEach(r => tbody.appendChild(r));
+  }
+  document.querySelectorAll("table.sortable th").forEach(th => th.addEventListener("click", () => sortBy(th)));
+
+  // ------------------------------------------------------------------ viewers
+  const MANIFEST = JSON.parse(document.getElementById("study-manifest").textContent);
+  const LUTS = JSON.parse(document.getElementById("study-luts").textContent);
+  const LAYER_NAMES = {image: "image", angle: "angular error", outcome: "outcome", flip: "FLIP", error: "error",
+                       hidden: "hidden"};
+  const SIZE = 400;
+  const srgb = v => (v <= 0.0031308 ? 12.92 * v : 1.055 * Math.pow(v, 1 / 2.4) - 0.055);
+  const loadedScripts = {};
+
+  function loadScript(src) {
+    if (!loadedScripts[src]) {
+      loadedScripts[src] = new Promise((resolve, reject) => {
+        const s = document.createElement("script");
+        s.src = src;
+        s.onload = resolve;
+        s.onerror = () => reject(new Error("cannot load " + src));
+        document.head.appendChild(s);
+      });
+    }
+    return loadedScripts[src];
+  }
+
+  async function decodePng(url, channels) {
+    const b64 = url.slice(url.indexOf(",") + 1), bin = atob(b64), bytes = new Uint8Array(bin.length);
+    for (let i = 0; i < bin.length; i++) bytes[i] = bin.charCodeAt(i);
+    const bmp = await createImageBitmap(new Blob([bytes], {type: "image/png"}),
+                                        {premultiplyAlpha: "none", colorSpaceConversion: "none"});
+    const c = document.createElement("canvas");
+    c.width = bmp.width; c.height = bmp.height;
+    const g = c.getContext("2d", {willReadFrequently: true});
+    g.drawImage(bmp, 0, 0);
+    const px = g.getImageData(0, 0, bmp.width, bmp.height).data, W = bmp.width / 2, H = bmp.height;
+    const out = new Float32Array(W * H * channels);
+    for (let y = 0; y < H; y++) {
+      for (let x = 0; x < W; x++) {
+        const i = (y * bmp.width + x) * 4, e = px[(y * bmp.width + W + x) * 4], k = (y * W + x) * channels;
+        const f = e > 0 ? Math.pow(2, e - 136) : 0, nan = e === 0 && px[i] === 255;
+        for (let ch = 0; ch < channels; ch++) out[k + ch] = nan ? NaN : px[i + ch] * f;
+      }
+    }
+    return {w: W, h: H, channels: channels, data: out};
+  }
+
+  class Viewer {
+    constructor(el, fig, c) {
+      this.el = el; this.fig = fig; this.c = c;
+      this.sources = [...new Set(c.layers.map(l => l.source))];
+      this.layerIds = [...new Set(c.layers.map(l => l.layer))];
+      this.src = Math.min(1, this.sources.length - 1);     // the first method (0 is the truth)
+      this.want = "image"; this.exposure = 0; this.zoom = null; this.pan = [0, 0];
+      this.decoded = new Map();
+      this.build();
+    }
+    build() {
+      const c = this.c, el = this.el;
+      el.innerHTML = "";
+      const add = (tag, cls, parent) => { const e = document.createElement(tag); if (cls) e.className = cls;
+                                         (parent || el).appendChild(e); return e; };
+      add("div", "title").textContent = c.title + (c.title !== c.id ? "  (" + c.id + ")" : "");
+      const srow = add("div", "row");
+      this.srcButtons = this.sources.map((s, i) => {
+        const b = add("button", "", srow);
+        b.textContent = (i < 10 ? ((i + 1) % 10) + " " : "") + s;
+        b.addEventListener("click", () => { this.src = i; this.show(); });
+        return b;
+      });
+      const lrow = add("div", "row");
+      this.layerButtons = this.layerIds.map(l => {
+        const b = add("button", "", lrow);
+        b.textContent = LAYER_NAMES[l] || l;
+        b.addEventListener("click", () => { this.want = l; this.show(); });
+        return b;
+      });
+      const trow = add("div", "row");
+      const zb = (t, f) => { const b = add("button", "", trow); b.textContent = t; b.addEventListener("click", f); };
+      zb("−", () => this.zoomBy(1 / 1.5)); zb("+", () => this.zoomBy(1.5)); zb("fit", () => this.fit());
+      add("span", "", trow).textContent = " exposure";
+      this.slider = add("input", "exposure", trow);
+      Object.assign(this.slider, {type: "range", min: -8, max: 8, step: 0.25, value: 0});
+      this.expLabel = add("span", "", trow);
+      this.slider.addEventListener("input", () => { this.exposure = parseFloat(this.slider.value); this.render(); });
+      this.shownLabel = add("div", "shown");
+      this.canvas = add("canvas", "view");
+      this.canvas.width = SIZE; this.canvas.height = SIZE;
+      this.legend = add("div", "legend");
+      this.readout = add("div", "readout");
+      this.links = add("div", "links");
+      this.msg = add("div", "msg");
+      if (c.missing) this.msg.textContent = "images missing: " + c.script + " (study figure " + this.fig + " writes it)";
+      this.bindInput();
+      this.updateButtons();
+    }
+    bindInput() {
+      const cv = this.canvas;
+      this.el.addEventListener("keydown", e => this.key(e));
+      this.el.addEventListener("focus", () => this.show());
+      cv.addEventListener("wheel", e => {
+        e.preventDefault();
+        const r = cv.getBoundingClientRect();
+        this.zoomBy(e.deltaY < 0 ? 1.25 : 0.8, (e.clientX - r.left) * SIZE / r.width, (e.clientY - r.top) * SIZE / r.height);
+      }, {passive: false});
+      let drag = null;
+      cv.addEventListener("mousedown", e => { drag = [e.clientX, e.clientY, this.pan[0], this.pan[1]]; this.el.focus(); });
+      window.addEventListener("mouseup", () => { drag = null; });
+      cv.addEventListener("mousemove", e => {
+        const r = cv.getBoundingClientRect(), s = SIZE / r.width;
+        if (drag) { this.pan = [drag[2] + (e.clientX - drag[0]) * s, drag[3] + (e.clientY - drag[1]) * s]; this.draw(); }
+        this.read((e.clientX - r.left) * s, (e.clientY - r.top) * s);
+      });
+    }
+    key(e) {
+      const n = this.sources.length, L = this.layerIds.length, li = this.layerIds.indexOf(this.want);
+      if (/^[0-9]$/.test(e.key)) { const i = (parseInt(e.key, 10) + 9) % 10; if (i < n) this.src = i; }
+      else if (e.key === "ArrowRight") this.src = (this.src + 1) % n;
+      else if (e.key === "ArrowLeft") this.src = (this.src + n - 1) % n;
+      else if (e.key === "ArrowDown") this.want = this.layerIds[(li + 1) % L];
+      else if (e.key === "ArrowUp") this.want = this.layerIds[(li + L - 1) % L];
+      else if (e.key === "+" || e.key === "=") { this.zoomBy(1.5); e.preventDefault(); return; }
+      else if (e.key === "-") { this.zoomBy(1 / 1.5); e.preventDefault(); return; }
+      else if (e.key === "f") { this.fit(); return; }
+      else return;
+      e.preventDefault();
+      this.show();
+    }
+    current() {                                   // the wanted layer of this source, else its image
+      const s = this.sources[this.src], ls = this.c.layers;
+      let i = ls.findIndex(l => l.source === s && l.layer === this.want);
+      if (i < 0) i = ls.findIndex(l => l.source === s && l.layer === "image");
+      return i < 0 ? ls.findIndex(l => l.source === s) : i;
+    }
+    async urls() {
+      if (this.c.missing) throw new Error("images missing: " + this.c.script);
+      await loadScript(this.c.script);
+      const u = (window.STUDY_VIEWER_DATA || {})[this.c.key];
+      if (!u || u.length !== this.c.layers.length) throw new Error("no images for " + this.c.key + " in " + this.c.script);
+      return u;
+    }
+    async decode(i) {
+      if (!this.decoded.has(i)) {
+        this.decoded.set(i, this.urls().then(u => decodePng(u[i], this.c.layers[i].channels)));
+      }
+      return this.decoded.get(i);
+    }
+    async decodeAll() { return Promise.all(this.c.layers.map((_, i) => this.decode(i))); }
+    updateButtons() {
+      const s = this.sources[this.src];
+      this.srcButtons.forEach((b, i) => b.classList.toggle("on", i === this.src));
+      this.layerButtons.forEach((b, k) => {
+        const l = this.layerIds[k];
+        b.classList.toggle("on", l === this.want);
+        b.disabled = !this.c.layers.some(x => x.source === s && x.layer === l) && l !== "image";
+      });
+      this.expLabel.textContent = (this.exposure >= 0 ? "+" : "") + this.exposure.toFixed(2) + " EV";
+    }
+    async show() {
+      this.updateButtons();
+      const i = this.current(), L = this.c.layers[i];
+      this.shownLabel.textContent = L.source + " — " + (L.display.title || LAYER_NAMES[L.layer] || L.layer) +
+        (L.layer !== this.want ? "  (no " + (LAYER_NAMES[this.want] || this.want) + " for it)" : "");
+      this.links.innerHTML = "";
+      this.readout.textContent = "";                        // the value under the cursor: of the image shown
+      const a = document.createElement(L.have ? "a" : "span");
+      a.textContent = L.have ? "EXR: " + L.exr : "EXR not in this copy (" + L.exr + "; bash scripts/reproduce.sh)";
+      if (L.have) a.href = encodeURI(L.exr);
+      this.links.appendChild(a);
+      try {
+        const d = await this.decode(i);
+        if (this.current() !== i) return;                   // switched again meanwhile
+        this.shownIndex = i; this.img = d;
+        if (this.zoom === null) this.fit(false);
+        this.render();
+      } catch (err) {
+        this.msg.textContent = String(err.message || err);
+      }
+    }
+    render() {                                    // the decoded layer → display pixels (crop size) → canvas
+      const d = this.img;
+      if (!d) return;
+      this.updateButtons();
+      const disp = this.c.layers[this.shownIndex].display, n = d.w * d.h;
+      const px = new Uint8ClampedArray(n * 4), k = Math.pow(2, this.exposure);
+      const lut = LUTS[disp.cmap];
+      const lo = disp.type === "log" ? Math.log10(disp.lo) : disp.lo, hi = disp.type === "log" ? Math.log10(disp.hi) : disp.hi;
+      const cls = (disp.colors || []).map(h => [1, 3, 5].map(j => parseInt(h.slice(j, j + 2), 16)));
+      for (let p = 0; p < n; p++) {
+        const v = d.data[p * d.channels];
+        if (Number.isNaN(v)) { px[p * 4 + 3] = 0; continue; }
+        let rgb;
+        if (disp.type === "hdr") {
+          rgb = [0, 1, 2].map(c => 255 * srgb(Math.min(1, Math.max(0, d.data[p * d.channels + Math.min(c, d.channels - 1)] * k))));
+        } else if (disp.type === "classes") {
+          rgb = cls[Math.max(0, Math.min(cls.length - 1, Math.round(v)))];
+        } else {
+          const x = disp.type === "log" ? Math.log10(Math.max(v, 1e-30)) : v;
+          rgb = lut[Math.max(0, Math.min(255, Math.round(255 * (x - lo) / (hi - lo))))];
+        }
+        px[p * 4] = rgb[0]; px[p * 4 + 1] = rgb[1]; px[p * 4 + 2] = rgb[2]; px[p * 4 + 3] = 255;
+      }
+      this.buf = this.buf && this.buf.width === d.w && this.buf.height === d.h ? this.buf : document.createElement("canvas");
+      this.buf.width = d.w; this.buf.height = d.h;
+      this.buf.getContext("2d").putImageData(new ImageData(px, d.w, d.h), 0, 0);
+      this.legendFor(disp);
+      this.draw();
+    }
+    legendFor(disp) {
+      const g = this.legend;
+      g.innerHTML = "";
+      if (disp.type === "hdr") { g.textContent = "linear radiance × 2^" + this.exposure + ", clipped at 1, sRGB"; return; }
+      if (disp.type === "classes") {
+        disp.names.forEach((nm, i) => { const s = document.createElement("span"); s.innerHTML = '<span class="sw"></span>';
+          s.firstChild.style.background = disp.colors[i]; s.appendChild(document.createTextNode(nm)); g.appendChild(s); });
+        return;
+      }
+      const bar = document.createElement("canvas"), lut = LUTS[disp.cmap];
+      bar.width = 256; bar.height = 1;
+      const im = new ImageData(256, 1);
+      lut.forEach((c, i) => { im.data.set([c[0], c[1], c[2], 255], i * 4); });
+      bar.getContext("2d").putImageData(im, 0, 0);
+      const t = s => document.createTextNode(s);
+      g.append(t(String(disp.lo)), bar, t(String(Number(disp.hi.toPrecision(3))) + " " + (disp.unit || "") +
+               (disp.type === "log" ? " (log)" : "")));
+    }
+    fit(redraw = true) {
+      const [, , h, w] = this.c.crop;
+      this.zoom = Math.min(SIZE / w, SIZE / h);
+      this.pan = [(SIZE - w * this.zoom) / 2, (SIZE - h * this.zoom) / 2];
+      if (redraw) this.draw();
+    }
+    zoomBy(f, cx = SIZE / 2, cy = SIZE / 2) {
+      if (this.zoom === null) this.fit(false);
+      const z = Math.max(0.25, Math.min(64, this.zoom * f)), r = z / this.zoom;
+      this.pan = [cx - (cx - this.pan[0]) * r, cy - (cy - this.pan[1]) * r];
+      this.zoom = z;
+      this.draw();
+    }
+    draw() {
+      const g = this.canvas.getContext("2d");
+      g.setTransform(1, 0, 0, 1, 0, 0);
+      g.clearRect(0, 0, SIZE, SIZE);
+      if (!this.buf) return;
+      g.imageSmoothingEnabled = false;
+      g.drawImage(this.buf, this.pan[0], this.pan[1], this.buf.width * this.zoom, this.buf.height * this.zoom);
+    }
+    read(cx, cy) {
+      const d = this.img;
+      if (!d) return;
+      const x = Math.floor((cx - this.pan[0]) / this.zoom), y = Math.floor((cy - this.pan[1]) / this.zoom);
+      if (x < 0 || y < 0 || x >= d.w || y >= d.h) { this.readout.textContent = ""; return; }
+      const v = Array.from(d.data.slice((y * d.w + x) * d.channels, (y * d.w + x + 1) * d.channels));
+      const disp = this.c.layers[this.shownIndex].display;
+      const txt = Number.isNaN(v[0]) ? "–" : disp.type === "classes" ? disp.names[Math.round(v[0])] :
+        v.map(a => a.toPrecision(4)).join(" ") + (disp.unit ? " " + disp.unit : "");
+      this.readout.textContent = "pixel (" + (x + this.c.crop[1]) + ", " + (y + this.c.crop[0]) + "): " + txt;
+    }
+    valueAt(i, x, y) {                            // for tests: decoded value of layer i at crop pixel (x, y)
+      return this.decode(i).then(d => Array.from(d.data.slice((y * d.w + x) * d.channels, (y * d.w + x + 1) * d.channels)));
+    }
+  }
+
+  const viewers = [];
+  document.querySelectorAll(".viewer").forEach(el => {
+    const fig = el.dataset.fig, c = MANIFEST[fig].cases[parseInt(el.dataset.case, 10)];
+    const v = new Viewer(el, fig, c);
+    viewers.push(v);
+    el.addEventListener("mousedown", () => { viewers.forEach(o => o.el.classList.toggle("active", o === v)); });
+  });
+  if ("IntersectionObserver" in window) {
+    const io = new IntersectionObserver(es => es.forEach(e => {
+      if (e.isIntersecting) { io.unobserve(e.target); viewers.find(v => v.el === e.target).show(); }
+    }), {rootMargin: "300px"});
+    viewers.forEach(v => io.observe(v.el));
+  } else {
+    viewers.forEach(v => v.show());
+  }
+  window.studyViewers = viewers;
+  // For tests and for checking a copy of the report: decode every image of every viewer; lists what failed.
+  window.studyCheckViewers = async () => {
+    const res = {viewers: viewers.length, layers: 0, failed: []};
+    for (const v of viewers) {
+      for (let i = 0; i < v.c.layers.length; i++) {
+        try { const d = await v.decode(i); if (d.w > 0 && d.h > 0) res.layers++; else res.failed.push(v.c.key + " #" + i); }
+        catch (err) { res.failed.push(v.c.key + " #" + i + ": " + (err.message || err)); }
+      }
+    }
+    return res;
+  };
+})();

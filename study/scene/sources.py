@@ -1,0 +1,139 @@
+"""Where the environment comes from: the built-in box room, a mesh file, or a Mitsuba scene (the ``[environment]``
+table of a scene).
+
+=================  ============================================================================================
+``type``           the environment is …
+=================  ============================================================================================
+``"box"``          the axis-aligned ``[room]`` with its ``[[columns]]``, procedurally textured, lit by ``[light]``
+                   (the default: the paper's scenes)
+``"mesh"``         the triangles of ``file`` (OBJ, PLY, GLB, STL, … through trimesh), moved by ``scale``,
+                   ``rotation`` (degrees about x, y, z) and ``translate``; each part keeps its texture, material
+                   colour or vertex colours where the file has them, else ``color``; lit by ``[light]``
+``"mitsuba"``      a Mitsuba 3 scene: ``file`` (XML), ``builtin = "cornell_box"`` (Mitsuba's own
+                   ``mitsuba.cornell_box()``) or, from Python, ``scene`` (a scene dict); its meshes, BSDFs and
+                   emitters (area lights included) are used as they are, ``[light]`` is ignored; shapes that are
+                   not triangle meshes (an analytic ``sphere``, ``disk``, …) are refused, naming the shape
+=================  ============================================================================================
+
+A relative ``file`` is resolved against the directory of the scene file that names it (the validation context's
+``"base"``; the working directory otherwise) and stored absolute. Cache keys hash the file's bytes, not its path
+(:func:`key_fields`).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Annotated, Any, Dict, Literal, Optional, Union
+
+from pydantic import AliasChoices, BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+from pydantic_core import PydanticCustomError
+
+Vec3 = tuple[float, float, float]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+def resolve(v: Any, info: ValidationInfo) -> Any:
+    """A ``file`` field: absolute, resolved against the scene file's directory; it must exist."""
+    if v is None or not isinstance(v, (str, Path)):
+        return v
+    p = Path(v).expanduser()
+    if not p.is_absolute():
+        base = (info.context or {}).get("base") if info.context else None
+        p = Path(base or ".") / p
+    p = p.resolve()
+    if not p.is_file():
+        raise PydanticCustomError("file", "no such file: {path}", {"path": str(p)})
+    return str(p)
+
+
+class BoxEnv(_Strict):
+    type: Literal["box"] = "box"
+
+
+class MeshEnv(_Strict):
+    type: Literal["mesh"]
+    file: str                                            # OBJ / PLY / GLB / STL / OFF, read by trimesh
+    scale: Annotated[float, Field(gt=0)] = 1.0           # applied first
+    rotation: Vec3 = (0.0, 0.0, 0.0)                     # then Euler angles x, y, z in degrees
+    translate: Vec3 = (0.0, 0.0, 0.0)                    # then moved
+    color: tuple[Annotated[float, Field(ge=0, le=1)], ...] = Field((0.6, 0.6, 0.6), min_length=3, max_length=3)
+    #   linear RGB albedo of parts without a texture or colour of their own
+
+    @field_validator("file", mode="before")
+    @classmethod
+    def _file(cls, v, info: ValidationInfo):
+        return resolve(v, info)
+
+
+class MitsubaEnv(_Strict):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, arbitrary_types_allowed=True)
+    type: Literal["mitsuba"]
+    file: Optional[str] = None                           # a Mitsuba XML scene
+    builtin: Optional[Literal["cornell_box"]] = None     # Mitsuba's own test scenes
+    scene: Optional[Dict[str, Any]] = Field(None, validation_alias=AliasChoices("scene", "dict"))
+    #   a scene dict (Python API; also accepted as ``dict``)
+
+    @field_validator("file", mode="before")
+    @classmethod
+    def _file(cls, v, info: ValidationInfo):
+        return resolve(v, info)
+
+    @model_validator(mode="after")
+    def _one_source(self):
+        given = [k for k in ("file", "builtin", "scene") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise PydanticCustomError("source", "give exactly one of environment.file (XML), environment.builtin (\"cornell_box\") "
+                             "or environment.scene (a dict; got {given})", {"given": ", ".join(given) or "none"})
+        return self
+
+
+Environment = Annotated[Union[BoxEnv, MeshEnv, MitsubaEnv], Field(discriminator="type")]
+
+
+# ---------------------------------------------------------------------------------------------- content keys
+def file_digest(path: str) -> str:
+    """sha256 of a file's bytes (and of an OBJ's material library and textures beside it: they change it too)."""
+    h = hashlib.sha256(Path(path).read_bytes())
+    p = Path(path)
+    if p.suffix.lower() == ".obj":                       # materials and textures an OBJ names
+        for line in p.read_text(errors="replace").splitlines():
+            if line.startswith("mtllib "):
+                mtl = p.parent / line.split(None, 1)[1].strip()
+                if mtl.is_file():
+                    h.update(mtl.read_bytes())
+                    for ml in mtl.read_text(errors="replace").splitlines():
+                        if ml.strip().lower().startswith("map_kd "):
+                            tex = mtl.parent / ml.split(None, 1)[1].strip()
+                            if tex.is_file():
+                                h.update(tex.read_bytes())
+    return "sha256:" + h.hexdigest()
+
+
+def _canon(v: Any) -> Any:
+    """A JSON-able stand-in for any value of a scene: files by content, Mitsuba objects by their repr."""
+    if isinstance(v, dict):
+        return {str(k): _canon(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_canon(x) for x in v]
+    if isinstance(v, (str, int, float, bool)) or v is None:
+        return v
+    return repr(v)
+
+
+def key_fields(model: BaseModel | dict) -> dict:
+    """``model_dump`` of a scene (or part of one) for content keys: every field called ``file`` replaced by the
+    digest of the file's bytes, Python objects (Mitsuba transforms in a scene dict) by their repr."""
+    data = model.model_dump(mode="python") if isinstance(model, BaseModel) else model
+
+    def walk(v):
+        if isinstance(v, dict):
+            return {k: (file_digest(x) if k == "file" and isinstance(x, str) and Path(x).is_file() else walk(x))
+                    for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [walk(x) for x in v]
+        return v
+    return json.loads(json.dumps(_canon(walk(data)), sort_keys=True))

@@ -1,0 +1,97 @@
+"""``study run`` (one scene, no config file) and shipped configs found from any working directory, through Typer's
+CliRunner: exit codes and one-line messages; the written table holds the numbers the API computes."""
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from study import __version__
+from study.cli import app
+from study.cli.run import parse_sets
+from study.errors import StudyError
+from study.tables import read_csv
+from tests.conftest import scene_toml, small_scene_dict
+
+ROOT = Path(__file__).resolve().parents[1]
+run = CliRunner().invoke
+
+
+def one_line_error(res, *words):
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), res.output
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+
+
+def test_run_prints_and_writes_the_table(tmp_path, monkeypatch):
+    (tmp_path / "tiny.toml").write_text(scene_toml(small_scene_dict()))
+    monkeypatch.chdir(tmp_path)
+    res = run(app, ["run", "tiny.toml", "-m", "classical", "--method", "localized(iterations=3)",
+                    "--set", "render.cube_res=16", "--set", "camera.width=32", "-s", "camera.height=32",
+                    "--set", "camera.eye=[-0.3, 1.7, -1.9]", "--cache", str(tmp_path / "cache")])
+    assert res.exit_code == 0, res.output
+    assert "localized(iterations=3)" in res.output and "camera 32×32, cube 16²" in res.output
+    rows = read_csv(tmp_path / "reports" / "run-tiny" / "table.csv")       # default --out: reports/run-<stem>
+    by = {r["label"]: r for r in rows}
+    assert list(by) == ["oracle_map", "truth_at_hit", "classical", "localized(iterations=3)"]
+    assert by["classical"]["angle_median_deg"] > 1 > by["localized(iterations=3)"]["angle_median_deg"] * 100
+    assert (tmp_path / "reports" / "run-tiny" / "images").is_dir()
+    assert (tmp_path / "reports" / "run-tiny" / "scene.json").read_text().count('"cube_res": 16') == 1
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--set", "object.radius"], ["--set: expected KEY=VALUE", "'object.radius'"]),
+    (["--set", "=3"], ["--set: expected KEY=VALUE"]),
+    (["--set", "object.radius=[1,"], ["--set: the value of object.radius is not a TOML value"]),
+    (["--set", "object.radiu=0.3"], ["room.toml: object.radiu: unknown scene key"]),
+    (["--set", "object.radius=-1"], ["room.toml: object.radius: Input should be greater than 0"]),
+    (["--set", "object.shape=cube"], ["object.shape: Input should be 'mesh', 'sphere', 'torus', 'knot' or 'blob'"]),
+    (["-m", "nope"], ["--method[0]: unknown method 'nope'; allowed: classical"]),
+    (["-m", "classical", "-m", "localized(iteration=3)"], ["--method[1]: iteration: unknown parameter"]),
+])
+def test_run_bad_input_is_one_line_exit_2(tmp_path, args, words):
+    res = run(app, ["run", str(ROOT / "scenes" / "room.toml"), *args, "--out", str(tmp_path / "out")])
+    assert res.exit_code == 2, res.output
+    one_line_error(res, *words)
+    assert not (tmp_path / "out").exists()
+
+
+def test_run_missing_scene(tmp_path):
+    res = run(app, ["run", str(tmp_path / "none.toml")])
+    assert res.exit_code == 2
+    one_line_error(res, "none.toml: scene source not found")
+
+
+def test_parse_sets_reads_toml_values():
+    assert parse_sets(["object.radius=0.3", "camera.eye=[0, 1, 2]", "object.shape=torus", "render.seed = 3",
+                       'object.file="a b.obj"', "object.material={ type = 'mirror' }"]) == {
+        "object.radius": 0.3, "camera.eye": [0, 1, 2], "object.shape": "torus", "render.seed": 3,
+        "object.file": "a b.obj", "object.material": {"type": "mirror"}}
+    with pytest.raises(StudyError, match="not a TOML value"):
+        parse_sets(["camera.eye=(0, 1, 2)"])
+
+
+def test_version():
+    res = run(app, ["--version"])
+    assert res.exit_code == 0 and res.output.strip() == f"study {__version__}"
+
+
+@pytest.mark.parametrize("name", ["fig4", "fig6"])
+def test_shipped_figure_configs_are_found_from_any_directory(tmp_path, monkeypatch, name):
+    """From another directory the shipped config and the scene it names (relative to the config) are read: the
+    figure gets as far as the resource guard, which names the shipped config (nothing is rendered)."""
+    monkeypatch.chdir(tmp_path)
+    res = run(app, ["--max-minutes", "0.0001", "figure", name, "--cache", str(tmp_path / "cache")])
+    assert res.exit_code == 2, res.output
+    one_line_error(res, str(ROOT / "configs" / f"{name}.toml"), "--max-minutes")
+    assert not (tmp_path / "reports").exists()
+
+
+def test_a_local_config_still_wins(tmp_path, monkeypatch):
+    """A relative --config that exists under the working directory is that file, not the shipped one."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "configs").mkdir()
+    (tmp_path / "configs" / "fig4.toml").write_text('scene = "nowhere.toml"\npositions = [[0.0, 1.5, 0.0]]\n')
+    res = run(app, ["figure", "fig4", "--config", "configs/fig4.toml"])
+    assert res.exit_code == 2
+    one_line_error(res, "nowhere.toml", "scene file not found")
