@@ -14,7 +14,7 @@ from study.bench.run import BenchOptions, check_options, run_bench
 from study.caustics.figure import fig8
 from study.cli.app import FIGURES, app, console, err_console, guarded
 from study.errors import StudyError
-from study.harness.config import load_figure_config
+from study.harness.config import load_figure_config, shipped
 from study.harness.runner import prepare_sweep, run_sweep
 from study.io import locked
 from study.outputs.check import run_check
@@ -107,7 +107,7 @@ def check(config: Path = typer.Option(Path("configs/check.toml"), help="check fi
           cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders")):
     """CI regression: run a small fixed sweep and compare every metric with the committed baseline."""
     with console.status("check: running the check sweep…"):
-        fails, lines = run_check(config, update=update, cache=cache, backend=backend)
+        fails, lines = run_check(shipped(config), update=update, cache=cache, backend=backend)
     for line in lines:
         console.print(line, highlight=False)
     if fails:
@@ -122,9 +122,10 @@ def check(config: Path = typer.Option(Path("configs/check.toml"), help="check fi
 @app.command()
 @guarded()
 def report(reports: Path = typer.Option(Path("reports"), help="directory holding the figures and sweeps")):
-    """Build reports/index.md from the results tables: figures, tables, the paper's claims, versions."""
+    """Build reports/index.md and reports/index.html (tables, image viewers) from the results tables: figures,
+    tables, the paper's claims, versions."""
     path = build_report(reports)
-    console.print(f"report: wrote {path}", highlight=False)
+    console.print(f"report: wrote {path} and {path.with_suffix('.html')}", highlight=False)
 
 
 @app.command()
@@ -186,7 +187,7 @@ def caustics_sweep(config: Path = typer.Option(Path("configs/caustics_sweep.toml
                    backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where caustic maps are built"),
                    cache: Path = typer.Option(Path(".cache"), help="cache directory")):
     """Figure 8 plus the caustic-map sweep (resolution × iterations × method): CSV + PNG under reports/fig8/."""
-    _caustics(config, out, backend, cache, sweep=True)
+    _caustics(shipped(config), out, backend, cache, sweep=True)
 
 
 @app.command("methods")
