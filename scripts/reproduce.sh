@@ -8,9 +8,9 @@ S=.venv/bin/study
 $S figure fig4
 $S figure fig5
 $S figure fig6
-$S figure fig_probes                              # screen-space and multi-probe tracing beside the paper's
+$S figure fig_probes                            # screen-space and multi-probe tracing beside the paper's
 $S caustics-sweep
-$S animate                                      # the sphere in motion → reports/animation/
+$S animate                                       # the sphere in motion → reports/animation/
 $S sweep configs/sweep.toml --jobs 2
 for scene in cornell lroom atrium; do          # scenes nobody here wrote: Mitsuba's Cornell box, two mesh rooms
   $S figure fig_$scene

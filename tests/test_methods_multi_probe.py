@@ -1,7 +1,7 @@
 """multi_probe: distance probes at several points (Embree distances) on the small room with a column taller than o."""
 import numpy as np
 import pytest
-from conftest import small_scene_dict
+from conftest import BACKENDS, small_scene_dict
 
 from study import backend as backends
 from study import methods
@@ -126,3 +126,22 @@ def test_numpy_and_llvm_agree(column):
     assert np.mean(v0 == v1) >= 0.99 and abs(c0 - c1) < 2
     both = v0 & v1
     assert np.mean(np.linalg.norm(s0[both] - s1[both], axis=1) < 1e-3) >= 0.98
+
+
+@pytest.mark.parametrize("name", BACKENDS)
+def test_dropped_rays_are_no_hit_not_a_crash(column, name):
+    """Rays a dielectric dropped (NaN direction, e.g. after too many internal reflections) are "no hit" and the
+    other rays' answers do not change: no lookup sees a NaN coordinate (numpy once crashed on one, in the Cornell
+    box's glass case)."""
+    B = backends.get(name)
+    s, o, tracer, maps = column
+    m, env = _env(B, o, maps, [ABOVE, FAR])
+    x, R, _ = _top_rays(tracer, o, np.array(ABOVE), n=64)
+    R_bad = R.copy()
+    R_bad[::4] = np.nan
+    good, _, _ = _trace(m, B, env, x, R)
+    shown, _, valid = _trace(m, B, env, x, R_bad)
+    assert not valid[::4].any() and np.isnan(shown[::4]).all()
+    keep = np.ones(len(x), bool)
+    keep[::4] = False
+    np.testing.assert_allclose(shown[keep], good[keep], rtol=1e-6, atol=1e-6)

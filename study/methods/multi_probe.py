@@ -85,6 +85,11 @@ class _Single:
         return B.sample(self.env.dist, face, uc, wc)[0]
 
 
+def _finite(B, v: V3) -> V3:
+    """``v`` with non-finite components replaced by 1 (rays already inactive: no lookup may see a NaN)."""
+    return V3(*(B.select(B.isfinite(c), c, 1.0) for c in (v.x, v.y, v.z)))
+
+
 def _sel(B, m, a: V3, b: V3) -> V3:
     return V3(B.select(m, a.x, b.x), B.select(m, a.y, b.y), B.select(m, a.z, b.z))
 
@@ -126,6 +131,7 @@ class MultiProbe(Method):
         untried = [~never for _ in range(N)]
         k = self._choose(B, P, x, untried)
         active = (k >= 0.0) & B.isfinite(B.length(R))
+        R, x = _finite(B, R), _finite(B, x)            # dropped rays (NaN) stay inactive; lookups see no NaN
         untried = [u & (k != float(i)) for i, u in enumerate(untried)]
         spent = zero + float(N)
         d0 = zero                                      # ray parameter where the current segment starts
@@ -141,7 +147,7 @@ class MultiProbe(Method):
             kk = k
 
             def g(t, xs=xs, a=a, kk=kk):
-                pt = xs * (1.0 - t) + R * (a * t)
+                pt = _finite(B, xs * (1.0 - t) + R * (a * t))    # a secant point may be NaN (g_hi = g_lo)
                 return B.length(pt) - (1.0 - t) * P.distance(kk, pt)
 
             g0 = g(zero)
@@ -149,11 +155,13 @@ class MultiProbe(Method):
                                 default=(zero, g0, zero + 1.0, a))
             br = refine(B, g, br, p.secant_steps, rising=True)
             t = secant_point(br)
-            l = (xs * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)      # the crossing, from c_k
+            t_ok = B.isfinite(t)
+            t = B.select(t_ok, t, zero)
+            l = _finite(B, (xs * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7))   # the crossing, from c_k
             # --------------------------------------------------------- HIT, UNKNOWN or MISS
             r = B.length(l)
             tol = p.thickness + (r * (p.slack / res) if res else zero)
-            cross = br.found & B.isfinite(t)
+            cross = br.found & t_ok
             w = l / B.maximum(r, 1e-9)                                        # texels either side along the arc
             tan = R - w * w.dot(R)
             tan = tan * ((2.0 / max(res, 1)) / B.maximum(B.length(tan), 1e-9))
