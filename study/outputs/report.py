@@ -25,13 +25,13 @@ from study.tables import REFERENCE_ROWS, fmt_number
 
 #: Outcome classes first (study.measure.outcomes): the angle alone is blind to a wrong depth on the same ray.
 OUTCOMES = ["wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95"]
-SUMMARY = [*OUTCOMES, "angle_median_deg", "angle_p95_deg", "rmse_oracle", "rmse_truth_debiased",
+SUMMARY = [*OUTCOMES, "wrong_fraction_offscreen", "angle_median_deg", "angle_p95_deg", "rmse_oracle", "rmse_truth_debiased",
            "rmse_mitsuba_debiased", "flip_truth", "occluded_fraction", "lookups_per_ray"]
 #: The error decomposition (study.measure.truth): the parts add up in quadrature to dec_total.
 DECOMPOSITION = ["dec_total", "dec_localization", "dec_representation", "dec_noise", "dec_ratio",
                  "rmse_truth", "rmse_truth_debiased", "truth_noise_rmse", "rmse_mitsuba", "rmse_mitsuba_debiased",
                  "mitsuba_noise_rmse"]
-COMPARISON = [*OUTCOMES, "angle_p95_deg", "rmse_oracle", "rmse_truth_debiased", "rmse_mitsuba_debiased",
+COMPARISON = [*OUTCOMES, "wrong_fraction_offscreen", "angle_p95_deg", "rmse_oracle", "rmse_truth_debiased", "rmse_mitsuba_debiased",
               "flip_truth", "valid_fraction", "lookups_per_ray"]
 CAUSTIC_COLS = ["caustic_res", "label", "photons", "lm_rmse", "lm_relmse", "img_rmse_mitsuba", "img_sum_ratio_mitsuba",
                 "mitsuba_noise_rmse", "photon_angle_p95_deg", "seconds_per_map"]
