@@ -95,11 +95,12 @@ def image_grid(cases: list[CaseOutput], labels: list[str], path: Path | None, *,
         for ax in axes[r]:
             ax.set_xticks([]); ax.set_yticks([])
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout(rect=(0, legend_h / height, 0.93, 1))
+    w = fig.get_figwidth()                       # the colour bar and its label: 1.1 in on the right, any width
+    fig.tight_layout(rect=(0, legend_h / height, 1 - 1.1 / w, 1))
     if outcome_panel:
         _outcome_legend(fig, axes[-1, 2 * len(labels) + 1], axes[-1, 2 * len(labels) + n_out])
     if hm is not None:
-        cax = fig.add_axes((0.94, 0.15, 0.012, 0.7))
+        cax = fig.add_axes((1 - 0.95 / w, 0.15, 0.14 / w, 0.7))
         fig.colorbar(hm, cax=cax, label="angular error (deg)")
     if path is None:
         return png_bytes(fig, dpi=110)
