@@ -269,7 +269,10 @@ def evaluate(scene: str | Path | dict | Scene, methods: Any = "all", *, backend:
     ms = method_list(methods)
     budget.check_backend(backend)
     budget.check([("run", scene)], ms, source="evaluate")
-    case = run_case(scene, ms, backend=backend, cache=Cache(cache) if cache else None, case_id="run")
+    from study import runtime
+    with runtime.using_render_device("cuda" if backend == "cuda" else None):   # renders and exact hits too, as
+        case = run_case(scene, ms, backend=backend, cache=Cache(cache) if cache else None,  # the CLI does
+                        case_id="run")
     mask = np.asarray(case.mask, bool)
     images = {"oracle_map": case.oracle, "truth_at_hit": case.truth, "mitsuba": case.mitsuba, **case.images}
     flips = {"oracle_map": flip_map(case.oracle, case.truth), **case.flip_maps}

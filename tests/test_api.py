@@ -177,3 +177,25 @@ def test_load_scene_from_mesh_xml_and_mitsuba_dict(tmp_path):
     with pytest.raises(StudyError, match=r"flat.obj: environment: .*reference.point") as e:
         study.load_scene(tmp_path / "flat.obj")              # one triangle: nothing encloses a reference point
     assert "\n" not in str(e.value)
+
+
+def test_cuda_backend_renders_on_the_gpu_too(monkeypatch):
+    """``evaluate(backend="cuda")`` switches Mitsuba and the exact hits to the GPU for the call (as the CLI does)
+    and restores the setting after it; here the case itself is replaced (no GPU on this machine)."""
+    from study import runtime
+    from study.harness import budget
+    from study.measure import case as case_mod
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def fake_run_case(*a, **k):
+        seen.append(runtime.render_device())
+        raise Stop
+    monkeypatch.setattr(budget, "check_backend", lambda b: None)
+    monkeypatch.setattr(case_mod, "run_case", fake_run_case)
+    before = runtime.render_device()
+    with pytest.raises(Stop):
+        study.evaluate(small_scene_dict(), ["classical"], backend="cuda", cache=None)
+    assert seen == ["cuda"] and runtime.render_device() == before
