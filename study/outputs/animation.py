@@ -33,10 +33,10 @@ from study.harness import budget
 from study.harness.config import MethodSpecs, configured_scene, expand_methods
 from study.harness.runner import metadata
 from study.io import atomic_savefig, output_set
-from study.measure.case import CaseOutput, run_case
+from study.measure.case import CaseOutput
 from study.measure.metrics import to_ldr
 from study.measure.outcomes import NAMES as OUTCOME_NAMES
-from study.outputs.figures import OUTCOME_COLORS
+from study.outputs.figures import OUTCOME_COLORS, run_config_case
 from study.scene import Vec3
 from study.tables import to_csv
 from study.validation import validate_file
@@ -169,12 +169,8 @@ def animate(config: str | Path, out: str | Path, *, backend: str = "numpy", cach
     t0 = time.perf_counter()
     with output_set(out, ["motion.gif", "motion.mp4", "motion.png", "frames.csv", "metadata.json"]) as tmp:
         for i, (case_id, sc) in enumerate(scenes):
-            try:
-                case = run_case(sc, methods, backend=backend, cache=store, case_id=case_id)
-            except StudyError as err:                # which frame of the config refused
-                if err.file:
-                    raise
-                raise type(err)(err.detail, file=f"{config} path (frame {i})", key=err.key, code=err.code) from None
+            case = run_config_case(sc, methods, backend=backend, cache=store, case_id=case_id,
+                                   where=f"{config} path (frame {i})")
             for r in case.rows:
                 rows.append({"frame": i, "path_m": float(travelled[i]), **r})
             cases.append(case)

@@ -108,6 +108,17 @@ def image_grid(cases: list[CaseOutput], labels: list[str], path: Path | None, *,
     return None
 
 
+def run_config_case(scene, methods, *, backend: str, cache, case_id: str, where: str):
+    """:func:`run_case` for one row of a config; a refusal that names no file is blamed on ``where`` (the config
+    and the row, e.g. ``configs/fig4.toml positions[2]``)."""
+    try:
+        return run_case(scene, methods, backend=backend, cache=cache, case_id=case_id)
+    except StudyError as err:
+        if err.file:
+            raise
+        raise type(err)(err.detail, file=where, key=err.key, code=err.code) from None
+
+
 def figure_positions(config: str | Path, out: str | Path, *, name: str, backend: str = "numpy",
                      cache: str | Path | None = ".cache", progress=None) -> list[dict]:
     """Run every position (or case) of a figure config with every method; write ``<out>/<name>.png`` and
@@ -130,12 +141,8 @@ def figure_positions(config: str | Path, out: str | Path, *, name: str, backend:
         cases, rows = [], []
         for i, (case_id, sc) in enumerate(scenes):
             t0 = time.perf_counter()
-            try:
-                case = run_case(sc, methods, backend=backend, cache=store, case_id=case_id)
-            except StudyError as err:                # which row of the config refused
-                if err.file:
-                    raise
-                raise type(err)(err.detail, file=f"{config} {what}[{i}]", key=err.key, code=err.code) from None
+            case = run_config_case(sc, methods, backend=backend, cache=store, case_id=case_id,
+                                   where=f"{config} {what}[{i}]")
             for r in case.rows:
                 r["case_seconds"] = time.perf_counter() - t0
             cases.append(case)
