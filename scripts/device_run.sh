@@ -11,7 +11,9 @@
 #             1 GPU on a 104-case subset, then every visible GPU on all 512 cases; cases/s → dask/
 #
 # Wheels: the machine has Python 3.12 without mitsuba/drjit/embreex/pydantic/dask; cp312 wheels are installed
-# from $WHEELS/a and $WHEELS/b (default .devcarry; how to make them: ../shared/field-notes.md, "Device (GPU) runs").
+# from $WHEELS/a and $WHEELS/b (default .devcarry; how to make them: ../shared/field-notes.md, "Device (GPU) runs"),
+# or unpacked from $WHEELS/site.tar.xz (the same wheels unzipped into one folder and tarred with xz: 30 MB, so that
+# they travel beside the repository within the 64 MiB limit).
 # Everything is written under $OUT (default ./out-device): one log per part and one results-<part>.tgz each.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -19,8 +21,12 @@ OUT=${OUT:-$PWD/out-device}; mkdir -p "$OUT"
 WHEELS=${WHEELS:-.devcarry}
 export PYTHONUNBUFFERED=1 NCCL_NVLS_ENABLE=0
 if ! python3 -c "import mitsuba, drjit, embreex, pydantic" 2>/dev/null; then
-  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site \
-    "$WHEELS"/a/*.whl "$WHEELS"/b/*.whl || exit 3
+  if [ -f "$WHEELS/site.tar.xz" ]; then     # the wheels unpacked and xz-compressed: 30 MB instead of 53 MB
+    mkdir -p /tmp/site && tar xJf "$WHEELS/site.tar.xz" -C /tmp/site || exit 3
+  else
+    python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site \
+      "$WHEELS"/a/*.whl "$WHEELS"/b/*.whl || exit 3
+  fi
   export PYTHONPATH=/tmp/site:$PWD
 fi
 export PYTHONPATH=${PYTHONPATH:-}:$PWD
@@ -49,8 +55,7 @@ for part in $parts; do
     done
     python3 -m cProfile -o "$OUT/fig4-warm.prof" -m study.cli figure fig4 --backend cuda --cache "$W/cache" \
       --out "$W/fig4-warm" > /dev/null 2>&1                   # where a warm run's time goes (not timed)
-    find "$W/studies" -name "*.png" -size +2M -delete
-    tar czf "$OUT/results-figures.tgz" -C "$W" studies
+    tar czf "$OUT/results-figures.tgz" -C "$W" --exclude=exr --exclude=viewer --exclude="*.png" studies
     timed sweep timeout "${SWEEP_LIMIT:-300}" $S sweep configs/sweep.toml --backend cuda --cache "$W/cache" \
       --out "$W/sweep" --jobs "${SWEEP_JOBS:-8}" --no-plots 2>&1 | tail -5
     tar czf "$OUT/results-sweep.tgz" -C "$W" --exclude=cases sweep ;;
@@ -72,6 +77,26 @@ for part in $parts; do
     CUDA_VISIBLE_DEVICES=0 timed single timeout "${LIMIT_S:-200}" $S sweep configs/sweep_large_subset.toml \
       --backend cuda --cache "$W/scache" --out "$W/single" --no-plots 2>&1 | tail -2
     tar czf "$OUT/results-single.tgz" -C "$W" --exclude=cases single ;;
+  profile)  # where one heavy case of the main sweep spends its time on the GPU (cube 512², big columns): a cold
+            # and a warm run under cProfile in one process (scripts/profile_case.py), after a first case that
+            # compiles the kernels
+    export HOME=$W/home-prof; mkdir -p "$HOME"
+    timed profile python3 scripts/profile_case.py configs/sweep.toml cuda "${PROFILE_CASE:--1}" "$W/pcache" \
+      > "$OUT/profile-case.txt" 2>&1
+    timed profile-fig4 python3 scripts/profile_case.py configs/fig4.toml cuda fig4 "$W/pcache4" \
+      > "$OUT/profile-fig4.txt" 2>&1 ;;
+  sweep)    # the main sweep alone, cold, each case profiled in its worker (STUDY_PROFILE) → profiles.tgz
+    export HOME=$W/home-sweep; mkdir -p "$HOME"
+    STUDY_PROFILE=$W/profs timed sweep-only timeout "${SWEEP_LIMIT:-300}" $S sweep configs/sweep.toml --backend cuda \
+      --cache "$W/scache" --out "$W/sweep-only" --jobs "${SWEEP_JOBS:-8}" --no-plots 2>&1 | tail -2
+    tar czf "$OUT/profiles.tgz" -C "$W" profs
+    tar czf "$OUT/results-sweep-only.tgz" -C "$W" --exclude=cases sweep-only ;;
+  fig4x3)   # fig4 three times: cold; fresh study cache but Dr.Jit's kernel cache warm (the difference: compiling
+            # kernels); study cache warm too (what is left: metrics, figure, viewer, imports)
+    export HOME=$W/home-x3; mkdir -p "$HOME"
+    timed fig4-cold $S figure fig4 --backend cuda --cache "$W/c1" --out "$W/x3a" > /dev/null 2>&1
+    timed fig4-kernels-warm $S figure fig4 --backend cuda --cache "$W/c2" --out "$W/x3b" > /dev/null 2>&1
+    timed fig4-all-warm $S figure fig4 --backend cuda --cache "$W/c2" --out "$W/x3c" > /dev/null 2>&1 ;;
   *) echo "unknown part $part"; exit 2 ;;
   esac
 done

@@ -51,7 +51,7 @@ class Backend:
     def texture(self, texels: np.ndarray): ...
     def sample(self, tex, face, u, v) -> list: ...
     def eval(self, *arrays) -> None: ...
-    def loop(self, n: int, state: tuple, body) -> tuple: ...
+    def loop(self, n: int, state: tuple, body, *, index: bool = False) -> tuple: ...
     def freeze(self, fn): ...
     def sync(self) -> None: ...
 
@@ -87,10 +87,11 @@ class NumpyBackend(Backend):
     def sync(self): pass
     def freeze(self, fn): return fn
 
-    def loop(self, n, state, body):
-        """``state = body(*state)`` n times (see :meth:`DrJitBackend.loop`)."""
-        for _ in range(n):
-            state = tuple(body(*state))
+    def loop(self, n, state, body, *, index=False):
+        """``state = body(*state)`` n times (``body(i, *state)`` for i = 0..n−1 with ``index``; i a Python int);
+        see :meth:`DrJitBackend.loop`."""
+        for i in range(n):
+            state = tuple(body(i, *state) if index else body(*state))
         return tuple(state)
 
     def texture(self, texels):
@@ -145,12 +146,18 @@ class DrJitBackend(Backend):
     def eval(self, *arrays): self.dr.eval(*arrays)
     def sync(self): self.dr.sync_thread()
 
-    def loop(self, n, state, body):
-        """``state = body(*state)`` n times, as one symbolic loop (``dr.while_loop``) in the kernel."""
+    def loop(self, n, state, body, *, index=False):
+        """``state = body(*state)`` n times, as one symbolic loop (``dr.while_loop``) in the kernel: the body is
+        traced once and must not evaluate. With ``index``, ``body(i, *state)`` with i = 0..n−1 as a Float array
+        (a Python int when the loop is unrolled). ``state`` is a flat tuple of arrays."""
         if n == 0 or not self.symbolic_loops:
-            return NumpyBackend.loop(self, n, state, body)
+            return NumpyBackend.loop(self, n, state, body, index=index)
         i = self.m.UInt32(0)
-        out = self.dr.while_loop((i, *state), lambda i, *s: i < n, lambda i, *s: (i + 1, *body(*s)))
+        if index:
+            step = lambda i, *s: (i + 1, *body(self.m.Float(i), *s))   # noqa: E731
+        else:
+            step = lambda i, *s: (i + 1, *body(*s))   # noqa: E731
+        out = self.dr.while_loop((i, *state), lambda i, *s: i < n, step)
         return tuple(out[1:])
 
     def freeze(self, fn):

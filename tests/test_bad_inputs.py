@@ -171,10 +171,10 @@ def test_corrupted_cached_impostor_is_recomputed_not_trusted(workdir):
     cfg.write_text(FIG.format(**DEFAULT))
     args = ["figure", "fig4", "--config", str(cfg), "--cache", str(workdir / "cache")]
     assert runner.invoke(app, args + ["--out", str(workdir / "a")]).exit_code == 0
-    for exr in (workdir / "cache" / "radiance").glob("*.exr"):
-        data = bytearray(exr.read_bytes())
+    for arr in (workdir / "cache" / "radiance").glob("*.npy"):
+        data = bytearray(arr.read_bytes())
         data[len(data) // 2:] = bytes(len(data) - len(data) // 2)        # zero the second half
-        exr.write_bytes(bytes(data))
+        arr.write_bytes(bytes(data))
     for js in (workdir / "cache" / "distance").glob("*.json"):
         js.write_text("{not json")
     assert runner.invoke(app, args + ["--out", str(workdir / "b")]).exit_code == 0

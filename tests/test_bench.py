@@ -308,3 +308,27 @@ def test_flip_on_the_mask_bounding_box_equals_the_whole_frame():
     y0, x0 = 70 - 30 - 8, 120 - 30 - 8                       # the failing case: too small a margin
     tight = flip_map(test[y0:y0 + 77, x0:x0 + 77], ref[y0:y0 + 77, x0:x0 + 77])
     assert float(tight[mask[y0:y0 + 77, x0:x0 + 77]].mean()) != float(whole[mask].mean())
+
+
+def test_ssim_and_psnr_on_the_mask_equal_the_whole_frame():
+    """SSIM is computed on the mask's bounding box + 8 px and PSNR on the masked pixels (issue 15): the values are
+    those of scikit-image on the whole frame (SSIM to float64 rounding: its box filters are running sums; no
+    margin, inside the 7×7 window's reach, is not), also for a mask touching the frame's edge."""
+    from skimage.metrics import peak_signal_noise_ratio, structural_similarity
+
+    from study.measure.metrics import psnr, ssim, to_ldr
+    rng = np.random.default_rng(5)
+    yy, xx = np.mgrid[:160, :200]
+    ref = rng.uniform(0, 1.2, (160, 200, 3)).astype(np.float32)
+    test = np.clip(ref + rng.normal(0, 0.1, ref.shape), 0, None).astype(np.float32)
+    _, smap = structural_similarity(to_ldr(ref), to_ldr(test), channel_axis=-1, data_range=1.0, full=True)
+    for mask in ((yy - 70) ** 2 + (xx - 120) ** 2 < 30 ** 2, (yy < 20) & (xx > 150)):
+        assert abs(ssim(test, ref, mask=mask) - float(smap.mean(axis=-1)[mask].mean())) < 1e-12
+        want = peak_signal_noise_ratio(to_ldr(ref)[mask], to_ldr(test)[mask], data_range=1.0)
+        assert psnr(test, ref, mask=mask) == want
+    box = (slice(40, 100), slice(90, 150))                 # the failing case: a square mask, cut without margin
+    mask = np.zeros(yy.shape, bool)
+    mask[box] = True
+    _, tight = structural_similarity(to_ldr(ref[box]), to_ldr(test[box]), channel_axis=-1, data_range=1.0, full=True)
+    assert abs(float(tight.mean()) - float(smap.mean(axis=-1)[mask].mean())) > 1e-4
+    assert abs(ssim(test, ref, mask=mask) - float(smap.mean(axis=-1)[mask].mean())) < 1e-12

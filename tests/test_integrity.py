@@ -120,7 +120,7 @@ def test_cache_entry_is_bound_to_its_key_and_code(tmp_path, monkeypatch):
         # the entry copied under the key of "b": checksum fine, stored key wrong → recomputed
         other = content_key("b", code_hash(prod.make))
         shutil.copy(entry, entry.with_name(f"{other}.json"))
-        shutil.copy(entry.with_suffix(".exr"), entry.with_name(f"{other}.exr"))
+        shutil.copy(entry.with_suffix(".npy"), entry.with_name(f"{other}.npy"))
         assert cache.load("k", other) is None
         assert cache.get("k", "b", lambda: make(2), code=prod.make)[0, 0] == 2 and calls == [1, 2]
         # the producing code changes: a new key, recomputed; the old entry is left alone

@@ -76,15 +76,23 @@ def test_cache_recomputes_damaged_entries(tmp_path):
     a = cache.get("k", "key1", make, code=make)
     b = cache.get("k", "key1", make, code=make)
     assert len(calls) == 1 and np.array_equal(a, b)
-    exr = next((tmp_path / "k").glob("*.exr"))
-    data = bytearray(exr.read_bytes())
-    data[-8:] = b"\xff" * 8                                                      # flip the last pixels' bytes
-    exr.write_bytes(bytes(data))
+    arr = next((tmp_path / "k").glob("*.npy"))
+    data = bytearray(arr.read_bytes())
+    data[-8:] = b"\xff" * 8                                                      # flip the last values' bytes
+    arr.write_bytes(bytes(data))
     c = cache.get("k", "key1", make, code=make)
     assert len(calls) == 2 and np.array_equal(c, a)
-    exr.write_bytes(b"")                                                         # truncated to nothing
+    arr.write_bytes(b"")                                                         # truncated to nothing
     cache.get("k", "key1", make, code=make)
     assert len(calls) == 3
+    # an entry of the format before issue 15 (float32 EXR beside the JSON) is read, with the same checks
+    arr.unlink()
+    write_exr(arr.with_suffix(".exr"), a.reshape(-1, 3, 4))
+    d = cache.get("k", "key1", make, code=make)
+    assert len(calls) == 3 and np.array_equal(d, a)
+    write_exr(arr.with_suffix(".exr"), a.reshape(-1, 3, 4) + 1)                  # another array: its checksum fails
+    cache.get("k", "key1", make, code=make)
+    assert len(calls) == 4 and arr.exists()
 
 
 def test_exr_helpers_round_trip(tmp_path):

@@ -55,11 +55,10 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
 
     ``info`` is the scene knowledge methods may use (room, reference point). A method that searches several
     layers gets the impostor itself as each layer (the bench times lookups; texel values do not change their
-    cost) and runs unfrozen: a frozen function cannot see textures kept inside ``env.info``."""
+    cost), so its textures still come in through the frozen function's arguments."""
     env = EnvMap(tex_np, B, info=info)
     if m.layers_needed() > 1:
         env.info["layers"] = [env] * m.layers_needed()
-        frozen = False
     X, RR = B.vec(x), B.vec(R)
     B.eval(X.x, X.y, X.z, RR.x, RR.y, RR.z)
 

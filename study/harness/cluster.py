@@ -31,8 +31,10 @@ def gpu_cluster(gpus: list[str] | None = None, per_gpu: int = 1):
     if not gpus:
         raise EnvironmentProblem("no GPU visible (CUDA_VISIBLE_DEVICES, nvidia-smi): 'local-gpus' needs at least "
                                  "one", key="--dask")
+    share = str(max(1, (os.cpu_count() or 1) // (len(gpus) * max(per_gpu, 1))))   # OpenMP threads (FLIP) each
     workers = {f"gpu{g}-{i}": {"cls": Nanny, "options": {"nthreads": 1, "env": {
-        "CUDA_VISIBLE_DEVICES": g, "STUDY_RENDER_DEVICE": runtime.render_device()}}}
+        "CUDA_VISIBLE_DEVICES": g, "STUDY_RENDER_DEVICE": runtime.render_device(),
+        "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", share)}}}
         for g in gpus for i in range(max(per_gpu, 1))}
     return SpecCluster(scheduler={"cls": Scheduler, "options": {"dashboard_address": None}}, workers=workers)
 

@@ -42,11 +42,17 @@ from study.tables import write_table
 
 
 def _limit_threads(jobs: int) -> None:
-    """Give each of ``jobs`` worker processes its share of the cores (Dr.Jit's and Mitsuba's thread pools).
+    """Give each of ``jobs`` worker processes its share of the cores (Dr.Jit's and Mitsuba's thread pools,
+    Embree's through ``$STUDY_THREADS``, and OpenMP's through ``$OMP_NUM_THREADS`` unless the user set it: FLIP
+    (flip-evaluator) runs on OpenMP, and 8 workers × every core each, spinning, made a sweep's cases 4× slower on
+    a 16-core GPU machine than one worker alone; the variable is read when FLIP is first imported, later).
 
     Never fewer than 2 threads: with a pool of 1 thread, Mitsuba's ``Bitmap.write`` of an EXR deadlocks
     (Mitsuba 3.9.1 / Dr.Jit 1.5.0, seen here)."""
     n = max(2, (os.cpu_count() or 1) // max(jobs, 1))
+    os.environ["STUDY_THREADS"] = str(n)             # Embree's chunks (study.reference.embree.Tracer)
+    if jobs > 1:
+        os.environ.setdefault("OMP_NUM_THREADS", str(n))
     try:
         import drjit as dr
         dr.set_thread_count(n)
@@ -61,11 +67,26 @@ def _run_one(scene_json: dict, method_specs: list[tuple[str, dict]], backend: st
     _limit_threads(jobs)
     scene = scene_from_dict(scene_json)
     ms = [registry.make(n, **p) for n, p in method_specs]
+    prof_dir = os.environ.get("STUDY_PROFILE")      # a developer's switch: a cProfile of every case, <dir>/<case>.prof
+    prof = None
+    if prof_dir:
+        import cProfile
+        prof = cProfile.Profile()
+        prof.enable()
+    t0 = time.perf_counter()
     try:                                             # a remote worker: renders and exact hits on its GPU too
         with runtime.using_render_device("cuda" if backend == "cuda" else None):
-            return run_case(scene, ms, backend=backend, cache=Cache(cache), case_id=case_id, keep_images=False).rows
+            rows = run_case(scene, ms, backend=backend, cache=Cache(cache), case_id=case_id, keep_images=False).rows
+        for r in rows:
+            r["case_seconds"] = time.perf_counter() - t0   # the case's wall time in its worker
+        return rows
     except StudyError as err:          # which case refused, for the sweep's one line
         raise type(err)(f"{err.detail} (case {case_id})", file=err.file, key=err.key, code=err.code) from None
+    finally:
+        if prof is not None:
+            prof.disable()
+            Path(prof_dir).mkdir(parents=True, exist_ok=True)
+            prof.dump_stats(str(Path(prof_dir) / f"{case_id}.prof"))
 
 
 def _git_commit() -> str:

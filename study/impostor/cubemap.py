@@ -33,6 +33,8 @@ These functions are backend-generic: ``xp`` is a :class:`study.backend.Backend`,
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 #: The distance stored where a texel sees no surface (its square, 1e12, is far inside float32's range).
@@ -51,15 +53,19 @@ FACES = np.array([
 ], dtype=np.float64)
 
 
+@functools.lru_cache(maxsize=8)
 def texel_directions(res: int) -> np.ndarray:
-    """Unit directions through every texel centre: (6, R, R, 3) float64."""
+    """Unit directions through every texel centre: (6, R, R, 3) float64, read-only (one array per resolution,
+    shared by every caller)."""
     c = (np.arange(res) + 0.5) / res * 2 - 1
     s = c[None, :]             # along columns
     t = -c[:, None]            # along rows, downwards
     fwd, right, up = FACES[:, 0], FACES[:, 1], FACES[:, 2]
     d = (fwd[:, None, None, :] + s[None, ..., None] * right[:, None, None, :]
          + t[None, ..., None] * up[:, None, None, :])
-    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    d.flags.writeable = False
+    return d
 
 
 def face_uv(xp, dx, dy, dz):

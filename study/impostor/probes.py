@@ -43,10 +43,12 @@ def probe_points(spec: ProbeSpec, bounds, tracer: Tracer) -> np.ndarray:
     return pts[np.asarray(keep, bool)]
 
 
-def probe_texels(tracer: Tracer, point, res: int, radiance) -> np.ndarray:
+def probe_texels(tracer: Tracer, point, res: int, radiance, dist: np.ndarray | None = None) -> np.ndarray:
     """One probe's texels (6, R, R, 4): RGB = ``radiance`` (a (6, R, R, 3) array, or a function of the (6·R·R, 3)
-    texel-centre surface points), distance from ``point`` (Embree)."""
-    dist = distances_from(tracer, point, res, key="method.points")          # FAR where a texel ray escapes
+    texel-centre surface points), distance from ``point`` (``dist`` when given, else traced by ``tracer``)."""
+    if dist is None:
+        dist = distances_from(tracer, point, res, key="method.points")      # FAR where a texel ray escapes
+    dist = np.asarray(dist, np.float32).reshape(6, res, res)
     if callable(radiance):
         pts = np.asarray(point, float) + cubemap.texel_directions(res).reshape(-1, 3) * dist.reshape(-1, 1)
         radiance = radiance(pts)
@@ -58,7 +60,7 @@ def capture_probes(scene: Scene, spec: ProbeSpec, cache: Cache, texels0: np.ndar
                    tracer: Tracer, bounds=None) -> tuple[np.ndarray, np.ndarray]:
     """Texels (N, 6, R, R, 4) and world centres (N, 3) of the probe set ``spec`` of ``scene``: probe 0 the
     reference impostor (``texels0``), then one probe per :func:`probe_points` (``bounds``: the environment's),
-    its radiance rendered by Mitsuba from there and cached like an impostor taken there."""
+    its radiance rendered by Mitsuba from there and its distances traced, both cached like an impostor taken there."""
     r = scene.render
     pts = probe_points(spec, bounds if bounds is not None else scene.bounds(), tracer)
     maps, centres = [np.asarray(texels0, np.float32)], [np.asarray(scene.reference.point, float)]
@@ -66,7 +68,9 @@ def capture_probes(scene: Scene, spec: ProbeSpec, cache: Cache, texels0: np.ndar
         at = scene.with_updates({"reference.point": [float(c) for c in p]})
         rad = cache.get("radiance", impostor_key(at), lambda at=at: render_cube(at, r.cube_res, r.cube_spp),
                         code=render_cube)
-        maps.append(probe_texels(tracer, p, r.cube_res, rad))
+        dist = cache.get("distance", impostor_key(at),
+                         lambda p=p: distances_from(tracer, p, r.cube_res, key="method.points"), code=distances_from)
+        maps.append(probe_texels(tracer, p, r.cube_res, rad, dist))
         centres.append(p)
     return np.stack(maps), np.stack(centres)
 

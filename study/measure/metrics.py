@@ -2,7 +2,11 @@
 
 Images are linear RGB radiance (H, W, 3). RMSE is taken on linear radiance. PSNR, SSIM and FLIP are taken on
 LDR images: ``to_ldr`` clips linear radiance to [0, 1] (exposure 1) and encodes sRGB; FLIP runs in its "LDR"
-mode on these sRGB images. Image metrics are averaged over the masked pixels only (the object's pixels).
+mode on these sRGB images. Image metrics are averaged over the masked pixels only (the object's pixels), so each is
+computed on what the masked pixels' values depend on and no more (:func:`_crop`): PSNR on the masked pixels, SSIM
+on the mask's bounding box + 8 px (its 7×7 window reaches 3 px), FLIP on the bounding box + 24 px (its filters
+reach < 12 px at 67 ppd). The values are those of the whole frame (FLIP bit for bit, SSIM to float64 rounding,
+tests/test_bench.py), at a fraction of the cost of a sweep's case.
 """
 from __future__ import annotations
 
@@ -40,10 +44,18 @@ def rmse(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
     return float(np.sqrt(np.mean(d * d))) if d.size else np.nan
 
 
+def _crop(mask: np.ndarray, margin: int, *images):
+    """The mask's bounding box grown by ``margin`` pixels (clipped to the frame), cut from mask and images."""
+    ys, xs = np.nonzero(mask)
+    y0, y1 = max(ys.min() - margin, 0), ys.max() + margin + 1
+    x0, x1 = max(xs.min() - margin, 0), xs.max() + margin + 1
+    return [a[y0:y1, x0:x1] for a in (mask, *images)]
+
+
 def psnr(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
     """PSNR (dB) of the LDR images over the masked pixels (scikit-image, data_range 1)."""
     from skimage.metrics import peak_signal_noise_ratio
-    a, b = to_ldr(ref)[mask], to_ldr(test)[mask]
+    a, b = to_ldr(np.asarray(ref)[mask]), to_ldr(np.asarray(test)[mask])
     if a.size == 0:
         return np.nan
     if np.array_equal(a, b):
@@ -56,6 +68,7 @@ def ssim(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
     from skimage.metrics import structural_similarity
     if not mask.any():
         return np.nan
+    mask, test, ref = _crop(mask, 8, test, ref)
     _, smap = structural_similarity(to_ldr(ref), to_ldr(test), channel_axis=-1, data_range=1.0, full=True)
     return float(smap.mean(axis=-1)[mask].mean())
 
@@ -88,9 +101,7 @@ def flip(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray, emap: np.ndarra
     if not mask.any():
         return np.nan
     if emap is None:        # only the mask's bounding box + 24 px: FLIP's filters reach < 12 px (67 ppd), so the
-        ys, xs = np.nonzero(mask)   # masked pixels' errors are bit-identical, at a fraction of the cost
-        y0, y1, x0, x1 = max(ys.min() - 24, 0), ys.max() + 25, max(xs.min() - 24, 0), xs.max() + 25
-        test, ref, mask = test[y0:y1, x0:x1], ref[y0:y1, x0:x1], mask[y0:y1, x0:x1]
+        mask, test, ref = _crop(mask, 24, test, ref)   # masked pixels' errors are bit-identical
         emap = flip_map(test, ref)
     return float(np.asarray(emap)[mask].mean())
 

@@ -12,10 +12,10 @@ Contract (backend ``B``, N rays, every array 1-D float32 of length N unless said
     t0, g0   start of the search and g(t0). g0 is passed in, not evaluated here: the caller counts that lookup and
              may adjust it (the distance map forces its start to count as g < 0).
     dt       step per ray ((N,) array or float); samples t_k = t0 + k dt for k = 1..``steps``, each clamped to
-             ``t_max`` when given (a ray whose range ends earlier repeats t_max). Or a callable k ↦ t_k, called once
-             per k in order (:func:`arc_samples`: equal angles along the arc of the t = d/(d+a) parameterization).
-             g is evaluated ``steps`` times on every ray: the cost of the scan is ``steps`` lookups per function,
-             plus the caller's g0.
+             ``t_max`` when given (a ray whose range ends earlier repeats t_max). Or a :class:`Samples` that makes
+             the t_k inside the loop (:func:`arc_samples`: equal angles along the arc of the t = d/(d+a)
+             parameterization). g is evaluated ``steps`` times on every ray: the cost of the scan is ``steps``
+             lookups per function, plus the caller's g0.
     default  (t_lo, g_lo, t_hi, g_hi): the bracket of rays where no sign change is found; None: the whole range,
              (t0, g0, last sample, g at it).
 
@@ -28,8 +28,14 @@ step into the inside of nested surfaces (the layers of a layered map) that is no
 :func:`secant_point` gives its secant point t_lo − g_lo (t_hi − t_lo) / (g_hi − g_lo), the estimate of the root
 (not finite where g_hi = g_lo, as on a bracket without a sign change).
 
-Each search function has a slow, obvious ``_ref`` twin (one ray, plain Python floats) that the tests compare it
-with (``dt`` may be a callable there too, giving plain floats); :func:`arc_samples` is checked against the arc's
+Every search and the secant steps are one loop through the backend (:meth:`study.backend.Backend.loop`): on Dr.Jit
+one symbolic loop (``dr.while_loop``), so a march of n samples is one kernel whose state stays in registers, not
+n kernels that write and read the whole state back (32–50× the fetch floor on an H100 before issue 15); on numpy
+a Python loop, with the same operations in the same order. g is traced once and must not evaluate (no ``B.eval``,
+no transfer to the host); the arrays it reads are captured.
+
+Each search function has a slow, obvious ``_ref`` twin (one ray, plain Python floats) in
+:mod:`study.methods.search_ref` that the tests compare it with; :func:`arc_samples` is checked against the arc's
 geometry.
 """
 from __future__ import annotations
@@ -52,6 +58,75 @@ def secant_point(b: Bracket):
     return b.t_lo - b.g_lo * (b.t_hi - b.t_lo) / (b.g_hi - b.g_lo)
 
 
+# ---------------------------------------------------------------------------------------------- samples along t
+class Samples:
+    """The samples t_k (k = 1..steps) of a search, made inside its loop: ``state`` is the tuple of arrays carried
+    from step to step, ``at(k, state)`` returns (t_k, the next state); k is a Python int on numpy and in unrolled
+    loops, a Dr.Jit Float in a symbolic loop. Calling the object, ``samples(k)`` for k = 1, 2, … in order, gives
+    the same t_k outside a loop."""
+    state: tuple = ()
+
+    def at(self, k, state):
+        raise NotImplementedError
+
+    def __call__(self, k):
+        if k == 1 or not hasattr(self, "_seq"):
+            self._seq = self.state
+        t, self._seq = self.at(k, self._seq)
+        return t
+
+
+class _Uniform(Samples):
+    def __init__(self, t0, dt):
+        self.t0, self.dt = t0, dt
+
+    def at(self, k, state):
+        return self.t0 + self.dt * k, state            # t0 + k dt (k exact in float32)
+
+
+def _samples(t0, dt) -> Samples:
+    return dt if isinstance(dt, Samples) else _Uniform(t0, dt)
+
+
+class arc_samples(Samples):  # noqa: N801 - used as a function
+    """Samples in equal angles along the arc that the t = d/(d+a) parameterization walks (p(t) = (1 − t) x + t a R
+    turns from x̂ to R; θ the angle between them, ``cos_theta`` = x̂·R per ray): t_k for k = 1..``steps``
+    where p(t_k) has turned by φ_k = k π/``steps`` (a half turn in ``steps`` steps), t_k = 1 from the arc's end on
+    (φ_k ≥ θ). On the arc t(φ) = sin φ / (sin φ + sin(θ − φ)) = sin φ / (sin θ cos φ + (1 − cos θ) sin φ), so a
+    step never turns the lookup direction by more than π/``steps`` (uniform steps in t turn it up to
+    1/cos²(θ/2) times faster in the middle of the arc than at its ends). (cos φ_k, sin φ_k) is the state, carried
+    from step to step by a rotation by π/``steps`` (the same constants at every step, and no data from the host,
+    so that a frozen function can replay it); t is homogeneous in it, so the rounding drift of its length
+    cancels."""
+
+    def __init__(self, B, cos_theta, steps: int):
+        c = cos_theta
+        self.B, self.c, self.steps = B, c, steps
+        self.s = B.sqrt(B.maximum(1.0 - c * c, 0.0))
+        self.one = c * 0.0 + 1.0
+        self.cd, self.sd = math.cos(math.pi / steps), math.sin(math.pi / steps)
+        big = B.maximum(c, 2.0)                        # = 2, but computed: Dr.Jit must not fold the rotation
+        self.state = (big * 0.5, big - 2.0)            # cos φ_0, sin φ_0 (φ_0 = 0), not literals
+
+    def at(self, k, state):
+        B, c = self.B, self.c
+        end = k >= self.steps                          # φ = π: every arc has ended
+        if end is True:
+            return self.one, state
+        cp, sp = state
+        cp, sp = cp * self.cd - sp * self.sd, sp * self.cd + cp * self.sd
+        t = sp / B.maximum(self.s * cp + (1.0 - c) * sp, 1e-30)
+        t = B.select(cp > c, B.minimum(t, 1.0), self.one)
+        if end is not False:
+            t = B.select(end, self.one, t)
+        return t, (cp, sp)
+
+    def __call__(self, k):
+        t = super().__call__(k)
+        self.B.eval(t, *self._seq)                     # outside a loop: keep Dr.Jit's graph short
+        return t
+
+
 # ---------------------------------------------------------------------------------------------- linear search
 def first_crossing(B, g: Callable, t0, g0, dt, steps: int, *, t_max: float | None = None,
                    default: tuple | None = None):
@@ -68,69 +143,41 @@ def sign_changes(B, g: Callable, t0, g0, dt, steps: int, *, count: int = 2, t_ma
 
 def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first):
     many = isinstance(g0, (list, tuple))
-    g_prev = list(g0) if many else [g0]                # g at the previous sample, per function
+    G = len(g0) if many else 1
     never = B.isfinite(t0) & ~B.isfinite(t0)          # all False
+    smp = _samples(t0, dt)
     # per function, per crossing: found, t_lo, g_lo, t_hi, g_hi (the default, or a placeholder until the end)
-    start = [tuple(default) if default is not None else (t0, gp, t0, gp) for gp in g_prev]
-    cross = [[[never, *s] for _ in range(count)] for s in start]
-    t_prev = t0                                        # the previous sample
-    for k in range(1, steps + 1):
-        t = _sample(B, t0, dt, k, t_max)
+    start = [tuple(default) if default is not None else (t0, gp, t0, gp) for gp in (g0 if many else [g0])]
+    state = (t0, *(g0 if many else [g0]), *(v for s in start for _ in range(count) for v in (never, *s)),
+             *smp.state)                               # t_prev, g_prev per function, the crossings, the sampler's
+    ns = len(smp.state)
+
+    def step(k, t_prev, *rest):
+        g_prev, flat, sst = list(rest[:G]), rest[G:len(rest) - ns], rest[len(rest) - ns:]
+        t, sst = smp.at(k + 1, sst)
+        t = B.minimum(t, t_max) if t_max is not None else t
         gts = g(t) if many else [g(t)]
+        out = []
         for i, gt in enumerate(gts):
-            if rising:
-                change = (g_prev[i] < 0.0) & (gt >= 0.0)
-            else:
-                change = (g_prev[i] < 0.0) != (gt < 0.0)
+            change = (g_prev[i] < 0.0) & (gt >= 0.0) if rising else (g_prev[i] < 0.0) != (gt < 0.0)
             before = None                              # found of the previous crossing, before this step
-            for j, (f, *b) in enumerate(cross[i]):
+            for j in range(count):
+                f, *b = flat[(i * count + j) * 5:(i * count + j + 1) * 5]
                 new = change & ~f if before is None else change & before & ~f
                 before = f
-                cross[i][j] = [f | new, *(B.select(new, v, o) for v, o in zip((t_prev, g_prev[i], t, gt), b))]
-            g_prev[i] = gt
-        t_prev = t
-        B.eval(*g_prev, *(v for c in cross for b in c for v in b))   # one small kernel per step (Dr.Jit)
+                out += [f | new, *(B.select(new, v, o) for v, o in zip((t_prev, g_prev[i], t, gt), b))]
+        return (t, *gts, *out, *sst)
+
+    t_last, *rest = B.loop(steps, state, step, index=True)
+    g_last, flat = rest[:G], rest[G:len(rest) - ns]
+    cross = [[flat[(i * count + j) * 5:(i * count + j + 1) * 5] for j in range(count)] for i in range(G)]
     # ----------------------------------------------------------------------- rays without a crossing
     if default is None:                                # the whole range: (t0, g0, last sample, g there)
-        cross = [[[f, t_lo, g_lo, B.select(f, t_hi, t_prev), B.select(f, g_hi, gp)] for f, t_lo, g_lo, t_hi, g_hi in c]
-                 for c, gp in zip(cross, g_prev)]
+        cross = [[[f, t_lo, g_lo, B.select(f, t_hi, t_last), B.select(f, g_hi, gp)] for f, t_lo, g_lo, t_hi, g_hi in c]
+                 for c, gp in zip(cross, g_last)]
     out = [[Bracket(t_lo, g_lo, t_hi, g_hi, f) for f, t_lo, g_lo, t_hi, g_hi in c] for c in cross]
     out = [c[0] for c in out] if first else out
     return out if many else out[0]
-
-
-def _sample(B, t0, dt, k, t_max):
-    t = dt(k) if callable(dt) else t0 + dt * float(k)
-    return B.minimum(t, t_max) if t_max is not None else t
-
-
-def arc_samples(B, cos_theta, steps: int) -> Callable:
-    """Samples in equal angles along the arc that the t = d/(d+a) parameterization walks (p(t) = (1 − t) x + t a R
-    turns from x̂ to R; θ the angle between them, ``cos_theta`` = x̂·R per ray): a callable k ↦ t_k for
-    k = 1..``steps`` (called in order) where p(t_k) has turned by φ_k = k π/``steps`` (a half turn in ``steps``
-    steps), t_k = 1 from the arc's end on (φ_k ≥ θ). On the arc t(φ) = sin φ / (sin φ + sin(θ − φ)) = sin φ /
-    (sin θ cos φ + (1 − cos θ) sin φ), so a step never turns the lookup direction by more than π/``steps``
-    (uniform steps in t turn it up to 1/cos²(θ/2) times faster in the middle of the arc than at its ends).
-    (cos φ_k, sin φ_k) is carried from step to step by a rotation by π/``steps`` (the same constants at every
-    step, so that Dr.Jit compiles one kernel for all of them, and no data comes from the host, so that a frozen
-    function can replay it); t is homogeneous in it, so the rounding drift of its length cancels."""
-    c = cos_theta
-    s = B.sqrt(B.maximum(1.0 - c * c, 0.0))
-    one = c * 0.0 + 1.0
-    cd, sd = math.cos(math.pi / steps), math.sin(math.pi / steps)
-    big = B.maximum(c, 2.0)                            # = 2, but computed: Dr.Jit must not fold the rotation
-    rot = [big * 0.5, big - 2.0]                       # cos φ_k, sin φ_k (φ_0 = 0), not literals
-
-    def at(k: int):
-        if k >= steps:                                 # φ = π: every arc has ended
-            return one
-        cp, sp = rot
-        cp, sp = cp * cd - sp * sd, sp * cd + cp * sd
-        B.eval(cp, sp)
-        rot[:] = [cp, sp]
-        t = sp / B.maximum(s * cp + (1.0 - c) * sp, 1e-30)
-        return B.select(cp > c, B.minimum(t, 1.0), one)
-    return at
 
 
 def first_entry(B, g: Callable, t0, g0: list, dt, steps: int, *, hold: int, t_max: float | None = None,
@@ -179,10 +226,16 @@ def first_entry(B, g: Callable, t0, g0: list, dt, steps: int, *, hold: int, t_ma
     in_prev = inside(c_prev, g_prev)
     never = in_prev & ~in_prev
     res = (*(default if default is not None else (t0, pick(g0, zero), t0, pick(g0, zero))), zero)
-    found, pend, clip, age, c_pend, t_prev = never, never, never, zero, zero, t0
-    pb = res                                           # the pending entry: t_lo, g_lo, t_hi, g_hi, e
-    for k in range(1, steps + 1):
-        t = _sample(B, t0, dt, k, t_max)
+    smp = _samples(t0, dt)
+    # state: g_prev (K), c_prev, in_prev, t_prev, found, pend, clip, age, c_pend, res (5), pb (the pending entry:
+    # t_lo, g_lo, t_hi, g_hi, e; 5), the sampler's
+    state = (*g_prev, c_prev, in_prev, t0, never, never, never, zero, zero, *res, *res, *smp.state)
+
+    def step(k, *s):
+        g_prev, (c_prev, in_prev, t_prev, found, pend, clip, age, c_pend) = list(s[:K]), s[K:K + 8]
+        res, pb, sst = s[K + 8:K + 13], s[K + 13:K + 18], s[K + 18:]
+        t, sst = smp.at(k + 1, sst)
+        t = B.minimum(t, t_max) if t_max is not None else t
         gs = list(g(t))
         c = count(gs)
         ins = inside(c, gs)
@@ -205,8 +258,10 @@ def first_entry(B, g: Callable, t0, g0: list, dt, steps: int, *, hold: int, t_ma
         c_pend, age, pend = B.select(new, c_prev, c_pend), B.select(new, zero, age), pend | new
         if hold <= 0:
             res, found, pend = tuple(B.select(new, v, r) for v, r in zip(pb, res)), found | new, pend & ~new
-        g_prev, c_prev, in_prev, t_prev = gs, c, ins, t
-        B.eval(*g_prev, c_prev, in_prev, t_prev, found, pend, clip, age, c_pend, *res, *pb)   # one kernel per step
+        return (*gs, c, ins, t, found, pend, clip, age, c_pend, *res, *pb, *sst)
+
+    s = B.loop(steps, state, step, index=True)
+    found, pend, res, pb = s[K + 3], s[K + 4], s[K + 8:K + 13], s[K + 13:K + 18]
     res = tuple(B.select(pend, v, r) for v, r in zip(pb, res))
     found = found | pend
     return Bracket(*res[:4], found), res[4]
@@ -234,107 +289,12 @@ def refine(B, g: Callable, bracket: Bracket, steps: int, *, illinois: bool = Tru
     end's g (plain false position stalls on one side). Returns the final bracket (``found`` passed through); its
     :func:`secant_point` is the estimate."""
     t_lo, g_lo, t_hi, g_hi, found = bracket
-    side = t_lo * 0.0                                  # +1: the last step replaced the lo end, −1: hi, 0: none
-    for _ in range(steps):
+
+    def step(t_lo, g_lo, t_hi, g_hi, side):           # side: +1 the last step replaced the lo end, −1 hi, 0 none
         t = t_lo - g_lo * (t_hi - t_lo) / (g_hi - g_lo)   # secant point
         gt = g(t)
         replace_lo = (gt < 0.0) if rising else ((gt < 0.0) == (g_lo < 0.0))
-        t_lo, g_lo, t_hi, g_hi, side = secant_update(B, replace_lo, t, gt, t_lo, g_lo, t_hi, g_hi, side,
-                                                     illinois=illinois)
-        B.eval(t_lo, g_lo, t_hi, g_hi, side)          # one small kernel per step (Dr.Jit)
+        return secant_update(B, replace_lo, t, gt, t_lo, g_lo, t_hi, g_hi, side, illinois=illinois)
+
+    t_lo, g_lo, t_hi, g_hi, _ = B.loop(steps, (t_lo, g_lo, t_hi, g_hi, t_lo * 0.0), step)
     return Bracket(t_lo, g_lo, t_hi, g_hi, found)
-
-
-# ---------------------------------------------------------------------------------------------- reference twins
-def sign_changes_ref(g: Callable[[float], float], t0: float, g0: float, dt: float, steps: int, *, count: int = 2,
-                     t_max: float | None = None, default: tuple | None = None,
-                     rising: bool = False) -> list[Bracket]:
-    """One ray, plain floats: the first ``count`` sign changes (``rising``: only g < 0 → g ≥ 0)."""
-    found = []
-    t_prev, g_prev = t0, g0
-    for k in range(1, steps + 1):
-        t = dt(k) if callable(dt) else t0 + dt * k
-        if t_max is not None:
-            t = min(t, t_max)
-        gt = g(t)
-        change = (g_prev < 0 and gt >= 0) if rising else ((g_prev < 0) != (gt < 0))
-        if change and len(found) < count:
-            found.append(Bracket(t_prev, g_prev, t, gt, True))
-        t_prev, g_prev = t, gt
-    fill = tuple(default) if default is not None else (t0, g0, t_prev, g_prev)
-    return found + [Bracket(*fill, False)] * (count - len(found))
-
-
-def first_crossing_ref(g: Callable[[float], float], t0: float, g0: float, dt: float, steps: int, *,
-                       t_max: float | None = None, default: tuple | None = None) -> Bracket:
-    """One ray, plain floats: the first step from g < 0 to g ≥ 0."""
-    return sign_changes_ref(g, t0, g0, dt, steps, count=1, t_max=t_max, default=default, rising=True)[0]
-
-
-def refine_ref(g: Callable[[float], float], bracket: Bracket, steps: int, *, illinois: bool = True,
-               rising: bool = False) -> Bracket:
-    """One ray, plain floats: ``steps`` secant (Illinois) steps inside ``bracket``."""
-    t_lo, g_lo, t_hi, g_hi, found = bracket
-    last = 0                                           # which end the last step replaced: +1 lo, −1 hi
-    for _ in range(steps):
-        t = secant_point(Bracket(t_lo, g_lo, t_hi, g_hi, found))
-        gt = g(t)
-        lo = gt < 0 if rising else ((gt < 0) == (g_lo < 0))
-        if lo:
-            if illinois and last > 0:
-                g_hi *= 0.5
-            t_lo, g_lo, last = t, gt, 1
-        else:
-            if illinois and last < 0:
-                g_lo *= 0.5
-            t_hi, g_hi, last = t, gt, -1
-    return Bracket(t_lo, g_lo, t_hi, g_hi, found)
-
-
-def first_entry_ref(g: Callable[[float], list], t0: float, g0: list, dt, steps: int, *, hold: int,
-                    t_max: float | None = None, default: tuple | None = None) -> tuple[Bracket, int]:
-    """One ray, plain floats: the first kept entry into the inside of nested surfaces (see :func:`first_entry`)."""
-    K = len(g0)
-
-    def count(gs):
-        return sum(1 for v in gs if v >= 0)
-
-    def inside(c, gs):
-        return c % 2 == 1 or (c == K and (K == 1 or gs[-1] == gs[-2]))
-
-    g_prev, t_prev = list(g0), t0
-    pending = None                                     # [age, c before the entry (after a clip), bracket, e, clip]
-    for k in range(1, steps + 1):
-        t = dt(k) if callable(dt) else t0 + dt * k
-        if t_max is not None:
-            t = min(t, t_max)
-        gs = list(g(t))
-        c, c_prev = count(gs), count(g_prev)
-        ins, in_prev = inside(c, gs), inside(c_prev, g_prev)
-        if pending is not None:
-            pending[0] += 1
-            age, c_pend, br, e, clip = pending
-            if clip:                                   # waiting for c to stay put after a clip
-                if c != c_pend:
-                    pending = None
-                elif age >= hold:
-                    return br, e
-            elif age >= hold:
-                return br, e
-            elif not ins:
-                if c > c_pend:
-                    pending = None                     # left to the far side: skin
-                elif hold <= 0:
-                    return br, e
-                else:
-                    pending = [0, c, br, e, True]
-        if pending is None and ins and not in_prev:
-            e = min(c, c_prev)
-            pending = [0, c_prev, Bracket(t_prev, g_prev[e], t, gs[e], True), e, False]
-            if hold <= 0:
-                return pending[2], e
-        g_prev, t_prev = gs, t
-    if pending is not None:
-        return pending[2], pending[3]
-    fill = tuple(default) if default is not None else (t0, g0[0], t0, g0[0])
-    return Bracket(*fill, False), 0

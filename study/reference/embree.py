@@ -12,7 +12,8 @@ from study.scene import RoomMesh
 class Tracer:
     """Embree scene of a :class:`RoomMesh`. ``intersect`` releases the GIL; float32 inside, as Embree is.
 
-    ``threads`` (default: every core) is how many chunks :meth:`distance` casts at once."""
+    ``threads`` (default: ``$STUDY_THREADS``, which a sweep's worker processes set to their share of the cores,
+    else every core) is how many chunks :meth:`distance` casts at once."""
 
     def __init__(self, mesh: RoomMesh, *, threads: int | None = None):
         from embreex import rtcore_scene as rtcs
@@ -20,7 +21,7 @@ class Tracer:
         self.mesh = mesh
         self.scene = rtcs.EmbreeScene()
         TriangleMesh(self.scene, mesh.vertices.astype(np.float32), mesh.faces.astype(np.int32))
-        self.threads = max(1, threads or os.cpu_count() or 1)
+        self.threads = max(1, threads or int(os.environ.get("STUDY_THREADS") or 0) or os.cpu_count() or 1)
         self._pool: tuple[int, ThreadPoolExecutor] | None = None     # (pid, pool), made on first use
 
     @classmethod
