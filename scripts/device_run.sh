@@ -7,8 +7,8 @@
 #             the measured floors (texture fetch rates, copy bandwidth) → perf/
 #   studies : fig4, fig5, fig6 and the main sweep with --backend cuda (renders cuda_ad_rgb, exact hits OptiX),
 #             cold (fresh cache, fresh Dr.Jit kernel cache), each timed → studies/
-#   dask    : configs/sweep_large.toml on a Dask cluster of $DASK_PER_GPU (4) workers per GPU (--dask local-gpus):
-#             1 GPU on a 104-case subset, then every visible GPU on all 512 cases; cases/s → dask/
+#   dask    : configs/sweep_large.toml (512 cases) on a Dask cluster of $DASK_PER_GPU (4) workers per GPU
+#             (--dask local-gpus), on 1, 2, … GPUs ($DASK_GPUS, default: 1 and every visible GPU); cases/s → dask/
 #
 # Wheels: the machine has Python 3.12 without mitsuba/drjit/embreex/pydantic/dask; cp312 wheels are installed
 # from $WHEELS/a and $WHEELS/b (default .devcarry; how to make them: ../shared/field-notes.md, "Device (GPU) runs"),
@@ -59,18 +59,25 @@ for part in $parts; do
     timed sweep timeout "${SWEEP_LIMIT:-300}" $S sweep configs/sweep.toml --backend cuda --cache "$W/cache" \
       --out "$W/sweep" --jobs "${SWEEP_JOBS:-8}" --no-plots 2>&1 | tail -5
     tar czf "$OUT/results-sweep.tgz" -C "$W" --exclude=cases sweep ;;
-  dask)   # 1 GPU on a 104-case subset (every 5th position of the full line), then all GPUs on all 512 cases
+  dask)   # configs/sweep_large.toml (512 cases) on 1, 2, … GPUs ($DASK_GPUS, default "1 N": one and every visible GPU),
+          # each with a cold cache; cases/s → dask/ (DASK_1GPU_CONFIG=sweep_large_subset: 1 GPU on every 5th position;
+          # DASK_WARM=1: Dr.Jit's kernel cache filled first by an untimed run and shared, else fresh for each run)
     per=${DASK_PER_GPU:-4}; n=$(nvidia-smi -L | grep -c "^GPU ")
     sed 's/steps = 256/steps = 52/' configs/sweep_large.toml > configs/sweep_large_subset.toml
-    for run in "1 0 configs/${DASK_1GPU_CONFIG:-sweep_large_subset}.toml ${LIMIT_1:-170}" \
-               "$n $(seq -s, 0 $((n - 1))) configs/sweep_large.toml ${LIMIT_N:-380}"; do
-      set -- $run; k=$1
-      export HOME=$W/home-$k; mkdir -p "$HOME"
-      CUDA_VISIBLE_DEVICES=$2 timed "dask-${k}gpu" timeout "$4" $S sweep "$3" --backend cuda --cache "$W/dcache-$k" \
-        --out "$W/dask/gpus$k" --dask local-gpus --jobs "$per" --no-plots 2>&1 | tail -3
+    if [ -n "${DASK_WARM:-}" ]; then    # compile the kernels once (Dr.Jit's kernel cache, shared by the runs below,
+      export HOME=$W/home-dask; mkdir -p "$HOME"   # as on a user's machine after the first sweep); not timed
+      CUDA_VISIBLE_DEVICES=0 $S sweep configs/sweep_large_subset.toml --backend cuda --cache "$W/dcache-warm" \
+        --out "$W/dask-warm" --dask local-gpus --jobs "$per" --no-plots > /dev/null 2>&1
+    fi
+    for k in ${DASK_GPUS:-1 $n}; do
+      cfg=configs/sweep_large.toml; [ "$k" = 1 ] && cfg=configs/${DASK_1GPU_CONFIG:-sweep_large}.toml
+      [ -z "${DASK_WARM:-}" ] && export HOME=$W/home-$k && mkdir -p "$HOME"
+      CUDA_VISIBLE_DEVICES=$(seq -s, 0 $((k - 1))) timed "dask-${k}gpu" timeout "${LIMIT_DASK:-240}" $S sweep "$cfg" \
+        --backend cuda --cache "$W/dcache-$k" --out "$W/dask/gpus$k" --dask local-gpus --jobs "$per" --no-plots 2>&1 \
+        | tail -3
       echo "dask-${k}gpu-cases,$(ls "$W/dask/gpus$k/cases" 2>/dev/null | wc -l)" | tee -a "$OUT/times.csv"
     done
-    tar czf "$OUT/results-dask.tgz" -C "$W" dask ;;
+    tar czf "$OUT/results-dask.tgz" -C "$W" --exclude=cases dask ;;
   single)  # the 104-case subset in one process on GPU 0, no Dask: the reference table for the Dask runs
     sed 's/steps = 256/steps = 52/' configs/sweep_large.toml > configs/sweep_large_subset.toml
     export HOME=$W/home-single; mkdir -p "$HOME"

@@ -31,17 +31,20 @@ def gpu_cluster(gpus: list[str] | None = None, per_gpu: int = 1):
     if not gpus:
         raise EnvironmentProblem("no GPU visible (CUDA_VISIBLE_DEVICES, nvidia-smi): 'local-gpus' needs at least "
                                  "one", key="--dask")
-    share = str(max(1, (os.cpu_count() or 1) // (len(gpus) * max(per_gpu, 1))))   # OpenMP threads (FLIP) each
+    share = str(max(2, (os.cpu_count() or 1) // (len(gpus) * max(per_gpu, 1))))   # threads each (Dr.Jit, Embree,
+    # OpenMP in FLIP): the cores over every worker (study.harness.runner._limit_threads)
     workers = {f"gpu{g}-{i}": {"cls": Nanny, "options": {"nthreads": 1, "env": {
         "CUDA_VISIBLE_DEVICES": g, "STUDY_RENDER_DEVICE": runtime.render_device(),
-        "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", share)}}}
+        "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", share), "STUDY_WORKER_THREADS": share}}}
         for g in gpus for i in range(max(per_gpu, 1))}
     return SpecCluster(scheduler={"cls": Scheduler, "options": {"dashboard_address": None}}, workers=workers)
 
 
-def run_dask(batches, task, jobs: int, address: str, finish) -> None:
+def run_dask(batches, task, jobs: int, address: str, finish, warm: tuple | None = None) -> None:
     """Run ``task(case)`` = (function, *args) for each case of each batch (a batch after the one before it) on
-    a Dask cluster at ``address`` (or ``local`` / ``local-gpus``); ``finish(case, rows)`` as each one ends."""
+    a Dask cluster at ``address`` (or ``local`` / ``local-gpus``); ``finish(case, rows)`` as each one ends.
+    ``warm`` = (function, *args): run once on every worker first, not waited for (imports, GPU context), so that
+    workers left idle by a first small batch get ready meanwhile."""
     try:
         from distributed import Client, LocalCluster, as_completed  # optional dependency (study[cluster])
     except ImportError:
@@ -59,6 +62,9 @@ def run_dask(batches, task, jobs: int, address: str, finish) -> None:
         except OSError as err:
             raise StudyError(f"cannot reach the Dask scheduler ({err})", key="--dask") from None
     try:
+        if warm is not None:
+            for w in client.scheduler_info().get("workers", {}):
+                client.submit(*warm, workers=[w], allow_other_workers=False, pure=False, priority=10)
         for batch in batches:
             futs = {client.submit(*_flat(task(c)), key=f"study-{c.key}-{c.index}", pure=False): c for c in batch}
             for f in as_completed(list(futs)):

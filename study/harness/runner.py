@@ -45,11 +45,13 @@ def _limit_threads(jobs: int) -> None:
     """Give each of ``jobs`` worker processes its share of the cores (Dr.Jit's and Mitsuba's thread pools,
     Embree's through ``$STUDY_THREADS``, and OpenMP's through ``$OMP_NUM_THREADS`` unless the user set it: FLIP
     (flip-evaluator) runs on OpenMP, and 8 workers × every core each, spinning, made a sweep's cases 4× slower on
-    a 16-core GPU machine than one worker alone; the variable is read when FLIP is first imported, later).
+    a 16-core GPU machine than one worker alone; the variable is read when FLIP is first imported, later). A Dask
+    worker of ``--dask local-gpus`` gets its share from ``$STUDY_WORKER_THREADS`` (set by the cluster: the cores
+    over all its workers, not over ``jobs``, which counts the workers of one GPU).
 
     Never fewer than 2 threads: with a pool of 1 thread, Mitsuba's ``Bitmap.write`` of an EXR deadlocks
     (Mitsuba 3.9.1 / Dr.Jit 1.5.0, seen here)."""
-    n = max(2, (os.cpu_count() or 1) // max(jobs, 1))
+    n = int(os.environ.get("STUDY_WORKER_THREADS") or 0) or max(2, (os.cpu_count() or 1) // max(jobs, 1))
     os.environ["STUDY_THREADS"] = str(n)             # Embree's chunks (study.reference.embree.Tracer)
     if jobs > 1:
         os.environ.setdefault("OMP_NUM_THREADS", str(n))
@@ -87,6 +89,17 @@ def _run_one(scene_json: dict, method_specs: list[tuple[str, dict]], backend: st
             prof.disable()
             Path(prof_dir).mkdir(parents=True, exist_ok=True)
             prof.dump_stats(str(Path(prof_dir) / f"{case_id}.prof"))
+
+
+def warm_worker(backend: str) -> None:
+    """Ready a worker before its first case: study's modules imported, the render device's Mitsuba variant and,
+    on CUDA, the GPU context made (a few seconds each worker would otherwise spend in its first case)."""
+    from study.measure import case  # noqa: F401 - the imports a case needs
+    with runtime.using_render_device("cuda" if backend == "cuda" else None):
+        runtime.mitsuba()
+        if backend == "cuda":
+            from study import backend as backends
+            backends.get("cuda")
 
 
 def _git_commit() -> str:
@@ -198,7 +211,8 @@ def run_sweep(path: str | Path, out: str | Path, *, backend: str = "numpy", cach
         return _run_one, (c.scene.model_dump(mode="json"), specs, backend, cache_s, c.id, jobs)
     try:
         return run_cases(sweep.cases, out, meta, task, jobs=jobs, dask=dask, progress=progress,
-                         batches=_first_of_each_impostor, check=sweep_check(sweep.methods), extra=extra)
+                         batches=_first_of_each_impostor, check=sweep_check(sweep.methods), extra=extra,
+                         warm=(warm_worker, backend))
     except StudyError as err:                        # a case's refusal names the sweep file
         if err.file:
             raise
@@ -213,7 +227,7 @@ def run_cases(cases: list[Case], out: str | Path, meta: dict, task: Callable[[Ca
               dask: str | None = None, progress: Callable[[int, int, str], None] | None = None,
               batches: Callable[[list[Case]], tuple[list[Case], ...]] = lambda todo: (todo,),
               check: Check | None = None, extra: Callable[[list[dict], Path], None] | None = None,
-              into: Path | None = None) -> tuple[list[dict], dict]:
+              into: Path | None = None, warm: tuple | None = None) -> tuple[list[dict], dict]:
     """Run the cases not yet finished under ``out`` and write ``<out>/results.csv`` (+ ``metadata.json``, and
     what ``extra(rows, dir)`` writes) as one output set, swapped in at the end (:func:`study.io.output_set`); with
     ``into`` they go to that directory instead, part of the caller's output set (the case files stay in ``out``).
@@ -222,7 +236,8 @@ def run_cases(cases: list[Case], out: str | Path, meta: dict, task: Callable[[Ca
     on Dask); each row gets the case id and one ``axis:<key>`` column per label of the case. A case file is reused
     only if ``check(case, rows)`` accepts its rows (e.g. :func:`sweep_check`); computed rows must pass it too.
     ``batches`` splits the cases to run into groups run one after the other (e.g. the first case of each impostor
-    first). The output directory is locked for the run. Returns (rows, stats = {cases, cached, computed, seconds})."""
+    first). ``warm`` = (function, *args) readies each Dask worker at the start (:func:`warm_worker`). The output
+    directory is locked for the run. Returns (rows, stats = {cases, cached, computed, seconds})."""
     t0 = time.perf_counter()
     out = Path(out)
     with locked(out) if into is None else _locked_into(out, into):
@@ -248,7 +263,7 @@ def run_cases(cases: list[Case], out: str | Path, meta: dict, task: Callable[[Ca
         if progress:
             progress(len(done), len(cases), "")
         if dask:
-            run_dask(batches(todo), task, jobs, dask, finish)
+            run_dask(batches(todo), task, jobs, dask, finish, warm=warm)
         elif jobs <= 1 or len(todo) <= 1:
             for c in todo:
                 fn, args = task(c)
