@@ -215,3 +215,35 @@ def test_dask_local_cluster_gives_the_same_table(reference_run, tmp_path):
     got, stats = run_sweep(cfg, tmp_path / "dask", cache=d / "cache", jobs=2, dask="local")
     assert stats["computed"] == 6
     same_table(rows, got)
+
+
+def test_study_profile_writes_one_profile_per_case_and_rows_carry_case_seconds(tmp_path, monkeypatch):
+    """STUDY_PROFILE=<dir> (a developer's switch, issue 15): each case's worker leaves <dir>/<case>.prof, a cProfile
+    that pstats reads and in which run_case appears; every row carries its case's wall time (case_seconds)."""
+    import pstats
+    monkeypatch.setenv("STUDY_PROFILE", str(tmp_path / "profs"))
+    rows, stats = run_sweep(write(tmp_path), tmp_path / "out", cache=tmp_path / "cache")
+    cases = sorted({r["case"] for r in rows})
+    assert sorted(p.stem for p in (tmp_path / "profs").glob("*.prof")) == cases
+    st = pstats.Stats(str(tmp_path / "profs" / f"{cases[0]}.prof"))
+    assert any(fn[2] == "run_case" for fn in st.stats)
+    assert all(r["case_seconds"] > 0 for r in rows)
+
+
+def test_worker_threads_share_the_cores(monkeypatch):
+    """A sweep worker takes its share of the cores for Embree ($STUDY_THREADS) and OpenMP (FLIP) unless the user
+    set OMP_NUM_THREADS; a local-gpus Dask worker's share comes from $STUDY_WORKER_THREADS."""
+    from study.harness import runner
+    for var in ("OMP_NUM_THREADS", "STUDY_WORKER_THREADS", "STUDY_THREADS"):
+        monkeypatch.delenv(var, raising=False)
+    import drjit
+    counts = []
+    monkeypatch.setattr(drjit, "set_thread_count", counts.append)   # not this test process's pool
+    monkeypatch.setattr(os, "cpu_count", lambda: 16)
+    runner._limit_threads(8)
+    assert os.environ["STUDY_THREADS"] == "2" and os.environ["OMP_NUM_THREADS"] == "2"
+    monkeypatch.setenv("OMP_NUM_THREADS", "5")
+    monkeypatch.setenv("STUDY_WORKER_THREADS", "3")
+    runner._limit_threads(4)
+    assert os.environ["STUDY_THREADS"] == "3" and os.environ["OMP_NUM_THREADS"] == "5"
+    assert counts == [2, 3]
