@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The GPU measurements of reports/performance.md (issue 15), run on a lent GPU machine from the repository root:
 #
-#   bash scripts/device_run.sh [bench] [studies] [dask] [cpuref]      (default: bench studies)
+#   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3]   (default: bench studies)
 #
 #   bench   : `study bench --backends cuda` — methods, exact queries (ray_intersect, _preliminary, ray_test) and
 #             the measured floors (texture fetch rates, copy bandwidth) → perf/
@@ -9,10 +9,14 @@
 #             cold (fresh cache, fresh Dr.Jit kernel cache), each timed → studies/
 #   dask    : configs/sweep_large.toml (512 cases) on a Dask cluster of $DASK_PER_GPU (4) workers per GPU
 #             (--dask local-gpus), on 1, 2, … GPUs ($DASK_GPUS, default: 1 and every visible GPU); cases/s → dask/
+#   sweep   : the main sweep alone, every case profiled in its worker (STUDY_PROFILE) → profiles.tgz
+#   single  : the 104-case subset of sweep_large in one process, no Dask (the reference table for the Dask runs)
+#   profile : scripts/profile_case.py on the main sweep's heaviest case and on fig4 (cProfile, cold and warm)
+#   fig4x3  : fig4 cold, with a warm kernel cache, and with every cache warm (what compiling kernels costs)
 #
 # Wheels: the machine has Python 3.12 without mitsuba/drjit/embreex/pydantic/dask; cp312 wheels are installed
 # from $WHEELS/a and $WHEELS/b (default .devcarry; how to make them: ../shared/field-notes.md, "Device (GPU) runs"),
-# or unpacked from $WHEELS/site.tar.xz (the same wheels unzipped into one folder and tarred with xz: 30 MB, so that
+# or unpacked from $WHEELS/site.tar.xz (the same wheels unzipped into one folder and tarred with xz: 33 MB, so that
 # they travel beside the repository within the 64 MiB limit).
 # Everything is written under $OUT (default ./out-device): one log per part and one results-<part>.tgz each.
 set -uo pipefail
