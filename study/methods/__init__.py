@@ -13,7 +13,7 @@ import os
 import pkgutil
 
 from study.errors import StudyError
-from study.methods.base import REGISTRY, Knob, Localization, Method, Trace, register
+from study.methods.base import REGISTRY, Knob, Localization, Method, Trace, TracingMethod, register
 
 for _m in pkgutil.iter_modules(__path__):
     if _m.name != "base":
@@ -56,5 +56,5 @@ def all_methods() -> list[Method]:
     return [make(n) for n in names()]
 
 
-__all__ = ["Knob", "Localization", "Method", "Trace", "all_methods", "load_plugins", "make", "names", "register",
-           "REGISTRY"]
+__all__ = ["Knob", "Localization", "Method", "Trace", "TracingMethod", "all_methods", "load_plugins", "make", "names",
+           "register", "REGISTRY"]

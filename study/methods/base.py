@@ -178,6 +178,15 @@ class Method(ABC):
         return Trace(loc.l, shown, rad, B.length(loc.l) / dist, valid)
 
 
+class TracingMethod(Method):
+    """A method that finds its shown point itself (it overrides :meth:`Method.trace`, e.g. searching other views
+    than the impostor): its lookup vector is that shown point, from a trace without the origin check."""
+
+    def localize(self, B: Backend, env: EnvMap, x: V3, R: V3) -> Localization:
+        tr = self.trace(B, env, x, R, check_origin=False)
+        return Localization(l=tr.shown, valid=tr.valid)
+
+
 REGISTRY: dict[str, type[Method]] = {}
 
 

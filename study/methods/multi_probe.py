@@ -47,7 +47,7 @@ from pydantic import Field
 from study.backend import V3
 from study.impostor import cubemap
 from study.impostor.views import ProbeSpec, Views
-from study.methods.base import Knob, Localization, Method, Trace, register
+from study.methods.base import Knob, Trace, TracingMethod, register
 from study.methods.linear_secant import TexelMarchParams, march_steps
 from study.methods.search import arc_samples, first_crossing, refine, secant_point
 
@@ -95,7 +95,7 @@ def _sel(B, m, a: V3, b: V3) -> V3:
 
 
 @register
-class MultiProbe(Method):
+class MultiProbe(TracingMethod):
     name = "multi_probe"
     Params = Params
     knob = Knob("steps_per_texel", (0.25, 0.5, 1.0, 2.0))
@@ -197,10 +197,6 @@ class MultiProbe(Method):
         shown = V3(*(B.select(valid, s, nan) for s in (shown.x, shown.y, shown.z)))
         rad = V3(*(B.select(valid, s, nan) for s in ch[:3]))
         return Trace(shown, shown, rad, B.select(valid, B.length(v) / ch[-1], nan), valid)
-
-    def localize(self, B, env, x, R) -> Localization:
-        tr = self.trace(B, env, x, R, check_origin=False)
-        return Localization(l=tr.shown, valid=tr.valid)
 
     def lookups_per_ray(self) -> float:
         # the mean over rays of the last trace (module docstring); before any: N rounds of n = max_steps

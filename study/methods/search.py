@@ -88,6 +88,12 @@ def _samples(t0, dt) -> Samples:
     return dt if isinstance(dt, Samples) else _Uniform(t0, dt)
 
 
+def _next(B, smp: Samples, k, state, t_max):
+    """The sample of loop iteration k (0-based: t_{k+1}), clamped to ``t_max``, and the sampler's next state."""
+    t, state = smp.at(k + 1, state)
+    return (B.minimum(t, t_max) if t_max is not None else t), state
+
+
 class arc_samples(Samples):  # noqa: N801 - used as a function
     """Samples in equal angles along the arc that the t = d/(d+a) parameterization walks (p(t) = (1 − t) x + t a R
     turns from x̂ to R; θ the angle between them, ``cos_theta`` = x̂·R per ray): t_k for k = 1..``steps``
@@ -154,8 +160,7 @@ def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first):
 
     def step(k, t_prev, *rest):
         g_prev, flat, sst = list(rest[:G]), rest[G:len(rest) - ns], rest[len(rest) - ns:]
-        t, sst = smp.at(k + 1, sst)
-        t = B.minimum(t, t_max) if t_max is not None else t
+        t, sst = _next(B, smp, k, sst, t_max)
         gts = g(t) if many else [g(t)]
         out = []
         for i, gt in enumerate(gts):
@@ -234,8 +239,7 @@ def first_entry(B, g: Callable, t0, g0: list, dt, steps: int, *, hold: int, t_ma
     def step(k, *s):
         g_prev, (c_prev, in_prev, t_prev, found, pend, clip, age, c_pend) = list(s[:K]), s[K:K + 8]
         res, pb, sst = s[K + 8:K + 13], s[K + 13:K + 18], s[K + 18:]
-        t, sst = smp.at(k + 1, sst)
-        t = B.minimum(t, t_max) if t_max is not None else t
+        t, sst = _next(B, smp, k, sst, t_max)
         gs = list(g(t))
         c = count(gs)
         ins = inside(c, gs)

@@ -35,7 +35,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from study.backend import V3
 from study.impostor.views import Views
-from study.methods.base import REGISTRY, Knob, Localization, Method, Trace, register
+from study.methods.base import REGISTRY, Knob, Method, Trace, TracingMethod, register
 
 NEAR = 0.01           # near plane of the clipped ray, metres
 
@@ -50,7 +50,7 @@ class Params(BaseModel):
 
 
 @register
-class SSR(Method):
+class SSR(TracingMethod):
     name = "ssr"
     Params = Params
     knob = Knob("max_steps", (16, 32, 64, 128, 256, 512))
@@ -154,10 +154,6 @@ class SSR(Method):
         safe = V3(*(B.select(valid, a, b) for a, b in zip((shown.x, shown.y, shown.z), (R.x, R.y, R.z))))
         ratio = B.select(valid, B.length(safe) / env.distance(safe), nan)   # diagnostic: 1 on the impostor
         return Trace(l, shown, rad, ratio, valid)
-
-    def localize(self, B, env, x, R) -> Localization:
-        tr = self.trace(B, env, x, R, check_origin=False)
-        return Localization(l=tr.shown, valid=tr.valid)
 
     def lookups_per_ray(self) -> float:
         # depth fetches of the steps taken (mean over rays) + the colour fetch + the fallback's on its rays; before
