@@ -57,8 +57,6 @@ for part in $parts; do
     for f in fig4 fig5 fig6; do
       timed "$f" $S figure $f --backend cuda --cache "$W/cache" --out "$W/studies/$f" 2>&1 | tail -40
     done
-    python3 -m cProfile -o "$OUT/fig4-warm.prof" -m study.cli figure fig4 --backend cuda --cache "$W/cache" \
-      --out "$W/fig4-warm" > /dev/null 2>&1                   # where a warm run's time goes (not timed)
     tar czf "$OUT/results-figures.tgz" -C "$W" --exclude=exr --exclude=viewer --exclude="*.png" studies
     timed sweep timeout "${SWEEP_LIMIT:-300}" $S sweep configs/sweep.toml --backend cuda --cache "$W/cache" \
       --out "$W/sweep" --jobs "${SWEEP_JOBS:-8}" --no-plots 2>&1 | tail -5
@@ -88,9 +86,8 @@ for part in $parts; do
     CUDA_VISIBLE_DEVICES=0 timed single timeout "${LIMIT_S:-200}" $S sweep configs/sweep_large_subset.toml \
       --backend cuda --cache "$W/scache" --out "$W/single" --no-plots 2>&1 | tail -2
     tar czf "$OUT/results-single.tgz" -C "$W" --exclude=cases single ;;
-  profile)  # where one heavy case of the main sweep spends its time on the GPU (cube 512², big columns): a cold
-            # and a warm run under cProfile in one process (scripts/profile_case.py), after a first case that
-            # compiles the kernels
+  profile)  # where the main sweep's heaviest case (cube 512², big columns) and fig4 spend their time on the GPU:
+            # each run twice under cProfile in one process (scripts/profile_case.py), on an empty cache, then warm
     export HOME=$W/home-prof; mkdir -p "$HOME"
     timed profile python3 scripts/profile_case.py configs/sweep.toml cuda "${PROFILE_CASE:--1}" "$W/pcache" \
       > "$OUT/profile-case.txt" 2>&1
