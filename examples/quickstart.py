@@ -5,6 +5,7 @@
 Runs in about 15 s on 2 cores: a tiny version of the shipped room (32 × 32 pixels, 16² cube faces, few samples).
 Every line works the same in a notebook cell (there, ``res`` alone shows the table and thumbnails).
 """
+
 import sys
 
 import study
@@ -12,11 +13,19 @@ from study.methods import Localization, Method, register
 
 # ----------------------------------------------------------------------------------------------- a scene
 # A shipped scene, found from any working directory, with dotted-key overrides (any key of the scene TOML).
-scene = study.load_scene("scenes/room.toml", **{
-    "render.cube_res": 16, "render.cube_spp": 4, "render.spp": 4, "render.supersample": 1,
-    "camera.width": 32, "camera.height": 32,
-    "object.center": [0.6, 1.2, 0.3], "object.radius": 0.4,
-})
+scene = study.load_scene(
+    "scenes/room.toml",
+    **{
+        "render.cube_res": 16,
+        "render.cube_spp": 4,
+        "render.spp": 4,
+        "render.supersample": 1,
+        "camera.width": 32,
+        "camera.height": 32,
+        "object.center": [0.6, 1.2, 0.3],
+        "object.radius": 0.4,
+    },
+)
 # Other sources: study.load_scene("scenes/meshes/bunny.obj") would take a mesh file as the environment, and
 # study.load_scene(mitsuba.cornell_box()) a Mitsuba scene dict (see README, "Python API").
 
@@ -26,6 +35,7 @@ scene = study.load_scene("scenes/room.toml", **{
 class HalfwayProbe(Method):
     """Look the reflected ray up as if the environment were twice as far as the reference point's distance to
     the shading point: a toy between classical (infinitely far) and a proxy."""
+
     name = "halfway_probe"
 
     def localize(self, B, env, x, R):
@@ -40,18 +50,18 @@ class HalfwayProbe(Method):
 # ----------------------------------------------------------------------------------------------- evaluate
 # methods="all" is every registered method (the one just registered too); a list picks some, by name or label.
 res = study.evaluate(scene, methods=["classical", "localized(iterations=3)", "halfway_probe"], cache=None)
-print(res)                                      # the leading columns; res.table holds them all (pandas)
+print(res)  # the leading columns; res.table holds them all (pandas)
 
 table = res.table.set_index("label")
-assert "halfway_probe" in table.index           # the notebook's method was measured beside the built-in ones
-assert "halfway_probe" in [m.name for m in study.method_list("all")]   # and methods="all" would include it
+assert "halfway_probe" in table.index  # the notebook's method was measured beside the built-in ones
+assert "halfway_probe" in [m.name for m in study.method_list("all")]  # and methods="all" would include it
 best = table.drop(index=["oracle_map", "truth_at_hit"])["angle_median_deg"].idxmin()
 print(f"closest to the exact hits: {best}")
 
-err = res.error_maps["classical"]               # (H, W) per-pixel RMS radiance error against truth_at_hit
-flip = res.flip_maps["classical"]               # (H, W) FLIP against truth_at_hit; NaN off the object
+err = res.error_maps["classical"]  # (H, W) per-pixel RMS radiance error against truth_at_hit
+flip = res.flip_maps["classical"]  # (H, W) FLIP against truth_at_hit; NaN off the object
 print(f"classical: mean per-pixel error {err[res.mask].mean():.3f}, mean FLIP {flip[res.mask].mean():.3f}")
 
 out = sys.argv[1] if len(sys.argv) > 1 else "reports/quickstart"
-res.save(out)                                   # table.csv, table.parquet, images/*.exr, maps, index.json
+res.save(out)  # table.csv, table.parquet, images/*.exr, maps, index.json
 print(f"saved to {out}")

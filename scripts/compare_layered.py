@@ -17,6 +17,7 @@ and prints, per case and method:
 
 Goal (issue 17): layered's wrong_hidden ≤ 5 % on fig5 p0 (exit status 1 otherwise).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))     # this checkout's study, not an installed one
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's study, not an installed one
 
 from study import backend as backends
 from study import methods
@@ -62,8 +63,8 @@ def measure(scene, ms, *, backend, cache):
     tex = layered_impostor(scene, cache, n_layers, imp.radiance, tracer) if n_layers > 1 else None
     if tex is not None:
         env.info["layers"] = [EnvMap(t, B) for t in tex]
-    held = np.zeros(len(exact), bool)                  # some layer holds the exact hit (within eps)
-    for t in (tex if tex is not None else [imp.texels()]):
+    held = np.zeros(len(exact), bool)  # some layer holds the exact hit (within eps)
+    for t in tex if tex is not None else [imp.texels()]:
         d = np.asarray(EnvMap(t, nb).distance(nb.vec(to_hit)), float)
         held |= np.abs(d - hit_dist) <= eps
     x, R = B.vec(rays.x - o), B.vec(rays.R)
@@ -72,16 +73,36 @@ def measure(scene, ms, *, backend, cache):
         t0 = time.perf_counter()
         with np.errstate(divide="ignore", invalid="ignore"):
             tr = m.trace(B, env, x, R)
-        B.eval(tr.shown.x, tr.shown.y, tr.shown.z, tr.radiance.x, tr.radiance.y, tr.radiance.z, tr.ratio, tr.valid)
+        B.eval(
+            tr.shown.x,
+            tr.shown.y,
+            tr.shown.z,
+            tr.radiance.x,
+            tr.radiance.y,
+            tr.radiance.z,
+            tr.ratio,
+            tr.valid,
+        )
         shown = B.to_numpy(tr.shown).astype(np.float64) + o
         sec = time.perf_counter() - t0
         err = np.linalg.norm(shown - exact, axis=1)
-        wrong = ~(err <= eps)                          # NaN (invalid) is wrong
-        rows.append({"label": m.label, "wrong_hidden": wrong[hidden].mean() if hidden.any() else np.nan,
-                     "wrong_visible": wrong[~hidden].mean(), "lookups": m.lookups_per_ray(), "seconds": sec,
-                     "wrong_hidden_held": wrong[hidden & held].mean() if (hidden & held).any() else np.nan})
-    info = {"rays": len(exact), "hidden": int(hidden.sum()),
-            "no_layer": float((~held[hidden]).mean()) if hidden.any() else np.nan, "layers": n_layers}
+        wrong = ~(err <= eps)  # NaN (invalid) is wrong
+        rows.append(
+            {
+                "label": m.label,
+                "wrong_hidden": wrong[hidden].mean() if hidden.any() else np.nan,
+                "wrong_visible": wrong[~hidden].mean(),
+                "lookups": m.lookups_per_ray(),
+                "seconds": sec,
+                "wrong_hidden_held": wrong[hidden & held].mean() if (hidden & held).any() else np.nan,
+            }
+        )
+    info = {
+        "rays": len(exact),
+        "hidden": int(hidden.sum()),
+        "no_layer": float((~held[hidden]).mean()) if hidden.any() else np.nan,
+        "layers": n_layers,
+    }
     return rows, info
 
 
@@ -96,8 +117,11 @@ def main() -> int:
     ap.add_argument("--only", nargs="*", default=None, help="method names to run (default: all three)")
     a = ap.parse_args()
     cfg, scene, _ = load_figure_config(a.config)
-    ms = [methods.make("localized", iterations=10), methods.make("linear_secant", **kv(a.linear)),
-          methods.make("layered", **kv(a.layered))]
+    ms = [
+        methods.make("localized", iterations=10),
+        methods.make("linear_secant", **kv(a.linear)),
+        methods.make("layered", **kv(a.layered)),
+    ]
     if a.only:
         ms = [m for m in ms if m.name in a.only]
     cache = Cache(a.cache)
@@ -106,13 +130,19 @@ def main() -> int:
         if cid not in a.cases:
             continue
         rows, info = measure(scene.with_updates(over), ms, backend=a.backend, cache=cache)
-        print(f"\n{a.config} {cid} {label}: {info['rays']} rays, {info['hidden']} with a hidden hit; "
-              f"no layer of {info['layers']} holds {100 * info['no_layer']:.1f} % of them")
-        print(f"{'method':58s} {'wrong_hidden':>12s} {'(held)':>7s} {'wrong_visible':>13s} {'lookups':>7s} "
-              f"{'seconds':>8s}")
+        print(
+            f"\n{a.config} {cid} {label}: {info['rays']} rays, {info['hidden']} with a hidden hit; "
+            f"no layer of {info['layers']} holds {100 * info['no_layer']:.1f} % of them"
+        )
+        print(
+            f"{'method':58s} {'wrong_hidden':>12s} {'(held)':>7s} {'wrong_visible':>13s} {'lookups':>7s} "
+            f"{'seconds':>8s}"
+        )
         for r in rows:
-            print(f"{r['label']:58s} {100 * r['wrong_hidden']:11.1f}% {100 * r['wrong_hidden_held']:6.1f}% "
-                  f"{100 * r['wrong_visible']:12.2f}% {r['lookups']:7d} {r['seconds']:8.2f}")
+            print(
+                f"{r['label']:58s} {100 * r['wrong_hidden']:11.1f}% {100 * r['wrong_hidden_held']:6.1f}% "
+                f"{100 * r['wrong_visible']:12.2f}% {r['lookups']:7d} {r['seconds']:8.2f}"
+            )
             if cid == "p0" and r["label"].startswith("layered") and not r["wrong_hidden"] <= 0.05:
                 status = 1
     return status

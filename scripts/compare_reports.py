@@ -7,6 +7,7 @@ before a method declared its knob, such as "layered", becomes today's "layered(l
 table both trees hold, prints the rows matched, rows only on one side, and per numeric column the largest
 difference; exits 1 if any value differs by more than rtol (relative) or a row is missing.
 """
+
 from __future__ import annotations
 
 import ast
@@ -17,10 +18,16 @@ from pathlib import Path
 from study import methods
 from study.tables import TIMING_COLUMNS, read_csv
 
-TABLES = {"fig4/metrics.csv": "fig4/metrics.csv", "fig5/metrics.csv": "fig5/metrics.csv",
-          "fig6/metrics.csv": "fig6/metrics.csv", "fig8/fig8.csv": "fig8/fig8.csv",
-          "fig8/sweep.csv": "fig8/sweep/results.csv", "fig8/sweep/results.csv": "fig8/sweep/results.csv",
-          "sweep-sweep/results.csv": "sweep-sweep/results.csv", "baseline/results.csv": "baseline/results.csv"}
+TABLES = {
+    "fig4/metrics.csv": "fig4/metrics.csv",
+    "fig5/metrics.csv": "fig5/metrics.csv",
+    "fig6/metrics.csv": "fig6/metrics.csv",
+    "fig8/fig8.csv": "fig8/fig8.csv",
+    "fig8/sweep.csv": "fig8/sweep/results.csv",
+    "fig8/sweep/results.csv": "fig8/sweep/results.csv",
+    "sweep-sweep/results.csv": "sweep-sweep/results.csv",
+    "baseline/results.csv": "baseline/results.csv",
+}
 SKIP = set(TIMING_COLUMNS) | {"seconds_per_map", "iterations", "knob_value", "family", "knob", "label"}
 
 
@@ -37,7 +44,7 @@ def canonical(label: str) -> str:
 
 
 def key(r: dict) -> tuple:
-    if "caustic_res" in r:                      # caustic tables: one row per resolution × method
+    if "caustic_res" in r:  # caustic tables: one row per resolution × method
         return (str(r["caustic_res"]), canonical(r["label"]))
     return (r.get("case", ""), canonical(r["label"]))
 
@@ -56,16 +63,27 @@ def compare(old: Path, new: Path, rtol: float) -> bool:
         for k in common:
             for col, x in a[k].items():
                 y = b[k].get(col)
-                if col in SKIP or col.startswith("axis:") or not isinstance(x, float) or not isinstance(y, float):
+                if (
+                    col in SKIP
+                    or col.startswith("axis:")
+                    or not isinstance(x, float)
+                    or not isinstance(y, float)
+                ):
                     continue
                 if math.isnan(x) and math.isnan(y):
                     continue
-                d = abs(x - y) / max(abs(x), 1e-12) if not (math.isinf(x) or math.isinf(y)) else (0 if x == y else 1)
+                d = (
+                    abs(x - y) / max(abs(x), 1e-12)
+                    if not (math.isinf(x) or math.isinf(y))
+                    else (0 if x == y else 1)
+                )
                 if d > worst.get(col, (-1,))[0]:
                     worst[col] = (d, k)
         bad = {c: v for c, v in worst.items() if v[0] > rtol}
         ok &= not bad and not only_a
-        print(f"{o_name} → {n_name}: {len(common)} rows matched, {len(only_a)} only before, {len(only_b)} only now")
+        print(
+            f"{o_name} → {n_name}: {len(common)} rows matched, {len(only_a)} only before, {len(only_b)} only now"
+        )
         for k in only_a[:5]:
             print(f"   only before: {k}")
         for c, (d, k) in sorted(bad.items(), key=lambda kv: -kv[1][0])[:12]:

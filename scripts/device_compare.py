@@ -7,6 +7,7 @@ Both are report trees holding fig4/metrics.csv, fig5/metrics.csv, fig6/metrics.c
 absolute difference over the matched rows, beside the column's median absolute value; a Markdown table on stdout.
 Renders differ by Monte Carlo noise (another device, another float order), exact hits by float32 rounding.
 """
+
 from __future__ import annotations
 
 import sys
@@ -17,8 +18,17 @@ import numpy as np
 from study.tables import read_csv
 
 TABLES = ["fig4/metrics.csv", "fig5/metrics.csv", "fig6/metrics.csv", "sweep-sweep/results.csv"]
-COLUMNS = ["wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95", "angle_median_deg",
-           "rmse_oracle", "rmse_mitsuba", "flip_mitsuba", "rmse_truth"]
+COLUMNS = [
+    "wrong_fraction",
+    "wrong_fraction_visible",
+    "wrong_fraction_hidden",
+    "dist_p95",
+    "angle_median_deg",
+    "rmse_oracle",
+    "rmse_mitsuba",
+    "flip_mitsuba",
+    "rmse_truth",
+]
 
 
 def _num(v) -> float:
@@ -29,8 +39,10 @@ def _num(v) -> float:
 
 
 def compare(cpu: Path, gpu: Path) -> list[str]:
-    out = ["| table | rows matched | column | max abs diff | median abs diff | median abs value |",
-           "|---|---|---|---|---|---|"]
+    out = [
+        "| table | rows matched | column | max abs diff | median abs diff | median abs value |",
+        "|---|---|---|---|---|---|",
+    ]
     for t in TABLES:
         if not (cpu / t).exists() or not (gpu / t).exists():
             continue
@@ -44,8 +56,10 @@ def compare(cpu: Path, gpu: Path) -> list[str]:
             if not ok.any():
                 continue
             d = np.abs(x[ok] - y[ok])
-            out.append(f"| {t} | {len(keys)} | {c} | {d.max():.3g} | {np.median(d):.3g} | "
-                       f"{np.median(np.abs(x[ok])):.3g} |")
+            out.append(
+                f"| {t} | {len(keys)} | {c} | {d.max():.3g} | {np.median(d):.3g} | "
+                f"{np.median(np.abs(x[ok])):.3g} |"
+            )
     return out
 
 

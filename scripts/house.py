@@ -1,8 +1,9 @@
 """Regenerate the README's map of the house ("Where things are") from the package and module docstrings.
 
-    python scripts/house.py           # rewrite the table between the markers in README.md
-    python scripts/house.py --check   # exit 1 if README.md is not up to date (tests/test_architecture.py)
+python scripts/house.py           # rewrite the table between the markers in README.md
+python scripts/house.py --check   # exit 1 if README.md is not up to date (tests/test_architecture.py)
 """
+
 from __future__ import annotations
 
 import ast
@@ -13,18 +14,36 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 BEGIN, END = "<!-- house:begin (scripts/house.py) -->", "<!-- house:end -->"
 #: top to bottom, as the layers of pyproject.toml
-ORDER = ["cli", "api.py", "outputs", "bench", "caustics", "harness", "measure", "optics", "methods", "impostor",
-         "reference", "scene", "cache.py", "validation.py", "tables.py", "backend.py", "io.py", "runtime.py",
-         "codehash.py",
-         "errors.py"]
+ORDER = [
+    "cli",
+    "api.py",
+    "outputs",
+    "bench",
+    "caustics",
+    "harness",
+    "measure",
+    "optics",
+    "methods",
+    "impostor",
+    "reference",
+    "scene",
+    "cache.py",
+    "validation.py",
+    "tables.py",
+    "backend.py",
+    "io.py",
+    "runtime.py",
+    "codehash.py",
+    "errors.py",
+]
 
 
 def _first_sentence(path: Path) -> str:
     doc = ast.get_docstring(ast.parse(path.read_text())) or ""
-    text = " ".join(doc.split("\n\n")[0].split())                 # the first paragraph
-    for m in re.finditer(r"\.(?=\s|$)", text):                    # its first sentence (not "ch. 17", "et al.")
-        if not re.search(r"(\bch|\bal|e\.g|i\.e|\bvs|\d)$", text[:m.start()]):
-            text = text[:m.end()]
+    text = " ".join(doc.split("\n\n")[0].split())  # the first paragraph
+    for m in re.finditer(r"\.(?=\s|$)", text):  # its first sentence (not "ch. 17", "et al.")
+        if not re.search(r"(\bch|\bal|e\.g|i\.e|\bvs|\d)$", text[: m.start()]):
+            text = text[: m.end()]
             break
     return text.replace("|", "\\|")
 

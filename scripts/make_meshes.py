@@ -9,6 +9,7 @@ radially: an ellipsoidal body, a head, two long ears and a tail, each a smooth b
 to (r = body(u) + Σ a·exp(−(1 − u·d)/w)). Star-shaped around its centre, hence closed and free of
 self-intersections; about 170 KB of OBJ text (positions to 5 decimals, faces counter-clockwise from outside).
 """
+
 from __future__ import annotations
 
 import sys
@@ -20,19 +21,22 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "scenes" / "meshes"
 
 #: (direction, amplitude, width) of the bumps on the body: head, two ears, tail
-BUMPS = [((0.75, 0.55, 0.0), 0.55, 0.08),
-         ((0.3, 0.9, 0.3), 0.7, 0.035),
-         ((0.3, 0.9, -0.3), 0.7, 0.035),
-         ((-0.97, 0.25, 0.0), 0.25, 0.03)]
+BUMPS = [
+    ((0.75, 0.55, 0.0), 0.55, 0.08),
+    ((0.3, 0.9, 0.3), 0.7, 0.035),
+    ((0.3, 0.9, -0.3), 0.7, 0.035),
+    ((-0.97, 0.25, 0.0), 0.25, 0.03),
+]
 
 
 def bunny() -> tuple[np.ndarray, np.ndarray]:
     """Vertices (V, 3) and faces (F, 3) of the bunny-like blob (not yet to unit size: study scales it)."""
     import trimesh
+
     m = trimesh.creation.icosphere(subdivisions=4)
     u = np.asarray(m.vertices, float)
     u /= np.linalg.norm(u, axis=1, keepdims=True)
-    r = 1.0 / np.sqrt((u[:, 0] / 1.0) ** 2 + (u[:, 1] / 0.75) ** 2 + (u[:, 2] / 0.7) ** 2)   # the body
+    r = 1.0 / np.sqrt((u[:, 0] / 1.0) ** 2 + (u[:, 1] / 0.75) ** 2 + (u[:, 2] / 0.7) ** 2)  # the body
     for d, a, w in BUMPS:
         d = np.asarray(d) / np.linalg.norm(d)
         r += a * np.exp(-(1 - u @ d) / w)

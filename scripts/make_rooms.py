@@ -9,6 +9,7 @@
 Every face's normal points into free space (walls inward, pillars and arches outward), as study's placement
 checks expect. Run: ``python scripts/make_rooms.py`` (deterministic; the files are committed).
 """
+
 from __future__ import annotations
 
 import sys
@@ -30,8 +31,14 @@ def box(lo, hi, *, inward=False, bottom=True):
     """The faces of a box, normals outward (or inward)."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     ex, ey, ez = np.diag(hi - lo)
-    faces = {"-y": quad(lo, ex, ez), "+y": quad(lo + ey, ez, ex), "-x": quad(lo, ez, ey),
-             "+x": quad(lo + ex, ey, ez), "-z": quad(lo, ey, ex), "+z": quad(lo + ez, ex, ey)}
+    faces = {
+        "-y": quad(lo, ex, ez),
+        "+y": quad(lo + ey, ez, ex),
+        "-x": quad(lo, ez, ey),
+        "+x": quad(lo + ex, ey, ez),
+        "-z": quad(lo, ey, ex),
+        "+z": quad(lo + ez, ex, ey),
+    }
     if not bottom:
         del faces["-y"]
     tris = {k: v for k, v in faces.items()}
@@ -59,9 +66,10 @@ def l_room():
     def add(ts, rgb):
         tris.extend(ts)
         cols.extend([rgb] * len(ts))
+
     for rect, shade in (([(0, 0), (6, 0), (6, 3), (0, 3)], 0), ([(0, 3), (3, 3), (3, 6), (0, 6)], 1)):
-        add(polygon_fan(rect, 0.0, up=True), (150, 120, 90) if shade else (170, 140, 100))   # floor
-        add(polygon_fan(rect, H, up=False), (225, 225, 220))                                  # ceiling
+        add(polygon_fan(rect, 0.0, up=True), (150, 120, 90) if shade else (170, 140, 100))  # floor
+        add(polygon_fan(rect, H, up=False), (225, 225, 220))  # ceiling
     # walls: the outline walked counter-clockwise seen from above; each wall faces the inside
     outline = [(0, 0), (6, 0), (6, 3), (3, 3), (3, 6), (0, 6)]
     colours = [(190, 70, 60), (60, 110, 180), (220, 190, 70), (70, 160, 90), (150, 90, 170), (90, 170, 170)]
@@ -72,15 +80,26 @@ def l_room():
         n = np.cross(ts[0][1] - ts[0][0], ts[0][2] - ts[0][0])
         probe = p0 + du / 2 + 0.01 * n / np.linalg.norm(n)
         inside = (0 < probe[0] < 6 and 0 < probe[2] < 3) or (0 < probe[0] < 3 and 0 < probe[2] < 6)
-        add(ts if inside else [t[::-1] for t in ts], rgb)            # every wall faces the inside of the L
+        add(ts if inside else [t[::-1] for t in ts], rgb)  # every wall faces the inside of the L
     return np.array(tris), np.array(cols, np.uint8)
 
 
 def write_ply(path: Path, tris: np.ndarray, cols: np.ndarray) -> None:
     V = tris.reshape(-1, 3)
-    lines = ["ply", "format ascii 1.0", f"element vertex {len(V)}", "property float x", "property float y",
-             "property float z", f"element face {len(tris)}", "property list uchar int vertex_indices",
-             "property uchar red", "property uchar green", "property uchar blue", "end_header"]
+    lines = [
+        "ply",
+        "format ascii 1.0",
+        f"element vertex {len(V)}",
+        "property float x",
+        "property float y",
+        "property float z",
+        f"element face {len(tris)}",
+        "property list uchar int vertex_indices",
+        "property uchar red",
+        "property uchar green",
+        "property uchar blue",
+        "end_header",
+    ]
     lines += [f"{x:.6g} {y:.6g} {z:.6g}" for x, y, z in V]
     lines += [f"3 {3 * i} {3 * i + 1} {3 * i + 2} {r} {g} {b}" for i, (r, g, b) in enumerate(cols)]
     path.write_text("\n".join(lines) + "\n")
@@ -95,18 +114,20 @@ def arch(x0, x1, z, y0, thick, depth, n=12):
     tris = []
     for i in range(n):
         a0, a1 = np.pi * i / n, np.pi * (i + 1) / n
-        pts = [np.array([c + r * np.cos(a), y0 + r * np.sin(a)]) for r, a in
-               ((r_in, a0), (r_in, a1), (r_out, a1), (r_out, a0))]
+        pts = [
+            np.array([c + r * np.cos(a), y0 + r * np.sin(a)])
+            for r, a in ((r_in, a0), (r_in, a1), (r_out, a1), (r_out, a0))
+        ]
         front = [np.array([p[0], p[1], z - depth / 2]) for p in pts]
         back = [np.array([p[0], p[1], z + depth / 2]) for p in pts]
-        for k in range(4):                                        # the four sides of the segment
+        for k in range(4):  # the four sides of the segment
             a, b = k, (k + 1) % 4
             tris += [np.array([front[a], front[b], back[b]]), np.array([front[a], back[b], back[a]])]
         tris += [np.array([front[0], front[2], front[1]]), np.array([front[0], front[3], front[2]])]
         tris += [np.array([back[0], back[1], back[2]]), np.array([back[0], back[2], back[3]])]
     centre = np.array([c, y0 + r_in, z])
     out = []
-    for t in tris:                                                # orient each face away from the ring's inside
+    for t in tris:  # orient each face away from the ring's inside
         n = np.cross(t[1] - t[0], t[2] - t[0])
         m = t.mean(0)
         radial = np.array([m[0] - centre[0], m[1] - (y0), 0.0])
@@ -124,27 +145,32 @@ def atrium():
     mats["ceiling"] += room["+y"]
     for k in ("-x", "+x", "-z", "+z"):
         mats["walls"] += room[k]
-    w, h_p = 0.4, 2.2                                             # pillar width and height (arches spring there)
+    w, h_p = 0.4, 2.2  # pillar width and height (arches spring there)
     xs = [1.5, 3.5, 5.5]
-    for i, x in enumerate(xs):                                    # 8 pillars on the square's edge (no centre one)
+    for i, x in enumerate(xs):  # 8 pillars on the square's edge (no centre one)
         for j, z in enumerate(xs):
             if i == 1 and j == 1:
                 continue
             for ts in box((x - w / 2, 0, z - w / 2), (x + w / 2, h_p, z + w / 2), bottom=False).values():
                 mats["stone"] += ts
-    for z in (1.5, 5.5):                                          # arches along x on the front and back rows
+    for z in (1.5, 5.5):  # arches along x on the front and back rows
         for x0, x1 in zip(xs, xs[1:]):
             mats["arch"] += arch(x0 + w / 2, x1 - w / 2, z, h_p, 0.3, w)
-    for x in (1.5, 5.5):                                          # and along z on the left and right rows
+    for x in (1.5, 5.5):  # and along z on the left and right rows
         for z0, z1 in zip(xs, xs[1:]):
             segs = arch(z0 + w / 2, z1 - w / 2, 0.0, h_p, 0.3, w)
-            mats["arch"] += [t[:, [2, 1, 0]][::-1] + np.array([x, 0, 0]) for t in segs]   # swap x and z
+            mats["arch"] += [t[:, [2, 1, 0]][::-1] + np.array([x, 0, 0]) for t in segs]  # swap x and z
     return mats
 
 
 def write_obj(path: Path, mats: dict[str, list]) -> None:
-    kd = {"floor": None, "walls": (0.75, 0.62, 0.45), "ceiling": (0.85, 0.85, 0.82), "stone": (0.55, 0.55, 0.6),
-          "arch": (0.7, 0.35, 0.25)}
+    kd = {
+        "floor": None,
+        "walls": (0.75, 0.62, 0.45),
+        "ceiling": (0.85, 0.85, 0.82),
+        "stone": (0.55, 0.55, 0.6),
+        "arch": (0.7, 0.35, 0.25),
+    }
     mtl = []
     for name, c in kd.items():
         mtl += [f"newmtl {name}"]
@@ -159,7 +185,7 @@ def write_obj(path: Path, mats: dict[str, list]) -> None:
         for t in tris:
             for v in t:
                 lines.append(f"v {v[0]:.5f} {v[1]:.5f} {v[2]:.5f}")
-            if name == "floor":                                   # texture coordinates: 1 tile per metre
+            if name == "floor":  # texture coordinates: 1 tile per metre
                 for v in t:
                     lines.append(f"vt {v[0] / 7:.5f} {v[2] / 7:.5f}")
                 lines.append(f"f {nv + 1}/{nt + 1} {nv + 2}/{nt + 2} {nv + 3}/{nt + 3}")
@@ -173,6 +199,7 @@ def write_obj(path: Path, mats: dict[str, list]) -> None:
 def floor_texture(path: Path, size: int = 256) -> None:
     """A 7 × 7 tile checker with grout, as an sRGB PNG."""
     from PIL import Image
+
     y, x = np.mgrid[0:size, 0:size] / size
     check = (np.floor(x * 7) + np.floor(y * 7)) % 2
     grout = (np.abs((x * 7) % 1 - 0.5) > 0.46) | (np.abs((y * 7) % 1 - 0.5) > 0.46)

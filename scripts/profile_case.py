@@ -6,6 +6,7 @@ so no thread of study's own blurs the profile):
 
 Each runs twice, on an empty cache and then on the cache the first run filled, and prints the costliest calls of
 each run, by cumulative and by own time. Used on the GPU machine by ``scripts/device_run.sh profile``."""
+
 import cProfile
 import pstats
 import shutil
@@ -22,9 +23,10 @@ which = sys.argv[3] if len(sys.argv) > 3 else None
 cache_dir = sys.argv[4] if len(sys.argv) > 4 else tempfile.mkdtemp(prefix="study-profile-")
 runtime.set_render_device("cuda" if backend == "cuda" else "cpu")
 shutil.rmtree(cache_dir, ignore_errors=True)
-if "\n[axes" in "\n" + Path(path).read_text():                # a sweep (its cases come from axes)
+if "\n[axes" in "\n" + Path(path).read_text():  # a sweep (its cases come from axes)
     from study.harness.runner import prepare_sweep
     from study.measure.case import run_case
+
     sweep = prepare_sweep(path, backend=backend)
     case = sweep.cases[int(which) if which else -1]
     name = case.id
@@ -33,12 +35,15 @@ if "\n[axes" in "\n" + Path(path).read_text():                # a sweep (its cas
         run_case(case.scene, sweep.methods, backend=backend, cache=Cache(cache_dir), case_id=case.id)
 else:
     from study.outputs.figures import figure_positions
+
     name = which or Path(path).stem
     out = Path(tempfile.mkdtemp(prefix="study-profile-out-"))
 
     def job():
         shutil.rmtree(out / name, ignore_errors=True)
         figure_positions(path, out / name, name=name, backend=backend, cache=cache_dir)
+
+
 for run in ("cold", "warm"):
     prof = cProfile.Profile()
     t0 = time.perf_counter()

@@ -7,6 +7,7 @@ The Python API (:mod:`study.api`) is reached from here and imported on first use
 light: ``study.load_scene(...)``, ``study.evaluate(...)`` → ``study.Result``. One case end to end, the layer
 under the API, is :mod:`study.measure`.
 """
+
 import importlib
 
 from study import runtime as _llvm

@@ -16,6 +16,7 @@ scene keys, as keyword arguments (``**{"object.radius": 0.3}``) or an ``override
 outside the package (``@study.methods.register`` in a notebook cell, ``--plugin``, entry points) are part of
 ``methods="all"``. Errors are :class:`~study.errors.StudyError` (one line naming file and key).
 """
+
 from __future__ import annotations
 
 import base64
@@ -37,8 +38,18 @@ from study.scene import Scene
 MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".stl", ".off")
 MITSUBA_SUFFIXES = (".xml",)
 #: the columns :class:`Result` shows first (``__repr__``, ``_repr_html_``, ``study run``)
-SHOWN = ["label", "wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95",
-         "angle_median_deg", "rmse_truth", "flip_truth", "rmse_mitsuba", "lookups_per_ray"]
+SHOWN = [
+    "label",
+    "wrong_fraction",
+    "wrong_fraction_visible",
+    "wrong_fraction_hidden",
+    "dist_p95",
+    "angle_median_deg",
+    "rmse_truth",
+    "flip_truth",
+    "rmse_mitsuba",
+    "lookups_per_ray",
+]
 REFERENCES = ("oracle_map", "truth_at_hit")
 
 
@@ -57,6 +68,7 @@ def _environment_scene(env: dict, updates: dict, *, source: str) -> Scene:
     from pydantic import TypeAdapter, ValidationError
 
     from study.scene import environment, scene_from_dict, sources
+
     try:
         model = TypeAdapter(sources.Environment).validate_python(env)
     except ValidationError as err:
@@ -71,7 +83,9 @@ def _environment_scene(env: dict, updates: dict, *, source: str) -> Scene:
     return scene_from_dict(data, source=source)
 
 
-def load_scene(source: str | Path | dict | Scene, overrides: dict[str, Any] | None = None, **more: Any) -> Scene:
+def load_scene(
+    source: str | Path | dict | Scene, overrides: dict[str, Any] | None = None, **more: Any
+) -> Scene:
     """A validated :class:`~study.scene.Scene` from ``source`` with dotted-key ``overrides`` (and ``**more``).
 
     Parameters
@@ -87,17 +101,21 @@ def load_scene(source: str | Path | dict | Scene, overrides: dict[str, Any] | No
     if isinstance(source, Scene):
         return source.with_updates(updates) if updates else source
     if isinstance(source, dict):
-        if source.get("type") == "scene":                        # a Mitsuba scene dict
+        if source.get("type") == "scene":  # a Mitsuba scene dict
             return _environment_scene({"type": "mitsuba", "scene": source}, updates, source="<mitsuba dict>")
         from study.scene import scene_from_dict
+
         data = json.loads(json.dumps(source, default=list)) if updates else source
         for k, v in updates.items():
             _set_dotted(data, k, v, source="<scene dict>")
         return scene_from_dict(data, source="<scene dict>")
     if not isinstance(source, (str, Path)):
-        raise StudyError(f"a scene source is a path, a dict or a Scene, not {type(source).__name__}", key="source")
+        raise StudyError(
+            f"a scene source is a path, a dict or a Scene, not {type(source).__name__}", key="source"
+        )
     from study.harness.config import shipped
-    path = shipped(Path(source).expanduser())               # "scenes/room.toml" from any working directory
+
+    path = shipped(Path(source).expanduser())  # "scenes/room.toml" from any working directory
     if not path.is_file():
         raise StudyError("scene source not found", file=str(path))
     suffix = path.suffix.lower()
@@ -106,9 +124,12 @@ def load_scene(source: str | Path | dict | Scene, overrides: dict[str, Any] | No
     if suffix in MITSUBA_SUFFIXES:
         return _environment_scene({"type": "mitsuba", "file": str(path.resolve())}, updates, source=str(path))
     if suffix != ".toml":
-        raise StudyError(f"not a scene source; allowed: .toml, {', '.join(MESH_SUFFIXES + MITSUBA_SUFFIXES)}",
-                         file=str(path))
+        raise StudyError(
+            f"not a scene source; allowed: .toml, {', '.join(MESH_SUFFIXES + MITSUBA_SUFFIXES)}",
+            file=str(path),
+        )
     from study.scene import load_scene as load_toml
+
     scene = load_toml(path)
     return scene.with_updates(updates, source=str(path)) if updates else scene
 
@@ -119,12 +140,15 @@ def method_list(spec: Any = "all", *, key: str = "methods") -> list:
     :class:`~study.methods.Method`, a config table (``{"name": "localized", "iterations": [0, 1, 3]}``) or a list
     of these; a method asked for twice is kept once. Errors name ``key`` (and the entry's index)."""
     from study.harness.config import expand_methods
+
     out = []
     for i, s in enumerate(spec if isinstance(spec, (list, tuple)) else [spec]):
         try:
             out += _methods_of(s, expand_methods)
         except StudyError as err:
-            raise StudyError(err.detail, key=f"{key}[{i}]" if isinstance(spec, (list, tuple)) else key) from None
+            raise StudyError(
+                err.detail, key=f"{key}[{i}]" if isinstance(spec, (list, tuple)) else key
+            ) from None
     first: dict = {}
     for m in out:
         first.setdefault(m.label, m)
@@ -170,6 +194,7 @@ class Result:
     against ``truth_at_hit``; ``angle_maps``: mean angular error at the shading point (degrees);
     ``outcome_maps``: majority outcome class (0 correct, 1 wrong depth, 2 wrong surface, 3 no hit). Error maps are
     NaN off the object (``mask``: the pixels fully on it)."""
+
     scene: Scene
     table: Any
     images: dict[str, np.ndarray] = field(default_factory=dict)
@@ -188,29 +213,37 @@ class Result:
         s, r = self.scene, self.scene.render
         env = getattr(getattr(s, "environment", None), "type", "box")
         obj = s.object.shape if s.object.shape != "mesh" else f"mesh {Path(s.object.file).name}"
-        return (f"{env} environment, {obj} (radius {s.object.radius:g}, {s.object.material.type}), camera "
-                f"{s.camera.width}×{s.camera.height}, cube {r.cube_res}², backend {self.backend}, "
-                f"{len(self.table) - len(REFERENCES)} method(s)")
+        return (
+            f"{env} environment, {obj} (radius {s.object.radius:g}, {s.object.material.type}), camera "
+            f"{s.camera.width}×{s.camera.height}, cube {r.cube_res}², backend {self.backend}, "
+            f"{len(self.table) - len(REFERENCES)} method(s)"
+        )
 
     def shown(self):
         """The table's leading columns (:data:`SHOWN`) for display."""
         return self.table[[c for c in SHOWN if c in self.table.columns]]
 
     def __repr__(self) -> str:
-        return f"Result({self.summary()})\n" + self.shown().to_string(index=False, float_format=lambda v: f"{v:.4g}")
+        return f"Result({self.summary()})\n" + self.shown().to_string(
+            index=False, float_format=lambda v: f"{v:.4g}"
+        )
 
     def _repr_html_(self) -> str:
         from study.measure.metrics import to_ldr
+
         thumbs = []
         for label in ["mitsuba", *self.labels]:
             if label in self.images:
                 buf = _io.BytesIO()
                 from PIL import Image
+
                 Image.fromarray((to_ldr(self.images[label]) * 255 + 0.5).astype(np.uint8)).save(buf, "PNG")
                 src = base64.b64encode(buf.getvalue()).decode()
-                thumbs.append(f'<figure style="display:inline-block;margin:2px;text-align:center">'
-                              f'<img src="data:image/png;base64,{src}" width="96" style="image-rendering:pixelated">'
-                              f'<figcaption style="font-size:75%">{label}</figcaption></figure>')
+                thumbs.append(
+                    f'<figure style="display:inline-block;margin:2px;text-align:center">'
+                    f'<img src="data:image/png;base64,{src}" width="96" style="image-rendering:pixelated">'
+                    f'<figcaption style="font-size:75%">{label}</figcaption></figure>'
+                )
         table = self.shown().to_html(index=False, float_format=lambda v: f"{v:.4g}", na_rep="–")
         return f"<div><b>study result</b>: {self.summary()}{table}<div>{''.join(thumbs)}</div></div>"
 
@@ -221,8 +254,14 @@ class Result:
         error leaves what ``out`` held before. Returns the files written."""
         from study.io import output_set, write_exr
         from study.tables import to_csv
-        groups = {"images": self.images, "error_maps": self.error_maps, "flip_maps": self.flip_maps,
-                  "angle_maps": self.angle_maps, "outcome_maps": self.outcome_maps}
+
+        groups = {
+            "images": self.images,
+            "error_maps": self.error_maps,
+            "flip_maps": self.flip_maps,
+            "angle_maps": self.angle_maps,
+            "outcome_maps": self.outcome_maps,
+        }
         index = {g: {label: f"{g}/{_slug(label)}.exr" for label in maps} for g, maps in groups.items()}
         buf = _io.BytesIO()
         self.table.to_parquet(buf, index=False)
@@ -241,8 +280,14 @@ class Result:
         return sorted(p for p in Path(out).rglob("*") if p.is_file() and not p.name.startswith("."))
 
 
-def evaluate(scene: str | Path | dict | Scene, methods: Any = "all", *, backend: str = "numpy",
-             cache: str | Path | None = ".cache", overrides: dict[str, Any] | None = None) -> Result:
+def evaluate(
+    scene: str | Path | dict | Scene,
+    methods: Any = "all",
+    *,
+    backend: str = "numpy",
+    cache: str | Path | None = ".cache",
+    overrides: dict[str, Any] | None = None,
+) -> Result:
     """Run every method on ``scene`` (anything :func:`load_scene` takes) and measure it (one case,
     :func:`study.measure.case.run_case`).
 
@@ -265,22 +310,39 @@ def evaluate(scene: str | Path | dict | Scene, methods: Any = "all", *, backend:
     from study.measure.case import run_case
     from study.measure.metrics import flip_map
     from study.tables import columns_of
+
     scene = load_scene(scene, overrides)
     ms = method_list(methods)
     budget.check_backend(backend)
     budget.check([("run", scene)], ms, source="evaluate")
     from study import runtime
-    with runtime.using_render_device("cuda" if backend == "cuda" else None):   # renders and exact hits too, as
-        case = run_case(scene, ms, backend=backend, cache=Cache(cache) if cache else None,  # the CLI does
-                        case_id="run")
+
+    with runtime.using_render_device("cuda" if backend == "cuda" else None):  # renders and exact hits too, as
+        case = run_case(
+            scene,
+            ms,
+            backend=backend,
+            cache=Cache(cache) if cache else None,  # the CLI does
+            case_id="run",
+        )
     mask = np.asarray(case.mask, bool)
     images = {"oracle_map": case.oracle, "truth_at_hit": case.truth, "mitsuba": case.mitsuba, **case.images}
     flips = {"oracle_map": flip_map(case.oracle, case.truth), **case.flip_maps}
-    errors = {k: np.where(mask, np.sqrt(np.mean((np.asarray(v, float) - case.truth) ** 2, axis=-1)), np.nan)
-              for k, v in images.items() if k not in ("truth_at_hit",)}
+    errors = {
+        k: np.where(mask, np.sqrt(np.mean((np.asarray(v, float) - case.truth) ** 2, axis=-1)), np.nan)
+        for k, v in images.items()
+        if k not in ("truth_at_hit",)
+    }
     rows = case.rows
     table = pd.DataFrame(rows, columns=columns_of(rows))
-    return Result(scene, table, images=images, error_maps=errors,
-                  flip_maps={k: np.where(mask, v, np.nan) for k, v in flips.items()},
-                  angle_maps=dict(case.angle_maps), outcome_maps=dict(case.outcome_maps), mask=mask,
-                  backend=backend)
+    return Result(
+        scene,
+        table,
+        images=images,
+        error_maps=errors,
+        flip_maps={k: np.where(mask, v, np.nan) for k, v in flips.items()},
+        angle_maps=dict(case.angle_maps),
+        outcome_maps=dict(case.outcome_maps),
+        mask=mask,
+        backend=backend,
+    )

@@ -6,8 +6,11 @@ lookup on top of them is :class:`study.impostor.envmap.EnvMap`). Everything is f
 every backend, as on a GPU. The cube lookup is the only backend-specific piece: numpy gathers four texels, Dr.Jit
 samples a ``Texture2f`` holding the six faces stacked vertically (hardware-accelerated on CUDA).
 """
+
 from __future__ import annotations
 
+import functools
+import gc
 from dataclasses import dataclass
 from typing import Any
 
@@ -22,21 +25,35 @@ BACKENDS = ("numpy", "llvm", "cuda")
 @dataclass
 class V3:
     """A 3-vector of equally long 1-D arrays (numpy or Dr.Jit)."""
+
     x: Any
     y: Any
     z: Any
 
-    def __add__(s, o): return V3(s.x + o.x, s.y + o.y, s.z + o.z)
-    def __sub__(s, o): return V3(s.x - o.x, s.y - o.y, s.z - o.z)
-    def __mul__(s, a): return V3(s.x * a, s.y * a, s.z * a)
+    def __add__(s, o):
+        return V3(s.x + o.x, s.y + o.y, s.z + o.z)
+
+    def __sub__(s, o):
+        return V3(s.x - o.x, s.y - o.y, s.z - o.z)
+
+    def __mul__(s, a):
+        return V3(s.x * a, s.y * a, s.z * a)
+
     __rmul__ = __mul__
-    def __truediv__(s, a): return V3(s.x / a, s.y / a, s.z / a)
-    def __neg__(s): return V3(-s.x, -s.y, -s.z)
-    def dot(s, o): return s.x * o.x + s.y * o.y + s.z * o.z
+
+    def __truediv__(s, a):
+        return V3(s.x / a, s.y / a, s.z / a)
+
+    def __neg__(s):
+        return V3(-s.x, -s.y, -s.z)
+
+    def dot(s, o):
+        return s.x * o.x + s.y * o.y + s.z * o.z
 
 
 class Backend:
     """Array operations of one backend. ``name`` is 'numpy', 'llvm' or 'cuda'."""
+
     name: str
 
     def array(self, a: np.ndarray): ...
@@ -74,18 +91,41 @@ class Backend:
 class NumpyBackend(Backend):
     name = "numpy"
 
-    def array(self, a): return np.ascontiguousarray(a, dtype=np.float32)
-    def numpy(self, a): return np.asarray(a)
-    def select(self, c, a, b): return np.where(c, a, b).astype(np.float32, copy=False)
-    def sqrt(self, a): return np.sqrt(a)
-    def abs(self, a): return np.abs(a)
-    def minimum(self, a, b): return np.minimum(a, b)
-    def maximum(self, a, b): return np.maximum(a, b)
-    def isfinite(self, a): return np.isfinite(a)
-    def floor(self, a): return np.floor(a)
-    def eval(self, *arrays): pass
-    def sync(self): pass
-    def freeze(self, fn): return fn
+    def array(self, a):
+        return np.ascontiguousarray(a, dtype=np.float32)
+
+    def numpy(self, a):
+        return np.asarray(a)
+
+    def select(self, c, a, b):
+        return np.where(c, a, b).astype(np.float32, copy=False)
+
+    def sqrt(self, a):
+        return np.sqrt(a)
+
+    def abs(self, a):
+        return np.abs(a)
+
+    def minimum(self, a, b):
+        return np.minimum(a, b)
+
+    def maximum(self, a, b):
+        return np.maximum(a, b)
+
+    def isfinite(self, a):
+        return np.isfinite(a)
+
+    def floor(self, a):
+        return np.floor(a)
+
+    def eval(self, *arrays):
+        pass
+
+    def sync(self):
+        pass
+
+    def freeze(self, fn):
+        return fn
 
     def loop(self, n, state, body, *, index=False):
         """``state = body(*state)`` n times (``body(i, *state)`` for i = 0..n−1 with ``index``; i a Python int);
@@ -106,8 +146,9 @@ class NumpyBackend(Backend):
         fj, fi = (cj - j0)[:, None], (ci - i0)[:, None]
         f = face.astype(np.int32)
         j1, i1 = np.minimum(j0 + 1, R - 1), np.minimum(i0 + 1, R - 1)
-        out = ((1 - fi) * ((1 - fj) * tex[f, i0, j0] + fj * tex[f, i0, j1])
-               + fi * ((1 - fj) * tex[f, i1, j0] + fj * tex[f, i1, j1]))
+        out = (1 - fi) * ((1 - fj) * tex[f, i0, j0] + fj * tex[f, i0, j1]) + fi * (
+            (1 - fj) * tex[f, i1, j0] + fj * tex[f, i1, j1]
+        )
         return [out[:, c].astype(np.float32) for c in range(tex.shape[-1])]
 
 
@@ -118,12 +159,14 @@ class DrJitBackend(Backend):
     search is one kernel whose size and tracing cost do not grow with the iteration count; False unrolls it in
     Python (one traced copy of the body per iteration), as a plain ``for`` loop would.
     """
+
     symbolic_loops: bool = True
 
     def __init__(self, device: str):
         if device == "llvm":
             llvm.require()
         import drjit as dr
+
         self.dr = dr
         self.name = device
         self.m = dr.llvm if device == "llvm" else dr.cuda
@@ -132,19 +175,42 @@ class DrJitBackend(Backend):
                 dr.cuda.Float(0.0)
                 dr.eval()
             except Exception as err:  # pragma: no cover - needs a machine without CUDA to hit
-                raise StudyError(f"the cuda backend needs an NVIDIA GPU and driver ({err})", key="backend")
+                raise StudyError(
+                    f"the cuda backend needs an NVIDIA GPU and driver ({err})", key="backend"
+                ) from None
 
-    def array(self, a): return self.m.Float(np.ascontiguousarray(a, dtype=np.float32))
-    def numpy(self, a): return np.asarray(a)
-    def select(self, c, a, b): return self.dr.select(c, a, b)
-    def sqrt(self, a): return self.dr.sqrt(a)
-    def abs(self, a): return self.dr.abs(a)
-    def minimum(self, a, b): return self.dr.minimum(a, b)
-    def maximum(self, a, b): return self.dr.maximum(a, b)
-    def isfinite(self, a): return self.dr.isfinite(a)
-    def floor(self, a): return self.dr.floor(a)
-    def eval(self, *arrays): self.dr.eval(*arrays)
-    def sync(self): self.dr.sync_thread()
+    def array(self, a):
+        return self.m.Float(np.ascontiguousarray(a, dtype=np.float32))
+
+    def numpy(self, a):
+        return np.asarray(a)
+
+    def select(self, c, a, b):
+        return self.dr.select(c, a, b)
+
+    def sqrt(self, a):
+        return self.dr.sqrt(a)
+
+    def abs(self, a):
+        return self.dr.abs(a)
+
+    def minimum(self, a, b):
+        return self.dr.minimum(a, b)
+
+    def maximum(self, a, b):
+        return self.dr.maximum(a, b)
+
+    def isfinite(self, a):
+        return self.dr.isfinite(a)
+
+    def floor(self, a):
+        return self.dr.floor(a)
+
+    def eval(self, *arrays):
+        self.dr.eval(*arrays)
+
+    def sync(self):
+        self.dr.sync_thread()
 
     def loop(self, n, state, body, *, index=False):
         """``state = body(*state)`` n times, as one symbolic loop (``dr.while_loop``) in the kernel: the body is
@@ -154,28 +220,47 @@ class DrJitBackend(Backend):
             return NumpyBackend.loop(self, n, state, body, index=index)
         i = self.m.UInt32(0)
         if index:
-            step = lambda i, *s: (i + 1, *body(self.m.Float(i), *s))   # noqa: E731
+            step = lambda i, *s: (i + 1, *body(self.m.Float(i), *s))  # noqa: E731
         else:
-            step = lambda i, *s: (i + 1, *body(*s))   # noqa: E731
+            step = lambda i, *s: (i + 1, *body(*s))  # noqa: E731
         out = self.dr.while_loop((i, *state), lambda i, *s: i < n, step)
         return tuple(out[1:])
 
     def freeze(self, fn):
         """``dr.freeze(fn)``: the first call records the kernels fn launches, later calls replay them without
         running fn's Python code (array sizes may change between calls). Every Dr.Jit array and texture fn
-        reads must come in through its arguments (dataclasses such as V3 are traversed)."""
-        return self.dr.freeze(fn)
+        reads must come in through its arguments (dataclasses such as V3 are traversed).
+
+        The garbage collector is paused while the frozen function runs: a Dr.Jit object freed from cyclic garbage
+        during a recording is a host call that cannot be recorded, and Dr.Jit aborts the process."""
+        frozen = self.dr.freeze(fn)
+
+        @functools.wraps(fn)
+        def call(*args, **kwargs):
+            paused = gc.isenabled()
+            gc.disable()
+            try:
+                return frozen(*args, **kwargs)
+            finally:
+                if paused:
+                    gc.enable()
+
+        return call
 
     def texture(self, texels):
         six, R, _, C = texels.shape
         data = np.ascontiguousarray(texels.reshape(six * R, R, C), dtype=np.float32)
-        return self.m.Texture2f(self.m.TensorXf(data), filter_mode=self.dr.FilterMode.Linear,
-                                wrap_mode=self.dr.WrapMode.Clamp, use_accel=self.name == "cuda")
+        return self.m.Texture2f(
+            self.m.TensorXf(data),
+            filter_mode=self.dr.FilterMode.Linear,
+            wrap_mode=self.dr.WrapMode.Clamp,
+            use_accel=self.name == "cuda",
+        )
 
     def sample(self, tex, face, u, v):
         R = tex.shape[1]
         lo, hi = 0.5 / R, 1 - 0.5 / R
-        faces = tex.shape[0] // R                      # 6 for a cube map; more for stacked cube maps (probes)
+        faces = tex.shape[0] // R  # 6 for a cube map; more for stacked cube maps (probes)
         pos = self.m.Array2f(self.dr.clip(u, lo, hi), (face + self.dr.clip(v, lo, hi)) / float(faces))
         return list(tex.eval(pos))
 

@@ -2,7 +2,8 @@
 
 An entry is ``<root>/<kind>/<key>.npy`` (the float32 array as NumPy writes it: exact, and fast to write and read;
 a lossless EXR took 0.6 s per entry of a 512² cube map, a third of a case's time on a GPU) and ``<key>.json``
-holding its full key, the array's shape and SHA-256. The key is the caller's content key folded with the hash of the code
+holding its full key, the array's shape and SHA-256. The key is the caller's content key folded with the hash
+of the code
 that produces the array (:func:`study.codehash.code_hash` of ``code``) and, off the CPU, the render device's
 Mitsuba variant (:func:`study.runtime.current_variant`), so an entry made by other code or on another device is
 never found. Both files are written atomically (temporary file + rename), the JSON last; an entry whose JSON names
@@ -10,13 +11,14 @@ another key (a file copied or renamed), or whose array file is missing, unreadab
 checksum is recomputed, never trusted. Entries of the format used before (``<key>.exr``, float32 EXR through Mitsuba's
 Bitmap) are still read, with the same checks. :meth:`Cache.info` and :meth:`Cache.clear` serve ``study cache``.
 """
+
 from __future__ import annotations
 
 import hashlib
 import io
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -63,7 +65,7 @@ class Cache:
                 return None
             if arr.exists() or not arr.with_suffix(".exr").exists():
                 a = np.load(arr, allow_pickle=False)
-            else:                                        # an entry of the format before issue 15
+            else:  # an entry of the format before issue 15
                 a = read_exr(arr.with_suffix(".exr"))
             if a.dtype != np.float32:
                 return None
@@ -82,8 +84,10 @@ class Cache:
         try:
             d.mkdir(parents=True, exist_ok=True)
             atomic_write(d / f"{key}.npy", _npy_bytes(a))
-            atomic_write(d / f"{key}.json", json.dumps({"key": key, "shape": list(a.shape),
-                                                             "sha256": _digest(a)}).encode())
+            atomic_write(
+                d / f"{key}.json",
+                json.dumps({"key": key, "shape": list(a.shape), "sha256": _digest(a)}).encode(),
+            )
         except OSError as err:
             raise StudyError(f"cannot write the cache ({err.strerror})", file=str(d)) from None
 
@@ -92,7 +96,9 @@ class Cache:
 
         ``code`` is the function that produces the array (or a tuple of functions, classes, modules): its
         module's source and that of every study module it imports are part of the key."""
-        key = content_key(key, code_hash(*(code if isinstance(code, (tuple, list)) else (code,))), *_variant_part())
+        key = content_key(
+            key, code_hash(*(code if isinstance(code, (tuple, list)) else (code,))), *_variant_part()
+        )
         a = self.load(kind, key)
         if a is not None:
             self.hits += 1
@@ -116,13 +122,22 @@ class Cache:
         try:
             for d in sorted(p for p in self.root.iterdir() if p.is_dir()):
                 files = sorted(p for p in d.iterdir() if p.is_file())
-                entries = [p for p in files if p.suffix == ".json" and not p.name.startswith(".") and _is_entry(p)]
+                entries = [
+                    p for p in files if p.suffix == ".json" and not p.name.startswith(".") and _is_entry(p)
+                ]
                 if not entries:
                     continue
-                mine = {p for e in entries for p in (e, e.with_suffix(".npy"), e.with_suffix(".exr")) if p.exists()}
+                mine = {
+                    p
+                    for e in entries
+                    for p in (e, e.with_suffix(".npy"), e.with_suffix(".exr"))
+                    if p.exists()
+                }
                 strays = [p for p in files if p not in mine]
-                if all(p.suffix in _OURS or p.name.startswith(".") and p.suffix in (".tmp", *_OURS)
-                       for p in strays):
+                if all(
+                    p.suffix in _OURS or p.name.startswith(".") and p.suffix in (".tmp", *_OURS)
+                    for p in strays
+                ):
                     mine.update(strays)
                 out[d.name] = sorted(mine)
         except OSError as err:
@@ -131,16 +146,24 @@ class Cache:
 
     def info(self) -> dict[str, tuple[int, int]]:
         """Kind → (entries, bytes on disk) of everything the cache holds."""
-        return {k: (sum(p.suffix == ".json" and not p.name.startswith(".") for p in fs),
-                    sum(p.stat().st_size for p in fs)) for k, fs in self._kinds().items()}
+        return {
+            k: (
+                sum(p.suffix == ".json" and not p.name.startswith(".") for p in fs),
+                sum(p.stat().st_size for p in fs),
+            )
+            for k, fs in self._kinds().items()
+        }
 
     def clear(self, kind: str | None = None) -> dict[str, tuple[int, int]]:
         """Remove every entry (of ``kind`` only, if given); returns kind → (entries, bytes) removed."""
         kinds = self._kinds()
         if kind is not None:
             if kind not in kinds:
-                raise StudyError(f"no entries of kind {kind!r}; kinds here: {', '.join(kinds) or 'none'}",
-                                 file=str(self.root), key="--kind")
+                raise StudyError(
+                    f"no entries of kind {kind!r}; kinds here: {', '.join(kinds) or 'none'}",
+                    file=str(self.root),
+                    key="--kind",
+                )
             kinds = {kind: kinds[kind]}
         gone = {}
         for k, fs in kinds.items():
@@ -155,14 +178,14 @@ class Cache:
                 except OSError as err:
                     raise StudyError(f"cannot remove a cache file ({err.strerror})", file=str(p)) from None
             try:
-                (self.root / k).rmdir()                      # only if nothing else is left in it
+                (self.root / k).rmdir()  # only if nothing else is left in it
             except OSError:
                 pass
             gone[k] = (n, size)
         return gone
 
 
-_OURS = (".npy", ".exr")          # array files the cache writes (.exr: the format before issue 15)
+_OURS = (".npy", ".exr")  # array files the cache writes (.exr: the format before issue 15)
 
 
 def _is_entry(p: Path) -> bool:

@@ -9,6 +9,7 @@ passes every method class, since ``study.methods`` imports its method modules th
 ``study`` (a plugin's method module) counts by its own file only. Study's own modules are read once per process;
 files outside study are read on every call, so an edited plugin module changes the hash at once.
 """
+
 from __future__ import annotations
 
 import ast
@@ -18,8 +19,8 @@ import types
 from functools import cache
 from pathlib import Path
 
-PACKAGE = __name__.partition(".")[0]             # "study"
-ROOT = Path(__file__).resolve().parent           # the study package directory
+PACKAGE = __name__.partition(".")[0]  # "study"
+ROOT = Path(__file__).resolve().parent  # the study package directory
 
 
 def code_hash(*objs) -> str:
@@ -38,7 +39,7 @@ def code_hash(*objs) -> str:
 def _module_of(obj) -> str:
     if isinstance(obj, types.ModuleType):
         return obj.__name__
-    obj = getattr(obj, "__func__", obj)            # bound methods
+    obj = getattr(obj, "__func__", obj)  # bound methods
     name = getattr(obj, "__module__", None)
     if not isinstance(name, str):
         raise TypeError(f"code_hash: cannot tell which module defines {obj!r}")
@@ -51,6 +52,7 @@ def _outside_digest(name: str) -> str:
     path = getattr(mod, "__file__", None) if mod is not None else None
     if path is None:
         import importlib.util
+
         try:
             spec = importlib.util.find_spec(name)
         except (ImportError, ValueError):
@@ -97,9 +99,9 @@ def _imports(name: str) -> frozenset[str]:
         if isinstance(node, ast.Import):
             found.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):
-            if node.level:                                   # relative: from the module's own package upwards
+            if node.level:  # relative: from the module's own package upwards
                 up = pkg.split(".")
-                up = up[:len(up) - (node.level - 1)] if node.level > 1 else up
+                up = up[: len(up) - (node.level - 1)] if node.level > 1 else up
                 base = ".".join(up + ([node.module] if node.module else []))
             else:
                 base = node.module or ""
@@ -110,7 +112,7 @@ def _imports(name: str) -> frozenset[str]:
         if not (mod == PACKAGE or mod.startswith(PACKAGE + ".")):
             continue
         parts = mod.split(".")
-        for i in range(1, len(parts) + 1):                   # the module and every package above it
+        for i in range(1, len(parts) + 1):  # the module and every package above it
             m = ".".join(parts[:i])
             if _path(m) is not None:
                 out.add(m)

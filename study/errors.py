@@ -5,6 +5,7 @@ environment (:class:`EnvironmentProblem`: libLLVM, GPU, disk full, permissions, 
 with 1 for a regression it found (not an error), and an unexpected exception (a bug) with 4
 (:func:`user_error` turns any exception into its one line).
 """
+
 import errno
 import os
 
@@ -17,14 +18,16 @@ class StudyError(Exception):
 
     code = BAD_INPUT
 
-    def __init__(self, message: str, *, file: str | None = None, key: str | None = None, code: int | None = None):
+    def __init__(
+        self, message: str, *, file: str | None = None, key: str | None = None, code: int | None = None
+    ):
         self.file, self.key, self.detail = file, key, message
         if code is not None:
             self.code = code
         where = ": ".join(str(p) for p in (file, key) if p)
         super().__init__(f"{where}: {message}" if where else message)
 
-    def __reduce__(self):      # keeps file, key and code across processes (worker → sweep)
+    def __reduce__(self):  # keeps file, key and code across processes (worker → sweep)
         return _rebuild, (type(self), self.detail, self.file, self.key, self.code)
 
 
@@ -57,14 +60,19 @@ def user_error(err: BaseException) -> StudyError:
     StudyError raised while handling one of the machine's), out of memory → 3, anything unexpected → an internal
     error (4) naming the exception."""
     if isinstance(err, StudyError):
-        ctx = err.__context__             # raised while handling a full disk, a permission, … (e.g. the cache's)
+        ctx = err.__context__  # raised while handling a full disk, a permission, … (e.g. the cache's)
         if err.code == BAD_INPUT and isinstance(ctx, OSError) and ctx.errno and ctx.errno not in _BAD_PATH:
             return EnvironmentProblem(err.detail, file=err.file, key=err.key)
         return err
     if isinstance(err, OSError):
         return os_problem(err, "cannot read or write a file")
     if isinstance(err, MemoryError):
-        return EnvironmentProblem("out of memory; lower the resolution, supersampling or samples, or --max-memory")
+        return EnvironmentProblem(
+            "out of memory; lower the resolution, supersampling or samples, or --max-memory"
+        )
     first = (str(err).strip().splitlines() or [""])[0][:200]
-    return StudyError(f"internal error ({type(err).__name__}: {first}); please report it, `study --debug …` "
-                      "shows the traceback", code=INTERNAL)
+    return StudyError(
+        f"internal error ({type(err).__name__}: {first}); please report it, `study --debug …` "
+        "shows the traceback",
+        code=INTERNAL,
+    )

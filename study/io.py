@@ -9,6 +9,7 @@
 * :func:`json_text`: strict JSON (NaN and ±inf as null), the one way study writes JSON files.
 * :func:`write_exr` / :func:`read_exr`: float32 EXR through Mitsuba's ``Bitmap`` (:func:`study.runtime.mitsuba`).
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -21,8 +22,8 @@ import shutil
 import stat
 import tempfile
 import tomllib
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 
@@ -41,7 +42,7 @@ def _temp_beside(path: Path, suffix: str):
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=suffix)
     os.close(fd)
-    os.chmod(tmp, _FILE_MODE)                        # mkstemp's 0600 → what open() would have made (umask)
+    os.chmod(tmp, _FILE_MODE)  # mkstemp's 0600 → what open() would have made (umask)
     try:
         yield tmp
         os.replace(tmp, path)
@@ -60,6 +61,7 @@ def atomic_write(path: str | Path, data: bytes | str) -> None:
 def atomic_savefig(fig, path: str | Path, *, dpi: int = 110) -> None:
     """Save a matplotlib figure as PNG atomically, then close it."""
     import matplotlib.pyplot as plt
+
     path = Path(path)
     try:
         with _temp_beside(path, ".png") as tmp:
@@ -73,6 +75,7 @@ def png_bytes(fig, *, dpi: int = 110) -> bytes:
     import io
 
     import matplotlib.pyplot as plt
+
     buf = io.BytesIO()
     try:
         fig.savefig(buf, dpi=dpi, format="png")
@@ -113,6 +116,7 @@ def json_text(obj, *, nonfinite: str = "null", **kw) -> str:
         if isinstance(v, float) and not np.isfinite(v):
             return None if nonfinite == "null" else "NaN" if v != v else "Infinity" if v > 0 else "-Infinity"
         return v
+
     return json.dumps(plain(obj), allow_nan=False, **kw)
 
 
@@ -156,9 +160,11 @@ def locked(out: str | Path):
                 fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 f.close()
-                raise EnvironmentProblem("another study command is writing to this directory; wait for it or "
-                                         "choose another --out", file=str(out)) from None
-            if _same_file(path, f):          # not a lock file that its last holder removed meanwhile
+                raise EnvironmentProblem(
+                    "another study command is writing to this directory; wait for it or choose another --out",
+                    file=str(out),
+                ) from None
+            if _same_file(path, f):  # not a lock file that its last holder removed meanwhile
                 break
             f.close()
         try:
@@ -209,8 +215,14 @@ def _remove_created(out: Path, top: Path | None) -> None:
 
 
 @contextlib.contextmanager
-def output_set(out: str | Path, owns: Iterable[str] = (), *, keeps: Iterable[str] = (), lock: bool = True,
-               swap: bool = True):
+def output_set(
+    out: str | Path,
+    owns: Iterable[str] = (),
+    *,
+    keeps: Iterable[str] = (),
+    lock: bool = True,
+    swap: bool = True,
+):
     """A command's outputs as one transaction: ``with output_set(out, owns) as tmp:`` write every output into the
     fresh directory ``tmp`` (beside ``out``); when the block succeeds they replace the command's outputs in ``out``
     together, when it fails (or the process is killed) ``out`` is left as it was and ``tmp`` goes.
@@ -225,13 +237,15 @@ def output_set(out: str | Path, owns: Iterable[str] = (), *, keeps: Iterable[str
     is False (the caller holds the lock)."""
     out = Path(out).absolute()
     if out.is_symlink():
-        out = out.resolve()                            # swap the directory it names, not the link
+        out = out.resolve()  # swap the directory it names, not the link
     with locked(out) if lock else contextlib.nullcontext():
-        for stale in out.parent.glob(f".{glob.escape(out.name)}.new-*"):     # left by a killed run (the lock is held)
+        for stale in out.parent.glob(
+            f".{glob.escape(out.name)}.new-*"
+        ):  # left by a killed run (the lock is held)
             shutil.rmtree(stale, ignore_errors=True)
         try:
             tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.new-"))
-            os.chmod(tmp, 0o777 & ~_UMASK)           # mkdtemp's 0700 → a directory as mkdir would make it
+            os.chmod(tmp, 0o777 & ~_UMASK)  # mkdtemp's 0700 → a directory as mkdir would make it
         except OSError as err:
             raise os_problem(err, "cannot write beside the output directory", out.parent) from None
         try:
@@ -244,8 +258,15 @@ def output_set(out: str | Path, owns: Iterable[str] = (), *, keeps: Iterable[str
             shutil.rmtree(tmp, ignore_errors=True)
 
 
-def write_set(out: str | Path, files: dict[str, bytes | str], owns: Iterable[str] = (), *, keeps: Iterable[str] = (),
-              lock: bool = True, swap: bool = True) -> list[Path]:
+def write_set(
+    out: str | Path,
+    files: dict[str, bytes | str],
+    owns: Iterable[str] = (),
+    *,
+    keeps: Iterable[str] = (),
+    lock: bool = True,
+    swap: bool = True,
+) -> list[Path]:
     """:func:`output_set` of outputs made beforehand (relative path → content): the temporary directory then
     lives only while they are written and swapped in (about a millisecond), so even a SIGKILL almost never
     leaves it behind (and the next command on ``out`` removes it). Returns the paths written."""
@@ -305,7 +326,7 @@ def _exchange(a: Path, b: Path) -> bool:
         fn = ctypes.CDLL(None, use_errno=True).renameat2
     except (OSError, AttributeError):
         return False
-    if fn(-100, os.fsencode(a), -100, os.fsencode(b), _RENAME_EXCHANGE) == 0:    # AT_FDCWD = -100
+    if fn(-100, os.fsencode(a), -100, os.fsencode(b), _RENAME_EXCHANGE) == 0:  # AT_FDCWD = -100
         return True
     e = ctypes.get_errno()
     if e in (errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP, errno.EXDEV):
@@ -318,13 +339,13 @@ def _commit(tmp: Path, out: Path, owns: set[str], keeps: set[str], swap: bool = 
     owns = owns | {p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if not p.is_dir()}
     os.chmod(tmp, stat.S_IMODE(os.stat(out).st_mode))
     if swap and _carry(out, tmp, "", owns, keeps) and _exchange(tmp, out):
-        return                                        # tmp now holds the old outputs; the caller removes it
+        return  # tmp now holds the old outputs; the caller removes it
     trash = Path(tempfile.mkdtemp(dir=tmp, prefix=".old-"))
     tops = sorted(o for o in owns if not any(o.startswith(a + "/") for a in owns))
-    for i, rel in enumerate(tops):                    # one by one: each rename is atomic, the set is not
+    for i, rel in enumerate(tops):  # one by one: each rename is atomic, the set is not
         new, old = tmp / rel, out / rel
         if old.is_dir() and not old.is_symlink():
-            os.replace(old, trash / str(i))           # a directory cannot be renamed over a full one
+            os.replace(old, trash / str(i))  # a directory cannot be renamed over a full one
         if new.exists():
             old.parent.mkdir(parents=True, exist_ok=True)
             os.replace(new, old)

@@ -11,6 +11,7 @@ none was found, or when the one ``DRJIT_LIBLLVM_PATH`` names cannot be used: it 
 newer by its file name or, failing that, its exported symbols (``LLVMGetVersion`` exists from LLVM 16 on). Checked
 here because Dr.Jit would abort the process on it.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -24,9 +25,11 @@ import sys
 from study.errors import EnvironmentProblem
 
 MIN_VERSION = 16  # LLVM 15 and older crash Dr.Jit 1.5 on Debian 12
-_FIX = ("no usable libLLVM (>= 16) found for Dr.Jit's LLVM backend (Debian 12's libLLVM 15 crashes it); "
-        "fix: `apt-get install libllvm19` or `pip install karellen-llvm-core`, "
-        "or set DRJIT_LIBLLVM_PATH to a libLLVM >= 16")
+_FIX = (
+    "no usable libLLVM (>= 16) found for Dr.Jit's LLVM backend (Debian 12's libLLVM 15 crashes it); "
+    "fix: `apt-get install libllvm19` or `pip install karellen-llvm-core`, "
+    "or set DRJIT_LIBLLVM_PATH to a libLLVM >= 16"
+)
 
 
 def _version(path: str) -> int:
@@ -38,10 +41,16 @@ def candidates() -> list[str]:
     """Usable libLLVM files, best first: the environment's own (karellen-llvm-core), then the system's."""
     found = []
     for root in dict.fromkeys([sys.prefix, sys.base_prefix]):
-        found += sorted(glob.glob(os.path.join(root, "lib", "**", "libLLVM*.so*"), recursive=True),
-                        key=_version, reverse=True)
-    found += sorted(glob.glob("/usr/lib/*/libLLVM*.so*") + glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*"),
-                    key=_version, reverse=True)
+        found += sorted(
+            glob.glob(os.path.join(root, "lib", "**", "libLLVM*.so*"), recursive=True),
+            key=_version,
+            reverse=True,
+        )
+    found += sorted(
+        glob.glob("/usr/lib/*/libLLVM*.so*") + glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*"),
+        key=_version,
+        reverse=True,
+    )
     return [p for p in dict.fromkeys(found) if _version(p) >= MIN_VERSION and os.path.isfile(p)]
 
 
@@ -61,7 +70,7 @@ def path() -> str | None:
     return os.environ.get("DRJIT_LIBLLVM_PATH")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def problem(lib: str) -> str | None:
     """Why the libLLVM file ``lib`` cannot serve Dr.Jit (None if it can): missing, not loadable, not LLVM, or
     older than :data:`MIN_VERSION` (by its name, else by its symbols; a named old one is never loaded)."""
@@ -76,10 +85,14 @@ def problem(lib: str) -> str | None:
         return f"not a loadable library ({str(err).split(': ')[-1][:80]})"
     if named >= MIN_VERSION:
         return None
-    if hasattr(dll, "LLVMGetVersion"):                # LLVM >= 16
+    if hasattr(dll, "LLVMGetVersion"):  # LLVM >= 16
         v = [ctypes.c_uint() for _ in range(3)]
         dll.LLVMGetVersion(*[ctypes.byref(x) for x in v])
-        return None if v[0].value >= MIN_VERSION else f"it is libLLVM {v[0].value}, Dr.Jit needs >= {MIN_VERSION}"
+        return (
+            None
+            if v[0].value >= MIN_VERSION
+            else f"it is libLLVM {v[0].value}, Dr.Jit needs >= {MIN_VERSION}"
+        )
     if hasattr(dll, "LLVMContextCreate"):
         return f"it is a libLLVM older than {MIN_VERSION} (no LLVMGetVersion), Dr.Jit needs >= {MIN_VERSION}"
     return "not a libLLVM (no LLVM C API symbols)"
@@ -92,9 +105,11 @@ def require() -> str:
         raise EnvironmentProblem(_FIX)
     why = problem(p)
     if why:
-        raise EnvironmentProblem(f"cannot use it for Dr.Jit's LLVM backend: {why}; unset it or point it at a "
-                                 f"libLLVM >= {MIN_VERSION} (e.g. `apt-get install libllvm19`)",
-                                 key=f"DRJIT_LIBLLVM_PATH={p}")
+        raise EnvironmentProblem(
+            f"cannot use it for Dr.Jit's LLVM backend: {why}; unset it or point it at a "
+            f"libLLVM >= {MIN_VERSION} (e.g. `apt-get install libllvm19`)",
+            key=f"DRJIT_LIBLLVM_PATH={p}",
+        )
     if "drjit" in sys.modules and os.environ.get("DRJIT_LIBLLVM_PATH") != p:
         raise EnvironmentProblem("drjit was imported before study chose a libLLVM; import study first")
     return p
@@ -103,7 +118,7 @@ def require() -> str:
 # ---------------------------------------------------------------------------------------------- render device
 #: Render device → the Mitsuba variant that renders there (and whose ray queries give the exact hits on the GPU).
 VARIANTS = {"cpu": "llvm_ad_rgb", "cuda": "cuda_ad_rgb"}
-_ENV = "STUDY_RENDER_DEVICE"          # inherited by worker processes (``--jobs``, local Dask workers)
+_ENV = "STUDY_RENDER_DEVICE"  # inherited by worker processes (``--jobs``, local Dask workers)
 
 
 def set_render_device(device: str) -> None:
@@ -155,6 +170,7 @@ def mitsuba(variant: str | None = None):
     if variant.startswith("llvm"):
         require()
     import mitsuba as mi
+
     if _variant != variant:
         mi.set_variant(variant)
         _variant = variant

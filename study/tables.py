@@ -5,6 +5,7 @@ Every CSV study writes goes through :func:`write_csv` (fixed column order, NaN a
 by :func:`read_csv`; a results table (``metrics.csv``, ``results.csv``) also goes out as Parquet beside it
 (:func:`table_files` / :func:`write_table`: the same columns, ``pd.read_parquet(path)`` in one line); every
 Markdown table through :func:`markdown`."""
+
 from __future__ import annotations
 
 import csv
@@ -15,15 +16,52 @@ from pathlib import Path
 from study.io import atomic_write
 
 #: Column order of every results table; extra keys follow in the order first seen.
-COLUMNS = ["case", "method", "label", "family", "knob", "knob_value", "cube_res", "object_x", "object_y", "object_z", "displacement",
-           "angle_median_deg", "angle_p95_deg", "angle_max_deg", "dist_median",
-           "correct_fraction", "wrong_fraction", "wrong_depth_fraction", "wrong_surface_fraction", "no_hit_fraction",
-           "wrong_fraction_visible", "wrong_fraction_hidden", "hidden_fraction", "dist_p50", "dist_p95", "dist_p99",
-           "depth_error_p95", "angle_p95_visible_deg", "angle_p95_hidden_deg",
-           "rmse_oracle", "psnr_oracle", "ssim_oracle", "flip_oracle",
-           "rmse_mitsuba", "psnr_mitsuba", "ssim_mitsuba", "flip_mitsuba",
-           "occluded_fraction", "valid_fraction", "ratio_residual_median", "lookups_per_ray", "rays",
-           "backend", "seconds"]
+COLUMNS = [
+    "case",
+    "method",
+    "label",
+    "family",
+    "knob",
+    "knob_value",
+    "cube_res",
+    "object_x",
+    "object_y",
+    "object_z",
+    "displacement",
+    "angle_median_deg",
+    "angle_p95_deg",
+    "angle_max_deg",
+    "dist_median",
+    "correct_fraction",
+    "wrong_fraction",
+    "wrong_depth_fraction",
+    "wrong_surface_fraction",
+    "no_hit_fraction",
+    "wrong_fraction_visible",
+    "wrong_fraction_hidden",
+    "hidden_fraction",
+    "dist_p50",
+    "dist_p95",
+    "dist_p99",
+    "depth_error_p95",
+    "angle_p95_visible_deg",
+    "angle_p95_hidden_deg",
+    "rmse_oracle",
+    "psnr_oracle",
+    "ssim_oracle",
+    "flip_oracle",
+    "rmse_mitsuba",
+    "psnr_mitsuba",
+    "ssim_mitsuba",
+    "flip_mitsuba",
+    "occluded_fraction",
+    "valid_fraction",
+    "ratio_residual_median",
+    "lookups_per_ray",
+    "rays",
+    "backend",
+    "seconds",
+]
 
 
 #: Rows that are references, not methods: the exact hit with the impostor's radiance and with Mitsuba's.
@@ -80,8 +118,9 @@ def to_parquet(rows: list[dict]) -> bytes:
         elif all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in real):
             arrays[c] = pa.array([math.nan if v is None else float(v) for v in vals], pa.float64())
         else:
-            arrays[c] = pa.array([None if v is None else v if isinstance(v, str) else str(_fmt(v)) for v in vals],
-                                 pa.string())
+            arrays[c] = pa.array(
+                [None if v is None else v if isinstance(v, str) else str(_fmt(v)) for v in vals], pa.string()
+            )
     buf = pa.BufferOutputStream()
     pq.write_table(pa.table(arrays), buf)
     return buf.getvalue().to_pybytes()

@@ -3,6 +3,7 @@
 Every config, scene and method-parameter model is validated through :func:`validate`, so every bad value reads
 alike: ``<file>: <dotted key>: <what is wrong>; allowed: <keys>`` where the key is unknown.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -28,7 +29,9 @@ def allowed_keys(model: type[BaseModel], loc: tuple) -> str:
     for part in loc[:-1]:
         if isinstance(part, int) or (isinstance(part, str) and part.isdigit()):
             continue
-        field = node.model_fields.get(part) if isinstance(node, type) and issubclass(node, BaseModel) else None
+        field = (
+            node.model_fields.get(part) if isinstance(node, type) and issubclass(node, BaseModel) else None
+        )
         if field is None:
             return ""
         ann = field.annotation
@@ -41,7 +44,9 @@ def allowed_keys(model: type[BaseModel], loc: tuple) -> str:
     return ""
 
 
-def first_error(err: ValidationError, model: type[BaseModel], *, skip: tuple[str, ...] = ()) -> tuple[str, str]:
+def first_error(
+    err: ValidationError, model: type[BaseModel], *, skip: tuple[str, ...] = ()
+) -> tuple[str, str]:
     """(dotted key, message) of the first error; ``skip``: location parts left out of the key (union tags)."""
     e = err.errors()[0]
     inner = (e.get("ctx") or {}).get("error")
@@ -62,7 +67,9 @@ def validate(model: type[BaseModel], data: Any, *, file: str | None = None, pref
         return model.model_validate(data)
     except ValidationError as err:
         key, msg = first_error(err, model)
-        raise StudyError(msg, file=file, key=(prefix + key) if key else (prefix.rstrip(".") or None)) from None
+        raise StudyError(
+            msg, file=file, key=(prefix + key) if key else (prefix.rstrip(".") or None)
+        ) from None
 
 
 def validate_file(model: type[BaseModel], path):

@@ -1,4 +1,6 @@
-"""Shared fixtures. Reference values are computed analytically (study.impostor.analytic) unless a test says otherwise."""
+"""Shared fixtures. Reference values are computed analytically (study.impostor.analytic) unless a test says
+otherwise."""
+
 import numpy as np
 import pytest
 
@@ -32,12 +34,29 @@ def small_scene_dict(**over):
         "room": {"min": [-2.0, 0.0, -2.0], "max": [2.0, 3.0, 2.0]},
         "light": {"position": [0.3, 2.6, -0.4], "intensity": [7.0, 7.0, 7.0]},
         "reference": {"point": [0.0, 1.5, 0.0]},
-        "object": {"shape": "sphere", "center": [0.6, 1.2, 0.3], "radius": 0.4,
-                   "material": {"type": "conductor", "n": [0.155, 0.117, 0.138], "k": [4.83, 3.12, 2.15]}},
-        "camera": {"eye": [-0.3, 1.7, -1.9], "target": [0.6, 1.1, 0.6], "up": [0.0, 1.0, 0.0], "fov": 75.0,
-                   "width": 40, "height": 40},
-        "render": {"cube_res": 32, "cube_spp": 4, "spp": 4, "max_depth": 3, "supersample": 1, "seed": 0,
-                   "fresnel": "exact"},
+        "object": {
+            "shape": "sphere",
+            "center": [0.6, 1.2, 0.3],
+            "radius": 0.4,
+            "material": {"type": "conductor", "n": [0.155, 0.117, 0.138], "k": [4.83, 3.12, 2.15]},
+        },
+        "camera": {
+            "eye": [-0.3, 1.7, -1.9],
+            "target": [0.6, 1.1, 0.6],
+            "up": [0.0, 1.0, 0.0],
+            "fov": 75.0,
+            "width": 40,
+            "height": 40,
+        },
+        "render": {
+            "cube_res": 32,
+            "cube_spp": 4,
+            "spp": 4,
+            "max_depth": 3,
+            "supersample": 1,
+            "seed": 0,
+            "fresnel": "exact",
+        },
     }
     d.update(over)
     return d
@@ -45,6 +64,7 @@ def small_scene_dict(**over):
 
 def scene_toml(d: dict) -> str:
     """A scene dict (as :func:`small_scene_dict` makes) written as a TOML file's text."""
+
     def val(v):
         if isinstance(v, str):
             return f'"{v}"'
@@ -53,5 +73,7 @@ def scene_toml(d: dict) -> str:
         if isinstance(v, (list, tuple)):
             return "[" + ", ".join(val(x) for x in v) + "]"
         return repr(v)
-    return "\n".join(f"[{t}]\n" + "\n".join(f"{k} = {val(v)}" for k, v in tab.items()) + "\n"
-                     for t, tab in d.items())
+
+    return "\n".join(
+        f"[{t}]\n" + "\n".join(f"{k} = {val(v)}" for k, v in tab.items()) + "\n" for t, tab in d.items()
+    )

@@ -1,6 +1,7 @@
 """``study animate``: positions along the path (analytic), the outcome overlay, and a tiny animation end to end —
 the GIF and MP4 decode with imageio, with one frame per position, of one size, and the frames differ; bad configs
 are one line with exit 2 and leave earlier outputs as they were."""
+
 from pathlib import Path
 
 import numpy as np
@@ -34,26 +35,28 @@ def test_positions_are_evenly_spaced_along_the_polyline():
     pts, s = animation.positions(np.array([[0.0, 0, 0], [1, 0, 0], [1, 2, 0]]), 4)
     np.testing.assert_allclose(s, [0, 1, 2, 3])
     np.testing.assert_allclose(pts, [[0, 0, 0], [1, 0, 0], [1, 1, 0], [1, 2, 0]], atol=1e-12)
-    pts, s = animation.positions(np.array([[0.0, 0, 0], [3, 4, 0]]), 6)          # a line of 5 m
+    pts, s = animation.positions(np.array([[0.0, 0, 0], [3, 4, 0]]), 6)  # a line of 5 m
     np.testing.assert_allclose(np.linalg.norm(np.diff(pts, axis=0), axis=-1), 1.0)
 
 
 def test_overlay_colours_only_the_wrong_pixels():
     img = np.full((4, 4, 3), 0.5)
-    oc = np.full((4, 4), np.nan)                 # off the object
+    oc = np.full((4, 4), np.nan)  # off the object
     oc[1, 1], oc[1, 2], oc[2, 1], oc[2, 2] = 0, 1, 2, 3
     out = animation.overlay(img, oc)
     changed = np.any(out != img, axis=-1)
     assert changed.sum() == 3 and not changed[1, 1] and changed[1, 2] and changed[2, 1] and changed[2, 2]
-    assert out[2, 1, 0] > out[2, 1, 1]           # wrong surface is red
+    assert out[2, 1, 0] > out[2, 1, 1]  # wrong surface is red
 
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
     d = tmp_path_factory.mktemp("motion")
     (d / "motion.toml").write_text(TINY.replace("{extra}", ""))
-    res = runner.invoke(app, ["animate", "--config", str(d / "motion.toml"), "--out", str(d / "out"),
-                              "--cache", str(d / "cache")])
+    res = runner.invoke(
+        app,
+        ["animate", "--config", str(d / "motion.toml"), "--out", str(d / "out"), "--cache", str(d / "cache")],
+    )
     assert res.exit_code == 0, res.output
     return d
 
@@ -61,39 +64,55 @@ def tiny(tmp_path_factory):
 def test_animation_files_decode_with_the_right_frames(tiny):
     import imageio.v2 as iio2
     import imageio.v3 as iio
+
     out = tiny / "out"
     gif = iio.imread(out / "motion.gif")
     assert gif.ndim == 4 and gif.shape[0] == 3 and gif.shape[-1] in (3, 4)
     with iio2.get_reader(out / "motion.mp4", format="FFMPEG") as reader:
         mp4 = np.stack(list(reader.iter_data()))
     assert mp4.shape[0] == 3
-    assert mp4.shape[1:3] == gif.shape[1:3]                           # frames are even-sized already
+    assert mp4.shape[1:3] == gif.shape[1:3]  # frames are even-sized already
     for frames in (gif[..., :3].astype(float), mp4.astype(float)):
-        frames = frames[:, frames.shape[1] // 5:]                   # below the title (frame number, position)
+        frames = frames[:, frames.shape[1] // 5 :]  # below the title (frame number, position)
         assert np.abs(frames[1] - frames[0]).mean() > 1 and np.abs(frames[2] - frames[1]).mean() > 1
     rows = read_csv(out / "frames.csv")
     assert sorted({r["frame"] for r in rows}) == [0, 1, 2]
     labels = ["classical", "localized(iterations=10)"]
     assert [r["label"] for r in rows if r["frame"] == 0 and r["label"] in labels] == labels
-    leg = np.sqrt(0.75 ** 2 + 0.45 ** 2 + 0.5 ** 2)                  # the path's two legs are equal
-    assert [r["path_m"] for r in rows if r["label"] == "classical"] == pytest.approx([0, leg, 2 * leg], rel=1e-9)
+    leg = np.sqrt(0.75**2 + 0.45**2 + 0.5**2)  # the path's two legs are equal
+    assert [r["path_m"] for r in rows if r["label"] == "classical"] == pytest.approx(
+        [0, leg, 2 * leg], rel=1e-9
+    )
     wrong = {r["frame"]: r["wrong_fraction"] for r in rows if r["label"] == "classical"}
-    assert wrong[2] > wrong[0]                     # far from the reference point, environment mapping misses
+    assert wrong[2] > wrong[0]  # far from the reference point, environment mapping misses
     assert (out / "motion.png").stat().st_size > 0 and (out / "metadata.json").exists()
 
 
-@pytest.mark.parametrize("extra, words", [
-    ("fps = 0", "motion.toml: fps: Input should be greater than 0"),
-    ("formats = [\"avi\"]", "motion.toml: formats"),
-    ("speed = 2", "motion.toml: speed"),
-])
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        ("fps = 0", "motion.toml: fps: Input should be greater than 0"),
+        ('formats = ["avi"]', "motion.toml: formats"),
+        ("speed = 2", "motion.toml: speed"),
+    ],
+)
 def test_bad_config_is_one_line_and_keeps_outputs(tmp_path, extra, words):
     out = tmp_path / "out"
     out.mkdir()
     (out / "motion.gif").write_bytes(b"earlier")
     (tmp_path / "motion.toml").write_text(TINY.replace("{extra}", extra))
-    res = runner.invoke(app, ["animate", "--config", str(tmp_path / "motion.toml"), "--out", str(out),
-                              "--cache", str(tmp_path / "cache")])
+    res = runner.invoke(
+        app,
+        [
+            "animate",
+            "--config",
+            str(tmp_path / "motion.toml"),
+            "--out",
+            str(out),
+            "--cache",
+            str(tmp_path / "cache"),
+        ],
+    )
     assert res.exit_code == 2, res.output
     assert words in res.output.replace("\n", ""), res.output
     assert len(res.output.strip().splitlines()) == 1 and "Traceback" not in res.output
@@ -113,5 +132,5 @@ def test_crop_box_holds_the_object_in_every_frame():
     a[10:20, 10:20], b[30:40, 40:50] = True, True
     sy, sx = animation.crop_box([a, b])
     for m in (a, b):
-        assert m[sy, sx].sum() == m.sum()                      # nothing of either object cut off
-    assert sy.stop - sy.start == sx.stop - sx.start < 64       # square, smaller than the frame
+        assert m[sy, sx].sum() == m.sum()  # nothing of either object cut off
+    assert sy.stop - sy.start == sx.stop - sx.start < 64  # square, smaller than the frame

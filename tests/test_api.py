@@ -2,6 +2,7 @@
 computed on their own (FLIP map mean = flip_truth, RMS of the error map = rmse_truth), save() round-trips and is
 one output set, sources and overrides are read as the CLI reads them, and examples/quickstart.py runs (a method
 registered there is measured)."""
+
 import json
 import runpy
 import subprocess
@@ -23,14 +24,17 @@ TINY = {"render.cube_res": 16, "camera.width": 32, "camera.height": 32}
 @pytest.fixture(scope="module")
 def result(tmp_path_factory):
     d = small_scene_dict()
-    return study.evaluate(d, ["classical", "localized(iterations=3)"], overrides=TINY,
-                          cache=tmp_path_factory.mktemp("cache"))
+    return study.evaluate(
+        d, ["classical", "localized(iterations=3)"], overrides=TINY, cache=tmp_path_factory.mktemp("cache")
+    )
 
 
 def test_import_study_stays_light():
     """``import study`` imports neither the API nor pandas, mitsuba or the scene model until asked."""
-    code = ("import sys, study; heavy = [m for m in ('study.api', 'pandas', 'mitsuba', 'study.scene') "
-            "if m in sys.modules]; print(heavy); assert not heavy; study.load_scene; assert 'study.api' in sys.modules")
+    code = (
+        "import sys, study; heavy = [m for m in ('study.api', 'pandas', 'mitsuba', 'study.scene') "
+        "if m in sys.modules]; print(heavy); assert not heavy; study.load_scene; assert 'study.api' in sys.modules"
+    )
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert res.returncode == 0, res.stdout + res.stderr
 
@@ -46,8 +50,12 @@ def test_table_rows_and_maps(result):
         assert result.images[label].shape == (32, 32, 3)
         # the API's maps against the table's numbers (computed by metrics.image_errors on their own)
         assert np.nanmean(result.flip_maps[label][mask]) == pytest.approx(row["flip_truth"], rel=1e-5)
-        assert np.sqrt(np.mean(result.error_maps[label][mask] ** 2)) == pytest.approx(row["rmse_truth"], rel=1e-6)
-        assert np.isnan(result.error_maps[label][~mask]).all() and np.isnan(result.flip_maps[label][~mask]).all()
+        assert np.sqrt(np.mean(result.error_maps[label][mask] ** 2)) == pytest.approx(
+            row["rmse_truth"], rel=1e-6
+        )
+        assert (
+            np.isnan(result.error_maps[label][~mask]).all() and np.isnan(result.flip_maps[label][~mask]).all()
+        )
     for label in ["classical", "localized(iterations=3)"]:
         row = t.set_index("label").loc[label]
         assert np.nanmedian(result.angle_maps[label][mask]) == pytest.approx(row["angle_median_deg"], rel=0.5)
@@ -72,6 +80,7 @@ def test_save_round_trip_and_failure_keeps_previous(result, tmp_path, monkeypatc
     from study import io
     from study.io import read_exr
     from study.tables import read_csv
+
     out = tmp_path / "run"
     files = result.save(out)
     assert {"table.csv", "table.parquet", "scene.json", "index.json", "mask.exr"} <= {f.name for f in files}
@@ -87,8 +96,9 @@ def test_save_round_trip_and_failure_keeps_previous(result, tmp_path, monkeypatc
     assert study.load_scene(json.loads((out / "scene.json").read_text())) == result.scene
     before = (out / "table.csv").read_bytes()
 
-    def broken(path, array):                       # the disk fills up half-way through the images
+    def broken(path, array):  # the disk fills up half-way through the images
         raise OSError(28, "No space left on device", str(path))
+
     monkeypatch.setattr(io, "write_exr", broken)
     with pytest.raises(OSError):
         result.save(out)
@@ -102,7 +112,7 @@ def test_load_scene_sources_and_overrides(tmp_path, monkeypatch):
     c = study.load_scene(small_scene_dict(), {"object.radius": 0.3})
     assert a == b == c and a.object.radius == 0.3
     assert study.load_scene(a) is a and study.load_scene(a, **{"camera.fov": 50.0}).camera.fov == 50.0
-    monkeypatch.chdir(tmp_path)                               # shipped scenes from any working directory
+    monkeypatch.chdir(tmp_path)  # shipped scenes from any working directory
     assert study.load_scene("scenes/room.toml").render.cube_res == 256
     with pytest.raises(StudyError, match=r"s.toml: object.radiu: unknown scene key"):
         study.load_scene("s.toml", **{"object.radiu": 0.3})
@@ -118,14 +128,28 @@ def test_load_scene_sources_and_overrides(tmp_path, monkeypatch):
 
 
 def test_method_list():
-    ms = study.method_list(["classical", "localized( iterations = 3 )", {"name": "localized", "iterations": [1, 3]},
-                            methods.make("proxy_box")])
-    assert [m.label for m in ms] == ["classical", "localized(iterations=3)", "localized(iterations=1)", "proxy_box"]
+    ms = study.method_list(
+        [
+            "classical",
+            "localized( iterations = 3 )",
+            {"name": "localized", "iterations": [1, 3]},
+            methods.make("proxy_box"),
+        ]
+    )
+    assert [m.label for m in ms] == [
+        "classical",
+        "localized(iterations=3)",
+        "localized(iterations=1)",
+        "proxy_box",
+    ]
     assert [m.name for m in study.method_list("all")] == methods.names()
-    for bad, words in [(["classical", "nope"], r"methods\[1\]: unknown method 'nope'"),
-                       ("localized(iterations=-1)", r"methods: iterations: Input should be greater than or equal"),
-                       ("localized(iterations=)", r"methods: the parameters of .* are not TOML values"),
-                       ("9x", "not a method name or label"), (3, "not a method: 3")]:
+    for bad, words in [
+        (["classical", "nope"], r"methods\[1\]: unknown method 'nope'"),
+        ("localized(iterations=-1)", r"methods: iterations: Input should be greater than or equal"),
+        ("localized(iterations=)", r"methods: the parameters of .* are not TOML values"),
+        ("9x", "not a method name or label"),
+        (3, "not a method: 3"),
+    ]:
         with pytest.raises(StudyError, match=words):
             study.method_list(bad)
 
@@ -150,18 +174,27 @@ XML = """<scene version="3.0.0">
     <emitter type="point"><point name="position" x="0.3" y="2.6" z="-0.4"/><rgb name="intensity" value="7"/></emitter>
 </scene>"""
 #: a 4 × 3 × 4 m room of six inward-facing rectangles: (scale x y, rotation axis and angle, translation)
-WALLS = [("2 2", "x -90", "0 0 0"), ("2 2", "x 90", "0 3 0"), ("2 1.5", "y 90", "-2 1.5 0"),
-         ("2 1.5", "y -90", "2 1.5 0"), ("2 1.5", "y 0", "0 1.5 -2"), ("2 1.5", "y 180", "0 1.5 2")]
+WALLS = [
+    ("2 2", "x -90", "0 0 0"),
+    ("2 2", "x 90", "0 3 0"),
+    ("2 1.5", "y 90", "-2 1.5 0"),
+    ("2 1.5", "y -90", "2 1.5 0"),
+    ("2 1.5", "y 0", "0 1.5 -2"),
+    ("2 1.5", "y 180", "0 1.5 2"),
+]
 
 
 def test_load_scene_from_mesh_xml_and_mitsuba_dict(tmp_path):
     """Each source gives a validated scene in that environment with the suggested placement inside its bounds
     (the XML room spans [-2, 2] × [0, 3] × [-2, 2]); the Mitsuba dict keeps its own camera; overrides win."""
     from study import runtime
+
     walls = "\n    ".join(
         f'<shape type="rectangle"><ref id="wall"/><transform name="to_world"><scale x="{s.split()[0]}" '
         f'y="{s.split()[1]}"/><rotate {r.split()[0]}="1" angle="{r.split()[1]}"/><translate x="{t.split()[0]}" '
-        f'y="{t.split()[1]}" z="{t.split()[2]}"/></transform></shape>' for s, r, t in WALLS)
+        f'y="{t.split()[1]}" z="{t.split()[2]}"/></transform></shape>'
+        for s, r, t in WALLS
+    )
     (tmp_path / "room.xml").write_text(XML.format(walls=walls))
     xml = study.load_scene(tmp_path / "room.xml", **{"object.radius": 0.3})
     assert xml.environment.type == "mitsuba" and xml.environment.file == str(tmp_path / "room.xml")
@@ -175,7 +208,7 @@ def test_load_scene_from_mesh_xml_and_mitsuba_dict(tmp_path):
     assert cb.environment.type == "mitsuba" and cb.camera.eye == pytest.approx((0.0, 0.0, 3.9))
     (tmp_path / "flat.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     with pytest.raises(StudyError, match=r"flat.obj: environment: .*reference.point") as e:
-        study.load_scene(tmp_path / "flat.obj")              # one triangle: nothing encloses a reference point
+        study.load_scene(tmp_path / "flat.obj")  # one triangle: nothing encloses a reference point
     assert "\n" not in str(e.value)
 
 
@@ -185,6 +218,7 @@ def test_cuda_backend_renders_on_the_gpu_too(monkeypatch):
     from study import runtime
     from study.harness import budget
     from study.measure import case as case_mod
+
     seen = []
 
     class Stop(Exception):
@@ -193,6 +227,7 @@ def test_cuda_backend_renders_on_the_gpu_too(monkeypatch):
     def fake_run_case(*a, **k):
         seen.append(runtime.render_device())
         raise Stop
+
     monkeypatch.setattr(budget, "check_backend", lambda b: None)
     monkeypatch.setattr(case_mod, "run_case", fake_run_case)
     before = runtime.render_device()

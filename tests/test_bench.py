@@ -4,6 +4,7 @@ against the plain one.
 Expected outcomes are stated per test; exact values come from study.impostor.analytic (the box room), not from the
 code under test.
 """
+
 import math
 import time
 
@@ -32,15 +33,34 @@ def test_bench_cli_tiny_writes_tables(tmp_path):
     row per registered method (its defaults) × backend × batch, plus the plain path of localized on Dr.Jit,
     positive times, and speed-ups finite and consistent with the exact rows."""
     names = ",".join(BACKENDS)
-    res = CliRunner().invoke(app, ["bench", "--out", str(tmp_path), "--scene-res", "32", "--rays", "2048",
-                                   "--cube-res", "16", "--repeats", "1", "--no-ladder", "--no-scaling",
-                                   "--backends", names, "--tag", "cpu"])
+    res = CliRunner().invoke(
+        app,
+        [
+            "bench",
+            "--out",
+            str(tmp_path),
+            "--scene-res",
+            "32",
+            "--rays",
+            "2048",
+            "--cube-res",
+            "16",
+            "--repeats",
+            "1",
+            "--no-ladder",
+            "--no-scaling",
+            "--backends",
+            names,
+            "--tag",
+            "cpu",
+        ],
+    )
     assert res.exit_code == 0, res.output
     rows = read_csv(tmp_path / "bench-cpu.csv")
     md = (tmp_path / "bench-cpu.md").read_text()
     assert "drjit" in md and "| batch | backend |" in md
     batches = {r["batch"] for r in rows}
-    assert len(batches) == 4                       # fig4, close-up, synthetic, synthetic sorted by direction
+    assert len(batches) == 4  # fig4, close-up, synthetic, synthetic sorted by direction
     assert sum(r["label"] == "exact: Embree" for r in rows) == 4
     timed = [r for r in rows if not r["label"].startswith("exact")]
     defaults = {m.label for m in methods.all_methods()}
@@ -51,22 +71,31 @@ def test_bench_cli_tiny_writes_tables(tmp_path):
             got = [r["label"] for r in timed if r["batch"] == b and r["backend"] == nm]
             assert sorted(got) == sorted([*defaults] + ([focus] if nm != "numpy" else [])), (b, nm)
             if nm != "numpy":
-                assert {r["path"] for r in timed if r["batch"] == b and r["backend"] == nm
-                        and r["label"] == focus} == {"frozen", "plain"}
+                assert {
+                    r["path"] for r in timed if r["batch"] == b and r["backend"] == nm and r["label"] == focus
+                } == {"frozen", "plain"}
     for r in rows:
-        assert r["ms_per_call"] > 0 and math.isclose(r["ms_per_frame"], r["ms_per_call"] / r["rays"] * 1024 ** 2,
-                                                     rel_tol=1e-6)
+        assert r["ms_per_call"] > 0 and math.isclose(
+            r["ms_per_frame"], r["ms_per_call"] / r["rays"] * 1024**2, rel_tol=1e-6
+        )
     for r in timed:
         emb = next(e for e in rows if e["batch"] == r["batch"] and e["label"] == "exact: Embree")
         assert math.isfinite(r["x_vs_embree"]) and r["x_vs_embree"] > 0
         assert math.isclose(r["x_vs_embree"], emb["ms_per_frame"] / r["ms_per_frame"], rel_tol=1e-6)
-        mit = {e["path"]: e for e in rows if e["batch"] == r["batch"] and e["label"] == "exact: Mitsuba llvm_ad_rgb"}
-        if mit:                                    # Mitsuba's LLVM variant present: every query, ratios right
+        mit = {
+            e["path"]: e
+            for e in rows
+            if e["batch"] == r["batch"] and e["label"] == "exact: Mitsuba llvm_ad_rgb"
+        }
+        if mit:  # Mitsuba's LLVM variant present: every query, ratios right
             assert set(mit) == {"ray_intersect", "ray_intersect_preliminary", "ray_test"}
-            for q, col in [("ray_intersect", "x_vs_mitsuba"), ("ray_intersect_preliminary", "x_vs_preliminary"),
-                           ("ray_test", "x_vs_ray_test")]:
+            for q, col in [
+                ("ray_intersect", "x_vs_mitsuba"),
+                ("ray_intersect_preliminary", "x_vs_preliminary"),
+                ("ray_test", "x_vs_ray_test"),
+            ]:
                 assert math.isclose(r[col], mit[q]["ms_per_frame"] / r["ms_per_frame"], rel_tol=1e-6)
-        if r["backend"] == "llvm":                 # a measured floor: positive, ratio = time / floor
+        if r["backend"] == "llvm":  # a measured floor: positive, ratio = time / floor
             assert r["floor_ms_per_frame"] > 0
             assert math.isclose(r["x_floor"], r["ms_per_frame"] / r["floor_ms_per_frame"], rel_tol=1e-6)
     if "llvm" in BACKENDS:
@@ -80,12 +109,18 @@ def test_method_list_is_every_method_at_every_knob_value():
     want = []
     for name in methods.names():
         cls = methods.REGISTRY[name]
-        want += ([methods.make(name, **{cls.knob.param: v}).label for v in cls.knob.ladder] if cls.knob
-                 else [methods.make(name).label])
+        want += (
+            [methods.make(name, **{cls.knob.param: v}).label for v in cls.knob.ladder]
+            if cls.knob
+            else [methods.make(name).label]
+        )
     assert got == want and len(got) > len(methods.names())
-    assert [m.label for m in method_list(BenchOptions(ladder=False))] == [m.label for m in methods.all_methods()]
-    assert [m.label for m in method_list(BenchOptions(methods=("localized", "classical")))] == \
-        [f"localized(iterations={n})" for n in methods.REGISTRY["localized"].knob.ladder] + ["classical"]
+    assert [m.label for m in method_list(BenchOptions(ladder=False))] == [
+        m.label for m in methods.all_methods()
+    ]
+    assert [m.label for m in method_list(BenchOptions(methods=("localized", "classical")))] == [
+        f"localized(iterations={n})" for n in methods.REGISTRY["localized"].knob.ladder
+    ] + ["classical"]
 
 
 def test_bench_bad_backend_is_one_line_error(tmp_path):
@@ -94,10 +129,21 @@ def test_bench_bad_backend_is_one_line_error(tmp_path):
 
 
 def test_bench_unknown_method_is_one_line_error(tmp_path):
-    res = CliRunner().invoke(app, ["bench", "--out", str(tmp_path), "--backends", "numpy", "--methods",
-                                   "localized,nosuch", "--no-scaling"])
+    res = CliRunner().invoke(
+        app,
+        [
+            "bench",
+            "--out",
+            str(tmp_path),
+            "--backends",
+            "numpy",
+            "--methods",
+            "localized,nosuch",
+            "--no-scaling",
+        ],
+    )
     assert res.exit_code == 2 and "unknown method 'nosuch'" in res.output
-    assert not list(tmp_path.iterdir())                       # refused before anything was timed or written
+    assert not list(tmp_path.iterdir())  # refused before anything was timed or written
 
 
 def test_median_time_evaluates_every_call():
@@ -113,9 +159,9 @@ def test_median_time_evaluates_every_call():
     def finish(out):
         (syncs if out is None else finished).append(out)
 
-    t = median_time(call, finish, repeats=3, warmup=2, min_repeat_s=0.05)   # several calls a repeat, also
-    assert 0.0019 <= t <= 0.04                                                # on a loaded machine
-    assert finished == list(range(1, len(calls) + 1))          # each call's own output, in order
+    t = median_time(call, finish, repeats=3, warmup=2, min_repeat_s=0.05)  # several calls a repeat, also
+    assert 0.0019 <= t <= 0.04  # on a loaded machine
+    assert finished == list(range(1, len(calls) + 1))  # each call's own output, in order
     assert len(syncs) == 2 + 1 + 3 and len(calls) > 3 + 3
 
 
@@ -124,13 +170,28 @@ def test_scaling_tiny_writes_plot(tmp_path):
     method's cost is reported at every triangle count (it does not trace the triangles), and the knob study
     covers localized's declared ladder plus the extra values."""
     from study.harness.config import load_figure_config
+
     _, scene, _ = load_figure_config("configs/fig4.toml")
-    opt = BenchOptions(scene_res=16, synthetic=1024, methods=("localized", "classical"), ladder=False,
-                       cube_res=16, backends=("numpy",), repeats=1, numpy_max_rays=1024, ray_counts=(256, 1024),
-                       knob_extra=(2,), cube_resolutions=(8, 16), triangles=(0, 2000), tag="t")
+    opt = BenchOptions(
+        scene_res=16,
+        synthetic=1024,
+        methods=("localized", "classical"),
+        ladder=False,
+        cube_res=16,
+        backends=("numpy",),
+        repeats=1,
+        numpy_max_rays=1024,
+        ray_counts=(256, 1024),
+        knob_extra=(2,),
+        cube_resolutions=(8, 16),
+        triangles=(0, 2000),
+        tag="t",
+    )
     rows, scaling, info = run_bench(scene, opt, log=lambda s: None)
-    assert {r["label"] for r in rows if not r["label"].startswith("exact")} == {"localized(iterations=10)",
-                                                                                "classical"}
+    assert {r["label"] for r in rows if not r["label"].startswith("exact")} == {
+        "localized(iterations=10)",
+        "classical",
+    }
     files = write_outputs(rows, scaling, info, tmp_path)
     assert (tmp_path / "scaling-t.png").stat().st_size > 10_000 and len(files) == 4
     assert {r["study"] for r in scaling} == {"rays", "knob", "cube_res", "triangles"}
@@ -140,8 +201,11 @@ def test_scaling_tiny_writes_plot(tmp_path):
     tris = sorted({r["value"] for r in scaling if r["study"] == "triangles"})
     assert tris[0] == 12 and 1900 <= tris[1] - 12 <= 2100
     for n in tris:
-        assert any(r["value"] == n and r["label"].startswith("localized") for r in scaling
-                   if r["study"] == "triangles")
+        assert any(
+            r["value"] == n and r["label"].startswith("localized")
+            for r in scaling
+            if r["study"] == "triangles"
+        )
 
 
 def test_heightfield_room_distances_match_the_box():
@@ -149,13 +213,14 @@ def test_heightfield_room_distances_match_the_box():
     from conftest import small_scene_dict
 
     from study.scene import scene_from_dict
+
     scene = scene_from_dict(small_scene_dict())
     V, F = room_triangles(scene)
     tex = distance_texels(Tracer.from_triangles(V, F), scene.reference.point, 16)
     exact = analytic.box_impostor(16, BOX_LO, BOX_HI)
     np.testing.assert_allclose(tex[..., 3], exact[..., 3], atol=1e-4)
     Vh, Fh = room_triangles(scene, 500)
-    assert len(Fh) - len(F) == 2 * 16 ** 2 and Vh[len(V):, 1].max() < 0.11      # 2k² triangles, below 11 cm
+    assert len(Fh) - len(F) == 2 * 16**2 and Vh[len(V) :, 1].max() < 0.11  # 2k² triangles, below 11 cm
 
 
 def test_tracer_from_triangles_threaded_distance_matches_intersect():
@@ -164,10 +229,11 @@ def test_tracer_from_triangles_threaded_distance_matches_intersect():
     from conftest import small_scene_dict
 
     from study.scene import scene_from_dict
+
     scene = scene_from_dict(small_scene_dict())
     mesh, o = scene.mesh(), np.asarray(scene.reference.point)
-    x, d = analytic.random_rays(10_000, extent=0.8, seed=3)                  # relative to o, as BOX_LO/HI
-    d[:100] = x[:100] / np.linalg.norm(x[:100], axis=1, keepdims=True)      # some rays start outside, leaving
+    x, d = analytic.random_rays(10_000, extent=0.8, seed=3)  # relative to o, as BOX_LO/HI
+    d[:100] = x[:100] / np.linalg.norm(x[:100], axis=1, keepdims=True)  # some rays start outside, leaving
     x[:100] = x[:100] / np.linalg.norm(x[:100], axis=1, keepdims=True) * 10
     x = x + o
     tr = Tracer.from_triangles(mesh.vertices, mesh.faces, threads=3)
@@ -194,9 +260,11 @@ def test_frozen_and_recorded_paths_equal_plain():
         B.symbolic_loops = symbolic
         try:
             call, finish = method_runner(m, B, tex, x[:n], d[:n], frozen=frozen)
-            out = call(); finish(out)
+            out = call()
+            finish(out)
             if frozen:
-                out = call(); finish(out)                 # a replay, not the recording
+                out = call()
+                finish(out)  # a replay, not the recording
             shown, rad, ratio, valid = out
             return B.to_numpy(shown), B.to_numpy(rad), B.numpy(valid)
         finally:
@@ -259,8 +327,10 @@ def test_marching_methods_frozen_equal_plain_and_numpy(name):
     out = {}
     for frozen in (False, True):
         call, finish = method_runner(m, B, tex, x, d, frozen=frozen)
-        o = call(); finish(o)
-        o = call(); finish(o)                               # frozen: a replay
+        o = call()
+        finish(o)
+        o = call()
+        finish(o)  # frozen: a replay
         out[frozen] = B.to_numpy(o[0])
     np.testing.assert_allclose(out[True], out[False], rtol=1e-6)
     nb = backends.get("numpy")
@@ -275,21 +345,32 @@ def test_method_floor_is_fetches_times_cost_plus_bytes_over_bandwidth():
     """The floor model by hand: localized(10) reads the distance texture 3 + 10 times (its lookups) + 1 (origin
     check), the colour once, and moves 53 bytes; with 1 ns per fetch and 1 GB/s that is (14 + 1 + 53) ns a ray."""
     from study.bench.floors import BYTES_PER_RAY, method_floor
-    fl = {"fetch_1ch_random": 1e9, "fetch_4ch_random": 1e9, "bandwidth": 1e9,
-          "fetch_1ch_coherent": 2e9, "fetch_4ch_coherent": 1e9}
+
+    fl = {
+        "fetch_1ch_random": 1e9,
+        "fetch_4ch_random": 1e9,
+        "bandwidth": 1e9,
+        "fetch_1ch_coherent": 2e9,
+        "fetch_4ch_coherent": 1e9,
+    }
     m = methods.make("localized", iterations=10)
     assert BYTES_PER_RAY == 53
     assert math.isclose(method_floor(m, fl, "random", 1000), 1000 * (14 + 1 + 53) * 1e-9, rel_tol=1e-12)
     assert math.isclose(method_floor(m, fl, "coherent", 1000), 1000 * (7 + 1 + 53) * 1e-9, rel_tol=1e-12)
-    assert method_floor(methods.make("localized", iterations=20), fl, "random", 1) > method_floor(m, fl, "random", 1)
+    assert method_floor(methods.make("localized", iterations=20), fl, "random", 1) > method_floor(
+        m, fl, "random", 1
+    )
 
 
 @pytest.mark.skipif("llvm" not in BACKENDS, reason="needs Dr.Jit LLVM")
 def test_measured_floors_are_positive_rates():
     """Fetch rates and copy bandwidth measured on LLVM: positive and finite, every pattern and channel count."""
     from study.bench.floors import floor_rows, measure
+
     fl = measure(backends.get("llvm"), 16, n_lanes=1 << 12, fetches=8, copy_floats=1 << 18, repeats=1)
-    assert set(fl) == {f"fetch_{c}ch_{p}" for c in (1, 4) for p in ("coherent", "random", "scattered")} | {"bandwidth"}
+    assert set(fl) == {f"fetch_{c}ch_{p}" for c in (1, 4) for p in ("coherent", "random", "scattered")} | {
+        "bandwidth"
+    }
     assert all(math.isfinite(v) and v > 0 for v in fl.values()), fl
     assert len(floor_rows(fl, 16, "llvm")) == 7
 
@@ -298,6 +379,7 @@ def test_direction_sorted_batch_is_a_permutation_in_texel_order():
     """Ray reordering keeps every ray (same origin with its direction) and orders them by cube face and texel."""
     from study.bench.batches import Batch, direction_sorted
     from study.impostor import cubemap
+
     x, d = analytic.random_rays(5000, extent=0.5, seed=3)
     s = direction_sorted(Batch("synthetic 5000", x, d), res=8)
     assert s.name.endswith("sorted by direction")
@@ -312,6 +394,7 @@ def test_direction_sorted_batch_is_a_permutation_in_texel_order():
 
 def test_rt_cores_line_names_gpus_without_rt_cores():
     from study.bench.machine import rt_cores_line
+
     assert "no RT cores" in rt_cores_line("NVIDIA H100 80GB HBM3, 580.159.04, 81559 MiB")
     assert "on an RT-core GPU the exact side would be faster" in rt_cores_line("NVIDIA H200, 580, 143771 MiB")
     assert "RT cores assumed present" in rt_cores_line("NVIDIA GeForce RTX 4090, 550, 24564 MiB")
@@ -323,16 +406,17 @@ def test_flip_on_the_mask_bounding_box_equals_the_whole_frame():
     pixels' errors are those of the whole frame, bit for bit (a 8 px margin would not be: FLIP's filters reach
     ~12 px)."""
     from study.measure.metrics import flip, flip_map
+
     rng = np.random.default_rng(4)
     yy, xx = np.mgrid[:160, :200]
-    mask = (yy - 70) ** 2 + (xx - 120) ** 2 < 30 ** 2
+    mask = (yy - 70) ** 2 + (xx - 120) ** 2 < 30**2
     ref = rng.uniform(0, 1.2, (160, 200, 3)).astype(np.float32)
     test = np.clip(ref + rng.normal(0, 0.1, ref.shape), 0, None).astype(np.float32)
     whole = flip_map(test, ref)
     assert flip(test, ref, mask=mask) == float(whole[mask].mean())
-    y0, x0 = 70 - 30 - 8, 120 - 30 - 8                       # the failing case: too small a margin
-    tight = flip_map(test[y0:y0 + 77, x0:x0 + 77], ref[y0:y0 + 77, x0:x0 + 77])
-    assert float(tight[mask[y0:y0 + 77, x0:x0 + 77]].mean()) != float(whole[mask].mean())
+    y0, x0 = 70 - 30 - 8, 120 - 30 - 8  # the failing case: too small a margin
+    tight = flip_map(test[y0 : y0 + 77, x0 : x0 + 77], ref[y0 : y0 + 77, x0 : x0 + 77])
+    assert float(tight[mask[y0 : y0 + 77, x0 : x0 + 77]].mean()) != float(whole[mask].mean())
 
 
 def test_ssim_and_psnr_on_the_mask_equal_the_whole_frame():
@@ -342,18 +426,21 @@ def test_ssim_and_psnr_on_the_mask_equal_the_whole_frame():
     from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
     from study.measure.metrics import psnr, ssim, to_ldr
+
     rng = np.random.default_rng(5)
     yy, xx = np.mgrid[:160, :200]
     ref = rng.uniform(0, 1.2, (160, 200, 3)).astype(np.float32)
     test = np.clip(ref + rng.normal(0, 0.1, ref.shape), 0, None).astype(np.float32)
     _, smap = structural_similarity(to_ldr(ref), to_ldr(test), channel_axis=-1, data_range=1.0, full=True)
-    for mask in ((yy - 70) ** 2 + (xx - 120) ** 2 < 30 ** 2, (yy < 20) & (xx > 150)):
+    for mask in ((yy - 70) ** 2 + (xx - 120) ** 2 < 30**2, (yy < 20) & (xx > 150)):
         assert abs(ssim(test, ref, mask=mask) - float(smap.mean(axis=-1)[mask].mean())) < 1e-12
         want = peak_signal_noise_ratio(to_ldr(ref)[mask], to_ldr(test)[mask], data_range=1.0)
         assert psnr(test, ref, mask=mask) == want
-    box = (slice(40, 100), slice(90, 150))                 # the failing case: a square mask, cut without margin
+    box = (slice(40, 100), slice(90, 150))  # the failing case: a square mask, cut without margin
     mask = np.zeros(yy.shape, bool)
     mask[box] = True
-    _, tight = structural_similarity(to_ldr(ref[box]), to_ldr(test[box]), channel_axis=-1, data_range=1.0, full=True)
+    _, tight = structural_similarity(
+        to_ldr(ref[box]), to_ldr(test[box]), channel_axis=-1, data_range=1.0, full=True
+    )
     assert abs(float(tight.mean()) - float(smap.mean(axis=-1)[mask].mean())) > 1e-4
     assert abs(ssim(test, ref, mask=mask) - float(smap.mean(axis=-1)[mask].mean())) < 1e-12

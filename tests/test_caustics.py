@@ -1,5 +1,6 @@
 """Caustic maps: photon power against a quadrature over the sphere's cone, localized photon hits against Embree in
 an exact (analytic) impostor, the uv map against Embree, and energy conservation of the splatting."""
+
 import math
 
 import numpy as np
@@ -15,8 +16,12 @@ from study.impostor.envmap import EnvMap
 from study.reference.embree import Tracer
 from study.scene import scene_from_dict
 
-GLASS = {"shape": "sphere", "center": [0.6, 1.2, 0.3], "radius": 0.4,
-         "material": {"type": "dielectric", "ior": 1.3}}
+GLASS = {
+    "shape": "sphere",
+    "center": [0.6, 1.2, 0.3],
+    "radius": 0.4,
+    "material": {"type": "dielectric", "ior": 1.3},
+}
 
 
 @pytest.fixture(scope="module")
@@ -31,8 +36,9 @@ def tracer(scene):
 
 def _exact_env(scene, res, B):
     o = np.asarray(scene.reference.point)
-    return EnvMap(analytic.box_impostor(res, np.asarray(scene.room.min) - o,
-                                                 np.asarray(scene.room.max) - o), B)
+    return EnvMap(
+        analytic.box_impostor(res, np.asarray(scene.room.min) - o, np.asarray(scene.room.max) - o), B
+    )
 
 
 def test_frustum_solid_angles_sum_to_pyramid(scene):
@@ -47,7 +53,7 @@ def test_photon_power_matches_cone_quadrature(scene, tracer, res):
     """Σ photon power = I ∫_cone T dω (independent 1-D quadrature over the off-axis angle) within 1 %."""
     cm = caustics.exact_caustic_map(scene, tracer, res=res)
     np.testing.assert_allclose(cm.power.sum(0), caustics.cone_power(scene), rtol=0.01)
-    assert 0.5 < cm.valid.mean() < 0.85          # the sphere's disc covers ~π/4 of the square
+    assert 0.5 < cm.valid.mean() < 0.85  # the sphere's disc covers ~π/4 of the square
 
 
 @pytest.mark.parametrize("bname", BACKENDS)
@@ -57,8 +63,9 @@ def test_localized_hits_equal_exact_within_a_texel(scene, tracer, bname):
     B = backends.get(bname)
     res = 128
     uvm = lightmap.UVMap(lightmap.uv_map_texels(scene, res, tracer), B)
-    cm = caustics.build_caustic_map(scene, methods.make("localized", iterations=10), _exact_env(scene, res, B), uvm,
-                                    res=48)
+    cm = caustics.build_caustic_map(
+        scene, methods.make("localized", iterations=10), _exact_env(scene, res, B), uvm, res=48
+    )
     ex = caustics.exact_caustic_map(scene, tracer, res=48)
     both = cm.valid & ex.valid
     assert both.sum() > 0.95 * ex.valid.sum()
@@ -93,7 +100,7 @@ def test_splat_conserves_power(scene):
     uv = rng.uniform(0, 1, (n, 2))
     power = rng.uniform(0, 1, (n, 3))
     E = lightmap.splat(sid, uv, power, frames, res=64, sigma=0.05)
-    area = (frames.size_u * frames.size_v / 64 ** 2)[:, None, None, None]
+    area = (frames.size_u * frames.size_v / 64**2)[:, None, None, None]
     np.testing.assert_allclose((E * area).sum((0, 1, 2)), power.sum(0), rtol=1e-9)
 
 
@@ -126,10 +133,21 @@ def test_caustics_sweep_cli_end_to_end(tmp_path):
 
     from study.cli import app
     from study.tables import read_csv
+
     cfg = tmp_path / "c.toml"
     cfg.write_text(SMALL_CAUSTICS.replace('"MATERIAL"', '"dielectric", ior = 1.3'))
-    r = CliRunner().invoke(app, ["caustics-sweep", "--config", str(cfg), "--out", str(tmp_path / "o"),
-                                 "--cache", str(tmp_path / "cache")])
+    r = CliRunner().invoke(
+        app,
+        [
+            "caustics-sweep",
+            "--config",
+            str(cfg),
+            "--out",
+            str(tmp_path / "o"),
+            "--cache",
+            str(tmp_path / "cache"),
+        ],
+    )
     assert r.exit_code == 0, r.output
     for f in ("fig8.png", "sweep/results.csv", "sweep.png", "fig8.csv"):
         assert (tmp_path / "o" / f).is_file()
@@ -148,8 +166,9 @@ def test_knn_sigma_on_a_square_grid(scene):
     """Photons on a square grid of spacing h (one surface): the 8th neighbour of an inner photon is at h√2, so
     σ = h√2·√(π/8) = h√π/2; a denser grid is clipped to the config's σ, a lone photon gets σ_max."""
     from study.caustics import display
+
     frames = lightmap.SurfaceFrames.of(scene.mesh())
-    s = 0                                                      # grid in metres → uv of surface 0
+    s = 0  # grid in metres → uv of surface 0
     h = 0.04
     g = np.arange(10) * h + 0.5
     xy = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
@@ -167,15 +186,16 @@ def test_adaptive_splat_conserves_power_and_matches_fixed_where_dense(scene, tra
     """kNN splats move no power (Σ E·area = Σ photon power, as the fixed splat); where every photon's σ is the
     config's σ (a σ floor above every spacing) they are exactly the fixed-σ light maps."""
     from study.caustics import display
+
     frames = lightmap.SurfaceFrames.of(scene.mesh())
     cm = caustics.exact_caustic_map(scene, tracer, res=48)
-    area = (frames.size_u * frames.size_v / 128 ** 2)[:, None, None, None]
-    E = display.splat_adaptive(cm, frames, res=128, sigma=0.02)     # 3σ > half a texel: no photon is lost
+    area = (frames.size_u * frames.size_v / 128**2)[:, None, None, None]
+    E = display.splat_adaptive(cm, frames, res=128, sigma=0.02)  # 3σ > half a texel: no photon is lost
     np.testing.assert_allclose((E * area).sum((0, 1, 2)), cm.power.sum(0), rtol=1e-9)
     fixed = lightmap.splat(cm.surface, cm.uv, cm.power, frames, res=128, sigma=display.SIGMA_MAX)
     wide = display.splat_adaptive(cm, frames, res=128, sigma=display.SIGMA_MAX)
     np.testing.assert_allclose(wide, fixed, rtol=1e-9, atol=1e-12)
-    assert not np.allclose(E, fixed)                            # … and narrower where photons are dense
+    assert not np.allclose(E, fixed)  # … and narrower where photons are dense
 
 
 def test_direct_light_matches_mitsuba_direct(scene, tracer, tmp_path):
@@ -185,18 +205,25 @@ def test_direct_light_matches_mitsuba_direct(scene, tracer, tmp_path):
     from study.cache import Cache
     from study.caustics import display
     from study.caustics.study import Receivers, direct_irradiance, radiance
-    sc = scene.with_updates({"camera.eye": [-0.6, 1.9, -1.5], "camera.target": [0.8, 0.3, 0.8],
-                             "camera.fov": 60.0, "render.supersample": 2})
+
+    sc = scene.with_updates(
+        {
+            "camera.eye": [-0.6, 1.9, -1.5],
+            "camera.target": [0.8, 0.3, 0.8],
+            "camera.fov": 60.0,
+            "render.supersample": 2,
+        }
+    )
     rec = Receivers(sc, tracer)
     ours = rec.image(radiance(lightmap.albedo_maps(sc.mesh()), rec, direct_irradiance(sc, tracer, rec)))
     cache = Cache(tmp_path)
     indirect = display.mitsuba_indirect(sc, 4, cache, spp=64)
-    r = display.mitsuba_display(sc, 4, cache, spp=64)                  # cached by the line above
+    r = display.mitsuba_display(sc, 4, cache, spp=64)  # cached by the line above
     path, direct = r["path"], r["direct"]
     np.testing.assert_allclose(indirect, np.maximum(path - direct, 0))
     m = rec.diffuse_px
     assert abs(ours[m].mean() / direct[m].mean() - 1) < 0.02
     assert np.sqrt(np.mean((ours - direct)[m] ** 2)) < 0.1 * direct[m].mean()
     assert indirect.min() >= 0 and indirect[m].mean() > 0.05 * direct[m].mean()
-    shadow = m & (ours.mean(-1) < 1e-6)                         # the sphere's shadow: no direct light
+    shadow = m & (ours.mean(-1) < 1e-6)  # the sphere's shadow: no direct light
     assert shadow.sum() > 5 and (indirect[shadow].mean(-1) > 0).all()

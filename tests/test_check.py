@@ -1,5 +1,6 @@
 """`study check` passes on unmodified code against the committed baseline and fails, naming the metric, on a
 planted regression (the localized method forced to fewer iterations). `study report` builds from results only."""
+
 import pytest
 from typer.testing import CliRunner
 
@@ -46,13 +47,16 @@ def test_compare_tolerances():
 
 def test_bad_check_file(tmp_path):
     p = tmp_path / "c.toml"
-    p.write_text('sweep = "x.toml"\nbaseline = "b"\nclaims = ["nope"]\n[tolerance]\nx = { abs = 0, rel = 0 }\n')
+    p.write_text(
+        'sweep = "x.toml"\nbaseline = "b"\nclaims = ["nope"]\n[tolerance]\nx = { abs = 0, rel = 0 }\n'
+    )
     res = runner.invoke(app, ["check", "--config", str(p)])
     assert res.exit_code == 2 and "claims[0]: unknown claim 'nope'; allowed: beats-classical" in res.output
 
 
 def test_report_from_results(tmp_path):
     import shutil
+
     shutil.copytree("reports/baseline", tmp_path / "sweep-check")
     res = runner.invoke(app, ["report", "--reports", str(tmp_path)])
     assert res.exit_code == 0, res.output

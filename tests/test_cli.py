@@ -1,4 +1,5 @@
 """The CLI end to end on a small Figure-4 config, and its error behaviour (one line, exit code 2)."""
+
 import tomllib
 
 import numpy as np
@@ -37,8 +38,9 @@ def fig4_small(tmp_path_factory):
     d = tmp_path_factory.mktemp("fig4")
     cfg = d / "small.toml"
     cfg.write_text(SMALL.format(iterations="[0, 1, 3, 10]"))
-    res = runner.invoke(app, ["figure", "fig4", "--config", str(cfg), "--out", str(d / "out"),
-                              "--cache", str(d / "cache")])
+    res = runner.invoke(
+        app, ["figure", "fig4", "--config", str(cfg), "--out", str(d / "out"), "--cache", str(d / "cache")]
+    )
     assert res.exit_code == 0, res.output
     return d, read_csv(d / "out" / "metrics.csv")
 
@@ -46,9 +48,22 @@ def fig4_small(tmp_path_factory):
 def test_fig4_small_writes_grid_and_table(fig4_small):
     d, rows = fig4_small
     assert (d / "out" / "fig4.png").stat().st_size > 10_000
-    assert len(rows) == 3 * 7                          # 3 positions × (oracle_map + truth_at_hit + 5 methods)
-    for col in ("case", "method", "knob", "knob_value", "angle_median_deg", "angle_p95_deg", "angle_max_deg",
-                "dist_median", "rmse_oracle", "psnr_mitsuba", "ssim_mitsuba", "flip_mitsuba", "occluded_fraction"):
+    assert len(rows) == 3 * 7  # 3 positions × (oracle_map + truth_at_hit + 5 methods)
+    for col in (
+        "case",
+        "method",
+        "knob",
+        "knob_value",
+        "angle_median_deg",
+        "angle_p95_deg",
+        "angle_max_deg",
+        "dist_median",
+        "rmse_oracle",
+        "psnr_mitsuba",
+        "ssim_mitsuba",
+        "flip_mitsuba",
+        "occluded_fraction",
+    ):
         assert col in rows[0]
 
 
@@ -57,15 +72,32 @@ def test_fig4_small_outcome_columns(fig4_small):
     correct on every ray; nothing is hidden in this convex room, so the hidden columns are empty (NaN)."""
     d, rows = fig4_small
     header = (d / "out" / "metrics.csv").read_text().splitlines()[0].split(",")
-    outcome_cols = ["correct_fraction", "wrong_fraction", "wrong_depth_fraction", "wrong_surface_fraction",
-                    "no_hit_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "hidden_fraction",
-                    "dist_p50", "dist_p95", "dist_p99", "depth_error_p95", "angle_p95_visible_deg",
-                    "angle_p95_hidden_deg"]
+    outcome_cols = [
+        "correct_fraction",
+        "wrong_fraction",
+        "wrong_depth_fraction",
+        "wrong_surface_fraction",
+        "no_hit_fraction",
+        "wrong_fraction_visible",
+        "wrong_fraction_hidden",
+        "hidden_fraction",
+        "dist_p50",
+        "dist_p95",
+        "dist_p99",
+        "depth_error_p95",
+        "angle_p95_visible_deg",
+        "angle_p95_hidden_deg",
+    ]
     i = header.index("dist_median")
-    assert header[i + 1:i + 1 + len(outcome_cols)] == outcome_cols
+    assert header[i + 1 : i + 1 + len(outcome_cols)] == outcome_cols
     for r in rows:
-        fr = [r[c] for c in ("correct_fraction", "wrong_depth_fraction", "wrong_surface_fraction", "no_hit_fraction")]
-        assert sum(fr) == pytest.approx(1.0) and r["wrong_fraction"] == pytest.approx(1 - r["correct_fraction"])
+        fr = [
+            r[c]
+            for c in ("correct_fraction", "wrong_depth_fraction", "wrong_surface_fraction", "no_hit_fraction")
+        ]
+        assert sum(fr) == pytest.approx(1.0) and r["wrong_fraction"] == pytest.approx(
+            1 - r["correct_fraction"]
+        )
         assert r["hidden_fraction"] == 0 and np.isnan(r["wrong_fraction_hidden"])
         if r["method"] == "oracle_map":
             assert r["correct_fraction"] == 1.0 and r["dist_p95"] == 0.0
@@ -85,8 +117,19 @@ def test_fig4_small_paper_claims(fig4_small):
 
 def test_fig4_warm_cache_gives_identical_table(fig4_small, tmp_path):
     d, rows = fig4_small
-    res = runner.invoke(app, ["figure", "fig4", "--config", str(d / "small.toml"), "--out", str(tmp_path),
-                              "--cache", str(d / "cache")])
+    res = runner.invoke(
+        app,
+        [
+            "figure",
+            "fig4",
+            "--config",
+            str(d / "small.toml"),
+            "--out",
+            str(tmp_path),
+            "--cache",
+            str(d / "cache"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     again = read_csv(tmp_path / "metrics.csv")
     skip = {"seconds", "case_seconds"}
@@ -96,11 +139,17 @@ def test_fig4_warm_cache_gives_identical_table(fig4_small, tmp_path):
                 assert a[k] == b[k] or (isinstance(a[k], float) and np.isnan(a[k]) and np.isnan(b[k])), k
 
 
-@pytest.mark.parametrize("args, words", [
-    (["figure", "fig99"], "unknown figure 'fig99'; allowed: fig4, fig5"),
-    (["figure", "fig4", "--config", "missing.toml"], "missing.toml: config file not found"),
-    (["figure", "fig4", "--backend", "vulkan"], "backend: unknown backend 'vulkan'; allowed: numpy, llvm, cuda"),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["figure", "fig99"], "unknown figure 'fig99'; allowed: fig4, fig5"),
+        (["figure", "fig4", "--config", "missing.toml"], "missing.toml: config file not found"),
+        (
+            ["figure", "fig4", "--backend", "vulkan"],
+            "backend: unknown backend 'vulkan'; allowed: numpy, llvm, cuda",
+        ),
+    ],
+)
 def test_cli_errors_are_one_line(args, words):
     res = runner.invoke(app, args)
     assert res.exit_code == 2
@@ -118,6 +167,7 @@ def test_bad_method_parameter_in_config(tmp_path):
 
 def test_shipped_fig4_config_is_valid():
     from study.harness.config import load_figure_config
+
     cfg, scene, methods = load_figure_config("configs/fig4.toml")
     assert len(cfg.positions) >= 3 and scene.reference.point == (0.0, 1.5, 0.0)
     assert {m.label for m in methods} >= {"classical", "localized(iterations=10)"}
@@ -127,6 +177,7 @@ def test_shipped_fig4_config_is_valid():
 def test_shipped_fig6_config_is_valid():
     """fig6 lists cases (override tables) rather than positions: glass sphere single and double, meshes."""
     from study.harness.config import load_figure_config
+
     cfg, scene, methods = load_figure_config("configs/fig6.toml")
     names = [n for n, _, _ in cfg.case_list()]
     assert {"glass-sphere-single", "glass-sphere-double"} <= set(names)
@@ -139,16 +190,32 @@ def test_figure_with_cases_runs_and_names_rows(tmp_path):
     case ids taken from the case names; giving both positions and cases is an error."""
     cfg = tmp_path / "cases.toml"
     base = SMALL.format(iterations="[10]").replace(
-        "positions = [[0.0, 1.5, 0.0], [0.8, 1.1, 0.5], [1.4, 0.7, 1.0]]\n", "")
+        "positions = [[0.0, 1.5, 0.0], [0.8, 1.1, 0.5], [1.4, 0.7, 1.0]]\n", ""
+    )
     base = base.replace("width = 48, height = 48", "width = 24, height = 24")
-    cases = ('\n[[cases]]\nname = "glass"\n"object.material" = { type = "dielectric", ior = 1.5 }\n'
-             '"render.refraction" = "single"\n\n[[cases]]\nname = "torus"\n"object.shape" = "torus"\n')
+    cases = (
+        '\n[[cases]]\nname = "glass"\n"object.material" = { type = "dielectric", ior = 1.5 }\n'
+        '"render.refraction" = "single"\n\n[[cases]]\nname = "torus"\n"object.shape" = "torus"\n'
+    )
     cfg.write_text(base + cases)
-    res = runner.invoke(app, ["figure", "fig6", "--config", str(cfg), "--out", str(tmp_path / "o"),
-                              "--cache", str(tmp_path / "cache")])
+    res = runner.invoke(
+        app,
+        [
+            "figure",
+            "fig6",
+            "--config",
+            str(cfg),
+            "--out",
+            str(tmp_path / "o"),
+            "--cache",
+            str(tmp_path / "cache"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     rows = read_csv(tmp_path / "o" / "metrics.csv")
-    assert [r["case"] for r in rows[::4]] == ["fig6-glass", "fig6-torus"] and len(rows) == 8   # 2 references + 2 methods
+    assert [r["case"] for r in rows[::4]] == ["fig6-glass", "fig6-torus"] and len(
+        rows
+    ) == 8  # 2 references + 2 methods
     assert (tmp_path / "o" / "fig6.png").exists()
     cfg.write_text("positions = [[0.0, 1.5, 0.0]]\n" + base + cases)
     res = runner.invoke(app, ["figure", "fig6", "--config", str(cfg), "--out", str(tmp_path / "o2")])

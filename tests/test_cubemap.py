@@ -1,4 +1,5 @@
 """The cube-map convention: texel directions, direction → (face, u, v), bilinear lookup without face bleeding."""
+
 import numpy as np
 import pytest
 
@@ -51,8 +52,8 @@ def test_lookup_never_bleeds_across_faces(B):
     tex = np.broadcast_to(np.arange(6, dtype=np.float32)[:, None, None, None], (6, res, res, 1)).copy()
     rng = np.random.default_rng(3)
     d = rng.normal(size=(4000, 3))
-    d[:1000, 0] = d[:1000, 1]                           # on the x/y edges
-    d[1000:1100] = np.sign(d[1000:1100])                # corners
+    d[:1000, 0] = d[:1000, 1]  # on the x/y edges
+    d[1000:1100] = np.sign(d[1000:1100])  # corners
     env = EnvMap(tex, B)
     got = B.numpy(env.lookup(B.vec(d))[0])
     face, _, _ = cubemap.face_uv(backends.get("numpy"), *d.T.astype(np.float32))

@@ -1,6 +1,7 @@
 """Whole studies on the GPU (issue 15), checked here on the CPU: the render device setting, the exact tracer of each
 device (Mitsuba's ray queries stand in for OptiX through ``llvm_ad_rgb``), the cache key's variant, and Dask's
 one-worker-per-GPU cluster."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -59,7 +60,7 @@ def test_make_tracer_follows_the_render_device(cpu_device):
     _, scene, _ = load_figure_config("configs/fig4.toml")
     assert isinstance(make_tracer(scene.mesh()), Tracer)
     assert runtime.current_variant() == "llvm_ad_rgb"
-    runtime.VARIANTS["cuda"] = "llvm_ad_rgb"                  # stand-in for cuda_ad_rgb on this machine
+    runtime.VARIANTS["cuda"] = "llvm_ad_rgb"  # stand-in for cuda_ad_rgb on this machine
     runtime.set_render_device("cuda")
     t = make_tracer(scene.mesh())
     assert isinstance(t, MitsubaTracer) and t.variant == "llvm_ad_rgb"
@@ -74,12 +75,13 @@ def test_make_tracer_follows_the_render_device(cpu_device):
 def test_cache_entries_of_another_device_are_not_found(cpu_device, tmp_path):
     """An array cached on the CPU is recomputed with the render device on CUDA (the variant is in the key) and
     found again on the CPU; CPU keys are those of before (no variant part for the default)."""
-    runtime.VARIANTS["cuda"] = "scalar_rgb"                   # any other variant: the key is what is tested
+    runtime.VARIANTS["cuda"] = "scalar_rgb"  # any other variant: the key is what is tested
     cache, calls = Cache(tmp_path), []
 
     def make():
         calls.append(runtime.render_device())
         return np.full((2, 3), len(calls), np.float32)
+
     a = cache.get("k", "key", make, code=make)
     runtime.set_render_device("cuda")
     b = cache.get("k", "key", make, code=make)
@@ -90,19 +92,33 @@ def test_cache_entries_of_another_device_are_not_found(cpu_device, tmp_path):
 
 
 def test_cuda_backend_without_gpu_is_one_line_environment_error(cpu_device, tmp_path):
-    res = CliRunner().invoke(app, ["figure", "fig4", "--backend", "cuda", "--out", str(tmp_path / "o"),
-                                   "--cache", str(tmp_path / "c")])
+    res = CliRunner().invoke(
+        app,
+        ["figure", "fig4", "--backend", "cuda", "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "c")],
+    )
     if res.exit_code == 0:
         pytest.skip("a GPU is present")
     assert res.exit_code == 3, res.output
     assert len(res.output.strip().splitlines()) == 1 and "cuda" in res.output.lower()
-    assert runtime.render_device() == "cpu"                   # the command's setting does not outlive it
+    assert runtime.render_device() == "cpu"  # the command's setting does not outlive it
 
 
 def test_local_gpus_without_gpu_is_one_line_environment_error(cpu_device, tmp_path):
     cpu_device.setenv("CUDA_VISIBLE_DEVICES", "")
-    res = CliRunner().invoke(app, ["sweep", "configs/sweep_tiny.toml", "--dask", "local-gpus", "--out",
-                                   str(tmp_path / "o"), "--cache", str(tmp_path / "c"), "--no-plots"])
+    res = CliRunner().invoke(
+        app,
+        [
+            "sweep",
+            "configs/sweep_tiny.toml",
+            "--dask",
+            "local-gpus",
+            "--out",
+            str(tmp_path / "o"),
+            "--cache",
+            str(tmp_path / "c"),
+            "--no-plots",
+        ],
+    )
     assert res.exit_code == 3, res.output
     assert "no GPU visible" in res.output and "--dask" in res.output
 
@@ -115,6 +131,7 @@ def test_gpu_cluster_pins_one_worker_per_gpu(cpu_device):
     from distributed import Client
 
     from study.harness.cluster import gpu_cluster, visible_gpus
+
     cpu_device.setenv("CUDA_VISIBLE_DEVICES", "0,1")
     assert visible_gpus() == ["0", "1"]
     with gpu_cluster(per_gpu=2) as cluster, Client(cluster) as client:

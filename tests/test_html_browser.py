@@ -5,6 +5,7 @@ console stays free of errors. A screenshot is kept in $STUDY_ARTIFACTS (default 
 
 Skipped, with one line saying why, where Playwright or a Chromium cannot be found or started (scripts/setup.sh
 installs both: Debian's ``chromium`` as root, ``playwright`` from the test extras)."""
+
 import os
 import shutil
 from pathlib import Path
@@ -27,12 +28,14 @@ def _chromium() -> str:
 
 @pytest.fixture(scope="module")
 def browser():
-    sync = pytest.importorskip("playwright.sync_api", reason="playwright not installed (pip install -e '.[test]')")
+    sync = pytest.importorskip(
+        "playwright.sync_api", reason="playwright not installed (pip install -e '.[test]')"
+    )
     exe = _chromium()
     with sync.sync_playwright() as p:
         try:
             b = p.chromium.launch(executable_path=exe, args=["--no-sandbox"])
-        except Exception as err:                       # a browser that cannot start here
+        except Exception as err:  # a browser that cannot start here
             pytest.skip(f"Chromium at {exe} does not start: {str(err).splitlines()[0][:160]}")
         yield b
         b.close()
@@ -70,8 +73,9 @@ def _settle(pg):
 def test_report_in_chromium(page):
     pg, reports, errors = page
     # every <img> loaded
-    broken = pg.evaluate("() => Array.from(document.images).filter(i => !(i.complete && i.naturalWidth > 0))"
-                         ".map(i => i.src)")
+    broken = pg.evaluate(
+        "() => Array.from(document.images).filter(i => !(i.complete && i.naturalWidth > 0)).map(i => i.src)"
+    )
     assert pg.evaluate("document.images.length") >= 1 and not broken, broken
     # every viewer image decodes, and what the page decodes is what the EXR holds
     res = pg.evaluate("window.studyCheckViewers()")
@@ -84,7 +88,7 @@ def test_report_in_chromium(page):
     for x, y in ((w // 2, h // 2), (1, 1), (w - 2, h // 3)):
         got = np.array(pg.evaluate(f"window.studyViewers[0].valueAt({i}, {x}, {y})"))
         want = exr[y0 + y, x0 + x]
-        assert np.allclose(got, want, rtol=2 ** -7, atol=want.max() * 2 ** -8), (x, y, got, want)
+        assert np.allclose(got, want, rtol=2**-7, atol=want.max() * 2**-8), (x, y, got, want)
 
     # the viewer: keys switch the image, the slider changes the exposure
     pg.locator(".viewer").first.scroll_into_view_if_needed()
@@ -105,7 +109,7 @@ def test_report_in_chromium(page):
     pg.wait_for_timeout(150)
     assert _pixels(pg) != truth, "the exposure slider did not change the pixels"
     pg.keyboard.press("2")
-    pg.keyboard.press("ArrowDown")                     # the angular-error layer of classical
+    pg.keyboard.press("ArrowDown")  # the angular-error layer of classical
     _settle(pg)
     assert "angular error" in pg.locator(".viewer .shown").first.inner_text()
     pg.keyboard.press("+")
@@ -119,8 +123,10 @@ def test_report_in_chromium(page):
 
     # a click on a header sorts the table by that column
     table = pg.locator("table.sortable").filter(has_text="rmse_truth_debiased").last
-    col = pg.evaluate("""(t) => Array.from(t.tHead.rows[0].cells).findIndex(c => c.textContent === 'label')""",
-                      table.element_handle())
+    col = pg.evaluate(
+        """(t) => Array.from(t.tHead.rows[0].cells).findIndex(c => c.textContent === 'label')""",
+        table.element_handle(),
+    )
     labels = lambda: table.locator(f"tbody tr td:nth-child({col + 1})").all_inner_texts()  # noqa: E731
     first = labels()
     table.locator("th", has_text="label").first.click()
@@ -137,6 +143,7 @@ def test_missing_viewer_images_are_said_not_errors(browser, tmp_path_factory):
     from typer.testing import CliRunner
 
     from study.cli import app
+
     reports = small_report(tmp_path_factory)
     (reports / "fig4" / "viewer" / "fig4-p1.js").unlink()
     shutil.rmtree(reports / "fig4" / "exr")

@@ -2,6 +2,7 @@
 
 Each case states its expected outcome; the expected values come from study.impostor.analytic, not from the methods.
 """
+
 import numpy as np
 import pytest
 from conftest import BACKENDS, BOX_HI, BOX_LO
@@ -47,8 +48,10 @@ def test_localized_error_falls_with_iterations(box_tex):
     """Median error strictly falls from 0 to 1 to 3 iterations and does not rise to 10; classical is worst."""
     B = backends.get("numpy")
     x, d = analytic.random_rays(20_000, extent=0.8, seed=1)
-    med = [np.median(_angles(x, d, _shown(methods.make("localized", iterations=n), B, box_tex, x, d)[0]))
-           for n in (0, 1, 3, 10)]
+    med = [
+        np.median(_angles(x, d, _shown(methods.make("localized", iterations=n), B, box_tex, x, d)[0]))
+        for n in (0, 1, 3, 10)
+    ]
     classical = np.median(_angles(x, d, _shown(methods.make("classical"), B, box_tex, x, d)[0]))
     assert classical > med[0] > med[1] > med[2] >= med[3]
 

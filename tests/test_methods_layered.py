@@ -1,4 +1,5 @@
 """layered: depth layers (study.impostor.layers) marched together texel by texel; a column top hidden from o."""
+
 import numpy as np
 import pytest
 from conftest import small_scene_dict
@@ -12,7 +13,7 @@ from study.reference.embree import Tracer
 from study.scene import scene_from_dict
 
 RES = 128
-COLUMN = {"center": [-0.8, 0.3], "footprint": [0.5, 0.5], "height": 2.0}    # top 0.5 m above o (1.5 m)
+COLUMN = {"center": [-0.8, 0.3], "footprint": [0.5, 0.5], "height": 2.0}  # top 0.5 m above o (1.5 m)
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +25,9 @@ def column_layers():
     tracer = Tracer(s.mesh())
     dist, point, normal, new = layers.peel(tracer, o, cubemap.texel_directions(RES).reshape(-1, 3), 3)
     d = dist.reshape(3, 6, RES, RES)
-    tex = np.concatenate([point.reshape(3, 6, RES, RES, 3), layers.depth_jump(d)[..., None], d[..., None]], -1)
+    tex = np.concatenate(
+        [point.reshape(3, 6, RES, RES, 3), layers.depth_jump(d)[..., None], d[..., None]], -1
+    )
     return s, o, tracer, tex.astype(np.float32), (dist, new)
 
 
@@ -36,8 +39,8 @@ def test_peeled_layers_are_ordered_and_complete(column_layers):
     dirs = cubemap.texel_directions(RES).reshape(-1, 3)
     np.testing.assert_allclose(dist[0], tracer.distance(np.broadcast_to(o, dirs.shape), dirs), rtol=1e-5)
     assert new[0].all() and 0.01 < new[1].mean() < 0.2
-    assert not np.any(new[2] & ~new[1])                               # a third surface only after a second
-    assert new[2].sum() > 0.5 * new[1].sum()                           # enter, leave, wall (or the floor inside)
+    assert not np.any(new[2] & ~new[1])  # a third surface only after a second
+    assert new[2].sum() > 0.5 * new[1].sum()  # enter, leave, wall (or the floor inside)
     np.testing.assert_array_equal(dist[1][~new[1]], dist[0][~new[1]])
 
 
@@ -49,7 +52,7 @@ def _top_rays(tracer, o, n=400, seed=7):
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     h = tracer.intersect(x + o, d)
     top = np.abs(h["point"][:, 1] - 2.0) < 1e-4
-    assert top.mean() > 0.5                                            # most rays do land on the top
+    assert top.mean() > 0.5  # most rays do land on the top
     return x[top], d[top], h["point"][top] - o
 
 
@@ -60,8 +63,9 @@ def test_layered_recovers_a_column_top_hidden_from_the_reference_point(column_la
     the radiance it reads (here: the surface point's position) belongs to that point."""
     s, o, tracer, tex, _ = column_layers
     x, d, exact = _top_rays(tracer, o)
-    loc = methods.make("localized", iterations=10).trace(B, EnvMap(tex[0][..., [0, 1, 2, 4]], B),
-                                                           B.vec(x), B.vec(d))
+    loc = methods.make("localized", iterations=10).trace(
+        B, EnvMap(tex[0][..., [0, 1, 2, 4]], B), B.vec(x), B.vec(d)
+    )
     assert np.mean(np.linalg.norm(B.to_numpy(loc.shown) - exact, axis=1) > 0.1) >= 0.9
     env = EnvMap(tex[0], B, info={"reference": o, "layers": [EnvMap(t, B) for t in tex]})
     for n_layers in (1, 2):
@@ -89,7 +93,7 @@ def test_layered_finds_top_hits_near_the_edge_that_uniform_steps_step_over(colum
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     org = tgt - d * rng.uniform(0.3, 0.6, n)[:, None]
     h = tracer.intersect(org, d)
-    assert np.all(np.linalg.norm(h["point"] - tgt, axis=1) < 1e-3)    # the first hit is the target on the top
+    assert np.all(np.linalg.norm(h["point"] - tgt, axis=1) < 1e-3)  # the first hit is the target on the top
     env = EnvMap(tex[0], B, info={"reference": o, "layers": [EnvMap(t, B) for t in tex]})
     lay = methods.make("layered").trace(B, env, B.vec(org - o), B.vec(d))
     err = np.linalg.norm(B.to_numpy(lay.shown) + o - tgt, axis=1)
@@ -131,12 +135,15 @@ def test_the_march_spends_the_lookups_it_reports(name, monkeypatch):
     lookups_per_ray(): g(0), the n = ⌈π 16⌉ = 51 steps of the march on every ray, the secant steps, the final
     lookup — for layered on each of its 3 layers."""
     from study.impostor import analytic
+
     B = backends.get("numpy")
     tex = analytic.box_impostor(16, [-2, -1.5, -2], [2, 1.5, 2])
     env = EnvMap(tex, B, info={"layers": [EnvMap(tex, B) for _ in range(3)]})
     fetched = []
     sample = type(B).sample
-    monkeypatch.setattr(type(B), "sample", lambda self, t, *a: fetched.append(t.shape[-1]) or sample(self, t, *a))
+    monkeypatch.setattr(
+        type(B), "sample", lambda self, t, *a: fetched.append(t.shape[-1]) or sample(self, t, *a)
+    )
     x, d = analytic.random_rays(100, extent=0.8, seed=0)
     m = methods.make(name)
     m.trace(B, env, B.vec(x), B.vec(d), check_origin=False)
@@ -157,12 +164,13 @@ def test_case_gives_layered_its_layers(tmp_path):
     run) and reports a row for it with every ray valid."""
     from study.cache import Cache
     from study.measure.case import run_case
+
     s = scene_from_dict(small_scene_dict(columns=[COLUMN]))
     cache = Cache(tmp_path)
     ms = [methods.make("localized"), methods.make("layered", layers=2)]
     out = run_case(s, ms, cache=cache, keep_images=False)
     row = next(r for r in out.rows if r["method"] == "layered")
-    n = march_steps(s.render.cube_res, ms[1].params)                  # ⌈π 32⌉ = 101 steps for a half turn
+    n = march_steps(s.render.cube_res, ms[1].params)  # ⌈π 32⌉ = 101 steps for a half turn
     assert row["valid_fraction"] == 1.0 and row["lookups_per_ray"] == 2 * (1 + n + 10 + 1) == 226
     assert cache.misses > 0
     cache2 = Cache(tmp_path)

@@ -1,4 +1,5 @@
 """linear_secant against the paper's false position on an Embree-captured impostor with a near column."""
+
 import numpy as np
 import pytest
 from conftest import small_scene_dict
@@ -16,7 +17,9 @@ RES = 128
 def column_room():
     """The small room with one tall column (x −0.95..−0.65, z 0.15..0.45, 2.2 m high) beside the reference point;
     impostor distances exact from Embree (128²), radiance unused (zero)."""
-    s = scene_from_dict(small_scene_dict(columns=[{"center": [-0.8, 0.3], "footprint": [0.3, 0.3], "height": 2.2}]))
+    s = scene_from_dict(
+        small_scene_dict(columns=[{"center": [-0.8, 0.3], "footprint": [0.3, 0.3], "height": 2.2}])
+    )
     tracer = Tracer(s.mesh())
     dist = capture_distance(s, RES, tracer)
     tex = np.concatenate([np.zeros(dist.shape + (3,)), dist[..., None]], -1).astype(np.float32)
@@ -40,9 +43,9 @@ def test_first_crossing_where_false_position_takes_a_farther_one(column_room, B)
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     x = np.broadcast_to(x0, d.shape).copy()
     h = tracer.intersect(x + o, d)
-    assert np.all(h["surface"] == 6)                                   # every first hit is the column
+    assert np.all(h["surface"] == 6)  # every first hit is the column
     loc, _ = _shown("localized", B, tex, x, d, iterations=10)
-    far = ((loc - x) * d).sum(1) - h["t"]                              # how far beyond the first hit
+    far = ((loc - x) * d).sum(1) - h["t"]  # how far beyond the first hit
     assert np.sum(far > 1.0) >= 5
     ls, valid = _shown("linear_secant", B, tex, x, d)
     err = np.linalg.norm(ls + o - h["point"], axis=1)
@@ -81,7 +84,8 @@ def test_a_corner_clip_is_not_stepped_over(column_room, B):
 
 def test_parameters_are_checked():
     from study.errors import StudyError
+
     with pytest.raises(StudyError, match="^method.steps_per_texel: "):
         methods.make("linear_secant", steps_per_texel=0)
     with pytest.raises(StudyError, match="^method.linear_steps: unknown parameter"):
-        methods.make("linear_secant", linear_steps=30)             # the uniform search's step count, gone
+        methods.make("linear_secant", linear_steps=30)  # the uniform search's step count, gone

@@ -1,4 +1,5 @@
 """multi_probe: distance probes at several points (Embree distances) on the small room with a column taller than o."""
+
 import numpy as np
 import pytest
 from conftest import BACKENDS, small_scene_dict
@@ -12,9 +13,9 @@ from study.reference.embree import Tracer
 from study.scene import scene_from_dict
 
 RES = 64
-COLUMN = {"center": [-0.8, 0.3], "footprint": [0.5, 0.5], "height": 2.0}    # top 0.5 m above o (1.5 m)
-ABOVE = (-0.8, 2.6, 0.3)                                                     # a probe above the column top
-FAR = (0.5, 2.9, 0.8)                                                        # a probe far from it that sees it
+COLUMN = {"center": [-0.8, 0.3], "footprint": [0.5, 0.5], "height": 2.0}  # top 0.5 m above o (1.5 m)
+ABOVE = (-0.8, 2.6, 0.3)  # a probe above the column top
+FAR = (0.5, 2.9, 0.8)  # a probe far from it that sees it
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +52,11 @@ def _top_rays(tracer, o, start, n=300, seed=7):
 def _trace(m, B, env, x, d):
     with np.errstate(all="ignore"):
         tr = m.trace(B, env, B.vec(x), B.vec(d))
-    return B.to_numpy(tr.shown).astype(float), B.to_numpy(tr.radiance).astype(float), B.numpy(tr.valid).astype(bool)
+    return (
+        B.to_numpy(tr.shown).astype(float),
+        B.to_numpy(tr.radiance).astype(float),
+        B.numpy(tr.valid).astype(bool),
+    )
 
 
 @pytest.mark.parametrize("start, probe", [((-0.8, 2.5, 0.3), ABOVE), ((-0.2, 2.2, 0.0), FAR)])
@@ -72,9 +77,9 @@ def test_multi_probe_recovers_a_hit_hidden_from_o_but_seen_by_another_probe(colu
     assert valid.all() and np.mean(err < 0.02) >= 0.9
     assert np.mean(np.linalg.norm(rad - (exact + o), axis=1) < 0.02) >= 0.9
     n = int(np.ceil(np.pi * RES))
-    one_round = 2 + (1 + n + 4 + 3) + 1                                # N = 2 to choose, a round, the shown point
+    one_round = 2 + (1 + n + 4 + 3) + 1  # N = 2 to choose, a round, the shown point
     if probe == FAR:
-        assert m.lookups_per_ray() > one_round + 0.5 * (2 + 1 + n)        # a second round on most rays
+        assert m.lookups_per_ray() > one_round + 0.5 * (2 + 1 + n)  # a second round on most rays
     # with the impostor alone (no second probe) multi_probe does no better than a single probe
     m1, env1 = _env(B, o, maps, [])
     shown1, _, _ = _trace(m1, B, env1, x, d)
@@ -88,7 +93,7 @@ def test_cost_is_counted_per_round(column):
     s, o, tracer, maps = column
     rng = np.random.default_rng(1)
     x = rng.uniform(-0.3, 0.3, (200, 3))
-    d = np.tile([0.0, 1.0, 0.0], (200, 1)) + rng.normal(0, 0.05, (200, 3))         # up to the ceiling
+    d = np.tile([0.0, 1.0, 0.0], (200, 1)) + rng.normal(0, 0.05, (200, 3))  # up to the ceiling
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     m, env = _env(B, o, maps, [FAR])
     shown, _, valid = _trace(m, B, env, x, d)
@@ -104,7 +109,9 @@ def test_grid_probes_stand_in_free_space(column):
     s, o, tracer, _ = column
     room = (s.room.min, s.room.max)
     assert len(probes.probe_points(ProbeSpec(), room, tracer)) == 8
-    s5 = scene_from_dict(small_scene_dict(columns=[{"center": [-0.9, -0.9], "footprint": [0.6, 0.6], "height": 1.7}]))
+    s5 = scene_from_dict(
+        small_scene_dict(columns=[{"center": [-0.9, -0.9], "footprint": [0.6, 0.6], "height": 1.7}])
+    )
     t5 = Tracer(s5.mesh())
     pts = probes.probe_points(ProbeSpec(), room, t5)
     assert len(pts) == 7 and not np.any(np.all(np.isclose(pts, [-1, 0.75, -1]), axis=1))

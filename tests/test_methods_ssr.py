@@ -1,4 +1,5 @@
 """ssr: screen-space ray tracing through the camera's depth buffer (Embree) of the small room, against Embree."""
+
 import numpy as np
 import pytest
 from conftest import small_scene_dict
@@ -41,15 +42,27 @@ def _rays(s, tracer, o, n=3000, seed=3):
 
 def _env(B, s, tracer, o, colour):
     lo, hi = np.asarray(s.room.min) - o, np.asarray(s.room.max) - o
-    return EnvMap(analytic.box_impostor(32, lo, hi), B, info={
-        "reference": o, "room": (s.room.min, s.room.max), "screen": ScreenView.of_scene(s, colour, tracer, B)})
+    return EnvMap(
+        analytic.box_impostor(32, lo, hi),
+        B,
+        info={
+            "reference": o,
+            "room": (s.room.min, s.room.max),
+            "screen": ScreenView.of_scene(s, colour, tracer, B),
+        },
+    )
 
 
 def _trace(B, env, x, d, **kw):
     m = methods.make("ssr", **kw)
     with np.errstate(all="ignore"):
         tr = m.trace(B, env, B.vec(x), B.vec(d))
-    return m, B.to_numpy(tr.shown).astype(float), B.to_numpy(tr.radiance).astype(float), B.numpy(tr.valid).astype(bool)
+    return (
+        m,
+        B.to_numpy(tr.shown).astype(float),
+        B.to_numpy(tr.radiance).astype(float),
+        B.numpy(tr.valid).astype(bool),
+    )
 
 
 def test_depth_buffer_is_the_embree_z_depth(room):
@@ -74,19 +87,21 @@ def test_ssr_finds_the_exact_hit_on_screen_and_says_no_hit_off_screen(room, B):
     x, d, exact = _rays(s, tracer, o)
     env = _env(B, s, tracer, o, colour)
     off = outcomes.off_screen(s.camera, exact + o)
-    assert 0.3 < off.mean() < 0.8                                      # both kinds are well represented
-    m, shown, rad, valid = _trace(B, env, x, d, fallback="none")          # screen-space alone
+    assert 0.3 < off.mean() < 0.8  # both kinds are well represented
+    m, shown, rad, valid = _trace(B, env, x, d, fallback="none")  # screen-space alone
     z = (exact + o - np.asarray(s.camera.eye)) @ env.info["screen"].forward
-    foot = z * 2 * np.tan(np.radians(s.camera.fov) / 2) / W             # one pixel at the hit's depth
+    foot = z * 2 * np.tan(np.radians(s.camera.fov) / 2) / W  # one pixel at the hit's depth
     err = np.linalg.norm(shown - exact, axis=1)
     assert np.mean(err[~off] <= 1.5 * foot[~off]) >= 0.96
     assert np.mean(np.linalg.norm(rad - (exact + o), axis=1)[~off] <= 2 * foot[~off]) >= 0.97
-    assert np.isnan(shown[off & ~valid]).all() and valid[off].mean() <= 0.005   # no hit, except at the very edge:
-    assert np.all(err[off & valid] <= foot[off & valid])                         # there within a pixel of the hit
-    assert 1 < m.lookups_per_ray() < 2 * W                               # steps actually taken, not the budget
-    _, shown_fb, _, valid_fb = _trace(B, env, x, d)                      # the default: proxy_box fallback
+    assert (
+        np.isnan(shown[off & ~valid]).all() and valid[off].mean() <= 0.005
+    )  # no hit, except at the very edge:
+    assert np.all(err[off & valid] <= foot[off & valid])  # there within a pixel of the hit
+    assert 1 < m.lookups_per_ray() < 2 * W  # steps actually taken, not the budget
+    _, shown_fb, _, valid_fb = _trace(B, env, x, d)  # the default: proxy_box fallback
     err = np.linalg.norm(shown_fb - exact, axis=1)
-    assert valid_fb.all() and np.mean((err <= 1.5 * np.abs(foot)) | (err < 3e-3)) >= 0.97   # float32: mm
+    assert valid_fb.all() and np.mean((err <= 1.5 * np.abs(foot)) | (err < 3e-3)) >= 0.97  # float32: mm
 
 
 def test_ssr_misses_what_the_camera_cannot_see_and_a_small_budget_shows(room, B):
@@ -99,7 +114,9 @@ def test_ssr_misses_what_the_camera_cannot_see_and_a_small_budget_shows(room, B)
     env = _env(B, s, tracer, o, colour)
     scr = env.info["screen"]
     shifted = ScreenView(depth_buffer(s, tracer) + 0.5, colour, s.camera, o, B)
-    bad = EnvMap(analytic.box_impostor(8, [-2, -1.5, -2], [2, 1.5, 2]), B, info={**env.info, "screen": shifted})
+    bad = EnvMap(
+        analytic.box_impostor(8, [-2, -1.5, -2], [2, 1.5, 2]), B, info={**env.info, "screen": shifted}
+    )
     _, shown, _, _ = _trace(B, bad, x, d, fallback="none")
     assert np.mean(np.linalg.norm(shown - exact, axis=1)[~off] < 0.1) < 0.5
     m, shown, _, valid = _trace(B, env, x, d, max_steps=2, fallback="none")
@@ -131,14 +148,14 @@ def test_off_screen_and_the_projection_agree_with_the_camera_rays(room):
     eo, ed = (a.reshape(-1, 3) for a in camera_rays(s.camera, 1))
     pts = eo + ed * 2.5
     assert not outcomes.off_screen(s.camera, pts).any()
-    assert outcomes.off_screen(s.camera, eo - ed * 2.5).all()                   # behind the camera
+    assert outcomes.off_screen(s.camera, eo - ed * 2.5).all()  # behind the camera
     px, py, _ = ScreenView(depth_buffer(s, tracer), colour, s.camera, o, B).project(B.vec(pts - o))
     j, i = np.meshgrid(np.arange(W) + 0.5, np.arange(W) + 0.5)
     np.testing.assert_allclose(px, j.ravel(), atol=1e-3)
     np.testing.assert_allclose(py, i.ravel(), atol=1e-3)
     f = np.subtract(s.camera.target, s.camera.eye)
     f /= np.linalg.norm(f)
-    side = ed - f * (ed @ f)[:, None]                                            # stretch the frame by 1.2
+    side = ed - f * (ed @ f)[:, None]  # stretch the frame by 1.2
     out = f * (ed @ f)[:, None] + side * 1.2
     edge = (np.abs(j.ravel() - W / 2) > W / 2 - 1) | (np.abs(i.ravel() - W / 2) > W / 2 - 1)
     assert outcomes.off_screen(s.camera, eo + out * 2.5)[edge].all()

@@ -2,6 +2,7 @@
 mesh is what ``scripts/make_meshes.py`` makes; Embree's hits on the object equal Mitsuba's on the same triangles;
 hit normals are the barycentric interpolation of the vertex normals (computed here with trimesh, not with
 study's code); cache keys follow the file's bytes, not its path; bad files are one line naming file and key."""
+
 import importlib.util
 import shutil
 from pathlib import Path
@@ -22,8 +23,15 @@ CAMERA = {"eye": [-0.3, 1.7, -1.9], "target": [0.6, 1.2, 0.3], "fov": 35.0, "wid
 
 def mesh_scene(file=BUNNY, camera=CAMERA, **obj):
     d = small_scene_dict(camera=camera)
-    d["object"] = {"shape": "mesh", "file": str(file), "center": [0.6, 1.2, 0.3], "radius": 0.4,
-                   "rotation": [0.0, -40.0, 0.0], "material": {"type": "mirror"}, **obj}
+    d["object"] = {
+        "shape": "mesh",
+        "file": str(file),
+        "center": [0.6, 1.2, 0.3],
+        "radius": 0.4,
+        "rotation": [0.0, -40.0, 0.0],
+        "material": {"type": "mirror"},
+        **obj,
+    }
     return scene_from_dict(d)
 
 
@@ -69,11 +77,15 @@ def test_embree_and_mitsuba_hit_the_same_mesh_with_the_same_normals():
     hit the object, at the same distance (1e-4 m) with the same shading normal (0.5°)."""
     from study.reference.mitsuba import mi, scene_dict
     from study.reference.mitsuba import sensor as _sensor
+
     m = mi()
     sc = mesh_scene()
     c = sc.camera
-    msc = m.load_dict(scene_dict(sc, with_object=True, sensor=_sensor(c.eye, c.target, c.up, c.fov, c.width,
-                                                                      c.height, 1, 0)))
+    msc = m.load_dict(
+        scene_dict(
+            sc, with_object=True, sensor=_sensor(c.eye, c.target, c.up, c.fov, c.width, c.height, 1, 0)
+        )
+    )
     o, d = (a.reshape(-1, 3) for a in camera_rays(c, 1))
     si = msc.ray_intersect(m.Ray3f(m.Point3f(*o.T.astype(np.float32)), m.Vector3f(*d.T.astype(np.float32))))
     h = objects.geometry(sc).hits(o, d)
@@ -90,13 +102,14 @@ def test_hit_normals_are_interpolated_vertex_normals():
     normals, normalised, equal the normal Embree's geometry returns (1e-3); flat (geometric) normals would not:
     they differ from these by more than 2° on many hits."""
     import trimesh
+
     sc = mesh_scene(camera={**CAMERA, "width": 16, "height": 16})
     g = objects.geometry(sc)
     o, d = (a.reshape(-1, 3) for a in camera_rays(sc.camera, 1))
     h = g.hits(o, d)
     hit = np.isfinite(h["t"])
     p = o[hit] + d[hit] * h["t"][hit, None]
-    T = g.mesh.vertices[g.mesh.faces]                          # brute force: the nearest triangle of each point
+    T = g.mesh.vertices[g.mesh.faces]  # brute force: the nearest triangle of each point
     P = np.repeat(p, len(T), axis=0)
     near = trimesh.triangles.closest_point(np.tile(T, (len(p), 1, 1)), P)
     tri = np.linalg.norm(near - P, axis=1).reshape(len(p), len(T)).argmin(1)
@@ -112,20 +125,26 @@ def test_relative_file_resolves_against_the_scene_file(tmp_path, monkeypatch):
     (tmp_path / "scenes" / "m").mkdir(parents=True)
     shutil.copy(BUNNY, tmp_path / "scenes" / "m" / "b.obj")
     d = small_scene_dict()
-    d["object"] = {"file": "m/b.obj", "center": [0.6, 1.2, 0.3], "radius": 0.4}      # shape "mesh" implied
+    d["object"] = {"file": "m/b.obj", "center": [0.6, 1.2, 0.3], "radius": 0.4}  # shape "mesh" implied
     (tmp_path / "scenes" / "s.toml").write_text(scene_toml(d))
-    monkeypatch.chdir(tmp_path)                                 # not the scene's directory
+    monkeypatch.chdir(tmp_path)  # not the scene's directory
     sc = load_scene("scenes/s.toml")
     assert sc.object.shape == "mesh" and sc.object.file == str(tmp_path / "scenes" / "m" / "b.obj")
-    assert sc.with_updates({"object.radius": 0.3}).object.file == sc.object.file   # stays absolute
+    assert sc.with_updates({"object.radius": 0.3}).object.file == sc.object.file  # stays absolute
 
 
-@pytest.mark.parametrize("obj, words", [
-    ({"shape": "mesh"}, "object.file: a mesh file .* for shape \"mesh\", and only for it"),
-    ({"shape": "torus", "file": "BUNNY"}, "object.file: a mesh file .*shape .torus."),
-    ({"shape": "mesh", "file": "nowhere/x.obj"}, "object.file: .*no such file: .*nowhere/x.obj"),
-    ({"shape": "mesh", "file": "scene.toml"}, "object.file: a mesh file \\(.obj, .ply.*file .*scene.toml"),
-])
+@pytest.mark.parametrize(
+    "obj, words",
+    [
+        ({"shape": "mesh"}, 'object.file: a mesh file .* for shape "mesh", and only for it'),
+        ({"shape": "torus", "file": "BUNNY"}, "object.file: a mesh file .*shape .torus."),
+        ({"shape": "mesh", "file": "nowhere/x.obj"}, "object.file: .*no such file: .*nowhere/x.obj"),
+        (
+            {"shape": "mesh", "file": "scene.toml"},
+            "object.file: a mesh file \\(.obj, .ply.*file .*scene.toml",
+        ),
+    ],
+)
 def test_bad_object_files_are_one_line(tmp_path, obj, words):
     d = small_scene_dict()
     d["object"] = {k: (str(BUNNY) if v == "BUNNY" else v) for k, v in obj.items()}
@@ -135,12 +154,15 @@ def test_bad_object_files_are_one_line(tmp_path, obj, words):
     assert str(tmp_path / "scene.toml") in str(e.value) and "\n" not in str(e.value)
 
 
-@pytest.mark.parametrize("name, text, words", [
-    ("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", "holds no faces"),
-    ("empty.stl", "", "unreadable mesh file|holds no faces"),
-    ("flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "no faces of non-zero area"),
-    ("junk.ply", "ply\nformat nonsense\n\x00\x01", "unreadable mesh file"),
-])
+@pytest.mark.parametrize(
+    "name, text, words",
+    [
+        ("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", "holds no faces"),
+        ("empty.stl", "", "unreadable mesh file|holds no faces"),
+        ("flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "no faces of non-zero area"),
+        ("junk.ply", "ply\nformat nonsense\n\x00\x01", "unreadable mesh file"),
+    ],
+)
 def test_unusable_mesh_files_are_one_line(tmp_path, name, text, words):
     (tmp_path / name).write_text(text)
     sc = mesh_scene(tmp_path / name)
@@ -182,12 +204,21 @@ def test_mesh_object_case_end_to_end(tmp_path):
     from study import methods
     from study.cache import Cache
     from study.measure.case import run_case
+
     d = small_scene_dict(camera={**CAMERA, "width": 32, "height": 32})
-    d["object"] = {"file": str(BUNNY), "center": [0.6, 1.2, 0.3], "radius": 0.4, "rotation": [0.0, -40.0, 0.0],
-                   "material": {"type": "mirror"}}
+    d["object"] = {
+        "file": str(BUNNY),
+        "center": [0.6, 1.2, 0.3],
+        "radius": 0.4,
+        "rotation": [0.0, -40.0, 0.0],
+        "material": {"type": "mirror"},
+    }
     d["render"].update(cube_res=16)
-    case = run_case(scene_from_dict(d), [methods.make("classical"), methods.make("localized", iterations=10)],
-                    cache=Cache(tmp_path))
+    case = run_case(
+        scene_from_dict(d),
+        [methods.make("classical"), methods.make("localized", iterations=10)],
+        cache=Cache(tmp_path),
+    )
     by = {r["label"]: r for r in case.rows}
     assert all(np.isfinite(r["angle_median_deg"]) and np.isfinite(r["rmse_truth"]) for r in case.rows)
     assert by["localized(iterations=10)"]["angle_median_deg"] < 0.5

@@ -1,4 +1,5 @@
 """Snell's law, dielectric Fresnel and the sphere's two-interface path against closed forms and Mitsuba."""
+
 import numpy as np
 
 from study.impostor import analytic
@@ -6,10 +7,9 @@ from study.optics import interfaces as optics
 
 
 def test_refract_obeys_snell_and_flags_tir():
-    rng = np.random.default_rng(8)
     _, d = analytic.random_rays(2000, extent=0, seed=8)
     n = np.tile([0.0, 0.0, 1.0], (2000, 1))
-    d[:, 2] = -np.abs(d[:, 2])                                   # arriving against n
+    d[:, 2] = -np.abs(d[:, 2])  # arriving against n
     for eta in (1 / 1.5, 1.5):
         t, ok = optics.refract(d, n, eta)
         sin_i = np.linalg.norm(np.cross(d, n), axis=1)
@@ -22,6 +22,7 @@ def test_refract_obeys_snell_and_flags_tir():
 
 def test_fresnel_dielectric_matches_mitsuba():
     from study.reference.mitsuba import mi
+
     m = mi()
     cos = np.linspace(0.01, 1, 60)
     for n_from, n_to in ((1.0, 1.5), (1.5, 1.0), (1.0, 1.3)):
@@ -35,7 +36,7 @@ def test_sphere_path_is_symmetric_and_conserves():
     is 2 r cos(theta_t)."""
     c, r, ior = np.array([0.0, 0.0, 0.0]), 0.5, 1.3
     _, d = analytic.random_rays(1000, extent=0, seed=9)
-    N = -d.copy()                                                # enter head-on at first …
+    N = -d.copy()  # enter head-on at first …
     rng = np.random.default_rng(9)
     N = N + 0.6 * rng.normal(size=N.shape)
     N /= np.linalg.norm(N, axis=1, keepdims=True)

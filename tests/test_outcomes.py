@@ -2,6 +2,7 @@
 column top) is hidden from the reference point, on which ``localized`` shows a point of the very same ray at the
 wrong depth — angle ≈ 0, class WRONG_DEPTH. Exact answers come from an analytic room with one column, not from the
 methods."""
+
 import numpy as np
 import pytest
 from conftest import BOX_HI, BOX_LO
@@ -66,7 +67,7 @@ def test_hidden_column_top_is_wrong_depth_with_tiny_angle(column_env):
     shown = _localized(column_env, x, R)
     oc = outcomes.classify(x, R, shown, exact, eps=outcomes.tolerance(np.zeros(3), exact, RES))
     ang = metrics.angular_error(x, shown, exact)
-    assert ang[0] < 0.1 and oc.dist[0] > 0.05                 # the angle is blind, the distance is not
+    assert ang[0] < 0.1 and oc.dist[0] > 0.05  # the angle is blind, the distance is not
     assert list(oc.cls) == [WRONG_DEPTH, CORRECT]
     assert abs(oc.depth_error[0]) > 0.05 and abs(oc.depth_error[1]) < 0.01
 
@@ -88,7 +89,7 @@ def test_exact_origin_defines_the_exact_ray():
     """With ``exact_origin`` (dielectrics), the line is the exact ray through the exact hit, not (x, R)."""
     x, R = np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]])
     exact = np.array([[1.0, 0.0, 2.0]])
-    shown = np.array([[1.0, 0.0, 3.0]])                        # on the exact ray from (1, 0, 0), not on (x, R)
+    shown = np.array([[1.0, 0.0, 3.0]])  # on the exact ray from (1, 0, 0), not on (x, R)
     assert outcomes.classify(x, R, shown, exact, eps=0.01).cls[0] == WRONG_SURFACE
     oc = outcomes.classify(x, R, shown, exact, eps=0.01, exact_origin=np.array([[1.0, 0.0, 0.0]]))
     assert oc.cls[0] == WRONG_DEPTH and oc.depth_error[0] == pytest.approx(1.0)
@@ -101,10 +102,16 @@ def test_classify_agrees_with_its_ref_twin(with_origin):
     x, R = analytic.random_rays(n, extent=0.8, seed=4)
     exact = analytic.box_hit(x, R, BOX_LO, BOX_HI)
     t = np.sum((exact - x) * R, -1)
-    kind = rng.integers(0, 4, n)                                   # near the hit, on the ray, off it, missing
-    shown = np.where((kind == 0)[:, None], exact + rng.normal(scale=0.01, size=(n, 3)),
-                     np.where((kind == 1)[:, None], x + R * (t * rng.uniform(0.2, 1.5, n))[:, None]
-                              + rng.normal(scale=0.005, size=(n, 3)), exact + rng.normal(scale=0.5, size=(n, 3))))
+    kind = rng.integers(0, 4, n)  # near the hit, on the ray, off it, missing
+    shown = np.where(
+        (kind == 0)[:, None],
+        exact + rng.normal(scale=0.01, size=(n, 3)),
+        np.where(
+            (kind == 1)[:, None],
+            x + R * (t * rng.uniform(0.2, 1.5, n))[:, None] + rng.normal(scale=0.005, size=(n, 3)),
+            exact + rng.normal(scale=0.5, size=(n, 3)),
+        ),
+    )
     shown[kind == 3] = np.nan
     eps = outcomes.tolerance(np.zeros(3), exact, 64)
     origin = x + rng.normal(scale=0.01, size=(n, 3)) if with_origin else None
@@ -126,7 +133,9 @@ def test_texel_footprint_is_the_gnomonic_texel_size():
     across = np.degrees(np.arccos(np.clip(np.sum(dirs[face, i, j] * dirs[face, i, j + 1], -1), -1, 1)))
     down = np.degrees(np.arccos(np.clip(np.sum(dirs[face, i, j] * dirs[face, i + 1, j], -1), -1, 1)))
     np.testing.assert_allclose(fwd, 3.0 * np.radians(np.maximum(across, down)), rtol=0.05)
-    assert outcomes.texel_footprint(np.zeros(3), np.array([[0.0, 0.0, 2.0]]), res)[0] == pytest.approx(4 / res)
+    assert outcomes.texel_footprint(np.zeros(3), np.array([[0.0, 0.0, 2.0]]), res)[0] == pytest.approx(
+        4 / res
+    )
     assert outcomes.tolerance(np.ones(3), np.array([[1.0, 1.0, 1.2]]), 1024)[0] == outcomes.EPS_FIXED
 
 
@@ -137,11 +146,18 @@ def test_outcome_columns_and_pixel_majority():
     hidden = np.array([False, False, True, True, False, False])
     col = outcomes.outcome_columns(oc, hidden, np.array([0.0, 0.01, 0.02, np.nan, 5.0, 0.0]))
     assert col["correct_fraction"] == 0.5 and col["wrong_fraction"] == 0.5
-    assert col["wrong_depth_fraction"] == col["no_hit_fraction"] == col["wrong_surface_fraction"] == pytest.approx(1 / 6)
+    assert (
+        col["wrong_depth_fraction"]
+        == col["no_hit_fraction"]
+        == col["wrong_surface_fraction"]
+        == pytest.approx(1 / 6)
+    )
     assert col["wrong_fraction_hidden"] == 1.0 and col["wrong_fraction_visible"] == 0.25
-    assert col["hidden_fraction"] == pytest.approx(1 / 3) and col["angle_p95_hidden_deg"] == pytest.approx(0.02)
+    assert col["hidden_fraction"] == pytest.approx(1 / 3) and col["angle_p95_hidden_deg"] == pytest.approx(
+        0.02
+    )
     assert col["depth_error_p95"] == pytest.approx(np.percentile([0.0, 0.001, 0.5, 0.0], 95))
     none_hidden = outcomes.outcome_columns(oc, np.zeros(6, bool), np.zeros(6))
     assert np.isnan(none_hidden["wrong_fraction_hidden"]) and np.isnan(none_hidden["angle_p95_hidden_deg"])
-    frac = np.array([[[0.5, 0.5, 0, 0], [0.75, 0, 0.25, 0], [np.nan] * 4]])      # a tie goes to the worse class
+    frac = np.array([[[0.5, 0.5, 0, 0], [0.75, 0, 0.25, 0], [np.nan] * 4]])  # a tie goes to the worse class
     np.testing.assert_array_equal(outcomes.majority(frac), [[WRONG_DEPTH, CORRECT, np.nan]])

@@ -2,6 +2,7 @@
 a sweep table, a figure table, ``study check``, the report's method comparison and ``study bench`` rows, with no
 file of study edited. Its numbers are checked too: it is classical environment mapping under another name, so its
 angular errors equal classical's."""
+
 import os
 import sys
 import textwrap
@@ -47,40 +48,98 @@ def test_plugin_method_reaches_sweep_figure_check_report_bench(tmp_path, plugin)
     scene = small_scene_dict()
     scene["render"]["cube_res"] = 16
     (tmp_path / "scene.toml").write_text(scene_toml(scene))
-    (tmp_path / "sweep.toml").write_text('scene = "scene.toml"\n\n[axes]\n"object.center" = [[0.6, 1.2, 0.3]]\n')
-    (tmp_path / "fig.toml").write_text('scene = "scene.toml"\npositions = [[0.6, 1.2, 0.3]]\n'
-                                       'grid = ["classical", "throwaway_probe"]\n')
-    (tmp_path / "check.toml").write_text('sweep = "sweep.toml"\nbaseline = "baseline"\n\n[tolerance]\n'
-                                         'angle_median_deg = { abs = 1e-6, rel = 0.0 }\n')
+    (tmp_path / "sweep.toml").write_text(
+        'scene = "scene.toml"\n\n[axes]\n"object.center" = [[0.6, 1.2, 0.3]]\n'
+    )
+    (tmp_path / "fig.toml").write_text(
+        'scene = "scene.toml"\npositions = [[0.6, 1.2, 0.3]]\ngrid = ["classical", "throwaway_probe"]\n'
+    )
+    (tmp_path / "check.toml").write_text(
+        'sweep = "sweep.toml"\nbaseline = "baseline"\n\n[tolerance]\n'
+        "angle_median_deg = { abs = 1e-6, rel = 0.0 }\n"
+    )
     run = CliRunner().invoke
     common = ["--cache", str(tmp_path / "cache")]
     reports = tmp_path / "reports"
 
-    res = run(app, ["--plugin", plugin, "sweep", str(tmp_path / "sweep.toml"), "--out", str(reports / "sweep-x"),
-                    *common])
+    res = run(
+        app,
+        [
+            "--plugin",
+            plugin,
+            "sweep",
+            str(tmp_path / "sweep.toml"),
+            "--out",
+            str(reports / "sweep-x"),
+            *common,
+        ],
+    )
     assert res.exit_code == 0, res.output
     rows = read_csv(reports / "sweep-x" / "results.csv")
     by = {r["method"]: r for r in rows}
-    assert set(by) == {"oracle_map", "truth_at_hit", *methods.names()}   # every registered method, the plugin's too
+    assert set(by) == {
+        "oracle_map",
+        "truth_at_hit",
+        *methods.names(),
+    }  # every registered method, the plugin's too
     assert by["throwaway_probe"]["angle_median_deg"] == pytest.approx(by["classical"]["angle_median_deg"])
-    assert by["throwaway_probe"]["angle_median_deg"] > 1.0           # off the reference point: clearly wrong
+    assert by["throwaway_probe"]["angle_median_deg"] > 1.0  # off the reference point: clearly wrong
 
-    res = run(app, ["--plugin", plugin, "figure", "fig4", "--config", str(tmp_path / "fig.toml"),
-                    "--out", str(reports / "fig4"), *common])
+    res = run(
+        app,
+        [
+            "--plugin",
+            plugin,
+            "figure",
+            "fig4",
+            "--config",
+            str(tmp_path / "fig.toml"),
+            "--out",
+            str(reports / "fig4"),
+            *common,
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "throwaway_probe" in {r["method"] for r in read_csv(reports / "fig4" / "metrics.csv")}
 
-    res = run(app, ["--plugin", plugin, "check", "--config", str(tmp_path / "check.toml"), "--update", *common])
+    res = run(
+        app, ["--plugin", plugin, "check", "--config", str(tmp_path / "check.toml"), "--update", *common]
+    )
     assert res.exit_code == 0, res.output
     assert "throwaway_probe" in {r["method"] for r in read_csv(tmp_path / "baseline" / "results.csv")}
     res = run(app, ["--plugin", plugin, "check", "--config", str(tmp_path / "check.toml"), *common])
     assert res.exit_code == 0 and "check passed" in res.output, res.output
-    res = run(app, ["--plugin", plugin, "bench", "--out", str(tmp_path / "bench"), "--config", str(tmp_path / "fig.toml"),
-                    "--position", "0", "--scene-res", "16", "--rays", "512", "--cube-res", "16", "--repeats", "1",
-                    "--no-ladder", "--no-scaling", "--backends", "numpy", "--tag", "cpu"])
+    res = run(
+        app,
+        [
+            "--plugin",
+            plugin,
+            "bench",
+            "--out",
+            str(tmp_path / "bench"),
+            "--config",
+            str(tmp_path / "fig.toml"),
+            "--position",
+            "0",
+            "--scene-res",
+            "16",
+            "--rays",
+            "512",
+            "--cube-res",
+            "16",
+            "--repeats",
+            "1",
+            "--no-ladder",
+            "--no-scaling",
+            "--backends",
+            "numpy",
+            "--tag",
+            "cpu",
+        ],
+    )
     assert res.exit_code == 0, res.output
     bench = [r for r in read_csv(tmp_path / "bench" / "bench-cpu.csv") if r["label"] == "throwaway_probe"]
-    assert len(bench) == 4 and all(r["ms_per_call"] > 0 for r in bench)     # one row per ray batch (4 batches)
+    assert len(bench) == 4 and all(r["ms_per_call"] > 0 for r in bench)  # one row per ray batch (4 batches)
     # without the plugin, its baseline rows are missing from the results: check says so and fails
     methods.REGISTRY.pop("throwaway_probe")
     os.environ.pop(methods.PLUGIN_ENV, None)

@@ -1,6 +1,7 @@
 """Property tests (hypothesis) over random box rooms, origins, directions and cube resolutions, for every method:
 no NaN/inf for valid rays, shown points on the captured environment surface, convergence to the analytic hit with
 an exact distance function, and rays starting outside the environment flagged rather than shaded."""
+
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -30,8 +31,13 @@ def rays_in(lo, hi, n, seed, fill=0.8):
 
 
 @SETTINGS
-@given(room=rooms(), res=st.sampled_from([4, 7, 16, 33]), seed=st.integers(0, 2**31 - 1),
-       name=st.sampled_from(methods.names()), iterations=st.integers(0, 12))
+@given(
+    room=rooms(),
+    res=st.sampled_from([4, 7, 16, 33]),
+    seed=st.integers(0, 2**31 - 1),
+    name=st.sampled_from(methods.names()),
+    iterations=st.integers(0, 12),
+)
 def test_no_nan_and_shown_points_on_the_environment_surface(room, res, seed, name, iterations):
     lo, hi = room
     tex = analytic.box_impostor(res, lo, hi)
@@ -50,7 +56,9 @@ def test_no_nan_and_shown_points_on_the_environment_surface(room, res, seed, nam
     np.testing.assert_allclose(np.linalg.norm(shown[valid], axis=1), held, rtol=2e-4)
     # … and near the real walls: the interpolated surface departs from them by O(1/res) at most (room corners
     # inside a face are kinks the interpolation rounds off)
-    exact = analytic.box_hit_t(np.zeros_like(shown[valid]), shown[valid], lo, hi)   # wall along shown, in |shown|
+    exact = analytic.box_hit_t(
+        np.zeros_like(shown[valid]), shown[valid], lo, hi
+    )  # wall along shown, in |shown|
     assert np.median(np.abs(1 / exact - 1)) < 1 / res
 
 
@@ -64,7 +72,8 @@ def test_localized_converges_to_the_analytic_hit_with_an_exact_environment(room,
     with np.errstate(all="ignore"):
         # the paper's band (0.999–1.001) stops the search within 0.1 % of the distance; narrowed to float32 level
         tr = methods.make("localized", iterations=60, band_lo=1 - 1e-5, band_hi=1 + 1e-5).trace(
-            B, env, B.vec(x), B.vec(d))
+            B, env, B.vec(x), B.vec(d)
+        )
     shown = B.to_numpy(tr.shown)
     ang = analytic.angle_deg(shown - x, exact - x)
     assert np.median(ang) < 1e-3 and np.percentile(ang, 99) < 0.01
@@ -79,7 +88,9 @@ def test_rays_starting_outside_the_environment_are_flagged(room, seed, name):
     axis = rng.integers(0, 3, 300)
     x = rng.uniform(lo * 0.9, hi * 0.9, (300, 3))
     side = rng.random(300) < 0.5
-    x[np.arange(300), axis] = np.where(side, hi[axis], lo[axis]) * rng.uniform(1.25, 2.0, 300)   # outside (beyond the 16² map’s rounding)
+    x[np.arange(300), axis] = np.where(side, hi[axis], lo[axis]) * rng.uniform(
+        1.25, 2.0, 300
+    )  # outside (beyond the 16² map’s rounding)
     d = rng.normal(size=(300, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     with np.errstate(all="ignore"):

@@ -1,4 +1,5 @@
 """Exact references against analytic answers: Embree hits, captured distances, EXR storage, the cache."""
+
 import numpy as np
 import pytest
 from conftest import small_scene_dict
@@ -45,19 +46,22 @@ def test_captured_distances_equal_analytic_distances(scene):
 
 def test_impostor_exr_round_trip_is_exact(tmp_path):
     rng = np.random.default_rng(6)
-    imp = Impostor(np.array([0.1, 1.5, -0.2]), rng.uniform(0, 3, (6, 8, 8, 3)).astype(np.float32),
-                   rng.uniform(0.5, 3, (6, 8, 8)).astype(np.float32))
+    imp = Impostor(
+        np.array([0.1, 1.5, -0.2]),
+        rng.uniform(0, 3, (6, 8, 8, 3)).astype(np.float32),
+        rng.uniform(0.5, 3, (6, 8, 8)).astype(np.float32),
+    )
     imp.save(tmp_path / "imp.exr")
     back = Impostor.load(tmp_path / "imp.exr")
     np.testing.assert_array_equal(back.texels(), imp.texels())
     np.testing.assert_array_equal(back.reference, imp.reference)
-    assert (tmp_path / "imp.exr").read_bytes()[:4] == b"v/1\x01"        # an OpenEXR file, not a TIFF
+    assert (tmp_path / "imp.exr").read_bytes()[:4] == b"v/1\x01"  # an OpenEXR file, not a TIFF
 
 
 def test_impostor_of_wrong_shape_or_damaged_is_an_error(tmp_path):
     imp = Impostor(np.zeros(3), np.ones((6, 8, 8, 3), np.float32), np.ones((6, 8, 8), np.float32))
     imp.save(tmp_path / "imp.exr")
-    write_exr(tmp_path / "imp.exr", np.ones((40, 8, 4), np.float32))            # wrong shape
+    write_exr(tmp_path / "imp.exr", np.ones((40, 8, 4), np.float32))  # wrong shape
     with pytest.raises(StudyError, match="imp.exr: impostor EXR has shape"):
         Impostor.load(tmp_path / "imp.exr")
     (tmp_path / "imp.exr").write_bytes(b"garbage")
@@ -78,11 +82,11 @@ def test_cache_recomputes_damaged_entries(tmp_path):
     assert len(calls) == 1 and np.array_equal(a, b)
     arr = next((tmp_path / "k").glob("*.npy"))
     data = bytearray(arr.read_bytes())
-    data[-8:] = b"\xff" * 8                                                      # flip the last values' bytes
+    data[-8:] = b"\xff" * 8  # flip the last values' bytes
     arr.write_bytes(bytes(data))
     c = cache.get("k", "key1", make, code=make)
     assert len(calls) == 2 and np.array_equal(c, a)
-    arr.write_bytes(b"")                                                         # truncated to nothing
+    arr.write_bytes(b"")  # truncated to nothing
     cache.get("k", "key1", make, code=make)
     assert len(calls) == 3
     # an entry of the format before issue 15 (float32 EXR beside the JSON) is read, with the same checks
@@ -90,7 +94,7 @@ def test_cache_recomputes_damaged_entries(tmp_path):
     write_exr(arr.with_suffix(".exr"), a.reshape(-1, 3, 4))
     d = cache.get("k", "key1", make, code=make)
     assert len(calls) == 3 and np.array_equal(d, a)
-    write_exr(arr.with_suffix(".exr"), a.reshape(-1, 3, 4) + 1)                  # another array: its checksum fails
+    write_exr(arr.with_suffix(".exr"), a.reshape(-1, 3, 4) + 1)  # another array: its checksum fails
     cache.get("k", "key1", make, code=make)
     assert len(calls) == 4 and arr.exists()
 

@@ -1,6 +1,8 @@
 """Refraction and mesh objects against independent answers: Snell's law traced here by angles (not by
-study.optics.interfaces' vector form), an analytic glass cube for total internal reflection, trimesh/Embree for meshes, and
+study.optics.interfaces' vector form), an analytic glass cube for total internal reflection, trimesh/Embree
+for meshes, and
 Mitsuba for the glass sphere's image."""
+
 import numpy as np
 import pytest
 
@@ -20,8 +22,13 @@ GLASS = {"type": "dielectric", "ior": 1.5}
 
 def glass_scene(refraction="double", shape="sphere", ior=1.5, **render):
     d = small_scene_dict()
-    d["object"] = {"shape": shape, "center": [0.6, 1.2, 0.3], "radius": 0.4, "rotation": [30.0, 20.0, 0.0],
-                   "material": {"type": "dielectric", "ior": ior}}
+    d["object"] = {
+        "shape": shape,
+        "center": [0.6, 1.2, 0.3],
+        "radius": 0.4,
+        "rotation": [30.0, 20.0, 0.0],
+        "material": {"type": "dielectric", "ior": ior},
+    }
     d["render"].update(refraction=refraction, **render)
     return scene_from_dict(d)
 
@@ -33,7 +40,7 @@ def snell_by_angles(d, n, eta):
     cos_i = -np.sum(d * n, axis=1)
     tang = d + cos_i[:, None] * n
     s = tang / np.linalg.norm(tang, axis=1, keepdims=True)
-    theta_t = np.arcsin(eta * np.sqrt(1 - cos_i ** 2))
+    theta_t = np.arcsin(eta * np.sqrt(1 - cos_i**2))
     return -np.cos(theta_t)[:, None] * n + np.sin(theta_t)[:, None] * s
 
 
@@ -82,15 +89,18 @@ def test_single_refraction_looks_up_the_entry_refracted_ray():
     np.testing.assert_allclose(rays.weight[:M, 0] + rays.weight[M:, 0], 1.0, atol=1e-12)
 
 
-# ---------------------------------------------------------------------------------------------- total internal reflection
+# ---------------------------------------------------------------------------------------------- total
+# internal reflection
 def cube_exit(half=0.5):
     """Exact exit from the cube [−half, half]³ and its outward face normal."""
+
     def exit_fn(p, d):
         e = analytic.box_hit(p, d, [-half] * 3, [half] * 3)
         k = np.argmax(np.abs(e) / half, axis=1)
         n = np.zeros_like(e)
         n[np.arange(len(e)), k] = np.sign(e[np.arange(len(e)), k])
         return e, n, np.ones(len(p), bool)
+
     return exit_fn
 
 
@@ -100,7 +110,7 @@ def test_glass_cube_total_internal_reflection_is_followed_then_dropped():
     side-axis component flipped. With no bounce allowed it is dropped: NaN origin, ok False, transmittance 0."""
     th = np.radians(60)
     d = np.array([[np.sin(th), -np.cos(th), 0.0]])
-    x = np.array([[0.3, 0.5, 0.0]])                    # on the top face, close to the +x side
+    x = np.array([[0.3, 0.5, 0.0]])  # on the top face, close to the +x side
     N = np.array([[0.0, 1.0, 0.0]])
     p = optics.through_object(x, d, N, 1.5, cube_exit(), max_bounces=4)
     assert p.ok.all() and p.bounces[0] == 1
@@ -149,6 +159,7 @@ def test_mesh_hits_have_interpolated_normals_facing_the_camera():
     sc = glass_scene(shape="torus")
     g = objects.geometry(sc)
     from study.scene import camera_rays
+
     o, d = camera_rays(sc.camera, 1)
     h = g.hits(o.reshape(-1, 3), d.reshape(-1, 3))
     hit = np.isfinite(h["t"])
@@ -181,7 +192,8 @@ def test_distance_map_exit_of_a_sphere_is_close_to_the_closed_form():
     g = objects.geometry(sc)
     dm = DistanceMap(g, 128)
     rng = np.random.default_rng(3)
-    nrm = rng.normal(size=(500, 3)); nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    nrm = rng.normal(size=(500, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
     x = g.center + g.radius * nrm
     d = rng.normal(size=nrm.shape)
     d /= np.linalg.norm(d, axis=1, keepdims=True)
@@ -198,9 +210,12 @@ def test_distance_map_exit_of_a_sphere_is_close_to_the_closed_form():
 def glass_cases(tmp_path_factory):
     from study.cache import Cache
     from study.measure.case import run_case
+
     cache = Cache(tmp_path_factory.mktemp("cache"))
     ms = [methods.make("classical"), methods.make("localized", iterations=10)]
-    kw = dict(camera={"eye": [-0.3, 1.7, -1.9], "target": [0.6, 1.2, 0.3], "fov": 30.0, "width": 48, "height": 48})
+    kw = dict(
+        camera={"eye": [-0.3, 1.7, -1.9], "target": [0.6, 1.2, 0.3], "fov": 30.0, "width": 48, "height": 48}
+    )
     out = {}
     for mode in ("single", "double"):
         d = small_scene_dict(**kw)
@@ -225,8 +240,10 @@ def test_glass_sphere_end_to_end(glass_cases):
     e_dbl = {r["label"]: r for r in dbl.rows}["oracle_map"]["rmse_mitsuba"]
     e_sgl = {r["label"]: r for r in sgl.rows}["oracle_map"]["rmse_mitsuba"]
     m = dbl.mask
-    print(f"\nglass sphere 48²: oracle vs Mitsuba RMSE double {e_dbl:.4f}, single {e_sgl:.4f}; "
-          f"mean radiance ratio oracle/Mitsuba {dbl.oracle[m].mean() / dbl.mitsuba[m].mean():.4f}")
+    print(
+        f"\nglass sphere 48²: oracle vs Mitsuba RMSE double {e_dbl:.4f}, single {e_sgl:.4f}; "
+        f"mean radiance ratio oracle/Mitsuba {dbl.oracle[m].mean() / dbl.mitsuba[m].mean():.4f}"
+    )
     assert e_dbl < e_sgl and e_dbl < 0.1, (e_dbl, e_sgl)
     assert abs(dbl.oracle[m].mean() / dbl.mitsuba[m].mean() - 1) < 0.1
 
@@ -237,6 +254,7 @@ def test_mitsuba_gets_the_same_triangles_and_normals():
     from study.reference.mitsuba import mi, scene_dict
     from study.reference.mitsuba import sensor as _sensor
     from study.scene import camera_rays
+
     m = mi()
     sc = glass_scene(shape="torus")
     c = sc.camera

@@ -2,6 +2,7 @@
 one viewer per case), the per-case EXRs (they hold the images the metrics measured), the viewer's RGBE images,
 Parquet beside every results table, strict JSON, the summary written from the numbers, and a report that degrades
 gracefully where viewer images or EXRs are missing. The browser test is tests/test_html_browser.py."""
+
 import fcntl
 import json
 import math
@@ -45,7 +46,7 @@ runner = CliRunner()
 def small_report(tmp_path_factory) -> Path:
     """A reports directory with a tiny fig4 (2 positions, cube 16², camera 32²) and its report, built once per test
     session (shared by xdist workers through a lock). Returns a fresh copy, so tests may change it."""
-    uid = os.environ.get("PYTEST_XDIST_TESTRUNUID")                 # set by xdist, the same in every worker
+    uid = os.environ.get("PYTEST_XDIST_TESTRUNUID")  # set by xdist, the same in every worker
     base = tmp_path_factory.getbasetemp()
     root = base.parent / f"study-small-report-{uid}" if uid else base / "study-small-report"
     root.mkdir(exist_ok=True)
@@ -53,8 +54,19 @@ def small_report(tmp_path_factory) -> Path:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if not (root / "reports" / "index.html").is_file():
             (root / "small.toml").write_text(SMALL)
-            res = runner.invoke(app, ["figure", "fig4", "--config", str(root / "small.toml"), "--out",
-                                      str(root / "reports" / "fig4"), "--cache", str(root / "cache")])
+            res = runner.invoke(
+                app,
+                [
+                    "figure",
+                    "fig4",
+                    "--config",
+                    str(root / "small.toml"),
+                    "--out",
+                    str(root / "reports" / "fig4"),
+                    "--cache",
+                    str(root / "cache"),
+                ],
+            )
             assert res.exit_code == 0, res.output
             res = runner.invoke(app, ["report", "--reports", str(root / "reports")])
             assert res.exit_code == 0 and "report: wrote" in res.output, res.output
@@ -117,7 +129,9 @@ def test_exrs_hold_what_the_metrics_measured(reports):
         if r["method"] in ("oracle_map", "truth_at_hit"):
             continue
         d = reports / "fig4" / "exr" / r["case"]
-        img, orc, mit = (read_exr(d / f"{n}.exr") for n in (viewer.safe_name(r["label"]), "oracle_map", "mitsuba"))
+        img, orc, mit = (
+            read_exr(d / f"{n}.exr") for n in (viewer.safe_name(r["label"]), "oracle_map", "mitsuba")
+        )
         mask = read_exr(d / "mask.exr")[..., 0] > 0.5
         assert img.shape == (32, 32, 3) and mask.sum() >= 4
         for ref, col in ((orc, "rmse_oracle"), (mit, "rmse_mitsuba")):
@@ -126,7 +140,7 @@ def test_exrs_hold_what_the_metrics_measured(reports):
         checked += 1
     assert checked == 6
     a = read_exr(reports / "fig4" / "exr" / "fig4-p0" / "angle-classical.exr")
-    assert a.shape == (32, 32, 1) and np.nanmax(a) > 1             # classical is degrees off here
+    assert a.shape == (32, 32, 1) and np.nanmax(a) > 1  # classical is degrees off here
     oc = read_exr(reports / "fig4" / "exr" / "fig4-p0" / "outcome-classical.exr")[..., 0]
     assert set(np.unique(oc[np.isfinite(oc)])) <= {0.0, 1.0, 2.0, 3.0}
 
@@ -137,6 +151,7 @@ def test_viewer_images_decode_to_the_exrs(reports):
     import io
 
     from PIL import Image
+
     m = json.loads((reports / "fig4" / viewer.MANIFEST).read_text())
     c = m["cases"][1]
     urls = json.loads((reports / "fig4" / c["script"]).read_text().split("] = ", 1)[1].rstrip().rstrip(";"))
@@ -144,11 +159,11 @@ def test_viewer_images_decode_to_the_exrs(reports):
     for la, url in zip(c["layers"], urls):
         b = np.asarray(Image.open(io.BytesIO(base64.b64decode(url.split(",", 1)[1]))))
         got = viewer.unrgbe(b if b.ndim == 3 else b[..., None])
-        want = read_exr(reports / "fig4" / la["exr"])[y0:y0 + h, x0:x0 + w]
+        want = read_exr(reports / "fig4" / la["exr"])[y0 : y0 + h, x0 : x0 + w]
         assert got.shape == want.shape, la
         assert np.array_equal(np.isnan(got), np.isnan(want)), la
         ok = np.isfinite(want)
-        tol = np.max(np.where(ok, np.abs(want), 0), axis=-1, keepdims=True) * 2.0 ** -8 + 1e-30
+        tol = np.max(np.where(ok, np.abs(want), 0), axis=-1, keepdims=True) * 2.0**-8 + 1e-30
         assert np.all(np.abs(got - want)[ok] <= np.broadcast_to(tol, want.shape)[ok]), la
 
 
@@ -163,10 +178,10 @@ def test_rgbe_round_trip_and_a_wrong_decoder_is_caught():
     got = viewer.unrgbe(b)
     ok = np.isfinite(a).all(-1) & (np.nan_to_num(a).max(-1) > 0)
     rel = np.abs(got - a)[ok] / a[ok].max(-1, keepdims=True)
-    assert rel.max() <= 2.0 ** -8 and np.isnan(got[0, 1]).all() and (got[0, 0] == 0).all()
+    assert rel.max() <= 2.0**-8 and np.isnan(got[0, 1]).all() and (got[0, 0] == 0).all()
     assert got[0, 2].tolist() == [5.0, 0.0, 0.0]
     off_by_one = b.copy()
-    off_by_one[:, 9:] += 1                                   # an exponent one off: twice the value
+    off_by_one[:, 9:] += 1  # an exponent one off: twice the value
     assert (np.abs(viewer.unrgbe(off_by_one) - a)[ok] / a[ok].max(-1, keepdims=True)).max() > 0.5
 
 
@@ -180,7 +195,10 @@ def test_parquet_beside_every_table_round_trips_with_pandas(reports, tmp_path):
             assert np.allclose(a[col], b[col].astype(float), equal_nan=True, rtol=0, atol=0), col
         else:
             assert a[col].fillna("").astype(str).tolist() == b[col].fillna("").astype(str).tolist(), col
-    rows = [{"case": "c", "x": 1, "y": float("nan"), "z": math.inf, "w": "a"}, {"case": "d", "x": 2, "y": 0.5}]
+    rows = [
+        {"case": "c", "x": 1, "y": float("nan"), "z": math.inf, "w": "a"},
+        {"case": "d", "x": 2, "y": 0.5},
+    ]
     write_table(rows, tmp_path / "results.csv")
     t = pd.read_parquet(tmp_path / "results.parquet")
     assert t["x"].dtype.kind == "i" and np.isnan(t["y"][0]) and t["z"][0] == math.inf and np.isnan(t["z"][1])
@@ -191,39 +209,58 @@ def test_parquet_beside_every_table_round_trips_with_pandas(reports, tmp_path):
 def test_json_is_strict(reports, tmp_path):
     """metadata.json, the viewer manifest and a sweep's case files: no NaN/Infinity tokens (NaN → null; in case
     files "NaN"/"Infinity" text, which the runner reads back as the numbers)."""
+
     def strict(text):
         return json.loads(text, parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
+
     for p in [reports / "fig4" / "metadata.json", reports / "fig4" / viewer.MANIFEST]:
         strict(p.read_text())
     data = {"a": float("nan"), "b": np.float32("inf"), "c": [np.float64(1.5), np.nan], "d": np.arange(2)}
     assert strict(json_text(data)) == {"a": None, "b": None, "c": [1.5, None], "d": [0, 1]}
     with pytest.raises(ValueError):
-        strict(json.dumps(data["a"]))                      # what the plain json module writes is caught
+        strict(json.dumps(data["a"]))  # what the plain json module writes is caught
     from study.harness import runner
     from study.harness.sweep import Case
+
     case = Case(index=0, id="c0", scene=None, labels={}, key="k")
     (tmp_path / "cases").mkdir()
     row = {"label": "m", "v": float("nan"), "psnr": math.inf, "low": -math.inf}
-    runner_text = json_text({"key": "k", "rows": [row]}, nonfinite="text")        # as the runner writes case files
+    runner_text = json_text({"key": "k", "rows": [row]}, nonfinite="text")  # as the runner writes case files
     (tmp_path / "cases" / "k.json").write_text(strict(runner_text) and runner_text)
     rows = runner._load_case(tmp_path, case)
     assert rows and math.isnan(rows[0]["v"]) and rows[0]["psnr"] == math.inf and rows[0]["low"] == -math.inf
 
 
 def test_summary_names_the_winner_and_the_front():
-    rows = [{"case": f"c{i}", "label": lab, "method": lab.split("(")[0], "wrong_fraction": w + 0.01 * i,
-             "rmse_truth_debiased": e, "lookups_per_ray": n}
-            for i in range(3) for lab, w, e, n in (("classical", 0.9, 0.3, 1), ("localized(iterations=3)", 0.2, 0.05, 6),
-                                                    ("layered", 0.01, 0.08, 2451), ("slow_bad", 0.95, 0.4, 900),
-                                                    ("oracle_map", 0.0, 0.0, 1))]
-    front = report.pareto_front([{"c": 1, "e": 0.9}, {"c": 6, "e": 0.2}, {"c": 900, "e": 0.95}, {"c": 2451, "e": 0.01}],
-                                "c", "e")
+    rows = [
+        {
+            "case": f"c{i}",
+            "label": lab,
+            "method": lab.split("(")[0],
+            "wrong_fraction": w + 0.01 * i,
+            "rmse_truth_debiased": e,
+            "lookups_per_ray": n,
+        }
+        for i in range(3)
+        for lab, w, e, n in (
+            ("classical", 0.9, 0.3, 1),
+            ("localized(iterations=3)", 0.2, 0.05, 6),
+            ("layered", 0.01, 0.08, 2451),
+            ("slow_bad", 0.95, 0.4, 900),
+            ("oracle_map", 0.0, 0.0, 1),
+        )
+    ]
+    front = report.pareto_front(
+        [{"c": 1, "e": 0.9}, {"c": 6, "e": 0.2}, {"c": 900, "e": 0.95}, {"c": 2451, "e": 0.01}], "c", "e"
+    )
     assert [r["c"] for r in front] == [1, 6, 2451]
     (_, _, _), (_, text), (_, items) = report.summary_blocks({"figX": rows})
     s = items[0]
     assert s.startswith("**figX** (3 cases):")
     assert "fewest wrong hits: `layered`, 2 % at 2451 lookups/ray; the cheapest, `classical`: 91 % at 1" in s
-    assert "lowest image error against the truth (RMSE): `localized(iterations=3)`, 0.05 at 6 lookups/ray" in s
+    assert (
+        "lowest image error against the truth (RMSE): `localized(iterations=3)`, 0.05 at 6 lookups/ray" in s
+    )
     assert "`classical` 1: 91 % → `localized(iterations=3)` 6: 21 % → `layered` 2451: 2 %" in s
     assert "oracle_map" not in s and "slow_bad" not in s
     # a tie within 1 % goes to the cheaper method
@@ -260,6 +297,7 @@ def test_report_degrades_gracefully(reports):
 def test_animation_and_fig8_images_are_linked(reports):
     """What other commands write beside the figures: ``animation/*.gif|mp4`` (and its plot), ``fig8/*.png``."""
     from PIL import Image
+
     (reports / "animation").mkdir()
     Image.new("RGB", (8, 8), "red").save(reports / "animation" / "motion.gif")
     (reports / "animation" / "motion.mp4").write_bytes(b"\x00" * 16)

@@ -1,5 +1,6 @@
 """``study run`` (one scene, no config file) and shipped configs found from any working directory, through Typer's
 CliRunner: exit codes and one-line messages; the written table holds the numbers the API computes."""
+
 from pathlib import Path
 
 import pytest
@@ -26,12 +27,30 @@ def one_line_error(res, *words):
 def test_run_prints_and_writes_the_table(tmp_path, monkeypatch):
     (tmp_path / "tiny.toml").write_text(scene_toml(small_scene_dict()))
     monkeypatch.chdir(tmp_path)
-    res = run(app, ["run", "tiny.toml", "-m", "classical", "--method", "localized(iterations=3)",
-                    "--set", "render.cube_res=16", "--set", "camera.width=32", "-s", "camera.height=32",
-                    "--set", "camera.eye=[-0.3, 1.7, -1.9]", "--cache", str(tmp_path / "cache")])
+    res = run(
+        app,
+        [
+            "run",
+            "tiny.toml",
+            "-m",
+            "classical",
+            "--method",
+            "localized(iterations=3)",
+            "--set",
+            "render.cube_res=16",
+            "--set",
+            "camera.width=32",
+            "-s",
+            "camera.height=32",
+            "--set",
+            "camera.eye=[-0.3, 1.7, -1.9]",
+            "--cache",
+            str(tmp_path / "cache"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "localized(iterations=3)" in res.output and "camera 32×32, cube 16²" in res.output
-    rows = read_csv(tmp_path / "reports" / "run-tiny" / "table.csv")       # default --out: reports/run-<stem>
+    rows = read_csv(tmp_path / "reports" / "run-tiny" / "table.csv")  # default --out: reports/run-<stem>
     by = {r["label"]: r for r in rows}
     assert list(by) == ["oracle_map", "truth_at_hit", "classical", "localized(iterations=3)"]
     assert by["classical"]["angle_median_deg"] > 1 > by["localized(iterations=3)"]["angle_median_deg"] * 100
@@ -39,16 +58,22 @@ def test_run_prints_and_writes_the_table(tmp_path, monkeypatch):
     assert (tmp_path / "reports" / "run-tiny" / "scene.json").read_text().count('"cube_res": 16') == 1
 
 
-@pytest.mark.parametrize("args, words", [
-    (["--set", "object.radius"], ["--set: expected KEY=VALUE", "'object.radius'"]),
-    (["--set", "=3"], ["--set: expected KEY=VALUE"]),
-    (["--set", "object.radius=[1,"], ["--set: the value of object.radius is not a TOML value"]),
-    (["--set", "object.radiu=0.3"], ["room.toml: object.radiu: unknown scene key"]),
-    (["--set", "object.radius=-1"], ["room.toml: object.radius: Input should be greater than 0"]),
-    (["--set", "object.shape=cube"], ["object.shape: Input should be 'mesh', 'sphere', 'torus', 'knot' or 'blob'"]),
-    (["-m", "nope"], ["--method[0]: unknown method 'nope'; allowed: classical"]),
-    (["-m", "classical", "-m", "localized(iteration=3)"], ["--method[1]: iteration: unknown parameter"]),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--set", "object.radius"], ["--set: expected KEY=VALUE", "'object.radius'"]),
+        (["--set", "=3"], ["--set: expected KEY=VALUE"]),
+        (["--set", "object.radius=[1,"], ["--set: the value of object.radius is not a TOML value"]),
+        (["--set", "object.radiu=0.3"], ["room.toml: object.radiu: unknown scene key"]),
+        (["--set", "object.radius=-1"], ["room.toml: object.radius: Input should be greater than 0"]),
+        (
+            ["--set", "object.shape=cube"],
+            ["object.shape: Input should be 'mesh', 'sphere', 'torus', 'knot' or 'blob'"],
+        ),
+        (["-m", "nope"], ["--method[0]: unknown method 'nope'; allowed: classical"]),
+        (["-m", "classical", "-m", "localized(iteration=3)"], ["--method[1]: iteration: unknown parameter"]),
+    ],
+)
 def test_run_bad_input_is_one_line_exit_2(tmp_path, args, words):
     res = run(app, ["run", str(ROOT / "scenes" / "room.toml"), *args, "--out", str(tmp_path / "out")])
     assert res.exit_code == 2, res.output
@@ -63,10 +88,23 @@ def test_run_missing_scene(tmp_path):
 
 
 def test_parse_sets_reads_toml_values():
-    assert parse_sets(["object.radius=0.3", "camera.eye=[0, 1, 2]", "object.shape=torus", "render.seed = 3",
-                       'object.file="a b.obj"', "object.material={ type = 'mirror' }"]) == {
-        "object.radius": 0.3, "camera.eye": [0, 1, 2], "object.shape": "torus", "render.seed": 3,
-        "object.file": "a b.obj", "object.material": {"type": "mirror"}}
+    assert parse_sets(
+        [
+            "object.radius=0.3",
+            "camera.eye=[0, 1, 2]",
+            "object.shape=torus",
+            "render.seed = 3",
+            'object.file="a b.obj"',
+            "object.material={ type = 'mirror' }",
+        ]
+    ) == {
+        "object.radius": 0.3,
+        "camera.eye": [0, 1, 2],
+        "object.shape": "torus",
+        "render.seed": 3,
+        "object.file": "a b.obj",
+        "object.material": {"type": "mirror"},
+    }
     with pytest.raises(StudyError, match="not a TOML value"):
         parse_sets(["camera.eye=(0, 1, 2)"])
 

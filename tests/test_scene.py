@@ -1,4 +1,5 @@
 """Scene validation: each invalid input gives one StudyError naming the file, the key and what is allowed."""
+
 import pytest
 from conftest import small_scene_dict
 
@@ -11,22 +12,41 @@ def test_shipped_scene_loads():
     assert s.render.cube_res == 256 and s.object.material.type == "conductor"
 
 
-@pytest.mark.parametrize("change, key, words", [
-    ({"room": {"min": [-2, 0, -2], "max": [2, 3, 2], "colour": 1}}, "room.colour", "unknown key; allowed: min, max"),
-    ({"object": {"center": [0, 1.5, 0], "radius": "big"}}, "object.radius", "number"),
-    ({"object": {"center": [0, 1.5, 0], "radius": -1}}, "object.radius", "greater than 0"),
-    ({"object": {"center": [0, 1.5, 0], "radius": float("nan")}}, "object.radius", "finite"),
-    ({"object": {"center": [1.9, 1.5, 0], "radius": 0.4}}, "object.center", "inside the room"),
-    ({"columns": [{"center": [0.6, 0.3], "footprint": [0.6, 0.6], "height": 2.0}]}, "object.center",
-     "overlaps columns[0]"),
-    ({"columns": [{"center": [0.0, 0.0], "footprint": [0.5, 0.5], "height": 2.0}],
-      "object": {"center": [1.0, 1.5, 1.0], "radius": 0.3}}, "reference.point", "inside columns[0]"),
-    ({"object": {"center": [0, 1.5, 0], "radius": 0.4, "material": {"type": "glass"}}}, "object.material",
-     "conductor"),
-    ({"render": {"cube_res": 0}}, "render.cube_res", "greater than or equal to 4"),
-    ({"render": {"fresnel": "schlick"}}, "render.fresnel", "'exact' or 'approx'"),
-    ({"camera": {"eye": [0, 1, -1], "target": [0, 2, -1], "up": [0, 1, 0]}}, "camera.up", "parallel"),
-])
+@pytest.mark.parametrize(
+    "change, key, words",
+    [
+        (
+            {"room": {"min": [-2, 0, -2], "max": [2, 3, 2], "colour": 1}},
+            "room.colour",
+            "unknown key; allowed: min, max",
+        ),
+        ({"object": {"center": [0, 1.5, 0], "radius": "big"}}, "object.radius", "number"),
+        ({"object": {"center": [0, 1.5, 0], "radius": -1}}, "object.radius", "greater than 0"),
+        ({"object": {"center": [0, 1.5, 0], "radius": float("nan")}}, "object.radius", "finite"),
+        ({"object": {"center": [1.9, 1.5, 0], "radius": 0.4}}, "object.center", "inside the room"),
+        (
+            {"columns": [{"center": [0.6, 0.3], "footprint": [0.6, 0.6], "height": 2.0}]},
+            "object.center",
+            "overlaps columns[0]",
+        ),
+        (
+            {
+                "columns": [{"center": [0.0, 0.0], "footprint": [0.5, 0.5], "height": 2.0}],
+                "object": {"center": [1.0, 1.5, 1.0], "radius": 0.3},
+            },
+            "reference.point",
+            "inside columns[0]",
+        ),
+        (
+            {"object": {"center": [0, 1.5, 0], "radius": 0.4, "material": {"type": "glass"}}},
+            "object.material",
+            "conductor",
+        ),
+        ({"render": {"cube_res": 0}}, "render.cube_res", "greater than or equal to 4"),
+        ({"render": {"fresnel": "schlick"}}, "render.fresnel", "'exact' or 'approx'"),
+        ({"camera": {"eye": [0, 1, -1], "target": [0, 2, -1], "up": [0, 1, 0]}}, "camera.up", "parallel"),
+    ],
+)
 def test_invalid_scene(change, key, words):
     with pytest.raises(StudyError) as e:
         scene_from_dict(small_scene_dict(**change), source="bad.toml")
@@ -58,6 +78,7 @@ def test_room_mesh_is_closed_and_inward():
     """The room's triangles enclose the reference point: every ray from it hits (tested in test_reference),
     and the room's face normals point inwards (towards the centre)."""
     import numpy as np
+
     s = scene_from_dict(small_scene_dict())
     m = s.mesh()
     tri = m.vertices[m.faces]
@@ -69,7 +90,10 @@ def test_room_mesh_is_closed_and_inward():
 
 def test_column_faces_point_outwards():
     import numpy as np
-    s = scene_from_dict(small_scene_dict(columns=[{"center": [1.0, -1.0], "footprint": [0.4, 0.4], "height": 1.0}]))
+
+    s = scene_from_dict(
+        small_scene_dict(columns=[{"center": [1.0, -1.0], "footprint": [0.4, 0.4], "height": 1.0}])
+    )
     m = s.mesh()
     f = m.faces[m.surface == m.surfaces.index("column")]
     tri = m.vertices[f]

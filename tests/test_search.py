@@ -1,11 +1,20 @@
 """The search core (study.methods.search) against its slow per-ray twins on random cubics, the texel march
 (samples in equal angles along the arc, the first entry into nested layers), and the object's distance map searched
 with it: the same exits on numpy and Dr.Jit, and as many lookups as it reports."""
+
 import numpy as np
 import pytest
 
 from study.backend import V3
-from study.methods.search import Bracket, arc_samples, first_crossing, first_entry, refine, secant_point, sign_changes
+from study.methods.search import (
+    Bracket,
+    arc_samples,
+    first_crossing,
+    first_entry,
+    refine,
+    secant_point,
+    sign_changes,
+)
 from study.methods.search_ref import first_crossing_ref, first_entry_ref, refine_ref, sign_changes_ref
 from study.optics.distance_map import DistanceMap
 from study.scene import objects
@@ -65,8 +74,10 @@ def test_first_crossing_matches_its_twin(B, default):
     for i in range(N):
         gi = g_ref(roots, scale, i)
         d = (float(t0[i]), float(t0[i]) - 1.0, float(t0[i]) + 2.0, float(t0[i]) + 3.0) if default else None
-        want.append(first_crossing_ref(gi, float(t0[i]), gi(float(t0[i])), float(dt[i]), STEPS, t_max=1.0, default=d))
-    assert 0.2 < np.mean([w.found for w in want]) < 0.8              # both outcomes are exercised
+        want.append(
+            first_crossing_ref(gi, float(t0[i]), gi(float(t0[i])), float(dt[i]), STEPS, t_max=1.0, default=d)
+        )
+    assert 0.2 < np.mean([w.found for w in want]) < 0.8  # both outcomes are exercised
     assert_same(B, got, want)
 
 
@@ -75,12 +86,16 @@ def test_sign_changes_of_several_functions_match_their_twin(B):
     t0, dt, t0b, dtb = samples(B, seed=12)
     funcs = [cubics(N, 2), cubics(N, 3)]
     gs = [g_core(B, *f) for f in funcs]
-    got = sign_changes(B, lambda t: [g(t) for g in gs], t0b, [g(t0b) for g in gs], dtb, STEPS, count=3, t_max=1.0)
+    got = sign_changes(
+        B, lambda t: [g(t) for g in gs], t0b, [g(t0b) for g in gs], dtb, STEPS, count=3, t_max=1.0
+    )
     for f, per_fn in zip(funcs, got):
         want = []
         for i in range(N):
             gi = g_ref(*f, i)
-            want.append(sign_changes_ref(gi, float(t0[i]), gi(float(t0[i])), float(dt[i]), STEPS, count=3, t_max=1.0))
+            want.append(
+                sign_changes_ref(gi, float(t0[i]), gi(float(t0[i])), float(dt[i]), STEPS, count=3, t_max=1.0)
+            )
         counts = np.sum([[w.found for w in ws] for ws in want], axis=1)
         assert set(counts) == {0, 1, 2, 3}
         for j in range(3):
@@ -98,13 +113,17 @@ def test_refine_matches_its_twin_and_finds_the_root(B, illinois, rising):
     if rising:
         br = first_crossing(B, g, t0b, g(t0b), dtb, STEPS, t_max=1.0)
     else:
-        br = sign_changes(B, g, t0b, g(t0b), dtb, STEPS, count=2, t_max=1.0)[1]   # the second change
+        br = sign_changes(B, g, t0b, g(t0b), dtb, STEPS, count=2, t_max=1.0)[1]  # the second change
     found = B.numpy(br.found).astype(bool)
     assert found.mean() > 0.1
     for steps in (0, 1, 3, 12):
         t = B.numpy(secant_point(refine(B, g, br, steps, illinois=illinois, rising=rising)))
-        want = [secant_point(refine_ref(g_ref(roots, scale, i), ray(br, B, i), steps, illinois=illinois,
-                                        rising=rising)) for i in np.nonzero(found)[0]]
+        want = [
+            secant_point(
+                refine_ref(g_ref(roots, scale, i), ray(br, B, i), steps, illinois=illinois, rising=rising)
+            )
+            for i in np.nonzero(found)[0]
+        ]
         np.testing.assert_allclose(t[found], want, atol=1e-6)
     if illinois:
         nearest = np.abs(t[:, None] - roots).min(axis=1)
@@ -153,9 +172,14 @@ def test_distance_map_spends_the_lookups_it_reports(B):
     dm = DistanceMap(g, 16, steps=7, iterations=5, backend=B.name)
     calls = []
     env = dm.env
-    dm.env = type("Counting", (), {
-        "distance": lambda self, v: calls.append("distance") or env.distance(v),
-        "lookup": lambda self, v: calls.append("lookup") or env.lookup(v)})()
+    dm.env = type(
+        "Counting",
+        (),
+        {
+            "distance": lambda self, v: calls.append("distance") or env.distance(v),
+            "lookup": lambda self, v: calls.append("lookup") or env.lookup(v),
+        },
+    )()
     symbolic = getattr(dm.B, "symbolic_loops", None)
     try:
         if symbolic is not None:
@@ -181,6 +205,7 @@ def nested(B, n, seed, K=3):
     def ref(i):
         a, b, c = g_ref(r0, c0, i), g_ref(r1, c1 * 0.3, i), g_ref(r2, c2 * 0.3, i)
         return lambda t: [a(t), a(t) - abs(b(t)), a(t) - abs(b(t)) - abs(c(t))][:K]
+
     return core, ref
 
 
@@ -197,8 +222,16 @@ def test_first_entry_matches_its_twin(B, hold, K):
     want, want_e = [], []
     for i in range(N):
         gi = ref(i)
-        w, we = first_entry_ref(gi, float(t0[i]), gi(float(t0[i])), float(dt[i]), STEPS, hold=hold, t_max=1.0,
-                                default=(float(t0[i]), float(t0[i]) - 1.0, float(t0[i]) + 1.0, float(t0[i]) + 1.0))
+        w, we = first_entry_ref(
+            gi,
+            float(t0[i]),
+            gi(float(t0[i])),
+            float(dt[i]),
+            STEPS,
+            hold=hold,
+            t_max=1.0,
+            default=(float(t0[i]), float(t0[i]) - 1.0, float(t0[i]) + 1.0, float(t0[i]) + 1.0),
+        )
         want.append(w)
         want_e.append(we)
     found = np.array([w.found for w in want])
@@ -223,7 +256,7 @@ def _arcs(n, seed, top=179):
 def test_arc_samples_turn_the_direction_by_at_most_one_step(B):
     """Consecutive samples' directions (1 − t) x̂ + t R are at most π/steps apart (float32 rounding aside), turn
     by exactly that until the arc's end and reach R (t = 1) at the last step."""
-    steps = 805                                       # ⌈π 256⌉: one texel of a 256² cube map per step
+    steps = 805  # ⌈π 256⌉: one texel of a 256² cube map per step
     xh, R, th = _arcs(300, 6)
     at = arc_samples(B, B.array((xh * R).sum(1).astype(np.float32)), steps)
     ts = np.stack([np.zeros(len(xh))] + [B.numpy(at(k)).astype(float) for k in range(1, steps + 1)])
@@ -244,21 +277,24 @@ def test_a_texel_wide_bump_is_stepped_over_by_uniform_steps_but_not_by_the_texel
     n = 400
     xh, R, th = _arcs(n, 7, top=170)
     rng = np.random.default_rng(8)
-    phi = th * rng.uniform(0.1, 0.9, n)                   # the bump's centre along the arc
+    phi = th * rng.uniform(0.1, 0.9, n)  # the bump's centre along the arc
     f = np.cos(phi)[:, None] * xh + np.sin(phi)[:, None] * np.cross(np.cross(xh, R), xh) / np.sin(th)[:, None]
     w = 1 / 256
     X, RR, F = B.vec(xh), B.vec(R), B.vec(f)
     zero = B.array(np.zeros(n, np.float32))
 
-    def g(t):                                             # sin(w/2) − |p̂ × f| on f's side: no cancellation
+    def g(t):  # sin(w/2) − |p̂ × f| on f's side: no cancellation
         p = X * (1.0 - t) + RR * t
         cx = V3(p.y * F.z - p.z * F.y, p.z * F.x - p.x * F.z, p.x * F.y - p.y * F.x)
         return B.select(p.dot(F) > 0.0, float(np.sin(w / 2)) - B.length(cx) / B.length(p), zero - 1.0)
+
     cos = (xh * R).sum(1)
     n_old = np.maximum(30 * (1 - cos) / 2, 10).astype(np.float32)
     old = first_crossing(B, g, zero, g(zero), B.array(1 / n_old), 30, t_max=1.0)
-    new = first_crossing(B, g, zero, g(zero), arc_samples(B, B.array(cos.astype(np.float32)), 805), 805, t_max=1.0)
+    new = first_crossing(
+        B, g, zero, g(zero), arc_samples(B, B.array(cos.astype(np.float32)), 805), 805, t_max=1.0
+    )
     assert B.numpy(old.found).mean() < 0.1
     assert B.numpy(new.found).all()
-    t_edge = np.sin(phi - w / 2) / (np.sin(phi - w / 2) + np.sin(th - phi + w / 2))    # where g turns ≥ 0
+    t_edge = np.sin(phi - w / 2) / (np.sin(phi - w / 2) + np.sin(th - phi + w / 2))  # where g turns ≥ 0
     assert np.all((B.numpy(new.t_lo) <= t_edge + 1e-6) & (t_edge <= B.numpy(new.t_hi) + 1e-6))

@@ -1,4 +1,5 @@
 """Sweeps: expansion of axes, resume after SIGKILL, atomic table, lock, errors."""
+
 import fcntl
 import json
 import math
@@ -76,16 +77,19 @@ def test_cartesian_and_zipped_axes(tmp_path):
         load_sweep(write(tmp_path, zip='[["object.center", "render.cube_res"]]'))
 
 
-@pytest.mark.parametrize("tail, key, words", [
-    ('\n[axes2]\nx = 1\n', "axes2", "unknown key; allowed: scene, seed"),
-    ('"object.centre" = [[0, 1, 0]]\n', "axes.object.centre", "unknown scene key"),
-    ('"object.radius" = [0.4, -1.0]\n', "axes.object.radius", "greater than 0"),
-    ('"object.radius" = [2.5]\n', "axes.object.center", "inside the room"),
-])
+@pytest.mark.parametrize(
+    "tail, key, words",
+    [
+        ("\n[axes2]\nx = 1\n", "axes2", "unknown key; allowed: scene, seed"),
+        ('"object.centre" = [[0, 1, 0]]\n', "axes.object.centre", "unknown scene key"),
+        ('"object.radius" = [0.4, -1.0]\n', "axes.object.radius", "greater than 0"),
+        ('"object.radius" = [2.5]\n', "axes.object.center", "inside the room"),
+    ],
+)
 def test_bad_sweep_files(tmp_path, tail, key, words):
     text = SWEEP.format(scene=ROOT / "scenes" / "room.toml", zip="[]")
     if tail.startswith('"'):
-        text = text.replace('[axes]\n', '[axes]\n' + tail)
+        text = text.replace("[axes]\n", "[axes]\n" + tail)
     else:
         text += tail
     p = tmp_path / "bad.toml"
@@ -121,9 +125,24 @@ def test_sigkill_and_resume_gives_the_same_table(reference_run, tmp_path):
     d, cfg, rows = reference_run
     out = tmp_path / "killed"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    proc = subprocess.Popen([sys.executable, "-m", "study.cli", "sweep", str(cfg), "--out", str(out),
-                             "--cache", str(d / "cache"), "--no-plots"], cwd=ROOT, env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "study.cli",
+            "sweep",
+            str(cfg),
+            "--out",
+            str(out),
+            "--cache",
+            str(d / "cache"),
+            "--no-plots",
+        ],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     deadline = time.time() + 120
     while time.time() < deadline and not list(out.glob("cases/*.json")):
         time.sleep(0.01)
@@ -131,13 +150,15 @@ def test_sigkill_and_resume_gives_the_same_table(reference_run, tmp_path):
     proc.wait()
     finished = {p.name: p.stat().st_mtime_ns for p in (out / "cases").glob("*.json")}
     assert 1 <= len(finished) < 6, "the sweep should have been killed mid-run"
-    if (out / "results.csv").exists():        # the table follows the case files; the kill may fall between
+    if (out / "results.csv").exists():  # the table follows the case files; the kill may fall between
         partial = read_csv(out / "results.csv")
         n = per_case(rows)
-        assert len(partial) % n == 0 and len(partial) <= n * len(finished)   # whole cases only, never half
+        assert len(partial) % n == 0 and len(partial) <= n * len(finished)  # whole cases only, never half
     again, stats = run_sweep(cfg, out, cache=d / "cache")
     assert stats["cached"] == len(finished) and stats["computed"] == 6 - len(finished)
-    assert {p.name: p.stat().st_mtime_ns for p in (out / "cases").glob("*.json") if p.name in finished} == finished
+    assert {
+        p.name: p.stat().st_mtime_ns for p in (out / "cases").glob("*.json") if p.name in finished
+    } == finished
     same_table(rows, again)
     same_table(read_csv(d / "ref" / "results.csv"), read_csv(out / "results.csv"))
 
@@ -157,22 +178,40 @@ def test_five_random_kills_then_resume(reference_run, tmp_path):
     import numpy as np
 
     from study.cache import Cache
+
     d, cfg, rows = reference_run
     out, cache = tmp_path / "out", tmp_path / "cache"
     rng = np.random.default_rng(11)
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     finished_counts = []
     for delay in rng.uniform(1.0, 6.0, 5):
-        proc = subprocess.Popen([sys.executable, "-m", "study.cli", "sweep", str(cfg), "--out", str(out),
-                                 "--cache", str(cache), "--no-plots"], cwd=ROOT, env=env,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "study.cli",
+                "sweep",
+                str(cfg),
+                "--out",
+                str(out),
+                "--cache",
+                str(cache),
+                "--no-plots",
+            ],
+            cwd=ROOT,
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         time.sleep(delay)
         proc.send_signal(signal.SIGKILL)
         proc.wait()
         finished_counts.append(len(list(out.glob("cases/*.json"))))
         if (out / "results.csv").exists():
             part = read_csv(out / "results.csv")
-            assert len(part) % per_case(rows) == 0 and len({(r["case"], r["label"]) for r in part}) == len(part)
+            assert len(part) % per_case(rows) == 0 and len({(r["case"], r["label"]) for r in part}) == len(
+                part
+            )
     print("finished cases after each kill:", finished_counts)
     assert finished_counts[0] < 6, "the first kill should land mid-run"
     again, stats = run_sweep(cfg, out, cache=cache)
@@ -195,8 +234,10 @@ def test_jobs_1_and_2_give_identical_tables(reference_run, tmp_path):
 
 def test_drjit_runs_agree_within_1e5(reference_run, tmp_path):
     import numpy as np
+
     pytest.importorskip("drjit")
     from conftest import BACKENDS
+
     if "llvm" not in BACKENDS:
         pytest.skip("no working LLVM for Dr.Jit")
     d, cfg, rows = reference_run
@@ -221,6 +262,7 @@ def test_study_profile_writes_one_profile_per_case_and_rows_carry_case_seconds(t
     """STUDY_PROFILE=<dir> (a developer's switch, issue 15): each case's worker leaves <dir>/<case>.prof, a cProfile
     that pstats reads and in which run_case appears; every row carries its case's wall time (case_seconds)."""
     import pstats
+
     monkeypatch.setenv("STUDY_PROFILE", str(tmp_path / "profs"))
     rows, stats = run_sweep(write(tmp_path), tmp_path / "out", cache=tmp_path / "cache")
     cases = sorted({r["case"] for r in rows})
@@ -234,11 +276,13 @@ def test_worker_threads_share_the_cores(monkeypatch):
     """A sweep worker takes its share of the cores for Embree ($STUDY_THREADS) and OpenMP (FLIP) unless the user
     set OMP_NUM_THREADS; a local-gpus Dask worker's share comes from $STUDY_WORKER_THREADS."""
     from study.harness import runner
+
     for var in ("OMP_NUM_THREADS", "STUDY_WORKER_THREADS", "STUDY_THREADS"):
         monkeypatch.delenv(var, raising=False)
     import drjit
+
     counts = []
-    monkeypatch.setattr(drjit, "set_thread_count", counts.append)   # not this test process's pool
+    monkeypatch.setattr(drjit, "set_thread_count", counts.append)  # not this test process's pool
     monkeypatch.setattr(os, "cpu_count", lambda: 16)
     runner._limit_threads(8)
     assert os.environ["STUDY_THREADS"] == "2" and os.environ["OMP_NUM_THREADS"] == "2"

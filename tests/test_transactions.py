@@ -1,6 +1,7 @@
 """Outputs as transactions (issue 12): every command writes its whole output set into a fresh directory beside the
 target and swaps it in at the end (study.io.output_set), so a failed, interrupted or killed command leaves the
 previous outputs byte for byte and no temporary file; one command at a time writes to a directory."""
+
 import json
 import os
 import shutil
@@ -47,7 +48,11 @@ methods = [{{ name = "classical" }}]
 [axes]
 "object.center" = [[0.3, 1.4, 0.1], [0.75, 1.15, 0.4]]
 """
-OLD = {"metrics.csv": b"case,method\nold,classical\n", "metadata.json": b'{"old": true}\n', "fig4.png": b"old png"}
+OLD = {
+    "metrics.csv": b"case,method\nold,classical\n",
+    "metadata.json": b'{"old": true}\n',
+    "fig4.png": b"old png",
+}
 
 
 def files(d: Path) -> dict[str, bytes]:
@@ -56,8 +61,11 @@ def files(d: Path) -> dict[str, bytes]:
 
 def temp_files(parent: Path) -> list[str]:
     """Temporary files or directories under ``parent`` (the lock file of a killed run is no temporary file)."""
-    return [str(p.relative_to(parent)) for p in parent.rglob("*")
-            if p.name.startswith(".") and p.name != ".lock" or ".new-" in p.name or p.suffix == ".tmp"]
+    return [
+        str(p.relative_to(parent))
+        for p in parent.rglob("*")
+        if p.name.startswith(".") and p.name != ".lock" or ".new-" in p.name or p.suffix == ".tmp"
+    ]
 
 
 def write(d: Path, content: dict[str, bytes]) -> None:
@@ -75,12 +83,24 @@ def test_output_set_replaces_what_it_owns_and_keeps_the_rest(tmp_path, monkeypat
     if not swap:
         monkeypatch.setattr(io, "_exchange", lambda a, b: False)
     out = tmp_path / "sw"
-    write(out, {"results.csv": b"old", "metadata.json": b"old", "plots/a.png": b"old", "cases/k.json": b"case",
-                "notes.txt": b"mine"})
+    write(
+        out,
+        {
+            "results.csv": b"old",
+            "metadata.json": b"old",
+            "plots/a.png": b"old",
+            "cases/k.json": b"case",
+            "notes.txt": b"mine",
+        },
+    )
     with io.output_set(out, ["results.csv", "metadata.json", "plots"], keeps=["cases"]) as tmp:
         write(tmp, {"results.csv": b"new", "metadata.json": b"new"})
-    assert files(out) == {"cases/k.json": b"case", "metadata.json": b"new", "notes.txt": b"mine",
-                          "results.csv": b"new"}
+    assert files(out) == {
+        "cases/k.json": b"case",
+        "metadata.json": b"new",
+        "notes.txt": b"mine",
+        "results.csv": b"new",
+    }
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sw"] and not temp_files(tmp_path)
 
 
@@ -102,7 +122,7 @@ def test_failed_block_leaves_outputs_byte_identical(tmp_path):
             write(tmp, {"metrics.csv": b"half"})
             raise RuntimeError("killed")
     assert files(out) == OLD and not temp_files(tmp_path)
-    with pytest.raises(RuntimeError):                      # a directory it had to create goes again
+    with pytest.raises(RuntimeError):  # a directory it had to create goes again
         with io.output_set(tmp_path / "new" / "dir", ["x"]):
             raise RuntimeError
     assert not (tmp_path / "new").exists()
@@ -115,8 +135,8 @@ def test_one_command_at_a_time_and_stale_temporaries_go(tmp_path):
         with pytest.raises(EnvironmentProblem, match="another study command is writing to this directory"):
             with io.output_set(out, list(OLD)):
                 pass
-    assert not (out / ".lock").exists()                    # removed with the lock
-    stale = tmp_path / ".fig.new-abc123"                   # what a SIGKILL mid-swap could leave
+    assert not (out / ".lock").exists()  # removed with the lock
+    stale = tmp_path / ".fig.new-abc123"  # what a SIGKILL mid-swap could leave
     write(stale, {"metrics.csv": b"half"})
     io.write_set(out, {"metrics.csv": b"new"})
     assert not stale.exists() and files(out)["metrics.csv"] == b"new"
@@ -135,8 +155,19 @@ def fig(tmp_path_factory):
 
 
 def study(d: Path, out: Path) -> list[str]:
-    return [sys.executable, "-m", "study.cli", "figure", "fig4", "--config", str(d / "cfg.toml"), "--out", str(out),
-            "--cache", str(d / "cache")]
+    return [
+        sys.executable,
+        "-m",
+        "study.cli",
+        "figure",
+        "fig4",
+        "--config",
+        str(d / "cfg.toml"),
+        "--out",
+        str(out),
+        "--cache",
+        str(d / "cache"),
+    ]
 
 
 #: files a finished run writes beside the three of OLD (the table as Parquet, the HTML viewer's images)
@@ -147,8 +178,13 @@ def consistent_new(out: Path) -> bool:
     """The files of one finished run: 2 positions × (2 references + 2 methods) rows, metadata, a PNG, the
     Parquet table and the viewer's manifest."""
     meta = json.loads((out / "metadata.json").read_text())
-    return (len(read_csv(out / "metrics.csv")) == 8 and meta["figure"] == "fig4" and meta["cases"] == 2
-            and (out / "fig4.png").read_bytes()[:4] == b"\x89PNG" and all((out / f).is_file() for f in NEW))
+    return (
+        len(read_csv(out / "metrics.csv")) == 8
+        and meta["figure"] == "fig4"
+        and meta["cases"] == 2
+        and (out / "fig4.png").read_bytes()[:4] == b"\x89PNG"
+        and all((out / f).is_file() for f in NEW)
+    )
 
 
 def test_figure_killed_at_random_moments_is_all_old_or_all_new(fig, tmp_path):
@@ -159,13 +195,15 @@ def test_figure_killed_at_random_moments_is_all_old_or_all_new(fig, tmp_path):
     rng = np.random.default_rng(12)
     seen = {"old": 0, "new": 0}
     for delay in rng.uniform(0.3 * seconds, 1.15 * seconds, 6):
-        shutil.rmtree(out, ignore_errors=True)                # only the old files (not a previous run's extras)
+        shutil.rmtree(out, ignore_errors=True)  # only the old files (not a previous run's extras)
         write(out, OLD)
         proc = subprocess.Popen(study(d, out), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         time.sleep(delay)
         proc.send_signal(signal.SIGKILL)
         proc.wait()
-        got = {k: v for k, v in files(out).items() if k != ".lock"}   # its lock file, free: the next run takes it
+        got = {
+            k: v for k, v in files(out).items() if k != ".lock"
+        }  # its lock file, free: the next run takes it
         assert set(got) == set(OLD) or set(got) >= set(OLD) | NEW, got.keys()
         if got == OLD:
             seen["old"] += 1
@@ -180,9 +218,11 @@ def test_sigterm_leaves_the_old_files_and_no_lock(fig, tmp_path):
     d, seconds = fig
     out = tmp_path / "out"
     write(out, OLD)
-    proc = subprocess.Popen(study(d, out), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        study(d, out), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+    )
     deadline = time.time() + 60
-    while not (out / ".lock").exists() and time.time() < deadline:       # running: it holds the directory
+    while not (out / ".lock").exists() and time.time() < deadline:  # running: it holds the directory
         time.sleep(0.02)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
@@ -196,8 +236,12 @@ def test_concurrent_figure_runs(fig, tmp_path):
     """Two runs into two directories side by side both succeed (no shared temporary name); two runs into one
     directory: one may be refused (exit 3, the other holds it), the files are one run's, whole."""
     d, _ = fig
-    procs = [subprocess.Popen(study(d, tmp_path / name), cwd=ROOT, stdout=subprocess.DEVNULL,
-                              stderr=subprocess.PIPE, text=True) for name in ("a", "b", "c", "c")]
+    procs = [
+        subprocess.Popen(
+            study(d, tmp_path / name), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+        )
+        for name in ("a", "b", "c", "c")
+    ]
     codes = [p.wait(timeout=300) for p in procs]
     assert codes[:2] == [0, 0], [p.stderr.read() for p in procs]
     assert sorted(codes[2:]) in ([0, 0], [0, 3])
@@ -217,12 +261,14 @@ def test_sweep_writes_table_metadata_and_extras_together(tmp_path):
 
     def broken(rows, d):
         raise RuntimeError("the plot failed")
+
     with pytest.raises(RuntimeError):
         run_sweep(cfg, out, cache=tmp_path / "cache", extra=broken)
     assert {k: v for k, v in files(out).items() if not k.startswith("cases/")} == before
     assert len(list(out.glob("cases/*.json"))) == 2 and not temp_files(tmp_path)
-    rows, stats = run_sweep(cfg, out, cache=tmp_path / "cache",
-                            extra=lambda rows, d: write(d, {"plots/curve.png": b"new"}))
+    rows, stats = run_sweep(
+        cfg, out, cache=tmp_path / "cache", extra=lambda rows, d: write(d, {"plots/curve.png": b"new"})
+    )
     assert stats["cached"] == 2 and len(read_csv(out / "results.csv")) == len(rows)
     assert json.loads((out / "metadata.json").read_text())["cases"] == 2
     assert (out / "plots" / "curve.png").read_bytes() == b"new"
@@ -233,6 +279,7 @@ def test_bench_failure_keeps_the_table(tmp_path):
     from typer.testing import CliRunner
 
     from study.cli import app
+
     write(tmp_path / "b", {"bench-cpu.csv": b"good table", "bench-cpu.md": b"# good"})
     before = files(tmp_path / "b")
     res = CliRunner().invoke(app, ["bench", "--out", str(tmp_path / "b"), "--repeats", "0"])
@@ -246,6 +293,7 @@ def test_outputs_get_ordinary_permissions(tmp_path):
     import os
 
     from study.io import atomic_write, write_set
+
     umask = os.umask(0)
     os.umask(umask)
     atomic_write(tmp_path / "a.txt", "x")

@@ -1,5 +1,6 @@
 """The truth references (study/measure/truth.py): truth_at_hit against analytic radiance, the noise-debiased
 RMSE, relMSE and the error decomposition on constructed images."""
+
 import numpy as np
 import pytest
 
@@ -15,12 +16,20 @@ def test_truth_at_hit_of_a_constant_radiance_surface_is_that_radiance(monkeypatc
     real = mref.scene_dict
 
     def emitting_sphere(scene, *, with_object, sensor, integrator=None):
-        d = {k: v for k, v in real(scene, with_object=False, sensor=sensor, integrator=integrator).items()
-             if k in ("type", "sensor", "integrator")}
-        d["shell"] = {"type": "sphere", "radius": 10.0, "flip_normals": True,
-                      "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}},
-                      "emitter": {"type": "area", "radiance": {"type": "rgb", "value": L}}}
+        d = {
+            k: v
+            for k, v in real(scene, with_object=False, sensor=sensor, integrator=integrator).items()
+            if k in ("type", "sensor", "integrator")
+        }
+        d["shell"] = {
+            "type": "sphere",
+            "radius": 10.0,
+            "flip_normals": True,
+            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}},
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": L}},
+        }
         return d
+
     monkeypatch.setattr(mref, "scene_dict", emitting_sphere)
     scene = scene_from_dict(small_scene_dict())
     rng = np.random.default_rng(0)
@@ -54,7 +63,7 @@ def test_decomposition_adds_up_on_independent_parts():
     rep, loc, sig = 0.03, 0.05, 0.02
     oracle = true + rng.normal(0, rep, true.shape)
     img = oracle + rng.normal(0, loc, true.shape)
-    n = rng.normal(0, sig * np.sqrt(2), true.shape)                 # seed difference/2 has σ of the mean
+    n = rng.normal(0, sig * np.sqrt(2), true.shape)  # seed difference/2 has σ of the mean
     t1, t2 = true + n, true + rng.normal(0, sig * np.sqrt(2), true.shape)
     tr = T.Truth(image=(t1 + t2) / 2, noise=(t1 - t2) / 2, mitsuba_noise=np.zeros_like(true))
     mask = np.ones((H, W), bool)
@@ -78,8 +87,9 @@ def test_real_case_decomposition_adds_up_and_oracle_map_is_near_the_truth(tmp_pa
     from study import methods
     from study.cache import Cache
     from study.measure.case import run_case
+
     d = small_scene_dict()
-    d["render"].update(spp=64, cube_spp=64)                         # noise well below the systematic parts
+    d["render"].update(spp=64, cube_spp=64)  # noise well below the systematic parts
     scene = scene_from_dict(d)
     ms = [methods.make("classical"), methods.make("localized", iterations=1), methods.make("localized")]
     rows = {r["label"]: r for r in run_case(scene, ms, cache=Cache(tmp_path), keep_images=False).rows}
@@ -87,4 +97,6 @@ def test_real_case_decomposition_adds_up_and_oracle_map_is_near_the_truth(tmp_pa
         assert rows[m.label]["dec_ratio"] == pytest.approx(1.0, abs=0.1), m.label
     ref = rows["oracle_map"]
     assert ref["rmse_truth_debiased"] < 0.7 * ref["rmse_mitsuba_debiased"]
-    assert rows["classical"]["dec_localization"] > 5 * rows[methods.make("localized").label]["dec_localization"]
+    assert (
+        rows["classical"]["dec_localization"] > 5 * rows[methods.make("localized").label]["dec_localization"]
+    )

@@ -11,6 +11,7 @@ Impostor: exact distances from the reference point through every texel centre (:
 distances_from`, Embree on the same triangles); the RGB channels are a stand-in (|direction|): what a lookup
 costs does not depend on texel values.
 """
+
 from __future__ import annotations
 
 import math
@@ -29,14 +30,15 @@ from study.scene import Scene
 @dataclass
 class Batch:
     name: str
-    x: np.ndarray             # (N, 3) world-space origins
-    R: np.ndarray             # (N, 3) unit directions
+    x: np.ndarray  # (N, 3) world-space origins
+    R: np.ndarray  # (N, 3) unit directions
 
 
 def scene_rays(scene: Scene, position, res: int) -> Batch:
     """Secondary (reflected) rays of ``scene`` with the object at ``position``, camera res² and 1 sample/pixel."""
-    sc = scene.with_updates({"object.center": list(position), "camera.width": res, "camera.height": res,
-                             "render.supersample": 1})
+    sc = scene.with_updates(
+        {"object.center": list(position), "camera.width": res, "camera.height": res, "render.supersample": 1}
+    )
     r = object_rays(sc)
     p = ", ".join(f"{c:g}" for c in position)
     return Batch(f"fig4 ({p}) {res}²", r.x, r.R)
@@ -47,11 +49,18 @@ def closeup_rays(scene: Scene, position, res: int) -> Batch:
     frame sees it: a full frame (res² rays) of coherent secondary rays, as when the mirror fills the screen."""
     c = np.asarray(position, float)
     eye = np.asarray(scene.camera.eye, float)
-    a = math.asin(min(scene.object.radius / np.linalg.norm(c - eye), 1.0))       # angular radius of the sphere
-    fov = math.degrees(2 * math.atan(math.tan(a) / math.sqrt(2))) * 0.98        # square frame inside the disc
-    sc = scene.with_updates({"object.center": list(position), "camera.target": list(position),
-                             "camera.fov": fov, "camera.width": res, "camera.height": res,
-                             "render.supersample": 1})
+    a = math.asin(min(scene.object.radius / np.linalg.norm(c - eye), 1.0))  # angular radius of the sphere
+    fov = math.degrees(2 * math.atan(math.tan(a) / math.sqrt(2))) * 0.98  # square frame inside the disc
+    sc = scene.with_updates(
+        {
+            "object.center": list(position),
+            "camera.target": list(position),
+            "camera.fov": fov,
+            "camera.width": res,
+            "camera.height": res,
+            "render.supersample": 1,
+        }
+    )
     r = object_rays(sc)
     p = ", ".join(f"{v:g}" for v in position)
     return Batch(f"fig4 close-up ({p}) {res}²", r.x, r.R)
@@ -66,8 +75,9 @@ def direction_sorted(b: Batch, res: int = 64) -> Batch:
     """``b``'s rays reordered by the cube-map texel (of a res² cube) their direction points at — ray reordering, as a
     renderer sorts incoherent rays so that neighbouring lanes fetch neighbouring texels. The sort is not timed."""
     face, u, v = cubemap.face_uv(backends.get("numpy"), *np.asarray(b.R, np.float64).T)
-    key = (face.astype(np.int64) * res + np.minimum(v * res, res - 1).astype(np.int64)) * res \
-        + np.minimum(u * res, res - 1).astype(np.int64)
+    key = (face.astype(np.int64) * res + np.minimum(v * res, res - 1).astype(np.int64)) * res + np.minimum(
+        u * res, res - 1
+    ).astype(np.int64)
     order = np.argsort(key, kind="stable")
     return Batch(f"{b.name} sorted by direction", b.x[order], b.R[order])
 

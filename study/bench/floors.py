@@ -18,6 +18,7 @@ Floor of a method (:func:`method_floor`)
     :data:`BYTES_PER_RAY` (origin and direction read, the bench's outputs written). The pattern's fetch cost
     is taken for the batch: coherent for the scene's rays, random for synthetic ones.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -39,8 +40,9 @@ def _hash01(dr, m, i):
     return m.Float(x >> 8) * (1.0 / (1 << 24))
 
 
-def fetch_rate(B, res: int, channels: int, pattern: str, *, n_lanes: int = 1 << 22, fetches: int = 64,
-               repeats: int = 5) -> float:
+def fetch_rate(
+    B, res: int, channels: int, pattern: str, *, n_lanes: int = 1 << 22, fetches: int = 64, repeats: int = 5
+) -> float:
     """Bilinear fetches per second of a (6·res)×res texture of ``channels`` channels in ``pattern``
     (``"coherent"``, ``"random"`` or ``"scattered"``) on the Dr.Jit backend ``B``."""
     dr, m = B.dr, B.m
@@ -49,24 +51,32 @@ def fetch_rate(B, res: int, channels: int, pattern: str, *, n_lanes: int = 1 << 
     lane = dr.arange(m.UInt32, n_lanes)
     H = 6 * res
 
-    u0, v0 = _hash01(dr, m, 2 * lane) * 0.5, _hash01(dr, m, 2 * lane + 1)     # random starts (u0 + k/res < 1)
+    u0, v0 = _hash01(dr, m, 2 * lane) * 0.5, _hash01(dr, m, 2 * lane + 1)  # random starts (u0 + k/res < 1)
 
     def kernel(k: int):
         def body(j, acc):
             if pattern == "coherent":
                 t = m.UInt32(lane % res + j) % res, (lane // res) % H
                 pos = m.Array2f((m.Float(t[0]) + 0.5) / res, (m.Float(t[1]) + 0.5) / H)
-            elif pattern == "random":          # a random start per lane, then one texel further per step
+            elif pattern == "random":  # a random start per lane, then one texel further per step
                 pos = m.Array2f(u0 + m.Float(j) / res, v0)
-            else:                              # scattered: a new random position for every lane and step
-                pos = m.Array2f(_hash01(dr, m, lane * 2 * k + 2 * j), _hash01(dr, m, lane * 2 * k + 2 * j + 1))
+            else:  # scattered: a new random position for every lane and step
+                pos = m.Array2f(
+                    _hash01(dr, m, lane * 2 * k + 2 * j), _hash01(dr, m, lane * 2 * k + 2 * j + 1)
+                )
             return j + 1, acc + tex.eval(pos)[0]
+
         _, acc = dr.while_loop((m.UInt32(0), m.Float(0.0)), lambda j, acc: j < k, body)
         return acc
 
     def timed(k):
-        return median_time(lambda: kernel(k), lambda out: dr.sync_thread() if out is None else dr.eval(out),
-                           repeats=repeats, warmup=2)
+        return median_time(
+            lambda: kernel(k),
+            lambda out: dr.sync_thread() if out is None else dr.eval(out),
+            repeats=repeats,
+            warmup=2,
+        )
+
     lo, hi = max(1, fetches // 4), fetches
     t_lo, t_hi = timed(lo), timed(hi)
     return n_lanes * (hi - lo) / max(t_hi - t_lo, 1e-9)
@@ -75,22 +85,28 @@ def fetch_rate(B, res: int, channels: int, pattern: str, *, n_lanes: int = 1 << 
 def copy_bandwidth(B, *, copy_floats: int = 1 << 27, repeats: int = 5) -> float:
     """Bytes per second read + written by ``y = x + 1`` over ``copy_floats`` float32s on backend ``B``."""
     dr, m = B.dr, B.m
-    x = dr.arange(m.Float, copy_floats)              # a stored array (zeros would be a literal, never read)
+    x = dr.arange(m.Float, copy_floats)  # a stored array (zeros would be a literal, never read)
     dr.eval(x)
-    t = median_time(lambda: x + 1.0, lambda out: dr.sync_thread() if out is None else dr.eval(out),
-                    repeats=repeats, warmup=2)
+    t = median_time(
+        lambda: x + 1.0,
+        lambda out: dr.sync_thread() if out is None else dr.eval(out),
+        repeats=repeats,
+        warmup=2,
+    )
     return 8.0 * copy_floats / t
 
 
-def measure(B, res: int, *, n_lanes: int = 1 << 22, fetches: int = 64, copy_floats: int = 1 << 27,
-            repeats: int = 5) -> dict:
+def measure(
+    B, res: int, *, n_lanes: int = 1 << 22, fetches: int = 64, copy_floats: int = 1 << 27, repeats: int = 5
+) -> dict:
     """All floors of backend ``B`` at cube resolution ``res``: fetch rates (fetches/s) ``fetch_<c>ch_<pattern>``
     for c in 1, 4 and each pattern, and ``bandwidth`` (bytes/s)."""
     out = {}
     for c in (1, 4):
         for pattern in ("coherent", "random", "scattered"):
-            out[f"fetch_{c}ch_{pattern}"] = fetch_rate(B, res, c, pattern, n_lanes=n_lanes, fetches=fetches,
-                                                      repeats=repeats)
+            out[f"fetch_{c}ch_{pattern}"] = fetch_rate(
+                B, res, c, pattern, n_lanes=n_lanes, fetches=fetches, repeats=repeats
+            )
     out["bandwidth"] = copy_bandwidth(B, copy_floats=copy_floats, repeats=repeats)
     return out
 
@@ -99,16 +115,34 @@ def method_floor(method, floors: dict, pattern: str, rays: int) -> float:
     """The floor (seconds) of ``method`` on ``rays`` rays: fetches × fetch cost + bytes / bandwidth (see the
     module docstring); ``pattern`` is ``"coherent"`` or ``"random"``."""
     f1 = method.lookups_per_ray() + 1
-    per_ray = (f1 / floors[f"fetch_1ch_{pattern}"] + 1 / floors[f"fetch_4ch_{pattern}"]
-               + BYTES_PER_RAY / floors["bandwidth"])
+    per_ray = (
+        f1 / floors[f"fetch_1ch_{pattern}"]
+        + 1 / floors[f"fetch_4ch_{pattern}"]
+        + BYTES_PER_RAY / floors["bandwidth"]
+    )
     return per_ray * rays
 
 
 def floor_rows(floors: dict, res: int, backend: str) -> list[dict]:
     """The floors as table rows (quantity, value, unit)."""
-    rows = [{"backend": backend, "cube_res": res, "quantity": f"bilinear fetch, {k.split('_')[1]}, "
-             f"{k.split('_')[2]}", "value": v / 1e9, "unit": "Gfetch/s"} for k, v in floors.items()
-            if k.startswith("fetch_")]
-    rows.append({"backend": backend, "cube_res": res, "quantity": "copy bandwidth (read + write)",
-                 "value": floors["bandwidth"] / 1e9, "unit": "GB/s"})
+    rows = [
+        {
+            "backend": backend,
+            "cube_res": res,
+            "quantity": f"bilinear fetch, {k.split('_')[1]}, {k.split('_')[2]}",
+            "value": v / 1e9,
+            "unit": "Gfetch/s",
+        }
+        for k, v in floors.items()
+        if k.startswith("fetch_")
+    ]
+    rows.append(
+        {
+            "backend": backend,
+            "cube_res": res,
+            "quantity": "copy bandwidth (read + write)",
+            "value": floors["bandwidth"] / 1e9,
+            "unit": "GB/s",
+        }
+    )
     return rows

@@ -1,4 +1,5 @@
 """The machine a bench ran on: CPU, GPU (``nvidia-smi``), package versions, and the backends available here."""
+
 from __future__ import annotations
 
 import importlib.metadata
@@ -24,8 +25,12 @@ def available_backends() -> list[str]:
 def gpu_name() -> str:
     """'name, driver, memory' of the first GPU ``nvidia-smi`` lists; '' without one."""
     try:
-        q = subprocess.run(["nvidia-smi", "--query-gpu=name,driver_version,memory.total", "--format=csv,noheader"],
-                           capture_output=True, text=True, timeout=20)
+        q = subprocess.run(
+            ["nvidia-smi", "--query-gpu=name,driver_version,memory.total", "--format=csv,noheader"],
+            capture_output=True,
+            text=True,
+            timeout=20,
+        )
     except (OSError, subprocess.SubprocessError):
         return ""
     return q.stdout.strip().splitlines()[0] if q.returncode == 0 and q.stdout.strip() else ""
@@ -40,8 +45,10 @@ def rt_cores_line(gpu: str) -> str:
     if not gpu:
         return "no GPU: the exact tracers run on the CPU (Embree; Mitsuba llvm_ad_rgb uses Embree too)"
     if any(k in gpu for k in NO_RT_CORES):
-        return (f"{gpu.split(',')[0]} has no RT cores: OptiX traverses in software here; on an RT-core GPU the "
-                "exact side would be faster")
+        return (
+            f"{gpu.split(',')[0]} has no RT cores: OptiX traverses in software here; on an RT-core GPU the "
+            "exact side would be faster"
+        )
     return f"{gpu.split(',')[0]}: RT cores assumed present (OptiX traverses in hardware)"
 
 

@@ -7,6 +7,7 @@ faster). The Markdown file starts with the machine and the package versions.
 The main table (CSV + Markdown) and the scaling study (CSV + plot) are two output sets (:func:`study.io.output_set`),
 each replaced whole or not at all: the main table is kept when the scaling studies fail after it.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -15,26 +16,56 @@ from study import methods as registry
 from study.io import atomic_savefig, png_bytes, write_set
 from study.tables import markdown, to_csv
 
-BENCH_COLS = ["batch", "backend", "path", "label", "rays", "ms_per_call", "mrays_per_s", "ms_per_frame",
-              "floor_ms_per_frame", "x_floor", "x_vs_embree", "x_vs_mitsuba", "x_vs_preliminary", "x_vs_ray_test"]
-HEADLINE_COLS = ["batch", "backend", "label", "ms_per_frame", "floor_ms_per_frame", "x_floor", "x_vs_preliminary",
-                 "x_vs_ray_test", "x_vs_mitsuba"]
+BENCH_COLS = [
+    "batch",
+    "backend",
+    "path",
+    "label",
+    "rays",
+    "ms_per_call",
+    "mrays_per_s",
+    "ms_per_frame",
+    "floor_ms_per_frame",
+    "x_floor",
+    "x_vs_embree",
+    "x_vs_mitsuba",
+    "x_vs_preliminary",
+    "x_vs_ray_test",
+]
+HEADLINE_COLS = [
+    "batch",
+    "backend",
+    "label",
+    "ms_per_frame",
+    "floor_ms_per_frame",
+    "x_floor",
+    "x_vs_preliminary",
+    "x_vs_ray_test",
+    "x_vs_mitsuba",
+]
 FLOOR_COLS = ["backend", "cube_res", "quantity", "value", "unit"]
 
 
 def header(info: dict) -> str:
     gpu = info.get("gpu") or "none"
-    return (f"machine: {info['cpu']}, {info['cores']} cores; GPU: {gpu}\n\n"
-            f"versions: Python {info['python']}, numpy {info['numpy']}, drjit {info['drjit']}, "
-            f"mitsuba {info['mitsuba']}, embreex {info['embreex']}; libLLVM {info['libllvm'] or '-'}\n\n"
-            f"{info.get('rt_cores', '')}")
+    return (
+        f"machine: {info['cpu']}, {info['cores']} cores; GPU: {gpu}\n\n"
+        f"versions: Python {info['python']}, numpy {info['numpy']}, drjit {info['drjit']}, "
+        f"mitsuba {info['mitsuba']}, embreex {info['embreex']}; libLLVM {info['libllvm'] or '-'}\n\n"
+        f"{info.get('rt_cores', '')}"
+    )
 
 
 def headline(rows: list[dict]) -> list[dict]:
     """The headline rows: each method's frozen (Dr.Jit) row on the full-frame batches (close-up, synthetic)
     that has a floor, with its floor, its ratio to the floor and to the exact queries."""
-    return [r for r in rows if r.get("path") == "frozen" and r.get("x_floor") not in ("", None)
-            and ("close-up" in r["batch"] or r["batch"].startswith("synthetic"))]
+    return [
+        r
+        for r in rows
+        if r.get("path") == "frozen"
+        and r.get("x_floor") not in ("", None)
+        and ("close-up" in r["batch"] or r["batch"].startswith("synthetic"))
+    ]
 
 
 def bench_table(rows: list[dict]) -> str:
@@ -46,11 +77,13 @@ def write_table(rows, info, out: Path, *, lock: bool = True) -> list[Path]:
     """Replace the main table (``bench-<tag>.csv`` and ``.md``) in ``out``; the paths."""
     tag = info["tag"]
     fl = info.get("floors") or []
-    md = (f"# study bench ({tag})\n\n{header(info)}\n\n## Headline: ms per 1024² frame, floor, ratios\n\n"
-          f"x_floor = time / floor (1 = at the floor); x_vs_* = the exact query's time / the method's "
-          f"(> 1: the method is faster)\n\n{markdown(headline(rows), HEADLINE_COLS, digits=3)}\n\n"
-          f"## Measured floors\n\n{markdown(fl, FLOOR_COLS, digits=4) if fl else '(none measured)'}\n\n"
-          f"## Every row\n\n{bench_table(rows)}\n")
+    md = (
+        f"# study bench ({tag})\n\n{header(info)}\n\n## Headline: ms per 1024² frame, floor, ratios\n\n"
+        f"x_floor = time / floor (1 = at the floor); x_vs_* = the exact query's time / the method's "
+        f"(> 1: the method is faster)\n\n{markdown(headline(rows), HEADLINE_COLS, digits=3)}\n\n"
+        f"## Measured floors\n\n{markdown(fl, FLOOR_COLS, digits=4) if fl else '(none measured)'}\n\n"
+        f"## Every row\n\n{bench_table(rows)}\n"
+    )
     files = {f"bench-{tag}.csv": to_csv(rows), f"bench-{tag}.md": md}
     if fl:
         files[f"floors-{tag}.csv"] = to_csv(fl)
@@ -85,25 +118,36 @@ def plot_scaling(rows: list[dict], path: Path | None, *, title: str) -> bytes | 
     """Four log-scale panels (rays, knob, cube resolution, triangles), one line per backend × method;
     exact tracers dashed. With ``path`` None: the PNG's bytes."""
     import matplotlib  # heavy: only when a plot is made
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     sub = {s: [r for r in rows if r["study"] == s] for s in ("rays", "knob", "cube_res", "triangles")}
-    studies = [("rays", "rays per call", "ms per call", True),
-               ("knob", _knob_axis(sub["knob"]), "ms per 1024² frame", False),
-               ("cube_res", f"cube resolution ({_method_of(sub['cube_res'])})", "ms per 1024² frame", True),
-               ("triangles", "triangles in the room (+ displaced heightfield)", "ms per 1024² frame", True)]
+    studies = [
+        ("rays", "rays per call", "ms per call", True),
+        ("knob", _knob_axis(sub["knob"]), "ms per 1024² frame", False),
+        ("cube_res", f"cube resolution ({_method_of(sub['cube_res'])})", "ms per 1024² frame", True),
+        ("triangles", "triangles in the room (+ displaced heightfield)", "ms per 1024² frame", True),
+    ]
     fig, axes = plt.subplots(2, 2, figsize=(13, 9))
     for ax, (study, xlabel, ylabel, logx) in zip(axes.ravel(), studies):
-        def key(r):
+
+        def key(r, study=study):
             lab = r["label"].split("(")[0] if study == "knob" else r["label"]
             return f"{lab} [{r['backend']}]"
+
         for k in dict.fromkeys(key(r) for r in sub[study]):
-            pts = sorted((float(r["value"]), float(r["ms_per_call"] if study == "rays" else r["ms_per_frame"]))
-                         for r in sub[study] if key(r) == k)
+            pts = sorted(
+                (float(r["value"]), float(r["ms_per_call"] if study == "rays" else r["ms_per_frame"]))
+                for r in sub[study]
+                if key(r) == k
+            )
             ax.plot(*zip(*pts), "--" if k.startswith("exact") else "-", marker="o", ms=3, label=k)
         ax.set_xscale("log" if logx else "linear")
         ax.set_yscale("log")
-        ax.set_xlabel(xlabel); ax.set_ylabel(ylabel); ax.grid(True, which="both", alpha=0.3)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.grid(True, which="both", alpha=0.3)
         if sub[study]:
             ax.legend(fontsize=7)
     fig.suptitle(title, fontsize=10)

@@ -15,6 +15,7 @@ floor_ms_per_frame and x_floor = the method's time over its floor.
 The options are checked before anything runs (:func:`check_options`): ranges, and the memory the ray batches need
 against ``--max-memory`` (:mod:`study.harness.budget`).
 """
+
 from __future__ import annotations
 
 import re
@@ -46,28 +47,33 @@ from study.scene import Scene
 
 @dataclass
 class BenchOptions:
-    position: tuple = (1.1, 0.9, 0.6)           # object centre for the fig4 batch
-    scene_res: int = 1024                       # camera res² for the fig4 batch
-    synthetic: int = FRAME                      # rays of the synthetic batch
-    methods: tuple = ()                         # names of the methods timed; () = every registered one
-    ladder: bool = True                         # each method at every value of its knob's ladder (else defaults)
+    position: tuple = (1.1, 0.9, 0.6)  # object centre for the fig4 batch
+    scene_res: int = 1024  # camera res² for the fig4 batch
+    synthetic: int = FRAME  # rays of the synthetic batch
+    methods: tuple = ()  # names of the methods timed; () = every registered one
+    ladder: bool = True  # each method at every value of its knob's ladder (else defaults)
     cube_res: int = 256
-    backends: tuple = ()                        # () = all available
+    backends: tuple = ()  # () = all available
     repeats: int = 5
-    numpy_max_rays: int = 1 << 16               # numpy is timed on at most this many rays of a batch
-    focus: str = "localized"                    # the method of the scaling studies and of the plain-path rows
+    numpy_max_rays: int = 1 << 16  # numpy is timed on at most this many rays of a batch
+    focus: str = "localized"  # the method of the scaling studies and of the plain-path rows
     scaling: bool = True
-    ray_counts: tuple = (256 ** 2, 512 ** 2, 1024 ** 2, 2048 ** 2)
-    knob_extra: tuple = (2, 5, 15)              # knob values tried besides the focus method's ladder (finer curve)
+    ray_counts: tuple = (256**2, 512**2, 1024**2, 2048**2)
+    knob_extra: tuple = (2, 5, 15)  # knob values tried besides the focus method's ladder (finer curve)
     cube_resolutions: tuple = (64, 128, 256, 512, 1024)
     triangles: tuple = (0, 100, 1000, 10_000, 100_000, 1_000_000)
-    tag: str = ""                               # device tag in file names and tables (default: cpu / gpu name)
-    floors: bool = True                         # measure fetch-rate and bandwidth floors (Dr.Jit backends)
+    tag: str = ""  # device tag in file names and tables (default: cpu / gpu name)
+    floors: bool = True  # measure fetch-rate and bandwidth floors (Dr.Jit backends)
 
 
 #: Allowed ranges of the numeric options: (option, attribute, lowest, highest).
-RANGES = [("--repeats", "repeats", 1, 1000), ("--scene-res", "scene_res", 8, 4096), ("--rays", "synthetic", 1, 1 << 24),
-          ("--cube-res", "cube_res", 4, 4096), ("--numpy-max-rays", "numpy_max_rays", 1, 1 << 24)]
+RANGES = [
+    ("--repeats", "repeats", 1, 1000),
+    ("--scene-res", "scene_res", 8, 4096),
+    ("--rays", "synthetic", 1, 1 << 24),
+    ("--cube-res", "cube_res", 4, 4096),
+    ("--numpy-max-rays", "numpy_max_rays", 1, 1 << 24),
+]
 
 
 def check_options(opt: BenchOptions) -> None:
@@ -78,14 +84,20 @@ def check_options(opt: BenchOptions) -> None:
         if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
             raise StudyError(f"must be an integer in {lo}..{hi}, got {v!r}", key=key)
     if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}|", opt.tag):
-        raise StudyError(f"must be letters, digits, '_', '.', '-' (a part of file names), got {opt.tag!r}",
-                         key="--tag")
-    rays = 2 * opt.scene_res ** 2 + opt.synthetic
-    need = budget.BYTES_BASE + rays * budget.BYTES_PER_OBJECT_RAY + 6 * opt.cube_res ** 2 * budget.BYTES_PER_TEXEL
+        raise StudyError(
+            f"must be letters, digits, '_', '.', '-' (a part of file names), got {opt.tag!r}", key="--tag"
+        )
+    rays = 2 * opt.scene_res**2 + opt.synthetic
+    need = (
+        budget.BYTES_BASE + rays * budget.BYTES_PER_OBJECT_RAY + 6 * opt.cube_res**2 * budget.BYTES_PER_TEXEL
+    )
     if need > budget.LIMITS.max_memory_gib * (1 << 30):
-        key = "--scene-res" if 2 * opt.scene_res ** 2 > opt.synthetic else "--rays"
-        raise StudyError(f"the ray batches would need about {need / (1 << 30):.1f} GiB, over the limit of "
-                         f"{budget.LIMITS.max_memory_gib:g} GiB (--max-memory): lower {key}", key=key)
+        key = "--scene-res" if 2 * opt.scene_res**2 > opt.synthetic else "--rays"
+        raise StudyError(
+            f"the ray batches would need about {need / (1 << 30):.1f} GiB, over the limit of "
+            f"{budget.LIMITS.max_memory_gib:g} GiB (--max-memory): lower {key}",
+            key=key,
+        )
 
 
 def method_list(opt: BenchOptions) -> list[Method]:
@@ -95,51 +107,85 @@ def method_list(opt: BenchOptions) -> list[Method]:
     return [v for m in chosen for v in (m.ladder() if opt.ladder else [m])]
 
 
-def run_bench(scene: Scene, opt: BenchOptions, log=print, on_table=None) -> tuple[list[dict], list[dict], dict]:
+def run_bench(
+    scene: Scene, opt: BenchOptions, log=print, on_table=None
+) -> tuple[list[dict], list[dict], dict]:
     """Time everything; returns (bench rows, scaling rows, machine info). ``on_table(rows, info)`` is called
     with the main table before the scaling studies start (so it is kept if they fail)."""
     check_options(opt)
     names = list(opt.backends) or available_backends()
     for n in names:
-        budget.check_backend(n)                                # unknown or unavailable: StudyError now
-    methods = method_list(opt)                                 # unknown methods: StudyError now
-    plain_too = registry.make(opt.focus).label                 # also timed on the plain traced path
+        budget.check_backend(n)  # unknown or unavailable: StudyError now
+    methods = method_list(opt)  # unknown methods: StudyError now
+    plain_too = registry.make(opt.focus).label  # also timed on the plain traced path
     if opt.scaling:
-        knob_values(opt)                                       # invalid knob values: StudyError now
+        knob_values(opt)  # invalid knob values: StudyError now
     info = machine_info()
     info["tag"] = opt.tag or ("gpu" if "cuda" in names else "cpu")
     o = np.asarray(scene.reference.point, float)
     V, F = room_triangles(scene)
     exact = Exact(V, F, opt.repeats, log)
     tex = distance_texels(exact.tracer, o, opt.cube_res)
-    batches = [scene_rays(scene, opt.position, opt.scene_res), closeup_rays(scene, opt.position, opt.scene_res),
-               synthetic_rays(scene, opt.synthetic)]
-    batches.append(direction_sorted(batches[-1]))             # ray reordering of the incoherent batch
+    batches = [
+        scene_rays(scene, opt.position, opt.scene_res),
+        closeup_rays(scene, opt.position, opt.scene_res),
+        synthetic_rays(scene, opt.synthetic),
+    ]
+    batches.append(direction_sorted(batches[-1]))  # ray reordering of the incoherent batch
     rows = []
 
     # ------------------------------------------------------------------ exact ray casting of each batch
     for b in batches:
         n = len(b.x)
-        rows.append(rate_row({"batch": b.name, "backend": f"cpu x{exact.tracer.threads}", "path": "embree",
-                              "label": "exact: Embree", "triangles": len(F), "cube_res": ""}, exact.embree(b), n))
+        rows.append(
+            rate_row(
+                {
+                    "batch": b.name,
+                    "backend": f"cpu x{exact.tracer.threads}",
+                    "path": "embree",
+                    "label": "exact: Embree",
+                    "triangles": len(F),
+                    "cube_res": "",
+                },
+                exact.embree(b),
+                n,
+            )
+        )
         for dev in sorted({"cuda" if nm == "cuda" else "llvm" for nm in names}):
             v = mitsuba_variant(dev)
-            for q in QUERIES:                        # full SurfaceInteraction, then the cheapest exact queries
+            for q in QUERIES:  # full SurfaceInteraction, then the cheapest exact queries
                 t = exact.mitsuba(b, v, q)
                 if np.isfinite(t):
-                    rows.append(rate_row({"batch": b.name, "backend": dev, "path": q, "label": f"exact: Mitsuba {v}",
-                                          "triangles": len(F), "cube_res": ""}, t, n))
+                    rows.append(
+                        rate_row(
+                            {
+                                "batch": b.name,
+                                "backend": dev,
+                                "path": q,
+                                "label": f"exact: Mitsuba {v}",
+                                "triangles": len(F),
+                                "cube_res": "",
+                            },
+                            t,
+                            n,
+                        )
+                    )
         log(f"exact ray casting of {b.name} timed")
 
     # ------------------------------------------------------------------ measured floors (Dr.Jit backends)
     floors = {}
-    for nm in (names if opt.floors else []):
+    for nm in names if opt.floors else []:
         if nm == "numpy":
             continue
         big = nm == "cuda"
-        floors[nm] = floor_model.measure(backends.get(nm), opt.cube_res, n_lanes=1 << (22 if big else 16),
-                                         fetches=64 if big else 16, copy_floats=1 << (28 if big else 24),
-                                         repeats=opt.repeats)
+        floors[nm] = floor_model.measure(
+            backends.get(nm),
+            opt.cube_res,
+            n_lanes=1 << (22 if big else 16),
+            fetches=64 if big else 16,
+            copy_floats=1 << (28 if big else 24),
+            repeats=opt.repeats,
+        )
         log(f"floors on {nm}: " + ", ".join(f"{k} {v / 1e9:.3g} G/s" for k, v in floors[nm].items()))
     info["floors"] = [r for nm, f in floors.items() for r in floor_model.floor_rows(f, opt.cube_res, nm)]
 
@@ -155,16 +201,27 @@ def run_bench(scene: Scene, opt: BenchOptions, log=print, on_table=None) -> tupl
                 extra = ["plain"] if nm != "numpy" and m.label == plain_too else []
                 for path in paths + extra:
                     try:
-                        t = time_method(m, B, tex, x, R, frozen=path == "frozen", repeats=opt.repeats,
-                                        info=info_env)
-                    except Exception as err:    # e.g. a method whose arrays a frozen function cannot see
+                        t = time_method(
+                            m, B, tex, x, R, frozen=path == "frozen", repeats=opt.repeats, info=info_env
+                        )
+                    except Exception as err:  # e.g. a method whose arrays a frozen function cannot see
                         log(f"{m.label} on {nm} ({path}) failed: {str(err).splitlines()[0][:160]}")
                         if path != "frozen":
                             raise
                         path = "plain"
                         t = time_method(m, B, tex, x, R, frozen=False, repeats=opt.repeats, info=info_env)
-                    row = rate_row({"batch": b.name, "backend": nm, "path": path, "label": m.label,
-                                    "triangles": len(F), "cube_res": opt.cube_res}, t, len(x))
+                    row = rate_row(
+                        {
+                            "batch": b.name,
+                            "backend": nm,
+                            "path": path,
+                            "label": m.label,
+                            "triangles": len(F),
+                            "cube_res": opt.cube_res,
+                        },
+                        t,
+                        len(x),
+                    )
                     rows.append(with_floor(with_ratios(row, exact, b, nm), m, floors.get(nm), b))
             log(f"methods on {nm}, {b.name} timed")
 
@@ -180,7 +237,9 @@ def with_ratios(row: dict, exact: Exact, b: Batch, backend: str) -> dict:
     n = len(b.x)
     row["x_vs_embree"] = exact.embree(b) * 1e3 / n / per_ray
     row["x_vs_mitsuba"] = exact.mitsuba(b, mitsuba_variant(backend)) * 1e3 / n / per_ray
-    row["x_vs_preliminary"] = exact.mitsuba(b, mitsuba_variant(backend), "ray_intersect_preliminary") * 1e3 / n / per_ray
+    row["x_vs_preliminary"] = (
+        exact.mitsuba(b, mitsuba_variant(backend), "ray_intersect_preliminary") * 1e3 / n / per_ray
+    )
     row["x_vs_ray_test"] = exact.mitsuba(b, mitsuba_variant(backend), "ray_test") * 1e3 / n / per_ray
     return row
 

@@ -8,6 +8,7 @@ defaults unless its knob is the variable) and of the exact tracers as one thing 
                 not a scene key), on the synthetic and the close-up batch; the exact tracers as well
 numpy is timed on at most ``numpy_max_rays`` rays (and skipped beyond 4× that in the rays study).
 """
+
 from __future__ import annotations
 
 import math
@@ -23,7 +24,7 @@ if TYPE_CHECKING:
     from study.bench.run import BenchOptions
 
 
-def knob_values(opt: "BenchOptions") -> list:
+def knob_values(opt: BenchOptions) -> list:
     """Values of the knob study: the focus method's ladder and ``opt.knob_extra``, sorted; each one checked
     (an invalid value is a StudyError). Empty for a method without a knob."""
     m = registry.make(opt.focus)
@@ -35,7 +36,7 @@ def knob_values(opt: "BenchOptions") -> list:
     return values
 
 
-def scaling_rows(scene, opt: "BenchOptions", names, o, tex, exact: Exact, log) -> list[dict]:
+def scaling_rows(scene, opt: BenchOptions, names, o, tex, exact: Exact, log) -> list[dict]:
     """Cost (ms per call) vs rays, knob value, cube resolution, triangles; numpy only up to numpy_max_rays."""
     rows = []
     fast = [n for n in names if n != "numpy"]
@@ -47,17 +48,35 @@ def scaling_rows(scene, opt: "BenchOptions", names, o, tex, exact: Exact, log) -
         k = len(b.x) if nm != "numpy" else opt.numpy_max_rays
         x, R = b.x[:k] - o, b.R[:k]
         t = time_method(m, backends.get(nm), t_tex, x, R, frozen=nm != "numpy", repeats=repeats, info=info)
-        rows.append(rate_row({"study": study, "value": value, "backend": nm, "label": m.label,
-                              "cube_res": cube}, t, len(x)))
+        rows.append(
+            rate_row(
+                {"study": study, "value": value, "backend": nm, "label": m.label, "cube_res": cube}, t, len(x)
+            )
+        )
 
     def exact_rows(study, value, ex, b):
-        rows.append(rate_row({"study": study, "value": value, "backend": "embree", "label": "exact: Embree"},
-                             ex.embree(b), len(b.x)))
+        rows.append(
+            rate_row(
+                {"study": study, "value": value, "backend": "embree", "label": "exact: Embree"},
+                ex.embree(b),
+                len(b.x),
+            )
+        )
         for dev in sorted({"cuda" if nm == "cuda" else "llvm" for nm in names}):
             t = ex.mitsuba(b, mitsuba_variant(dev))
-            if math.isfinite(t):                        # NaN: the variant is missing here
-                rows.append(rate_row({"study": study, "value": value, "backend": f"mitsuba-{dev}",
-                                      "label": "exact: Mitsuba"}, t, len(b.x)))
+            if math.isfinite(t):  # NaN: the variant is missing here
+                rows.append(
+                    rate_row(
+                        {
+                            "study": study,
+                            "value": value,
+                            "backend": f"mitsuba-{dev}",
+                            "label": "exact: Mitsuba",
+                        },
+                        t,
+                        len(b.x),
+                    )
+                )
 
     # ------------------------------------------------------------------ rays
     for n in opt.ray_counts:

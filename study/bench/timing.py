@@ -6,8 +6,10 @@ before the clock is read; the median per call is reported.
 
 Exact tracers: Embree (:class:`study.reference.embree.Tracer`, chunks cast on every core: embreex releases the GIL)
 and Mitsuba's ray queries (:data:`QUERIES`: full ``ray_intersect``, ``ray_intersect_preliminary``, ``ray_test``;
-``llvm_ad_rgb`` on the CPU, ``cuda_ad_rgb``/OptiX on the GPU), all on the same triangles; :class:`Exact` times each batch once and shares the numbers between tables.
+``llvm_ad_rgb`` on the CPU, ``cuda_ad_rgb``/OptiX on the GPU), all on the same triangles; :class:`Exact`
+times each batch once and shares the numbers between tables.
 """
+
 from __future__ import annotations
 
 import gc
@@ -20,7 +22,7 @@ from study.impostor.envmap import EnvMap
 from study.reference import mitsuba as mitsuba_ref
 from study.reference.embree import Tracer
 
-FRAME = 1024 * 1024          # rays of a 1024² frame
+FRAME = 1024 * 1024  # rays of a 1024² frame
 
 
 def median_time(call, finish, *, repeats: int, warmup: int = 2, min_repeat_s: float = 0.02) -> float:
@@ -28,9 +30,11 @@ def median_time(call, finish, *, repeats: int, warmup: int = 2, min_repeat_s: fl
 
     ``inner`` calls per repeat (each evaluated), one device sync before each clock read."""
     for _ in range(warmup):
-        finish(call()); finish(None)
+        finish(call())
+        finish(None)
     t0 = time.perf_counter()
-    finish(call()); finish(None)
+    finish(call())
+    finish(None)
     once = time.perf_counter() - t0
     inner = max(1, min(1000, int(min_repeat_s / max(once, 1e-7))))
     ts = []
@@ -45,8 +49,13 @@ def median_time(call, finish, *, repeats: int, warmup: int = 2, min_repeat_s: fl
 
 def rate_row(base: dict, seconds: float, rays: int) -> dict:
     """``base`` plus rays, ms_per_call, mrays_per_s and ms_per_frame (a 1024² frame at the measured rate)."""
-    return {**base, "rays": rays, "ms_per_call": seconds * 1e3, "mrays_per_s": rays / seconds / 1e6,
-            "ms_per_frame": seconds / rays * FRAME * 1e3}
+    return {
+        **base,
+        "rays": rays,
+        "ms_per_call": seconds * 1e3,
+        "mrays_per_s": rays / seconds / 1e6,
+        "ms_per_frame": seconds / rays * FRAME * 1e3,
+    }
 
 
 # ---------------------------------------------------------------------------------------------- methods
@@ -54,16 +63,21 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
     """(call, finish) for one method on one backend: call() traces (or replays) and returns the outputs.
 
     ``info`` is the scene knowledge methods may use (room, reference point). A method that searches several
-    layers gets the impostor itself as each layer (the bench times lookups; texel values do not change their
-    cost), so its textures still come in through the frozen function's arguments."""
+    layers gets a copy of the impostor as each layer (the bench times lookups; texel values do not change their
+    cost), so its textures still come in through the frozen function's arguments. The copy is a second EnvMap,
+    not ``env`` itself: ``env.info["layers"] = [env]`` would be a reference cycle, and Dr.Jit textures freed by
+    the garbage collector during a later recording abort the process."""
     env = EnvMap(tex_np, B, info=info)
-    if m.layers_needed() > 1:
-        env.info["layers"] = [env] * m.layers_needed()
+    layer = EnvMap(tex_np, B) if m.layers_needed() > 1 else None
+    if layer is not None:
+        env.info["layers"] = [layer] * m.layers_needed()
     X, RR = B.vec(x), B.vec(R)
     B.eval(X.x, X.y, X.z, RR.x, RR.y, RR.z)
 
-    def trace(tex, dist, X, RR):                 # textures as arguments: a frozen function sees only those
+    def trace(tex, dist, X, RR):  # textures as arguments: a frozen function sees only those
         env.tex, env.dist = tex, dist
+        if layer is not None:
+            layer.tex, layer.dist = tex, dist
         t = m.trace(B, env, X, RR)
         return t.shown, t.radiance, t.ratio, t.valid
 
@@ -76,6 +90,7 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
         else:
             s, r, ratio, valid = out
             B.eval(s.x, s.y, s.z, r.x, r.y, r.z, ratio, valid)
+
     return (lambda: fn(tex, dist, X, RR)), finish
 
 
@@ -105,7 +120,10 @@ QUERIES = ("ray_intersect", "ray_intersect_preliminary", "ray_test")
 
 def time_mitsuba(m, scene, x, R, *, repeats: int, query: str = "ray_intersect") -> float:
     import drjit as dr  # optional: only where Mitsuba is timed
-    ray = m.Ray3f(m.Point3f(np.ascontiguousarray(x.T, np.float32)), m.Vector3f(np.ascontiguousarray(R.T, np.float32)))
+
+    ray = m.Ray3f(
+        m.Point3f(np.ascontiguousarray(x.T, np.float32)), m.Vector3f(np.ascontiguousarray(R.T, np.float32))
+    )
     dr.eval(ray)
     fn = getattr(scene, query)
 
@@ -118,6 +136,7 @@ def time_mitsuba(m, scene, x, R, *, repeats: int, query: str = "ray_intersect") 
             dr.eval(out.t, out.prim_index)
         else:
             dr.eval(out)
+
     return median_time(lambda: fn(ray), finish, repeats=repeats)
 
 
@@ -152,9 +171,9 @@ class Exact:
                 if variant not in self.scenes:
                     self.scenes[variant] = mitsuba_ref.triangle_scene(self.V, self.F, variant)
                 m, sc = self.scenes[variant]
-                mitsuba_ref.mi(variant)                     # the variant current while its scene is timed
+                mitsuba_ref.mi(variant)  # the variant current while its scene is timed
                 self.t[key] = time_mitsuba(m, sc, batch.x, batch.R, repeats=self.repeats, query=query)
-            except Exception as err:        # a variant missing on this machine: no number, say why
+            except Exception as err:  # a variant missing on this machine: no number, say why
                 self.log(f"mitsuba {variant} unavailable: {str(err).splitlines()[0][:120]}")
                 self.t[key] = math.nan
         return self.t[key]

@@ -7,6 +7,7 @@ and Mitsuba parameters, the methods, the resolution, the backend and the hash of
 Figure 8's files and the sweep's table, metadata and curves are one output set (:func:`study.io.output_set`),
 swapped in together when all are written: a failed or killed run leaves the previous ones as they were.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -32,7 +33,7 @@ from study.harness.sweep import Case
 from study.io import atomic_savefig, output_set
 from study.tables import write_csv
 
-_SETUPS: dict[tuple, tuple] = {}          # (config, backend, cache) → (cfg, scene, methods, setup), per process
+_SETUPS: dict[tuple, tuple] = {}  # (config, backend, cache) → (cfg, scene, methods, setup), per process
 
 
 def _setup(config: str, backend: str, cache: str | None):
@@ -51,8 +52,10 @@ def _resolution_case(config: str, backend: str, cache: str | None, res: int) -> 
 
 def sweep_plot(rows: list[dict], path: Path) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     fig, axes = plt.subplots(1, 4, figsize=(17, 3.8))
     labels = list(dict.fromkeys(r["label"] for r in rows if r["method"] != "exact"))
     for lab in labels:
@@ -64,19 +67,39 @@ def sweep_plot(rows: list[dict], path: Path) -> None:
         axes[3].loglog(x, [r["seconds_per_map"] * 1e3 for r in rs], "o-", label=lab)
     ex = [r for r in rows if r["method"] == "exact"]
     if ex:
-        axes[2].loglog([r["caustic_res"] for r in ex], [r["img_rmse_mitsuba"] for r in ex], "k--",
-                       label="exact photons (a)")
+        axes[2].loglog(
+            [r["caustic_res"] for r in ex],
+            [r["img_rmse_mitsuba"] for r in ex],
+            "k--",
+            label="exact photons (a)",
+        )
         axes[2].axhline(ex[0]["mitsuba_noise_rmse"], color="gray", ls=":", label="Mitsuba noise")
-    for ax, t in zip(axes, ["light-map RMSE vs exact photons (W/m²)", "caustic energy ratio vs exact",
-                            "caustic image RMSE vs Mitsuba", "ms per caustic map (CPU)"]):
-        ax.set_title(t, fontsize=9); ax.set_xlabel("caustic-map resolution")
-    axes[0].legend(fontsize=7); axes[2].legend(fontsize=7)
+    for ax, t in zip(
+        axes,
+        [
+            "light-map RMSE vs exact photons (W/m²)",
+            "caustic energy ratio vs exact",
+            "caustic image RMSE vs Mitsuba",
+            "ms per caustic map (CPU)",
+        ],
+    ):
+        ax.set_title(t, fontsize=9)
+        ax.set_xlabel("caustic-map resolution")
+    axes[0].legend(fontsize=7)
+    axes[2].legend(fontsize=7)
     fig.tight_layout()
     atomic_savefig(fig, path, dpi=100)
 
 
-def fig8(config: str | Path, out: str | Path, *, backend: str = "numpy", cache: str | Path | None = ".cache",
-         sweep: bool = False, progress=None) -> list[dict]:
+def fig8(
+    config: str | Path,
+    out: str | Path,
+    *,
+    backend: str = "numpy",
+    cache: str | Path | None = ".cache",
+    sweep: bool = False,
+    progress=None,
+) -> list[dict]:
     """Figure 8 (``<out>/fig8.png``, ``<out>/fig8.csv``) and, with ``sweep``, the sweep (``<out>/sweep.csv``,
     ``<out>/sweep.png``) over the config's resolutions × methods. Returns the rows written."""
     cfg, scene, methods = load_caustic_config(config)
@@ -87,22 +110,51 @@ def fig8(config: str | Path, out: str | Path, *, backend: str = "numpy", cache: 
     if show is None:
         raise StudyError(f"show names {cfg.show!r}, not among the methods", file=str(config), key="show")
     *_, S = _setup(str(config), backend, cache_s)
-    owns = ["fig8.csv", "fig8.png"] + (["sweep.png", "sweep/results.csv", "sweep/metadata.json"] if sweep else [])
+    owns = ["fig8.csv", "fig8.png"] + (
+        ["sweep.png", "sweep/results.csv", "sweep/metadata.json"] if sweep else []
+    )
     with output_set(out, owns, keeps=["sweep/cases"] if sweep else ["sweep"]) as tmp:
-        return _fig8_files(config, cfg, scene, methods, show, S, tmp, out, backend=backend, cache_s=cache_s,
-                           sweep=sweep, progress=progress)
+        return _fig8_files(
+            config,
+            cfg,
+            scene,
+            methods,
+            show,
+            S,
+            tmp,
+            out,
+            backend=backend,
+            cache_s=cache_s,
+            sweep=sweep,
+            progress=progress,
+        )
 
 
-def _fig8_files(config, cfg, scene, methods, show, S, tmp: Path, out: Path, *, backend: str, cache_s: str | None,
-                sweep: bool, progress) -> list[dict]:
+def _fig8_files(
+    config,
+    cfg,
+    scene,
+    methods,
+    show,
+    S,
+    tmp: Path,
+    out: Path,
+    *,
+    backend: str,
+    cache_s: str | None,
+    sweep: bool,
+    progress,
+) -> list[dict]:
     """Figure 8 and, with ``sweep``, the sweep, written into ``tmp`` (the case files under ``out/sweep/cases``)."""
     res = cfg.caustic.res
     rows = caustic_rows(cfg, scene, [show], resolutions=[res], setup=S)
     write_csv(rows, tmp / "fig8.csv")
     # ------------------------------------------------------------------ images (display only: not in fig8.csv)
     cp, s1, s2 = cfg.caustic, *cfg.mitsuba.seeds[:2]
-    cm, ex = caustics.build_caustic_map(scene, show, S.env, S.uvmap, res=res), caustics.exact_caustic_map(
-        scene, S.tracer, res=res)
+    cm, ex = (
+        caustics.build_caustic_map(scene, show, S.env, S.uvmap, res=res),
+        caustics.exact_caustic_map(scene, S.tracer, res=res),
+    )
     E, Eex = (display.splat_adaptive(c, S.frames, res=cp.lightmap_res, sigma=cp.sigma) for c in (cm, ex))
     Ed = direct_irradiance(scene, S.tracer, S.rec)
     room = radiance(S.albedo, S.rec, Ed + lightmap.sample(E, S.rec.surface, S.rec.uv))
@@ -113,37 +165,69 @@ def _fig8_files(config, cfg, scene, methods, show, S, tmp: Path, out: Path, *, b
     c_ours, c_mi = S.caustic_image(E), S.mi["caustic"]
     r = rows[-1]
     adaptive = float(np.sqrt(np.mean((c_ours - c_mi)[S.mask] ** 2)))
-    display.draw(tmp / "fig8.png", ours=ours, mitsuba=mi_full,
-                 mitsuba_noise=(S.mi[f"pt_glass_{s1}"] - S.mi[f"pt_glass_{s2}"]) / 2, mask=S.mask,
-                 caustics={f"caustic only: ours (kNN splats, k={display.K_NEIGHBOURS})": c_ours,
-                           "caustic only: exact photon tracing (a), kNN splats": S.caustic_image(Eex),
-                           "caustic only: Mitsuba (glass − black sphere)": c_mi},
-                 measured=S.caustic_image(S.lightmaps(cm)) - S.caustic_image(S.lightmaps(ex)),
-                 title=f"fig8: glass sphere n={scene.object.material.ior}, caustic map {res}², {show.label}. "
-                 f"Ours = point light with shadow rays + indirect light baked from Mitsuba (caustic-free) + caustic "
-                 f"light map.\nLight-map RMSE vs exact photons {r['lm_rmse']:.3g} W/m² (σ = {cp.sigma * 1e3:g} mm); "
-                 f"caustic image RMSE vs Mitsuba {r['img_rmse_mitsuba']:.3g} (σ = {cp.sigma * 1e3:g} mm), "
-                 f"{adaptive:.3g} (kNN splats); Mitsuba noise {r['mitsuba_noise_rmse']:.3g}")
+    display.draw(
+        tmp / "fig8.png",
+        ours=ours,
+        mitsuba=mi_full,
+        mitsuba_noise=(S.mi[f"pt_glass_{s1}"] - S.mi[f"pt_glass_{s2}"]) / 2,
+        mask=S.mask,
+        caustics={
+            f"caustic only: ours (kNN splats, k={display.K_NEIGHBOURS})": c_ours,
+            "caustic only: exact photon tracing (a), kNN splats": S.caustic_image(Eex),
+            "caustic only: Mitsuba (glass − black sphere)": c_mi,
+        },
+        measured=S.caustic_image(S.lightmaps(cm)) - S.caustic_image(S.lightmaps(ex)),
+        title=f"fig8: glass sphere n={scene.object.material.ior}, caustic map {res}², {show.label}. "
+        f"Ours = point light with shadow rays + indirect light baked from Mitsuba (caustic-free) + caustic "
+        f"light map.\nLight-map RMSE vs exact photons {r['lm_rmse']:.3g} W/m² (σ = {cp.sigma * 1e3:g} mm); "
+        f"caustic image RMSE vs Mitsuba {r['img_rmse_mitsuba']:.3g} (σ = {cp.sigma * 1e3:g} mm), "
+        f"{adaptive:.3g} (kNN splats); Mitsuba noise {r['mitsuba_noise_rmse']:.3g}",
+    )
     if sweep:
         labels = [m.label for m in methods]
         code = code_hash(_resolution_case, *[type(m) for m in methods])
-        content = (scene.model_dump(mode="json"), cfg.caustic.model_dump(mode="json"),
-                   cfg.mitsuba.model_dump(mode="json"), labels, backend, code, "caustics")
-        cases = [Case(i, f"r{res:04d}", scene, {"caustic.res": str(res)}, key=content_key(*content, res))
-                 for i, res in enumerate(cfg.resolutions)]
-        meta = metadata(config, backend=backend, seed=scene.render.seed, methods=labels,
-                        cases=len(cases), kind="caustics", code_hash=code)
+        content = (
+            scene.model_dump(mode="json"),
+            cfg.caustic.model_dump(mode="json"),
+            cfg.mitsuba.model_dump(mode="json"),
+            labels,
+            backend,
+            code,
+            "caustics",
+        )
+        cases = [
+            Case(i, f"r{res:04d}", scene, {"caustic.res": str(res)}, key=content_key(*content, res))
+            for i, res in enumerate(cfg.resolutions)
+        ]
+        meta = metadata(
+            config,
+            backend=backend,
+            seed=scene.render.seed,
+            methods=labels,
+            cases=len(cases),
+            kind="caustics",
+            code_hash=code,
+        )
 
         def check(c: Case, rows: list[dict]) -> bool:
             """One row per method, as configured (+ exact photon tracing's, where Mitsuba renders are known),
             all at the case's resolution."""
             res, exact = int(c.labels["caustic.res"]), [r for r in rows if r.get("method") == "exact"]
-            return ([r.get("label") for r in rows if r.get("method") != "exact"] == labels
-                    and len(exact) == (S.mi is not None) and all(r.get("caustic_res") == res for r in rows))
-        srows, _ = run_cases(cases, out / "sweep", meta, lambda c: (_resolution_case, (
-            str(config), backend, cache_s, int(c.labels["caustic.res"]))),
-            progress=(lambda done, n, cid: progress(done, n)) if progress else None, check=check,
-            into=tmp / "sweep")
+            return (
+                [r.get("label") for r in rows if r.get("method") != "exact"] == labels
+                and len(exact) == (S.mi is not None)
+                and all(r.get("caustic_res") == res for r in rows)
+            )
+
+        srows, _ = run_cases(
+            cases,
+            out / "sweep",
+            meta,
+            lambda c: (_resolution_case, (str(config), backend, cache_s, int(c.labels["caustic.res"]))),
+            progress=(lambda done, n, cid: progress(done, n)) if progress else None,
+            check=check,
+            into=tmp / "sweep",
+        )
         sweep_plot(srows, tmp / "sweep.png")
         rows = rows + srows
     return rows

@@ -17,6 +17,7 @@ room by Embree — isolating the localization error. Both feed the same splattin
 Shadows: the sphere is opaque to the direct light's shadow rays — the light it intercepts is exactly what the
 caustic map redistributes (minus the Fresnel-reflected part, which is dropped, as in the paper).
 """
+
 from __future__ import annotations
 
 import math
@@ -39,15 +40,16 @@ from study.scene.objects import intersect_sphere
 @dataclass
 class CausticMap:
     """res × res texels, flattened to P = res²."""
+
     res: int
-    valid: np.ndarray        # (P,) bool; the paper's alpha >= 0
-    surface: np.ndarray      # (P,) int texture id (−1 invalid)
-    uv: np.ndarray           # (P, 2) texture coordinates of the photon hit (NaN invalid)
-    power: np.ndarray        # (P, 3) photon power, W (0 invalid)
-    exit: np.ndarray         # (P, 3) exit point on the sphere, world space
-    out: np.ndarray          # (P, 3) exit direction
-    shown: np.ndarray        # (P, 3) photon hit estimate, world space (NaN invalid)
-    seconds: dict            # phase → seconds
+    valid: np.ndarray  # (P,) bool; the paper's alpha >= 0
+    surface: np.ndarray  # (P,) int texture id (−1 invalid)
+    uv: np.ndarray  # (P, 2) texture coordinates of the photon hit (NaN invalid)
+    power: np.ndarray  # (P, 3) photon power, W (0 invalid)
+    exit: np.ndarray  # (P, 3) exit point on the sphere, world space
+    out: np.ndarray  # (P, 3) exit direction
+    shown: np.ndarray  # (P, 3) photon hit estimate, world space (NaN invalid)
+    seconds: dict  # phase → seconds
 
     @property
     def alpha(self) -> np.ndarray:
@@ -59,25 +61,31 @@ class CausticMap:
 def frustum(scene: Scene, res: int) -> tuple[np.ndarray, np.ndarray, float]:
     """Unit directions (res², 3) through the caustic-map texel centres, their exact solid angles (res²,), and the
     frustum's half-width tan(α) on the unit-distance view plane."""
-    L, c, r = np.asarray(scene.light.position, float), np.asarray(scene.object.center, float), scene.object.radius
+    L, c, r = (
+        np.asarray(scene.light.position, float),
+        np.asarray(scene.object.center, float),
+        scene.object.radius,
+    )
     w = c - L
     D = np.linalg.norm(w)
     w /= D
     a = math.tan(math.asin(r / D))
     helper = np.array([0.0, 1.0, 0.0]) if abs(w[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    right = np.cross(w, helper); right /= np.linalg.norm(right)
+    right = np.cross(w, helper)
+    right /= np.linalg.norm(right)
     up = np.cross(right, w)
     edges = np.linspace(-a, a, res + 1)
     mid = (edges[:-1] + edges[1:]) / 2
-    S, T = np.meshgrid(mid, -mid)                                   # rows downwards
+    S, T = np.meshgrid(mid, -mid)  # rows downwards
     d = w + S[..., None] * right + T[..., None] * up
     d = (d / np.linalg.norm(d, axis=-1, keepdims=True)).reshape(-1, 3)
 
-    def F(x, y):                                                    # solid angle of [0,x]×[0,y] at distance 1
+    def F(x, y):  # solid angle of [0,x]×[0,y] at distance 1
         return np.arctan(x * y / np.sqrt(1 + x * x + y * y))
+
     x0, x1 = edges[None, :-1], edges[None, 1:]
     y0, y1 = edges[:-1, None], edges[1:, None]
-    dw = (F(x1, y1) - F(x0, y1) - F(x1, y0) + F(x0, y0))            # (res, res), symmetric in rows
+    dw = F(x1, y1) - F(x0, y1) - F(x1, y0) + F(x0, y0)  # (res, res), symmetric in rows
     return d, dw.reshape(-1), a
 
 
@@ -95,8 +103,9 @@ def _photons(scene: Scene, res: int):
     t0 = time.perf_counter()
     d, dw, _ = frustum(scene, res)
     hit, x, N = sphere_entry(scene, d)
-    path = optics.through_sphere(x[hit], d[hit], N[hit], scene.object.center, scene.object.radius,
-                                 scene.object.material.ior)
+    path = optics.through_sphere(
+        x[hit], d[hit], N[hit], scene.object.center, scene.object.radius, scene.object.material.ior
+    )
     P = len(d)
     exit_, out = np.full((P, 3), np.nan), np.full((P, 3), np.nan)
     T = np.zeros(P)
@@ -107,7 +116,9 @@ def _photons(scene: Scene, res: int):
 
 
 # ---------------------------------------------------------------------------------------------- caustic map
-def build_caustic_map(scene: Scene, method: Method, env: EnvMap, uvmap: UVMap, *, res: int = 64) -> CausticMap:
+def build_caustic_map(
+    scene: Scene, method: Method, env: EnvMap, uvmap: UVMap, *, res: int = 64
+) -> CausticMap:
     """The caustic map of ``scene``'s sphere lit by its point light, photon hits localized by ``method`` on the
     backend of ``env`` (which must be the backend of ``uvmap`` too). ``seconds`` holds the phase times."""
     if scene.object.material.type != "dielectric":
@@ -142,8 +153,17 @@ def build_caustic_map(scene: Scene, method: Method, env: EnvMap, uvmap: UVMap, *
     surface[~valid] = -1
     uv[~valid] = np.nan
     power = np.where(valid[:, None], power, 0.0)
-    return CausticMap(res, valid, surface, uv, power, exit_, out, shown,
-                      {"refract": t_refr, "localize": t_loc, "total": t_refr + t_loc})
+    return CausticMap(
+        res,
+        valid,
+        surface,
+        uv,
+        power,
+        exit_,
+        out,
+        shown,
+        {"refract": t_refr, "localize": t_loc, "total": t_refr + t_loc},
+    )
 
 
 def exact_caustic_map(scene: Scene, tracer: Tracer, *, res: int = 64) -> CausticMap:
@@ -159,11 +179,22 @@ def exact_caustic_map(scene: Scene, tracer: Tracer, *, res: int = 64) -> Caustic
     shown = np.full((P, 3), np.nan)
     surface[ok], uv[ok], shown[ok] = hit["surface"], hit["uv"], hit["point"]
     power = np.where(valid[:, None], power, 0.0)
-    return CausticMap(res, valid, surface, uv, power, exit_, out, shown,
-                      {"refract": t_refr, "localize": time.perf_counter() - t0})
+    return CausticMap(
+        res,
+        valid,
+        surface,
+        uv,
+        power,
+        exit_,
+        out,
+        shown,
+        {"refract": t_refr, "localize": time.perf_counter() - t0},
+    )
 
 
-def time_caustic_map(scene: Scene, method: Method, env: EnvMap, uvmap: UVMap, *, res: int, repeats: int = 5) -> float:
+def time_caustic_map(
+    scene: Scene, method: Method, env: EnvMap, uvmap: UVMap, *, res: int, repeats: int = 5
+) -> float:
     """Median seconds to build one caustic map (after one warm-up build, which also traces Dr.Jit kernels)."""
     build_caustic_map(scene, method, env, uvmap, res=res)
     ts = [build_caustic_map(scene, method, env, uvmap, res=res).seconds["total"] for _ in range(repeats)]
@@ -172,12 +203,16 @@ def time_caustic_map(scene: Scene, method: Method, env: EnvMap, uvmap: UVMap, *,
 
 def cone_power(scene: Scene, n: int = 20000) -> np.ndarray:
     """Independent check: ∫ over the sphere's cone of I · T(θ) dω by quadrature in the off-axis angle θ (RGB W)."""
-    L, c, r = np.asarray(scene.light.position, float), np.asarray(scene.object.center, float), scene.object.radius
+    L, c, r = (
+        np.asarray(scene.light.position, float),
+        np.asarray(scene.object.center, float),
+        scene.object.radius,
+    )
     D = np.linalg.norm(c - L)
     alpha = math.asin(r / D)
     th = (np.arange(n) + 0.5) / n * alpha
-    sin_i = np.clip(D * np.sin(th) / r, 0, 1)                      # incidence angle at the sphere
-    cos_i = np.sqrt(1 - sin_i ** 2)
+    sin_i = np.clip(D * np.sin(th) / r, 0, 1)  # incidence angle at the sphere
+    cos_i = np.sqrt(1 - sin_i**2)
     eta = 1 / scene.object.material.ior
     F_in = optics.fresnel_dielectric(cos_i, eta)
     cos_t = np.sqrt(1 - (eta * sin_i) ** 2)
@@ -186,5 +221,12 @@ def cone_power(scene: Scene, n: int = 20000) -> np.ndarray:
     return np.asarray(scene.light.intensity, float) * integrand.sum() * alpha / n
 
 
-__all__ = ["CausticMap", "build_caustic_map", "exact_caustic_map", "frustum", "cone_power", "time_caustic_map",
-           "backends"]
+__all__ = [
+    "CausticMap",
+    "build_caustic_map",
+    "exact_caustic_map",
+    "frustum",
+    "cone_power",
+    "time_caustic_map",
+    "backends",
+]

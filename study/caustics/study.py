@@ -16,6 +16,7 @@ What is compared with what (like with like):
   maps on the diffuse surfaces, the sphere shaded by Fresnel transmission of the impostor's radiance along the exit
   ray (same method) — no indirect light; Mitsuba = ptracer on diffuse pixels, ``path`` on the sphere's pixels.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -98,7 +99,7 @@ class Receivers:
         V = mesh.vertices[mesh.faces[np.maximum(h["prim"], 0)]].astype(float)
         n = np.cross(V[:, 1] - V[:, 0], V[:, 2] - V[:, 0])
         n /= np.linalg.norm(n, axis=-1, keepdims=True)
-        self.n = n * -np.sign(np.sum(n * d, -1, keepdims=True))     # facing the camera
+        self.n = n * -np.sign(np.sum(n * d, -1, keepdims=True))  # facing the camera
         self.diffuse_px = (~self.on_sphere.reshape(self.shape)).all(-1)
 
     def image(self, values: np.ndarray) -> np.ndarray:
@@ -116,7 +117,7 @@ def direct_irradiance(scene: Scene, tracer: Tracer, rec: Receivers) -> np.ndarra
     blocked = tracer.intersect(p, w)["t"] < dist * (1 - 1e-4)
     blocked |= intersect_sphere(p, w, scene.object.center, scene.object.radius) < dist
     cos = np.maximum(np.sum(rec.n * w, -1), 0)
-    E = np.asarray(scene.light.intensity)[None, :] * (cos / dist ** 2 * ~blocked)[:, None]
+    E = np.asarray(scene.light.intensity)[None, :] * (cos / dist**2 * ~blocked)[:, None]
     return np.where((rec.surface >= 0)[:, None], E, 0.0)
 
 
@@ -135,7 +136,9 @@ def sphere_radiance(scene: Scene, rec: Receivers, method: Method, env) -> np.nda
         return out
     x = rec.o[m] + rec.d[m] * rec.ts[m, None]
     N = (x - np.asarray(scene.object.center)) / scene.object.radius
-    path = optics.through_sphere(x, rec.d[m], N, scene.object.center, scene.object.radius, scene.object.material.ior)
+    path = optics.through_sphere(
+        x, rec.d[m], N, scene.object.center, scene.object.radius, scene.object.material.ior
+    )
     R = optics.reflect(rec.d[m], N)
     F = optics.fresnel_dielectric(-np.sum(rec.d[m] * N, -1), 1 / scene.object.material.ior)
     cols = []
@@ -152,14 +155,26 @@ def mitsuba_renders(scene: Scene, mp: MitsubaParams, cache: Cache) -> dict[str, 
     and ``path`` for the sphere's pixels. Cached by content."""
     m = mi()
     c = scene.camera
-    base = [env_key(scene), scene.light.model_dump(), key_fields(scene.object), c.model_dump(), mp.spp, mp.max_depth, "caustic-v1"]
+    base = [
+        env_key(scene),
+        scene.light.model_dump(),
+        key_fields(scene.object),
+        c.model_dump(),
+        mp.spp,
+        mp.max_depth,
+        "caustic-v1",
+    ]
 
     def render(black: bool, integrator: str, seed: int) -> np.ndarray:
         cam = sensor(c.eye, c.target, c.up, c.fov, c.width, c.height, mp.spp, seed)
-        d = scene_dict(scene, with_object=True, sensor=cam,
-                       integrator={"type": integrator, "max_depth": mp.max_depth})
+        d = scene_dict(
+            scene, with_object=True, sensor=cam, integrator={"type": integrator, "max_depth": mp.max_depth}
+        )
         if black:
-            d["object"]["bsdf"] = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}}
+            d["object"]["bsdf"] = {
+                "type": "diffuse",
+                "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]},
+            }
         return np.array(m.render(m.load_dict(d), seed=seed), dtype=np.float32)
 
     out = {}
@@ -167,11 +182,14 @@ def mitsuba_renders(scene: Scene, mp: MitsubaParams, cache: Cache) -> dict[str, 
         for seed in mp.seeds:
             key = content_key(*base, black, "ptracer", seed)
             out[f"pt_{'black' if black else 'glass'}_{seed}"] = cache.get(
-                "caustic_mitsuba", key, lambda: render(black, "ptracer", seed), code=render
+                "caustic_mitsuba",
+                key,
+                lambda: render(black, "ptracer", seed),  # noqa: B023 (called at once), code=render
             ).reshape(c.height, c.width, 3)
     key = content_key(*base, False, "path", mp.seeds[0])
-    out["path"] = cache.get("caustic_mitsuba", key,
-                            lambda: render(False, "path", mp.seeds[0]), code=render).reshape(c.height, c.width, 3)
+    out["path"] = cache.get(
+        "caustic_mitsuba", key, lambda: render(False, "path", mp.seeds[0]), code=render
+    ).reshape(c.height, c.width, 3)
     D = [out[f"pt_glass_{s}"] - out[f"pt_black_{s}"] for s in mp.seeds[:2]]
     out["caustic"] = (D[0] + D[1]) / 2
     out["caustic_noise"] = (D[0] - D[1]) / 2
@@ -185,17 +203,23 @@ def lightmap_errors(E: np.ndarray, Eref: np.ndarray, area: np.ndarray, eps: floa
     sup = ((E > 0) | (Eref > 0)).any(-1)
     d = (E - Eref)[sup]
     a = area[:, None, None, None]
-    return {"lm_rmse": float(np.sqrt(np.mean(d ** 2))),
-            "lm_relmse": float(np.mean(d ** 2 / (Eref[sup] ** 2 + eps))),
-            "energy_ratio": float((E * a).sum() / max((Eref * a).sum(), 1e-300)),
-            "lm_support_texels": int(sup.sum())}
+    return {
+        "lm_rmse": float(np.sqrt(np.mean(d**2))),
+        "lm_relmse": float(np.mean(d**2 / (Eref[sup] ** 2 + eps))),
+        "energy_ratio": float((E * a).sum() / max((Eref * a).sum(), 1e-300)),
+        "lm_support_texels": int(sup.sum()),
+    }
 
 
-def caustic_image_errors(img: np.ndarray, ref: np.ndarray, mask: np.ndarray, eps: float, suffix: str) -> dict[str, float]:
+def caustic_image_errors(
+    img: np.ndarray, ref: np.ndarray, mask: np.ndarray, eps: float, suffix: str
+) -> dict[str, float]:
     d = (img - ref)[mask]
-    return {f"img_rmse_{suffix}": float(np.sqrt(np.mean(d ** 2))),
-            f"img_relmse_{suffix}": float(np.mean(d ** 2 / (ref[mask] ** 2 + eps))),
-            f"img_sum_ratio_{suffix}": float(img[mask].sum() / ref[mask].sum())}   # caustic radiance ours / ref
+    return {
+        f"img_rmse_{suffix}": float(np.sqrt(np.mean(d**2))),
+        f"img_relmse_{suffix}": float(np.mean(d**2 / (ref[mask] ** 2 + eps))),
+        f"img_sum_ratio_{suffix}": float(img[mask].sum() / ref[mask].sum()),
+    }  # caustic radiance ours / ref
 
 
 # ---------------------------------------------------------------------------------------------- the study
@@ -204,9 +228,11 @@ class CausticSetup:
 
     def __init__(self, cfg: CausticConfig, scene: Scene, *, backend: str, cache: Cache, mitsuba: bool = True):
         self.cfg, self.scene = cfg, scene
-        if scene.environment.type != "box":        # light maps are laid out on the box room's six walls and columns
-            raise StudyError(f"caustic maps need the box room; environment.type is {scene.environment.type!r}",
-                             key="environment.type")
+        if scene.environment.type != "box":  # light maps are laid out on the box room's six walls and columns
+            raise StudyError(
+                f"caustic maps need the box room; environment.type is {scene.environment.type!r}",
+                key="environment.type",
+            )
         cp = cfg.caustic
         sc = scene.with_updates({"render.cube_res": cp.cube_res})
         self.tracer = make_tracer(scene.mesh())
@@ -215,24 +241,34 @@ class CausticSetup:
         self.env = EnvMap(self.imp.texels(), self.B)
         self.uvmap = lightmap.UVMap(lightmap.uv_map_texels(scene, cp.cube_res, self.tracer), self.B)
         self.frames = lightmap.SurfaceFrames.of(scene.mesh())
-        self.area = self.frames.size_u * self.frames.size_v / cp.lightmap_res ** 2
+        self.area = self.frames.size_u * self.frames.size_v / cp.lightmap_res**2
         self.rec = Receivers(scene, self.tracer)
         self.albedo = lightmap.albedo_maps(scene.mesh())
         self.mask = self.rec.diffuse_px
         self.mi = mitsuba_renders(scene, cfg.mitsuba, cache) if mitsuba else None
         # radiance per unit caustic irradiance: albedo/π, so images are linear in E
-        self.eps_img = cp.eps / np.pi ** 2 * 0.25          # (albedo ~ 0.5)·eps/π²: the image-space eps
+        self.eps_img = cp.eps / np.pi**2 * 0.25  # (albedo ~ 0.5)·eps/π²: the image-space eps
 
     def lightmaps(self, cm: caustics.CausticMap) -> np.ndarray:
         cp = self.cfg.caustic
         return lightmap.splat(cm.surface, cm.uv, cm.power, self.frames, res=cp.lightmap_res, sigma=cp.sigma)
 
     def caustic_image(self, E: np.ndarray) -> np.ndarray:
-        return self.rec.image(radiance(self.albedo, self.rec, lightmap.sample(E, self.rec.surface, self.rec.uv)))
+        return self.rec.image(
+            radiance(self.albedo, self.rec, lightmap.sample(E, self.rec.surface, self.rec.uv))
+        )
 
 
-def caustic_rows(cfg: CausticConfig, scene: Scene, methods: list[Method], *, resolutions: list[int],
-                 setup: CausticSetup, repeats: int = 3, progress=None) -> list[dict]:
+def caustic_rows(
+    cfg: CausticConfig,
+    scene: Scene,
+    methods: list[Method],
+    *,
+    resolutions: list[int],
+    setup: CausticSetup,
+    repeats: int = 3,
+    progress=None,
+) -> list[dict]:
     """One row per caustic-map resolution × method (and one for exact photon tracing where Mitsuba is known):
     light-map errors against exact photon tracing (a), caustic-image errors against it and against Mitsuba (b),
     photon-hit angles, time per caustic map."""
@@ -242,15 +278,30 @@ def caustic_rows(cfg: CausticConfig, scene: Scene, methods: list[Method], *, res
         ex = caustics.exact_caustic_map(scene, S.tracer, res=res)
         Eref = S.lightmaps(ex)
         img_ref = S.caustic_image(Eref)
-        base = {"caustic_res": res, "photons": int(ex.valid.sum()), "sigma_m": cfg.caustic.sigma,
-                "lightmap_res": cfg.caustic.lightmap_res, "cube_res": cfg.caustic.cube_res, "eps": cfg.caustic.eps,
-                "eps_img": S.eps_img, "backend": S.B.name}
+        base = {
+            "caustic_res": res,
+            "photons": int(ex.valid.sum()),
+            "sigma_m": cfg.caustic.sigma,
+            "lightmap_res": cfg.caustic.lightmap_res,
+            "cube_res": cfg.caustic.cube_res,
+            "eps": cfg.caustic.eps,
+            "eps_img": S.eps_img,
+            "backend": S.B.name,
+        }
         if S.mi is not None:
-            rows.append({**base, "method": "exact", "label": "exact photon tracing (a)", "family": "exact",
-                         "knob": "", "knob_value": np.nan,
-                         **lightmap_errors(Eref, Eref, S.area, cfg.caustic.eps),
-                         **caustic_image_errors(img_ref, S.mi["caustic"], S.mask, S.eps_img, "mitsuba"),
-                         "mitsuba_noise_rmse": float(np.sqrt(np.mean(S.mi["caustic_noise"][S.mask] ** 2)))})
+            rows.append(
+                {
+                    **base,
+                    "method": "exact",
+                    "label": "exact photon tracing (a)",
+                    "family": "exact",
+                    "knob": "",
+                    "knob_value": np.nan,
+                    **lightmap_errors(Eref, Eref, S.area, cfg.caustic.eps),
+                    **caustic_image_errors(img_ref, S.mi["caustic"], S.mask, S.eps_img, "mitsuba"),
+                    "mitsuba_noise_rmse": float(np.sqrt(np.mean(S.mi["caustic_noise"][S.mask] ** 2))),
+                }
+            )
         for m in methods:
             cm = caustics.build_caustic_map(scene, m, S.env, S.uvmap, res=res)
             E = S.lightmaps(cm)
@@ -258,14 +309,21 @@ def caustic_rows(cfg: CausticConfig, scene: Scene, methods: list[Method], *, res
             both = cm.valid & ex.valid
             seconds = caustics.time_caustic_map(scene, m, S.env, S.uvmap, res=res, repeats=repeats)
             ang = angle_deg(cm.shown[both] - cm.exit[both], ex.shown[both] - cm.exit[both])
-            row = {**base, "method": m.name, "label": m.label, **knob_columns(m),
-                   **lightmap_errors(E, Eref, S.area, cfg.caustic.eps),
-                   **caustic_image_errors(img, img_ref, S.mask, S.eps_img, "exact"),
-                   "photon_angle_median_deg": float(np.median(ang)) if ang.size else np.nan,
-                   "photon_angle_p95_deg": float(np.percentile(ang, 95)) if ang.size else np.nan,
-                   "photon_dist_median_m": float(np.median(np.linalg.norm(cm.shown[both] - ex.shown[both], axis=-1))),
-                   "same_surface": float((cm.surface[both] == ex.surface[both]).mean()),
-                   "seconds_per_map": seconds}
+            row = {
+                **base,
+                "method": m.name,
+                "label": m.label,
+                **knob_columns(m),
+                **lightmap_errors(E, Eref, S.area, cfg.caustic.eps),
+                **caustic_image_errors(img, img_ref, S.mask, S.eps_img, "exact"),
+                "photon_angle_median_deg": float(np.median(ang)) if ang.size else np.nan,
+                "photon_angle_p95_deg": float(np.percentile(ang, 95)) if ang.size else np.nan,
+                "photon_dist_median_m": float(
+                    np.median(np.linalg.norm(cm.shown[both] - ex.shown[both], axis=-1))
+                ),
+                "same_surface": float((cm.surface[both] == ex.surface[both]).mean()),
+                "seconds_per_map": seconds,
+            }
             if S.mi is not None:
                 row.update(caustic_image_errors(img, S.mi["caustic"], S.mask, S.eps_img, "mitsuba"))
                 row["mitsuba_noise_rmse"] = float(np.sqrt(np.mean(S.mi["caustic_noise"][S.mask] ** 2)))

@@ -6,6 +6,7 @@ shows it), and ends with a distinct exit code: 2 bad input, 3 a problem of the e
 full, permissions, memory, another command writing to the same directory), 1 a regression found by ``check``,
 4 an internal error (a bug), 130 interrupted.
 """
+
 from study.cli import animate, cache, commands, run  # noqa: F401  (register their commands)
 from study.cli.app import app, main
 

@@ -1,4 +1,5 @@
 """``study animate``: the sphere of Figure 4 moving along a path, methods side by side with their errors (GIF, MP4)."""
+
 from __future__ import annotations
 
 import time
@@ -12,16 +13,22 @@ from study.outputs.animation import animate as make_animation
 
 @app.command()
 @guarded(llvm=True)
-def animate(config: Path = typer.Option(Path("configs/motion.toml"), help="motion config (TOML)"),
-            out: Path = typer.Option(Path("reports/animation"), help="output directory"),
-            backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
-            cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders")):
+def animate(
+    config: Path = typer.Option(Path("configs/motion.toml"), help="motion config (TOML)"),
+    out: Path = typer.Option(Path("reports/animation"), help="output directory"),
+    backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
+    cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
+):
     """Render the motion config's frames (one case each) and write motion.gif / motion.mp4, frames.csv,
     motion.png and metadata.json under <out>."""
     t0 = time.perf_counter()
     with console.status("animate: rendering frames…") as status:
+
         def progress(i, n):
             status.update(f"animate: {i}/{n} frames ({time.perf_counter() - t0:.0f} s)")
+
         rows = make_animation(config, out, backend=backend, cache=cache, progress=progress)
     frames = len({r["frame"] for r in rows})
-    console.print(f"animate: wrote {out} ({frames} frames) in {time.perf_counter() - t0:.1f} s", highlight=False)
+    console.print(
+        f"animate: wrote {out} ({frames} frames) in {time.perf_counter() - t0:.1f} s", highlight=False
+    )

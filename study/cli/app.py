@@ -7,6 +7,7 @@ shows it), and ends with a distinct exit code: 2 bad input, 3 a problem of the e
 full, permissions, memory, another command writing to the same directory), 1 a regression found by ``check``,
 4 an internal error (a bug), 130 interrupted.
 """
+
 from __future__ import annotations
 
 import functools
@@ -21,8 +22,12 @@ from study.errors import StudyError, user_error
 from study.harness import budget
 from study.harness.config import shipped
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
-                  help="Measure how close GPU-friendly approximations of ray tracing come to ray tracing.")
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    help="Measure how close GPU-friendly approximations of ray tracing come to ray tracing.",
+)
 err_console = Console(stderr=True)
 console = Console()
 
@@ -38,16 +43,30 @@ DEBUG = {"on": False}
 
 
 @app.callback()
-def _options(plugin: list[str] = typer.Option([], "--plugin", metavar="MODULE",
-                                              help="import MODULE first: methods it registers join every command "
-                                                   "(repeatable; also $STUDY_PLUGINS)"),
-             debug: bool = typer.Option(False, "--debug", help="show the traceback of an error"),
-             max_memory: float = typer.Option(budget.DEFAULT_MAX_MEMORY_GIB, "--max-memory", metavar="GIB",
-                                              help="refuse a case estimated to need more memory (GiB)"),
-             max_minutes: float = typer.Option(budget.DEFAULT_MAX_MINUTES, "--max-minutes", metavar="MIN",
-                                               help="refuse a command estimated to take longer (minutes)"),
-             version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
-                                          help="print the version and exit")):
+def _options(
+    plugin: list[str] = typer.Option(
+        [],
+        "--plugin",
+        metavar="MODULE",
+        help="import MODULE first: methods it registers join every command (repeatable; also $STUDY_PLUGINS)",
+    ),
+    debug: bool = typer.Option(False, "--debug", help="show the traceback of an error"),
+    max_memory: float = typer.Option(
+        budget.DEFAULT_MAX_MEMORY_GIB,
+        "--max-memory",
+        metavar="GIB",
+        help="refuse a case estimated to need more memory (GiB)",
+    ),
+    max_minutes: float = typer.Option(
+        budget.DEFAULT_MAX_MINUTES,
+        "--max-minutes",
+        metavar="MIN",
+        help="refuse a command estimated to take longer (minutes)",
+    ),
+    version: bool = typer.Option(
+        False, "--version", callback=_version, is_eager=True, help="print the version and exit"
+    ),
+):
     """Measure how close GPU-friendly approximations of ray tracing come to ray tracing."""
     DEBUG["on"] = debug
     try:
@@ -55,6 +74,7 @@ def _options(plugin: list[str] = typer.Option([], "--plugin", metavar="MODULE",
         methods.load_plugins(plugin)
     except StudyError as err:
         _fail(err)
+
 
 class _Shipped(dict):
     """name → config path, looked up with :func:`study.harness.config.shipped`: the shipped config is found from
@@ -65,10 +85,18 @@ class _Shipped(dict):
 
 
 #: The figures ``study figure`` makes and their default configs.
-FIGURES = _Shipped({"fig4": "configs/fig4.toml", "fig5": "configs/fig5.toml", "fig6": "configs/fig6.toml",
-                    "fig8": "configs/fig8.toml", "fig_cornell": "configs/fig_cornell.toml",
-                    "fig_lroom": "configs/fig_lroom.toml", "fig_atrium": "configs/fig_atrium.toml",
-                    "fig_probes": "configs/fig_probes.toml"})
+FIGURES = _Shipped(
+    {
+        "fig4": "configs/fig4.toml",
+        "fig5": "configs/fig5.toml",
+        "fig6": "configs/fig6.toml",
+        "fig8": "configs/fig8.toml",
+        "fig_cornell": "configs/fig_cornell.toml",
+        "fig_lroom": "configs/fig_lroom.toml",
+        "fig_atrium": "configs/fig_atrium.toml",
+        "fig_probes": "configs/fig_probes.toml",
+    }
+)
 
 
 def _line(text: str) -> str:
@@ -77,20 +105,26 @@ def _line(text: str) -> str:
 
 def _fail(err: StudyError) -> None:
     from rich.text import Text
-    err_console.print(Text("error: ", style="bold red") + Text(_line(str(err))), highlight=False, soft_wrap=True)
+
+    err_console.print(
+        Text("error: ", style="bold red") + Text(_line(str(err))), highlight=False, soft_wrap=True
+    )
     raise typer.Exit(err.code)
 
 
 def guarded(llvm: bool = False):
     """A command whose errors are one line each (:func:`study.errors.user_error`); ``llvm``: it renders, so the
     libLLVM that Mitsuba and Dr.Jit will load is checked first (exit 3 where it would abort the process)."""
+
     def wrap(fn):
         @functools.wraps(fn)
         def run(*args, **kwargs):
             try:
                 if llvm:
                     runtime.require()
-                cuda = "cuda" if kwargs.get("backend") == "cuda" else None   # renders and exact hits on the GPU too
+                cuda = (
+                    "cuda" if kwargs.get("backend") == "cuda" else None
+                )  # renders and exact hits on the GPU too
                 with runtime.using_render_device(cuda):
                     return fn(*args, **kwargs)
             except (typer.Exit, typer.Abort, typer.TyperException):
@@ -99,12 +133,14 @@ def guarded(llvm: bool = False):
                 if DEBUG["on"]:
                     raise
                 err_console.print("error: interrupted", highlight=False)
-                raise typer.Exit(130)
+                raise typer.Exit(130) from None
             except Exception as err:
                 if DEBUG["on"]:
                     raise
                 _fail(user_error(err))
+
         return run
+
     return wrap
 
 
@@ -121,7 +157,7 @@ def main() -> None:
     except typer.Abort:
         err_console.print("error: interrupted", highlight=False)
         sys.exit(130)
-    except typer.TyperException as err:                   # bad option or argument: one line, not a panel
+    except typer.TyperException as err:  # bad option or argument: one line, not a panel
         msg = err.format_message() if hasattr(err, "format_message") else str(err)
         hint = f"{err.param_hint}: " if isinstance(getattr(err, "param_hint", None), str) else ""
         err_console.print(f"error: {_line(hint + msg)}", highlight=False, soft_wrap=True, markup=False)
@@ -129,7 +165,7 @@ def main() -> None:
     except KeyboardInterrupt:
         err_console.print("error: interrupted", highlight=False)
         sys.exit(130)
-    except StudyError as err:                             # raised outside a command's own handler
+    except StudyError as err:  # raised outside a command's own handler
         err_console.print(f"error: {_line(str(err))}", highlight=False, soft_wrap=True, markup=False)
         sys.exit(err.code)
     sys.exit(rc if isinstance(rc, int) else 0)

@@ -1,10 +1,10 @@
 """The commands that make results: ``figure``, ``sweep``, ``check``, ``report``, ``bench``, ``caustics-sweep``,
 ``methods``. Argument parsing only: every command calls one function of the package."""
+
 from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -25,11 +25,13 @@ from study.outputs.report import build_report
 
 @app.command()
 @guarded(llvm=True)
-def figure(name: str = typer.Argument(..., help="figure to make: " + ", ".join(FIGURES)),
-           config: Optional[Path] = typer.Option(None, help="figure config (default configs/<name>.toml)"),
-           out: Optional[Path] = typer.Option(None, help="output directory (default reports/<name>)"),
-           backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
-           cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders")):
+def figure(
+    name: str = typer.Argument(..., help="figure to make: " + ", ".join(FIGURES)),
+    config: Path | None = typer.Option(None, help="figure config (default configs/<name>.toml)"),
+    out: Path | None = typer.Option(None, help="output directory (default reports/<name>)"),
+    backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
+    cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
+):
     """Reproduce one of the paper's figures: image grid + metrics CSV under reports/<name>/."""
     if name not in FIGURES:
         raise StudyError(f"unknown figure {name!r}; allowed: {', '.join(FIGURES)}", key="name")
@@ -37,19 +39,36 @@ def figure(name: str = typer.Argument(..., help="figure to make: " + ", ".join(F
     if name == "fig8":  # caustics: study/caustics/figure.py
         return _caustics(config or FIGURES[name], out or Path("reports") / name, backend, cache, sweep=False)
     with console.status(f"{name}: rendering and measuring…") as status:
+
         def progress(i, n):
             status.update(f"{name}: {i}/{n} rows done ({time.perf_counter() - t0:.0f} s)")
-        rows = figure_positions(config or FIGURES[name], out or Path("reports") / name, name=name,
-                                backend=backend, cache=cache, progress=progress)
+
+        rows = figure_positions(
+            config or FIGURES[name],
+            out or Path("reports") / name,
+            name=name,
+            backend=backend,
+            cache=cache,
+            progress=progress,
+        )
     _print_table(rows)
     console.print(f"{name}: wrote {out or Path('reports') / name} in {time.perf_counter() - t0:.1f} s")
 
 
 def _print_table(rows: list[dict]) -> None:
     from rich.table import Table
+
     t = Table(show_lines=False)
-    cols = ["case", "label", "angle_median_deg", "angle_p95_deg", "rmse_oracle", "rmse_mitsuba", "flip_mitsuba",
-            "occluded_fraction"]
+    cols = [
+        "case",
+        "label",
+        "angle_median_deg",
+        "angle_p95_deg",
+        "rmse_oracle",
+        "rmse_mitsuba",
+        "flip_mitsuba",
+        "occluded_fraction",
+    ]
     for c in cols:
         t.add_column(c, justify="right" if c not in ("case", "label") else "left")
     for r in rows:
@@ -59,15 +78,20 @@ def _print_table(rows: list[dict]) -> None:
 
 @app.command()
 @guarded(llvm=True)
-def sweep(config: Path = typer.Argument(..., help="sweep file (TOML), e.g. configs/sweep.toml"),
-          out: Optional[Path] = typer.Option(None, help="output directory (default reports/sweep-<config name>)"),
-          backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
-          cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
-          jobs: int = typer.Option(1, min=1, max=64, help="cases run in parallel processes"),
-          dask: Optional[str] = typer.Option(None, help="run cases on a Dask cluster: scheduler address, "
-                                                       "'local' for a local cluster of --jobs workers, or "
-                                                       "'local-gpus' for --jobs workers per visible GPU"),
-          plots: bool = typer.Option(True, help="write the error curves next to the table")):
+def sweep(
+    config: Path = typer.Argument(..., help="sweep file (TOML), e.g. configs/sweep.toml"),
+    out: Path | None = typer.Option(None, help="output directory (default reports/sweep-<config name>)"),
+    backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
+    cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
+    jobs: int = typer.Option(1, min=1, max=64, help="cases run in parallel processes"),
+    dask: str | None = typer.Option(
+        None,
+        help="run cases on a Dask cluster: scheduler address, "
+        "'local' for a local cluster of --jobs workers, or "
+        "'local-gpus' for --jobs workers per visible GPU",
+    ),
+    plots: bool = typer.Option(True, help="write the error curves next to the table"),
+):
     """Run (or resume) a sweep: one row per case × method in <out>/results.csv, curves beside it."""
     from rich.progress import (
         BarColumn,
@@ -79,32 +103,52 @@ def sweep(config: Path = typer.Argument(..., help="sweep file (TOML), e.g. confi
     )
 
     out = out or Path("reports") / f"sweep-{config.stem}"
-    prepare_sweep(config, backend=backend, jobs=jobs)   # every case checked before the progress bar appears
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=err_console,
-                  transient=False) as bar:
+    prepare_sweep(config, backend=backend, jobs=jobs)  # every case checked before the progress bar appears
+    with Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        console=err_console,
+        transient=False,
+    ) as bar:
         task = bar.add_task(f"sweep {config.stem}", total=None)
 
         def progress(done, total, case_id):
             if bar.tasks[task].total is None:
-                bar.update(task, total=total, completed=done)   # finished cases from an earlier run
+                bar.update(task, total=total, completed=done)  # finished cases from an earlier run
                 bar.tasks[task].start_time = None
                 bar.start_task(task)
             else:
                 bar.update(task, completed=done, description=f"sweep {config.stem} ({case_id})")
-        rows, stats = run_sweep(config, out, backend=backend, cache=cache, jobs=jobs, dask=dask,
-                                progress=progress,     # the curves join the table's output set
-                                extra=(lambda rows, d: sweep_plots(rows, d / "plots")) if plots else None)
-    console.print(f"sweep: {stats['cases']} cases ({stats['cached']} already done, {stats['computed']} computed) "
-                  f"in {stats['seconds']:.1f} s → {out / 'results.csv'}", highlight=False)
+
+        rows, stats = run_sweep(
+            config,
+            out,
+            backend=backend,
+            cache=cache,
+            jobs=jobs,
+            dask=dask,
+            progress=progress,  # the curves join the table's output set
+            extra=(lambda rows, d: sweep_plots(rows, d / "plots")) if plots else None,
+        )
+    console.print(
+        f"sweep: {stats['cases']} cases ({stats['cached']} already done, {stats['computed']} computed) "
+        f"in {stats['seconds']:.1f} s → {out / 'results.csv'}",
+        highlight=False,
+    )
 
 
 @app.command()
 @guarded(llvm=True)
-def check(config: Path = typer.Option(Path("configs/check.toml"), help="check file: sweep, baseline, tolerances"),
-          update: bool = typer.Option(False, "--update", help="rewrite the baseline instead of comparing"),
-          backend: str = typer.Option("numpy", help="numpy | llvm | cuda"),
-          cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders")):
+def check(
+    config: Path = typer.Option(Path("configs/check.toml"), help="check file: sweep, baseline, tolerances"),
+    update: bool = typer.Option(False, "--update", help="rewrite the baseline instead of comparing"),
+    backend: str = typer.Option("numpy", help="numpy | llvm | cuda"),
+    cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
+):
     """CI regression: run a small fixed sweep and compare every metric with the committed baseline."""
     with console.status("check: running the check sweep…"):
         fails, lines = run_check(shipped(config), update=update, cache=cache, backend=backend)
@@ -130,39 +174,61 @@ def report(reports: Path = typer.Option(Path("reports"), help="directory holding
 
 @app.command()
 @guarded(llvm=True)
-def bench(out: Path = typer.Option(Path("reports/bench"), help="output directory"),
-          config: Path = typer.Option(Path("configs/fig4.toml"), help="figure config whose scene is benched"),
-          position: int = typer.Option(2, help="index into the config's positions: where the object stands"),
-          scene_res: int = typer.Option(1024, help="camera resolution (res²) of the fig4 ray batch"),
-          rays: int = typer.Option(1024 * 1024, help="rays in the synthetic batch"),
-          method_names: str = typer.Option("all", "--methods",
-                                           help="comma list of method names (all: every registered method)"),
-          ladder: bool = typer.Option(True, help="time each method at every value of its knob's ladder "
-                                                 "(--no-ladder: at its defaults only)"),
-          cube_res: int = typer.Option(256, help="impostor cube resolution"),
-          backends: str = typer.Option("auto", help="comma list of numpy, llvm, cuda (auto: all available)"),
-          repeats: int = typer.Option(5, help="timed repeats (median reported)"),
-          numpy_max_rays: int = typer.Option(1 << 16, help="numpy is timed on at most this many rays"),
-          scaling: bool = typer.Option(True, help="also run the scaling studies (plots)"),
-          tag: str = typer.Option("", help="name of this machine in file names (default cpu or gpu)")):
+def bench(
+    out: Path = typer.Option(Path("reports/bench"), help="output directory"),
+    config: Path = typer.Option(Path("configs/fig4.toml"), help="figure config whose scene is benched"),
+    position: int = typer.Option(2, help="index into the config's positions: where the object stands"),
+    scene_res: int = typer.Option(1024, help="camera resolution (res²) of the fig4 ray batch"),
+    rays: int = typer.Option(1024 * 1024, help="rays in the synthetic batch"),
+    method_names: str = typer.Option(
+        "all", "--methods", help="comma list of method names (all: every registered method)"
+    ),
+    ladder: bool = typer.Option(
+        True, help="time each method at every value of its knob's ladder (--no-ladder: at its defaults only)"
+    ),
+    cube_res: int = typer.Option(256, help="impostor cube resolution"),
+    backends: str = typer.Option("auto", help="comma list of numpy, llvm, cuda (auto: all available)"),
+    repeats: int = typer.Option(5, help="timed repeats (median reported)"),
+    numpy_max_rays: int = typer.Option(1 << 16, help="numpy is timed on at most this many rays"),
+    scaling: bool = typer.Option(True, help="also run the scaling studies (plots)"),
+    tag: str = typer.Option("", help="name of this machine in file names (default cpu or gpu)"),
+):
     """Time every method against exact ray casting (Embree, Mitsuba) on the same rays: CSV + Markdown tables."""
     cfg, scene, _ = load_figure_config(config)
     if cfg.positions is None or not 0 <= position < len(cfg.positions):
         n = len(cfg.positions or [])
-        raise StudyError(f"position {position} out of range; allowed: 0..{n - 1}" if n else
-                         "the config lists no positions", file=str(config), key="positions")
+        raise StudyError(
+            f"position {position} out of range; allowed: 0..{n - 1}"
+            if n
+            else "the config lists no positions",
+            file=str(config),
+            key="positions",
+        )
     chosen = () if method_names == "all" else tuple(m.strip() for m in method_names.split(",") if m.strip())
     names = () if backends == "auto" else tuple(b.strip() for b in backends.split(",") if b.strip())
-    opt = BenchOptions(position=tuple(cfg.positions[position]), scene_res=scene_res, synthetic=rays,
-                       methods=chosen, ladder=ladder, cube_res=cube_res, backends=names, repeats=repeats,
-                       numpy_max_rays=numpy_max_rays, scaling=scaling, tag=tag)
+    opt = BenchOptions(
+        position=tuple(cfg.positions[position]),
+        scene_res=scene_res,
+        synthetic=rays,
+        methods=chosen,
+        ladder=ladder,
+        cube_res=cube_res,
+        backends=names,
+        repeats=repeats,
+        numpy_max_rays=numpy_max_rays,
+        scaling=scaling,
+        tag=tag,
+    )
     check_options(opt)
     t0 = time.perf_counter()
     files: list[Path] = []
-    with locked(out):          # the main table and the scaling study: each replaced whole, or left as it was
-        rows, scal, info = run_bench(scene, opt, log=lambda s: console.print(
-            f"[{time.perf_counter() - t0:6.1f} s] {s}", highlight=False),
-            on_table=lambda rows, info: files.extend(write_table(rows, info, out, lock=False)))
+    with locked(out):  # the main table and the scaling study: each replaced whole, or left as it was
+        rows, scal, info = run_bench(
+            scene,
+            opt,
+            log=lambda s: console.print(f"[{time.perf_counter() - t0:6.1f} s] {s}", highlight=False),
+            on_table=lambda rows, info: files.extend(write_table(rows, info, out, lock=False)),
+        )
         if scal:
             files += write_scaling(scal, info, out, lock=False)
     console.print(bench_table(rows), highlight=False, soft_wrap=True)
@@ -173,19 +239,35 @@ def _caustics(config, out, backend, cache, *, sweep: bool):
     t0 = time.perf_counter()
     rows = fig8(config, out, backend=backend, cache=cache, sweep=sweep)
     for r in rows:
-        console.print(", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in r.items()
-                                if k in ("caustic_res", "label", "lm_rmse", "lm_relmse", "energy_ratio",
-                                         "img_rmse_mitsuba", "mitsuba_noise_rmse", "seconds_per_map")),
-                      highlight=False)
+        console.print(
+            ", ".join(
+                f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+                for k, v in r.items()
+                if k
+                in (
+                    "caustic_res",
+                    "label",
+                    "lm_rmse",
+                    "lm_relmse",
+                    "energy_ratio",
+                    "img_rmse_mitsuba",
+                    "mitsuba_noise_rmse",
+                    "seconds_per_map",
+                )
+            ),
+            highlight=False,
+        )
     console.print(f"wrote {out} in {time.perf_counter() - t0:.1f} s")
 
 
 @app.command("caustics-sweep")
 @guarded(llvm=True)
-def caustics_sweep(config: Path = typer.Option(Path("configs/caustics_sweep.toml"), help="sweep config"),
-                   out: Path = typer.Option(Path("reports/fig8"), help="output directory"),
-                   backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where caustic maps are built"),
-                   cache: Path = typer.Option(Path(".cache"), help="cache directory")):
+def caustics_sweep(
+    config: Path = typer.Option(Path("configs/caustics_sweep.toml"), help="sweep config"),
+    out: Path = typer.Option(Path("reports/fig8"), help="output directory"),
+    backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where caustic maps are built"),
+    cache: Path = typer.Option(Path(".cache"), help="cache directory"),
+):
     """Figure 8 plus the caustic-map sweep (resolution × iterations × method): CSV + PNG under reports/fig8/."""
     _caustics(shipped(config), out, backend, cache, sweep=True)
 
@@ -197,6 +279,9 @@ def list_methods():
     for name in methods.names():
         cls = methods.REGISTRY[name]
         params = ", ".join(f"{k}={f.default!r}" for k, f in cls.Params.model_fields.items())
-        knob = (f"  knob: {cls.knob.param} ∈ {{{', '.join(map(str, cls.knob.ladder))}}}" if cls.knob
-                else "  knob: none")
+        knob = (
+            f"  knob: {cls.knob.param} ∈ {{{', '.join(map(str, cls.knob.ladder))}}}"
+            if cls.knob
+            else "  knob: none"
+        )
         console.print(f"{name}({params})\n{knob}", highlight=False, soft_wrap=True)

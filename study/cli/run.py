@@ -8,13 +8,13 @@ SCENE is a scene TOML, a mesh file (the environment: OBJ/PLY/GLB/STL/OFF) or a M
 word is taken as a string: ``--set object.shape=torus``). The table is printed and written with the images to
 ``--out`` (default ``reports/run-<scene stem>``) by :meth:`study.api.Result.save`.
 """
+
 from __future__ import annotations
 
 import re
 import time
 import tomllib
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -22,9 +22,17 @@ from study.cli.app import app, console, guarded
 from study.errors import StudyError
 
 #: short headers for the printed table (the files keep the column names)
-HEADERS = {"wrong_fraction": "wrong", "wrong_fraction_visible": "wrong vis.", "wrong_fraction_hidden": "wrong hid.",
-           "dist_p95": "dist p95 m", "angle_median_deg": "angle med. °", "rmse_truth": "RMSE truth",
-           "flip_truth": "FLIP truth", "rmse_mitsuba": "RMSE Mitsuba", "lookups_per_ray": "lookups"}
+HEADERS = {
+    "wrong_fraction": "wrong",
+    "wrong_fraction_visible": "wrong vis.",
+    "wrong_fraction_hidden": "wrong hid.",
+    "dist_p95": "dist p95 m",
+    "angle_median_deg": "angle med. °",
+    "rmse_truth": "RMSE truth",
+    "flip_truth": "FLIP truth",
+    "rmse_mitsuba": "RMSE Mitsuba",
+    "lookups_per_ray": "lookups",
+}
 
 
 def parse_sets(items: list[str]) -> dict:
@@ -35,34 +43,47 @@ def parse_sets(items: list[str]) -> dict:
         key, eq, text = item.partition("=")
         key, text = key.strip(), text.strip()
         if not eq or not re.fullmatch(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*", key):
-            raise StudyError(f"expected KEY=VALUE with a dotted scene key (e.g. object.radius=0.3), got {item!r}",
-                             key="--set")
+            raise StudyError(
+                f"expected KEY=VALUE with a dotted scene key (e.g. object.radius=0.3), got {item!r}",
+                key="--set",
+            )
         try:
             out[key] = tomllib.loads(f"v = {text}")["v"]
         except tomllib.TOMLDecodeError:
             if not re.fullmatch(r"[A-Za-z_][\w.+-]*", text):
-                raise StudyError(f"the value of {key} is not a TOML value ({text!r}); numbers as 0.3, lists as "
-                                 "[0, 1, 2], strings as \"text\"", key="--set") from None
-            out[key] = text                           # a bare word: a string
+                raise StudyError(
+                    f"the value of {key} is not a TOML value ({text!r}); numbers as 0.3, lists as "
+                    '[0, 1, 2], strings as "text"',
+                    key="--set",
+                ) from None
+            out[key] = text  # a bare word: a string
     return out
 
 
 @app.command()
 @guarded(llvm=True)
-def run(scene: Path = typer.Argument(..., help="scene TOML, mesh file (environment) or Mitsuba XML"),
-        method: list[str] = typer.Option([], "--method", "-m", metavar="NAME",
-                                         help="method name or label, e.g. classical or 'localized(iterations=3)' "
-                                              "(repeatable; default: all)"),
-        set_: list[str] = typer.Option([], "--set", "-s", metavar="KEY=VALUE",
-                                       help="override a scene key, VALUE as TOML (repeatable)"),
-        backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
-        out: Optional[Path] = typer.Option(None, help="output directory (default reports/run-<scene stem>)"),
-        cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders")):
+def run(
+    scene: Path = typer.Argument(..., help="scene TOML, mesh file (environment) or Mitsuba XML"),
+    method: list[str] = typer.Option(
+        [],
+        "--method",
+        "-m",
+        metavar="NAME",
+        help="method name or label, e.g. classical or 'localized(iterations=3)' (repeatable; default: all)",
+    ),
+    set_: list[str] = typer.Option(
+        [], "--set", "-s", metavar="KEY=VALUE", help="override a scene key, VALUE as TOML (repeatable)"
+    ),
+    backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
+    out: Path | None = typer.Option(None, help="output directory (default reports/run-<scene stem>)"),
+    cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
+):
     """Evaluate methods on one scene, no config file: prints the table, writes table + images to --out."""
     from rich.console import Console
     from rich.table import Table
 
     from study.api import evaluate, load_scene, method_list
+
     overrides = parse_sets(set_)
     methods = method_list(method or "all", key="--method")
     sc = load_scene(scene, overrides)
@@ -76,6 +97,6 @@ def run(scene: Path = typer.Argument(..., help="scene TOML, mesh file (environme
         t.add_column(HEADERS.get(c, c), justify="left" if c == "label" else "right", no_wrap=c == "label")
     for row in shown.itertuples(index=False):
         t.add_row(*(f"{v:.3g}" if isinstance(v, float) else str(v) for v in row))
-    Console(width=max(console.width, 150), highlight=False).print(t)      # wide: no column cut to "…"
+    Console(width=max(console.width, 150), highlight=False).print(t)  # wide: no column cut to "…"
     res.save(out)
     console.print(f"run: wrote {out} in {time.perf_counter() - t0:.1f} s")

@@ -8,6 +8,7 @@ case, times ``--jobs``) and ``study --max-minutes MIN`` (for the whole command);
 whose value drives the estimate. :func:`preflight` also refuses a case whose camera cannot see the object at all
 (its bounding sphere outside the view); :func:`study.measure.case.run_case` counts the object's pixels exactly.
 """
+
 from __future__ import annotations
 
 import math
@@ -22,18 +23,18 @@ from study.impostor.views import Views
 from study.methods import Method
 from study.scene import Scene
 
-MITSUBA_SAMPLES_PER_S = 1.3e6    # path-traced samples per second (llvm_ad_rgb, max_depth 4, 2 cores); ∝ 4/depth
-SECONDS_PER_SUBPIXEL = 12e-6     # per camera sub-pixel ray: rays, object hit, compositing, image metrics
-SECONDS_PER_OBJECT_RAY = 1e-6    # per ray leaving the object, per method: exact hit, outcome classes, metrics
-SECONDS_PER_LOOKUP = 0.06e-6     # one cube-map lookup of one ray by a method (numpy; Dr.Jit is faster)
-SECONDS_PER_CASE = 3.0           # fixed: Embree scene, Mitsuba's kernels compiled, tables
-SECONDS_PER_IMPOSTOR = 2.0       # fixed per impostor captured (radiance cube + Embree distances)
-BYTES_BASE = 512 << 20           # Python, Mitsuba, Dr.Jit and Embree loaded
-BYTES_PER_SUBPIXEL = 256         # camera rays and per-pixel images
-BYTES_PER_OBJECT_RAY = 1024      # every method's arrays for one ray leaving the object (measured: ~0.8 KiB)
-BYTES_PER_TEXEL = 64             # one cube-map texel: radiance + distance, float32, in a few copies
-BYTES_PER_LAYER_TEXEL = 80       # one texel of one depth layer (layered methods)
-DEFAULT_MAX_MEMORY_GIB = 16.0    # of a 24 GiB machine
+MITSUBA_SAMPLES_PER_S = 1.3e6  # path-traced samples per second (llvm_ad_rgb, max_depth 4, 2 cores); ∝ 4/depth
+SECONDS_PER_SUBPIXEL = 12e-6  # per camera sub-pixel ray: rays, object hit, compositing, image metrics
+SECONDS_PER_OBJECT_RAY = 1e-6  # per ray leaving the object, per method: exact hit, outcome classes, metrics
+SECONDS_PER_LOOKUP = 0.06e-6  # one cube-map lookup of one ray by a method (numpy; Dr.Jit is faster)
+SECONDS_PER_CASE = 3.0  # fixed: Embree scene, Mitsuba's kernels compiled, tables
+SECONDS_PER_IMPOSTOR = 2.0  # fixed per impostor captured (radiance cube + Embree distances)
+BYTES_BASE = 512 << 20  # Python, Mitsuba, Dr.Jit and Embree loaded
+BYTES_PER_SUBPIXEL = 256  # camera rays and per-pixel images
+BYTES_PER_OBJECT_RAY = 1024  # every method's arrays for one ray leaving the object (measured: ~0.8 KiB)
+BYTES_PER_TEXEL = 64  # one cube-map texel: radiance + distance, float32, in a few copies
+BYTES_PER_LAYER_TEXEL = 80  # one texel of one depth layer (layered methods)
+DEFAULT_MAX_MEMORY_GIB = 16.0  # of a 24 GiB machine
 DEFAULT_MAX_MINUTES = 120.0
 
 
@@ -47,11 +48,14 @@ class Limits:
 LIMITS = Limits()
 
 
-def configure(max_memory_gib: float = DEFAULT_MAX_MEMORY_GIB, max_minutes: float = DEFAULT_MAX_MINUTES) -> None:
+def configure(
+    max_memory_gib: float = DEFAULT_MAX_MEMORY_GIB, max_minutes: float = DEFAULT_MAX_MINUTES
+) -> None:
     for key, v in (("--max-memory", max_memory_gib), ("--max-minutes", max_minutes)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise StudyError(f"must be a positive number of {'GiB' if 'memory' in key else 'minutes'}, got {v}",
-                             key=key)
+            raise StudyError(
+                f"must be a positive number of {'GiB' if 'memory' in key else 'minutes'}, got {v}", key=key
+            )
     LIMITS.max_memory_gib, LIMITS.max_minutes = float(max_memory_gib), float(max_minutes)
 
 
@@ -59,8 +63,8 @@ def configure(max_memory_gib: float = DEFAULT_MAX_MEMORY_GIB, max_minutes: float
 class Estimate:
     bytes: float
     seconds: float
-    memory: dict[str, float] = field(default_factory=dict)    # part (a scene key) → bytes
-    time: dict[str, float] = field(default_factory=dict)      # part (a scene key) → seconds
+    memory: dict[str, float] = field(default_factory=dict)  # part (a scene key) → bytes
+    time: dict[str, float] = field(default_factory=dict)  # part (a scene key) → seconds
 
 
 def _camera_frame(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -81,7 +85,7 @@ def object_pixels(scene: Scene) -> float:
     tx = math.tan(math.radians(c.fov) / 2)
     ty = tx * c.height / c.width
     x, y, z = float(p @ right), float(p @ up), float(p @ f)
-    for t, s in ((tx, x), (ty, y)):                     # the four side planes of the view frustum, then the eye
+    for t, s in ((tx, x), (ty, y)):  # the four side planes of the view frustum, then the eye
         if (z * t - abs(s)) / math.hypot(1.0, t) < -r:
             return 0.0
     if z <= -r:
@@ -90,30 +94,36 @@ def object_pixels(scene: Scene) -> float:
     if z <= 0 or d2 <= 0:
         return float(c.width * c.height)
     radius_px = r / math.sqrt(d2) / tx * c.width / 2
-    return float(min(c.width * c.height, math.pi * radius_px ** 2))
+    return float(min(c.width * c.height, math.pi * radius_px**2))
 
 
 def estimate(scene: Scene, methods: list[Method], *, impostor: bool = True) -> Estimate:
     """Memory and time of one case (:func:`study.measure.case.run_case`) with ``methods``; ``impostor``: count
     capturing its impostor (False when another case of the same command captures the same one)."""
     c, r = scene.camera, scene.render
-    sub = c.width * c.height * r.supersample ** 2
+    sub = c.width * c.height * r.supersample**2
     glass = 2 if scene.object.material.type == "dielectric" else 1
-    rays = min(float(sub), object_pixels(scene) * r.supersample ** 2) * glass
+    rays = min(float(sub), object_pixels(scene) * r.supersample**2) * glass
     rate = MITSUBA_SAMPLES_PER_S * 4 / max(r.max_depth + 2 * (glass - 1), 4)
-    texels = 6 * r.cube_res ** 2
+    texels = 6 * r.cube_res**2
     layers = max((m.layers_needed() for m in methods), default=1)
     lookups = sum(float(m.lookups_per_ray()) for m in methods)
     sub_key = "render.supersample" if r.supersample > 1 else "camera.width"
-    mem = {sub_key: sub * BYTES_PER_SUBPIXEL + rays * BYTES_PER_OBJECT_RAY,
-           "render.cube_res": texels * (BYTES_PER_TEXEL + (BYTES_PER_LAYER_TEXEL * layers if layers > 1 else 0))}
-    time = {"render.spp": (3 * c.width * c.height + 2 * rays) * r.spp / rate,
-            sub_key: SECONDS_PER_CASE + sub * SECONDS_PER_SUBPIXEL + rays * len(methods) * SECONDS_PER_OBJECT_RAY,
-            "methods": rays * lookups * SECONDS_PER_LOOKUP}
+    mem = {
+        sub_key: sub * BYTES_PER_SUBPIXEL + rays * BYTES_PER_OBJECT_RAY,
+        "render.cube_res": texels * (BYTES_PER_TEXEL + (BYTES_PER_LAYER_TEXEL * layers if layers > 1 else 0)),
+    }
+    time = {
+        "render.spp": (3 * c.width * c.height + 2 * rays) * r.spp / rate,
+        sub_key: SECONDS_PER_CASE + sub * SECONDS_PER_SUBPIXEL + rays * len(methods) * SECONDS_PER_OBJECT_RAY,
+        "methods": rays * lookups * SECONDS_PER_LOOKUP,
+    }
     if impostor:
         time["render.cube_spp"] = SECONDS_PER_IMPOSTOR + texels * r.cube_spp / rate
-    probes = sum(len(p.points) if p.points is not None else int(np.prod(p.grid))        # cube maps at more points
-                 for p in Views.merge(*(m.views_needed() for m in methods)).probes)   # (at most: grid cells)
+    probes = sum(
+        len(p.points) if p.points is not None else int(np.prod(p.grid))  # cube maps at more points
+        for p in Views.merge(*(m.views_needed() for m in methods)).probes
+    )  # (at most: grid cells)
     if probes:
         mem["render.cube_res"] += probes * texels * BYTES_PER_TEXEL
         if impostor:
@@ -139,8 +149,14 @@ def _scene_key(key: str, scene: Scene) -> str:
     return f"{key} = {getattr(getattr(scene, part), name)}"
 
 
-def check(cases: list[tuple[str, Scene]], methods: list[Method], *, source: str | None = None, jobs: int = 1,
-          limits: Limits | None = None) -> list[Estimate]:
+def check(
+    cases: list[tuple[str, Scene]],
+    methods: list[Method],
+    *,
+    source: str | None = None,
+    jobs: int = 1,
+    limits: Limits | None = None,
+) -> list[Estimate]:
     """Refuse (StudyError naming ``source``, the case and the key to lower) when a case is out of view
     (:func:`preflight`), when one case needs more than ``--max-memory`` (× ``jobs`` running at once) or when all
     of them together need more than ``--max-minutes``. ``cases``: (id, scene) pairs. Returns the estimates."""
@@ -155,9 +171,13 @@ def check(cases: list[tuple[str, Scene]], methods: list[Method], *, source: str 
         if e.bytes * max(jobs, 1) > limits.max_memory_gib * (1 << 30):
             key = max(e.memory, key=e.memory.get)
             per = f" per case × {jobs} jobs" if jobs > 1 else ""
-            raise StudyError(f"case {cid} would need about {_gib(e.bytes)}{per}, over the limit of "
-                             f"{limits.max_memory_gib:g} GiB (--max-memory); most of it for {_scene_key(key, sc)}: "
-                             "lower it" + (" or --jobs" if jobs > 1 else ""), file=source, key=key)
+            raise StudyError(
+                f"case {cid} would need about {_gib(e.bytes)}{per}, over the limit of "
+                f"{limits.max_memory_gib:g} GiB (--max-memory); most of it for {_scene_key(key, sc)}: "
+                "lower it" + (" or --jobs" if jobs > 1 else ""),
+                file=source,
+                key=key,
+            )
     total = sum(e.seconds for e in ests) / max(jobs, 1)
     if total > limits.max_minutes * 60:
         i = int(np.argmax([e.seconds for e in ests]))
@@ -167,9 +187,13 @@ def check(cases: list[tuple[str, Scene]], methods: list[Method], *, source: str 
                 parts[k] = parts.get(k, 0.0) + v
         key = max(parts, key=parts.get)
         what = f"{len(ests)} cases" if len(ests) > 1 else f"case {cases[0][0]}"
-        raise StudyError(f"{what} would take about {_hours(total)} here, over the limit of {limits.max_minutes:g} "
-                         f"min (--max-minutes); most of it for {_scene_key(key, cases[i][1])}: lower it or raise "
-                         "--max-minutes", file=source, key=key)
+        raise StudyError(
+            f"{what} would take about {_hours(total)} here, over the limit of {limits.max_minutes:g} "
+            f"min (--max-minutes); most of it for {_scene_key(key, cases[i][1])}: lower it or raise "
+            "--max-minutes",
+            file=source,
+            key=key,
+        )
     return ests
 
 
@@ -177,16 +201,19 @@ def preflight(scene: Scene, *, source: str | None = None, case: str = "") -> Non
     """Refuse a case whose camera cannot see any of the object (its bounding sphere lies outside the view)."""
     if object_pixels(scene) == 0:
         where = f" (case {case})" if case else ""
-        raise StudyError(f"the camera does not see the object{where}: its bounding sphere lies outside the view; "
-                         "move object.center into view or turn camera.target towards it", file=source,
-                         key="object.center")
+        raise StudyError(
+            f"the camera does not see the object{where}: its bounding sphere lies outside the view; "
+            "move object.center into view or turn camera.target towards it",
+            file=source,
+            key="object.center",
+        )
 
 
 def check_backend(name: str) -> None:
     """The backend can run here: an unknown name is bad input (exit 2), one this machine lacks (cuda without a
     GPU, Dr.Jit without a usable libLLVM) a problem of the environment (exit 3)."""
     if name not in backends.BACKENDS:
-        backends.get(name)                                  # the StudyError listing what is allowed
+        backends.get(name)  # the StudyError listing what is allowed
     try:
         backends.get(name)
     except EnvironmentProblem:

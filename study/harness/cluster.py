@@ -1,6 +1,7 @@
 """Cases on a Dask distributed cluster (``--dask``): a scheduler's address, ``local`` (a LocalCluster of ``jobs``
 single-threaded worker processes) or ``local-gpus`` (``jobs`` worker processes per visible GPU, each pinned to its
 GPU with ``CUDA_VISIBLE_DEVICES``). The cache directory must be shared by the workers."""
+
 from __future__ import annotations
 
 import os
@@ -27,16 +28,32 @@ def gpu_cluster(gpus: list[str] | None = None, per_gpu: int = 1):
     ``gpus`` (default: :func:`visible_gpus`); each worker's nanny sets ``CUDA_VISIBLE_DEVICES`` to its GPU and
     passes the render device on (:func:`study.runtime.render_device`) before the worker process starts."""
     from distributed import Nanny, Scheduler, SpecCluster
+
     gpus = visible_gpus() if gpus is None else gpus
     if not gpus:
-        raise EnvironmentProblem("no GPU visible (CUDA_VISIBLE_DEVICES, nvidia-smi): 'local-gpus' needs at least "
-                                 "one", key="--dask")
-    share = str(max(2, (os.cpu_count() or 1) // (len(gpus) * max(per_gpu, 1))))   # threads each (Dr.Jit, Embree,
+        raise EnvironmentProblem(
+            "no GPU visible (CUDA_VISIBLE_DEVICES, nvidia-smi): 'local-gpus' needs at least one", key="--dask"
+        )
+    share = str(
+        max(2, (os.cpu_count() or 1) // (len(gpus) * max(per_gpu, 1)))
+    )  # threads each (Dr.Jit, Embree,
     # OpenMP in FLIP): the cores over every worker (study.harness.runner._limit_threads)
-    workers = {f"gpu{g}-{i}": {"cls": Nanny, "options": {"nthreads": 1, "env": {
-        "CUDA_VISIBLE_DEVICES": g, "STUDY_RENDER_DEVICE": runtime.render_device(),
-        "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", share), "STUDY_WORKER_THREADS": share}}}
-        for g in gpus for i in range(max(per_gpu, 1))}
+    workers = {
+        f"gpu{g}-{i}": {
+            "cls": Nanny,
+            "options": {
+                "nthreads": 1,
+                "env": {
+                    "CUDA_VISIBLE_DEVICES": g,
+                    "STUDY_RENDER_DEVICE": runtime.render_device(),
+                    "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", share),
+                    "STUDY_WORKER_THREADS": share,
+                },
+            },
+        }
+        for g in gpus
+        for i in range(max(per_gpu, 1))
+    }
     return SpecCluster(scheduler={"cls": Scheduler, "options": {"dashboard_address": None}}, workers=workers)
 
 
@@ -51,7 +68,9 @@ def run_dask(batches, task, jobs: int, address: str, finish, warm: tuple | None 
         raise StudyError("needs dask[distributed] (pip install 'dask[distributed]')", key="--dask") from None
     cluster = None
     if address == "local":
-        cluster = LocalCluster(n_workers=max(jobs, 1), threads_per_worker=1, processes=True, dashboard_address=None)
+        cluster = LocalCluster(
+            n_workers=max(jobs, 1), threads_per_worker=1, processes=True, dashboard_address=None
+        )
         client = Client(cluster)
     elif address == "local-gpus":
         cluster = gpu_cluster(per_gpu=jobs)
@@ -66,7 +85,9 @@ def run_dask(batches, task, jobs: int, address: str, finish, warm: tuple | None 
             for w in client.scheduler_info().get("workers", {}):
                 client.submit(*warm, workers=[w], allow_other_workers=False, pure=False, priority=10)
         for batch in batches:
-            futs = {client.submit(*_flat(task(c)), key=f"study-{c.key}-{c.index}", pure=False): c for c in batch}
+            futs = {
+                client.submit(*_flat(task(c)), key=f"study-{c.key}-{c.index}", pure=False): c for c in batch
+            }
             for f in as_completed(list(futs)):
                 finish(futs[f], f.result())
     finally:

@@ -27,6 +27,7 @@ with an optional ``name`` (``configs/fig6.toml``)::
 Unknown keys, unknown methods and unknown method parameters are errors naming the file and the key; so are
 method parameters that are not finite (``inf``, ``nan``) and booleans or strings given for numbers.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -52,7 +53,7 @@ class FigureConfig(BaseModel):
     methods: MethodSpecs = "all"
     grid: list[str] | None = None
     occlusion_panel: StrictBool = False  # add a column showing which rays' exact hits are hidden from o
-    outcome_panel: StrictBool = False    # add per grid method a map of its per-ray outcome classes
+    outcome_panel: StrictBool = False  # add per grid method a map of its per-ray outcome classes
 
     @model_validator(mode="after")
     def _one_of(self):
@@ -63,8 +64,10 @@ class FigureConfig(BaseModel):
     def case_list(self) -> list[tuple[str, str, dict[str, Any]]]:
         """(case id suffix, row label, scene overrides) per image row."""
         if self.positions is not None:
-            return [(f"p{i}", f"({p[0]:g}, {p[1]:g}, {p[2]:g})", {"object.center": list(p)})
-                    for i, p in enumerate(self.positions)]
+            return [
+                (f"p{i}", f"({p[0]:g}, {p[1]:g}, {p[2]:g})", {"object.center": list(p)})
+                for i, p in enumerate(self.positions)
+            ]
         out = []
         for i, c in enumerate(self.cases):
             c = dict(c)
@@ -77,7 +80,7 @@ def base_scene(spec: str | dict, *, config_path: Path) -> Scene:
     if isinstance(spec, dict):
         try:
             return scene_from_dict(spec, source=str(config_path))
-        except StudyError as err:          # keys of an inline scene are under "scene." in the config file
+        except StudyError as err:  # keys of an inline scene are under "scene." in the config file
             raise StudyError(err.detail, file=str(config_path), key=f"scene.{err.key}") from None
     p = Path(spec)
     return load_scene(p if p.is_absolute() else config_path.parent / p)
@@ -97,23 +100,31 @@ def configured_scene(cfg, path: Path) -> Scene:
 
 def expand_methods(specs: MethodSpecs, *, source: str) -> list[Method]:
     """The methods a config asks for. ``"all"`` (alone or as a list entry) is every registered method with its
-    default parameters; a name is that method with its defaults; a table is {name, param = value | [values]}, lists expanding into the Cartesian product.
+    default parameters; a name is that method with its defaults; a table is {name, param = value | [values]},
+    lists expanding into the Cartesian product.
     A method that two entries ask for is kept once, where it first appears."""
     out = []
     for i, spec in enumerate([specs] if isinstance(specs, str) else specs):
         if spec == "all":
             out += registry.all_methods()
             continue
-        if isinstance(spec, str):                       # a bare name: the method with its defaults
+        if isinstance(spec, str):  # a bare name: the method with its defaults
             if spec not in registry.REGISTRY:
-                raise StudyError(f"unknown method {spec!r}; allowed: \"all\", {', '.join(registry.names())} (or a "
-                                 "table { name = …, parameter = value })", file=source, key=f"methods[{i}]")
+                raise StudyError(
+                    f'unknown method {spec!r}; allowed: "all", {", ".join(registry.names())} (or a '
+                    "table { name = …, parameter = value })",
+                    file=source,
+                    key=f"methods[{i}]",
+                )
             spec = {"name": spec}
         spec = dict(spec)
         name = spec.pop("name", None)
         if not isinstance(name, str):
-            raise StudyError(f"each method needs a name; allowed: {', '.join(registry.names())}",
-                             file=source, key=f"methods[{i}].name")
+            raise StudyError(
+                f"each method needs a name; allowed: {', '.join(registry.names())}",
+                file=source,
+                key=f"methods[{i}].name",
+            )
         keys = list(spec)
         values = [v if isinstance(v, list) else [v] for v in spec.values()]
         for combo in itertools.product(*values):
@@ -122,8 +133,12 @@ def expand_methods(specs: MethodSpecs, *, source: str) -> list[Method]:
             try:
                 out.append(registry.make(name, **dict(zip(keys, combo))))
             except StudyError as err:
-                raise StudyError(err.detail, file=source, key=f"methods[{i}]" + (
-                    "." + err.key.split(".", 1)[1] if err.key and "." in err.key else ".name")) from None
+                raise StudyError(
+                    err.detail,
+                    file=source,
+                    key=f"methods[{i}]"
+                    + ("." + err.key.split(".", 1)[1] if err.key and "." in err.key else ".name"),
+                ) from None
     return list({m.label: m for m in reversed(out)}.values())[::-1]
 
 
@@ -132,7 +147,7 @@ def _check_param(cls, name: str, value, *, source: str, key: str) -> None:
     takes numbers (pydantic would read true as 1 and inf as a valid float)."""
     field = getattr(getattr(cls, "Params", None), "model_fields", {}).get(name)
     text = repr(field.annotation) if field is not None else ""
-    for v in (value if isinstance(value, (list, tuple)) else [value]):
+    for v in value if isinstance(value, (list, tuple)) else [value]:
         if isinstance(v, (list, tuple)):
             _check_param(cls, name, v, source=source, key=key)
         elif isinstance(v, float) and not math.isfinite(v):
@@ -163,6 +178,8 @@ def load_figure_config(path: str | Path) -> tuple[FigureConfig, Scene, list[Meth
     cfg = validate_file(FigureConfig, path)
     scene = configured_scene(cfg, path)
     for i, (_, _, over) in enumerate(cfg.case_list()):
-        scene.with_updates(over, source=f"{path} {'positions' if cfg.positions is not None else 'cases'}[{i}]")
+        scene.with_updates(
+            over, source=f"{path} {'positions' if cfg.positions is not None else 'cases'}[{i}]"
+        )
     methods = expand_methods(cfg.methods, source=str(path))
     return cfg, scene, methods

@@ -13,6 +13,7 @@ git commit, backend) and the caller's extras (the sweep's ``plots/``) are one ou
 sweep leaves the previous table, metadata and plots as they were. One command at a time may write to an output
 directory (a lock file; a second one stops with a clear message).
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -23,8 +24,8 @@ import platform
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from study import methods as registry
 from study import runtime
@@ -52,37 +53,49 @@ def _limit_threads(jobs: int) -> None:
     Never fewer than 2 threads: with a pool of 1 thread, Mitsuba's ``Bitmap.write`` of an EXR deadlocks
     (Mitsuba 3.9.1 / Dr.Jit 1.5.0, seen here)."""
     n = int(os.environ.get("STUDY_WORKER_THREADS") or 0) or max(2, (os.cpu_count() or 1) // max(jobs, 1))
-    os.environ["STUDY_THREADS"] = str(n)             # Embree's chunks (study.reference.embree.Tracer)
+    os.environ["STUDY_THREADS"] = str(n)  # Embree's chunks (study.reference.embree.Tracer)
     if jobs > 1:
         os.environ.setdefault("OMP_NUM_THREADS", str(n))
     try:
         import drjit as dr
+
         dr.set_thread_count(n)
     except Exception:  # pragma: no cover - Dr.Jit without a thread pool
         pass
 
 
-def _run_one(scene_json: dict, method_specs: list[tuple[str, dict]], backend: str, cache: str | None,
-             case_id: str, jobs: int) -> list[dict]:
+def _run_one(
+    scene_json: dict,
+    method_specs: list[tuple[str, dict]],
+    backend: str,
+    cache: str | None,
+    case_id: str,
+    jobs: int,
+) -> list[dict]:
     """Worker: one case → rows (module-level so worker processes can import it)."""
-    registry.load_plugins()                          # methods registered outside study ($STUDY_PLUGINS)
+    registry.load_plugins()  # methods registered outside study ($STUDY_PLUGINS)
     _limit_threads(jobs)
     scene = scene_from_dict(scene_json)
     ms = [registry.make(n, **p) for n, p in method_specs]
-    prof_dir = os.environ.get("STUDY_PROFILE")      # a developer's switch: a cProfile of every case, <dir>/<case>.prof
+    prof_dir = os.environ.get(
+        "STUDY_PROFILE"
+    )  # a developer's switch: a cProfile of every case, <dir>/<case>.prof
     prof = None
     if prof_dir:
         import cProfile
+
         prof = cProfile.Profile()
         prof.enable()
     t0 = time.perf_counter()
-    try:                                             # a remote worker: renders and exact hits on its GPU too
+    try:  # a remote worker: renders and exact hits on its GPU too
         with runtime.using_render_device("cuda" if backend == "cuda" else None):
-            rows = run_case(scene, ms, backend=backend, cache=Cache(cache), case_id=case_id, keep_images=False).rows
+            rows = run_case(
+                scene, ms, backend=backend, cache=Cache(cache), case_id=case_id, keep_images=False
+            ).rows
         for r in rows:
-            r["case_seconds"] = time.perf_counter() - t0   # the case's wall time in its worker
+            r["case_seconds"] = time.perf_counter() - t0  # the case's wall time in its worker
         return rows
-    except StudyError as err:          # which case refused, for the sweep's one line
+    except StudyError as err:  # which case refused, for the sweep's one line
         raise type(err)(f"{err.detail} (case {case_id})", file=err.file, key=err.key, code=err.code) from None
     finally:
         if prof is not None:
@@ -95,17 +108,24 @@ def warm_worker(backend: str) -> None:
     """Ready a worker before its first case: study's modules imported, the render device's Mitsuba variant and,
     on CUDA, the GPU context made (a few seconds each worker would otherwise spend in its first case)."""
     from study.measure import case  # noqa: F401 - the imports a case needs
+
     with runtime.using_render_device("cuda" if backend == "cuda" else None):
         runtime.mitsuba()
         if backend == "cuda":
             from study import backend as backends
+
             backends.get("cuda")
 
 
 def _git_commit() -> str:
     try:
-        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True,
-                              cwd=Path(__file__).parent).stdout.strip()
+        return subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=Path(__file__).parent,
+        ).stdout.strip()
     except Exception:
         return "unknown"
 
@@ -113,6 +133,7 @@ def _git_commit() -> str:
 def metadata(config: str | Path, *, backend: str, seed: int, methods: list[str], cases: int, **extra) -> dict:
     """What a results table was made with: versions, config hash, seed, git commit, backend, command."""
     from importlib.metadata import PackageNotFoundError, version
+
     vers = {}
     for p in ("study", "mitsuba", "drjit", "embreex", "numpy", "scikit-image", "flip-evaluator"):
         try:
@@ -120,11 +141,23 @@ def metadata(config: str | Path, *, backend: str, seed: int, methods: list[str],
         except PackageNotFoundError:
             vers[p] = None
     config = Path(config)
-    return {"config": str(config), "config_sha256": hashlib.sha256(config.read_bytes()).hexdigest()[:16],
-            "seed": seed, "git_commit": _git_commit(), "backend": backend, "versions": vers,
-            "python": platform.python_version(), "machine": platform.machine(), "cpus": os.cpu_count(),
-            "command": "study " + " ".join(sys.argv[1:]) if Path(sys.argv[0]).name in ("study", "cli.py") else None,
-            "cases": cases, "methods": methods, **extra}
+    return {
+        "config": str(config),
+        "config_sha256": hashlib.sha256(config.read_bytes()).hexdigest()[:16],
+        "seed": seed,
+        "git_commit": _git_commit(),
+        "backend": backend,
+        "versions": vers,
+        "python": platform.python_version(),
+        "machine": platform.machine(),
+        "cpus": os.cpu_count(),
+        "command": "study " + " ".join(sys.argv[1:])
+        if Path(sys.argv[0]).name in ("study", "cli.py")
+        else None,
+        "cases": cases,
+        "methods": methods,
+        **extra,
+    }
 
 
 def _case_file(out: Path, case: Case) -> Path:
@@ -146,8 +179,14 @@ def sweep_check(methods: list) -> Check:
     def check(case: Case, rows: list[dict]) -> bool:
         n = len(rows) - len(labels)
         refs, own = rows[:n], rows[n:]
-        return (n >= 1 and [r.get("label") for r in own] == labels and all(r.get("method") in names for r in own)
-                and all(r.get("method") not in names for r in refs) and len({r.get("label") for r in refs}) == n)
+        return (
+            n >= 1
+            and [r.get("label") for r in own] == labels
+            and all(r.get("method") in names for r in own)
+            and all(r.get("method") not in names for r in refs)
+            and len({r.get("label") for r in refs}) == n
+        )
+
     return check
 
 
@@ -161,7 +200,7 @@ def _identify(case: Case, rows: list[dict]) -> list[dict]:
     return rows
 
 
-_NONFINITE = ("NaN", "Infinity", "-Infinity")      # how a case file holds NaN and ±inf (strict JSON)
+_NONFINITE = ("NaN", "Infinity", "-Infinity")  # how a case file holds NaN and ±inf (strict JSON)
 
 
 def _load_case(out: Path, case: Case, check: Check | None = None) -> list[dict] | None:
@@ -176,7 +215,9 @@ def _load_case(out: Path, case: Case, check: Check | None = None) -> list[dict] 
     rows = data.get("rows")
     if not isinstance(rows, list) or not rows or not all(isinstance(r, dict) for r in rows):
         return None
-    rows = [{k: float(v) if v in _NONFINITE else v for k, v in r.items()} for r in rows]   # strict JSON: as text
+    rows = [
+        {k: float(v) if v in _NONFINITE else v for k, v in r.items()} for r in rows
+    ]  # strict JSON: as text
     if check is not None and not check(case, rows):
         return None
     return _identify(case, rows)
@@ -190,9 +231,17 @@ def prepare_sweep(path: str | Path, *, backend: str = "numpy", jobs: int = 1):
     return sweep
 
 
-def run_sweep(path: str | Path, out: str | Path, *, backend: str = "numpy", cache: str | Path | None = ".cache",
-              jobs: int = 1, dask: str | None = None, progress: Callable[[int, int, str], None] | None = None,
-              extra: Callable[[list[dict], Path], None] | None = None) -> tuple[list[dict], dict]:
+def run_sweep(
+    path: str | Path,
+    out: str | Path,
+    *,
+    backend: str = "numpy",
+    cache: str | Path | None = ".cache",
+    jobs: int = 1,
+    dask: str | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+    extra: Callable[[list[dict], Path], None] | None = None,
+) -> tuple[list[dict], dict]:
     """Run (or resume) a sweep; returns (rows, stats) with stats = {cases, cached, computed, seconds}.
     ``extra(rows, dir)`` writes more outputs (the curves, under ``dir/plots``) into the sweep's output set.
 
@@ -203,17 +252,34 @@ def run_sweep(path: str | Path, out: str | Path, *, backend: str = "numpy", cach
     specs = [(m.name, m.params.model_dump(exclude_unset=True)) for m in sweep.methods]
     cache_s = str(cache) if cache else None
     labels = [m.label for m in sweep.methods]
-    meta = metadata(sweep.path, backend=backend, seed=sweep.cases[0].scene.render.seed, jobs=jobs,
-                    methods=labels, cases=len(sweep.cases),
-                    code_hash=code_hash(run_case, *[type(m) for m in sweep.methods]))
+    meta = metadata(
+        sweep.path,
+        backend=backend,
+        seed=sweep.cases[0].scene.render.seed,
+        jobs=jobs,
+        methods=labels,
+        cases=len(sweep.cases),
+        code_hash=code_hash(run_case, *[type(m) for m in sweep.methods]),
+    )
 
     def task(c: Case) -> Task:
         return _run_one, (c.scene.model_dump(mode="json"), specs, backend, cache_s, c.id, jobs)
+
     try:
-        return run_cases(sweep.cases, out, meta, task, jobs=jobs, dask=dask, progress=progress,
-                         batches=_first_of_each_impostor, check=sweep_check(sweep.methods), extra=extra,
-                         warm=(warm_worker, backend))
-    except StudyError as err:                        # a case's refusal names the sweep file
+        return run_cases(
+            sweep.cases,
+            out,
+            meta,
+            task,
+            jobs=jobs,
+            dask=dask,
+            progress=progress,
+            batches=_first_of_each_impostor,
+            check=sweep_check(sweep.methods),
+            extra=extra,
+            warm=(warm_worker, backend),
+        )
+    except StudyError as err:  # a case's refusal names the sweep file
         if err.file:
             raise
         raise type(err)(err.detail, file=str(sweep.path), key=err.key, code=err.code) from None
@@ -223,11 +289,21 @@ def run_sweep(path: str | Path, out: str | Path, *, backend: str = "numpy", cach
 OWNS = ("results.csv", "results.parquet", "metadata.json", "plots")
 
 
-def run_cases(cases: list[Case], out: str | Path, meta: dict, task: Callable[[Case], Task], *, jobs: int = 1,
-              dask: str | None = None, progress: Callable[[int, int, str], None] | None = None,
-              batches: Callable[[list[Case]], tuple[list[Case], ...]] = lambda todo: (todo,),
-              check: Check | None = None, extra: Callable[[list[dict], Path], None] | None = None,
-              into: Path | None = None, warm: tuple | None = None) -> tuple[list[dict], dict]:
+def run_cases(
+    cases: list[Case],
+    out: str | Path,
+    meta: dict,
+    task: Callable[[Case], Task],
+    *,
+    jobs: int = 1,
+    dask: str | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+    batches: Callable[[list[Case]], tuple[list[Case], ...]] = lambda todo: (todo,),
+    check: Check | None = None,
+    extra: Callable[[list[dict], Path], None] | None = None,
+    into: Path | None = None,
+    warm: tuple | None = None,
+) -> tuple[list[dict], dict]:
     """Run the cases not yet finished under ``out`` and write ``<out>/results.csv`` (+ ``metadata.json``, and
     what ``extra(rows, dir)`` writes) as one output set, swapped in at the end (:func:`study.io.output_set`); with
     ``into`` they go to that directory instead, part of the caller's output set (the case files stay in ``out``).
@@ -251,11 +327,15 @@ def run_cases(cases: list[Case], out: str | Path, meta: dict, task: Callable[[Ca
 
         def finish(c: Case, rows: list[dict]):
             if not rows or (check and not check(c, rows)):
-                raise RuntimeError(f"case {c.id}: its computed rows ({[r.get('label') for r in rows]}) are not "
-                                   "what the runner's check expects")
+                raise RuntimeError(
+                    f"case {c.id}: its computed rows ({[r.get('label') for r in rows]}) are not "
+                    "what the runner's check expects"
+                )
             _identify(c, rows)
-            atomic_write(_case_file(out, c), json_text({"key": c.key, "rows": rows}, nonfinite="text",
-                                                       default=float).encode())
+            atomic_write(
+                _case_file(out, c),
+                json_text({"key": c.key, "rows": rows}, nonfinite="text", default=float).encode(),
+            )
             done[c.index] = rows
             if progress:
                 progress(len(done), len(cases), c.id)
@@ -271,15 +351,23 @@ def run_cases(cases: list[Case], out: str | Path, meta: dict, task: Callable[[Ca
         else:
             _run_parallel(batches(todo), task, jobs, finish)
         rows = [r for i in sorted(done) for r in done[i]]
-        outputs = (output_set(out, OWNS, keeps=("cases",), lock=False) if into is None     # when every case is done
-                   else contextlib.nullcontext(into))
+        outputs = (
+            output_set(out, OWNS, keeps=("cases",), lock=False)
+            if into is None  # when every case is done
+            else contextlib.nullcontext(into)
+        )
         with outputs as dest:
-            if rows:                                   # metadata only with the table it describes
-                write_table(rows, dest / "results.csv")              # and results.parquet beside it
+            if rows:  # metadata only with the table it describes
+                write_table(rows, dest / "results.csv")  # and results.parquet beside it
                 atomic_write(dest / "metadata.json", json_text(meta, indent=2).encode())
             if extra:
                 extra(rows, dest)
-    return rows, {"cases": len(cases), "cached": cached, "computed": len(todo), "seconds": time.perf_counter() - t0}
+    return rows, {
+        "cases": len(cases),
+        "cached": cached,
+        "computed": len(todo),
+        "seconds": time.perf_counter() - t0,
+    }
 
 
 @contextlib.contextmanager
@@ -299,8 +387,12 @@ def _run_parallel(batches, task, jobs, finish) -> None:
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"), initializer=_die_with_parent,
-                             initargs=(os.getpid(),)) as pool:
+    with ProcessPoolExecutor(
+        max_workers=jobs,
+        mp_context=mp.get_context("spawn"),
+        initializer=_die_with_parent,
+        initargs=(os.getpid(),),
+    ) as pool:
         for batch in batches:
             futs = {pool.submit(*_flat(task(c))): c for c in batch}
             while futs:
@@ -314,11 +406,15 @@ def _die_with_parent(parent: int, poll: float = 0.5) -> None:
     a queue nobody writes to. Linux: the kernel kills the worker (PR_SET_PDEATHSIG); everywhere: a daemon thread
     sees the worker re-parented (``os.getppid()`` no longer ``parent``) and exits."""
     import threading
+
     if sys.platform.startswith("linux"):
         try:
             import ctypes
             import signal
-            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)   # PR_SET_PDEATHSIG
+
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(
+                1, int(signal.SIGKILL), 0, 0, 0
+            )  # PR_SET_PDEATHSIG
         except (OSError, AttributeError):  # pragma: no cover - no libc.so.6: the watchdog alone
             pass
 
@@ -326,7 +422,8 @@ def _die_with_parent(parent: int, poll: float = 0.5) -> None:
         while os.getppid() == parent:
             time.sleep(poll)
         os._exit(3)
-    if os.getppid() != parent:                      # the parent died while this worker was starting
+
+    if os.getppid() != parent:  # the parent died while this worker was starting
         os._exit(3)
     threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
 

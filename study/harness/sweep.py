@@ -29,6 +29,7 @@ expansion of the config as it is now. When every case is done, the table ``<out>
 a failed or killed sweep leaves the previous ones as they were. One command at a time may write to an output
 directory (a lock file; a second one stops with a clear message).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -78,10 +79,10 @@ class SweepConfig(BaseModel):
 @dataclass
 class Case:
     index: int
-    id: str                  # c0000, c0001, … in sweep order
+    id: str  # c0000, c0001, … in sweep order
     scene: Scene
-    labels: dict[str, str]   # axis key → value label
-    key: str = ""            # content key (scene, methods, backend, code hash)
+    labels: dict[str, str]  # axis key → value label
+    key: str = ""  # content key (scene, methods, backend, code hash)
 
 
 @dataclass
@@ -115,7 +116,9 @@ def _axis_values(key: str, spec, source: str) -> list[tuple[str, Any]]:
     elif spec.values is not None:
         vals = [(_label(v), v) for v in spec.values]
     else:
-        raise StudyError("an axis needs a list, or one of values, named, line", file=source, key=f"axes.{key}")
+        raise StudyError(
+            "an axis needs a list, or one of values, named, line", file=source, key=f"axes.{key}"
+        )
     if not vals:
         raise StudyError("an axis needs at least one value", file=source, key=f"axes.{key}")
     return vals
@@ -137,12 +140,18 @@ def load_sweep(path: str | Path, *, backend: str = "numpy") -> Sweep:
     for i, z in enumerate(cfg.zip):
         for k in z:
             if k not in axes:
-                raise StudyError(f"{k!r} is not an axis; axes: {', '.join(axes)}", file=str(path), key=f"zip[{i}]")
+                raise StudyError(
+                    f"{k!r} is not an axis; axes: {', '.join(axes)}", file=str(path), key=f"zip[{i}]"
+                )
             if k in zipped:
                 raise StudyError(f"{k!r} is in two zip groups", file=str(path), key=f"zip[{i}]")
         if len({len(axes[k]) for k in z}) > 1:
-            raise StudyError("zipped axes need the same number of values: "
-                             + ", ".join(f"{k} has {len(axes[k])}" for k in z), file=str(path), key=f"zip[{i}]")
+            raise StudyError(
+                "zipped axes need the same number of values: "
+                + ", ".join(f"{k} has {len(axes[k])}" for k in z),
+                file=str(path),
+                key=f"zip[{i}]",
+            )
         zipped |= set(z)
         groups.append(list(z))
     groups += [[k] for k in axes if k not in zipped]
@@ -166,7 +175,13 @@ def load_sweep(path: str | Path, *, backend: str = "numpy") -> Sweep:
 def case_key(scene: Scene, methods: list[Method], backend: str) -> str:
     """The content key of a case: its scene, the methods' labels, the backend, and the hash of the code that
     computes its rows (run_case and everything it imports, and each method's class and module)."""
-    blob = json.dumps({"scene": key_fields(scene), "methods": [m.label for m in methods],
-                       "backend": backend, "code": code_hash(run_case, *[type(m) for m in methods])},
-                      sort_keys=True)
+    blob = json.dumps(
+        {
+            "scene": key_fields(scene),
+            "methods": [m.label for m in methods],
+            "backend": backend,
+            "code": code_hash(run_case, *[type(m) for m in methods]),
+        },
+        sort_keys=True,
+    )
     return hashlib.sha256(blob.encode()).hexdigest()[:20]

@@ -4,9 +4,10 @@ Used by the tests (and by anyone who wants to check a method without rendering):
 distance impostor whose distances are exact along texel-centre directions and whose "radiance" is any function of
 the hit point.
 """
+
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -76,7 +77,9 @@ class BoxEnv:
         t = None
         for c, lo, hi in zip((v.x, v.y, v.z), self.lo, self.hi):
             dc = c / n
-            tc = B.select(dc > 0, hi / B.maximum(dc, 1e-30), B.select(dc < 0, lo / B.minimum(dc, -1e-30), 1e30))
+            tc = B.select(
+                dc > 0, hi / B.maximum(dc, 1e-30), B.select(dc < 0, lo / B.minimum(dc, -1e-30), 1e30)
+            )
             t = tc if t is None else B.minimum(t, tc)
         return t
 

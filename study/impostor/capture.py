@@ -5,6 +5,7 @@ radiance (RGB, linear) of the environment point visible from the reference point
 Radiance is path traced by Mitsuba (box-filtered texel averages); distance is exact, by ray casting (Embree) through
 the texel centres. The reflective object is not in its own map.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -26,9 +27,9 @@ from study.scene.environment import env_key
 
 @dataclass
 class Impostor:
-    reference: np.ndarray     # (3,) reference point o, world space
-    radiance: np.ndarray      # (6, R, R, 3) float32, linear RGB
-    distance: np.ndarray      # (6, R, R) float32, |visible point − o|
+    reference: np.ndarray  # (3,) reference point o, world space
+    radiance: np.ndarray  # (6, R, R, 3) float32, linear RGB
+    distance: np.ndarray  # (6, R, R) float32, |visible point − o|
 
     @property
     def res(self) -> int:
@@ -44,20 +45,26 @@ class Impostor:
         Written to a temporary file and renamed, so a reader never sees half a file."""
         path = Path(path)
         write_exr(path, self.texels().reshape(6 * self.res, self.res, 4))
-        atomic_write(path.with_suffix(".json"), json.dumps({"reference": self.reference.tolist(),
-                                                              "res": self.res}).encode())
+        atomic_write(
+            path.with_suffix(".json"),
+            json.dumps({"reference": self.reference.tolist(), "res": self.res}).encode(),
+        )
 
     @classmethod
-    def load(cls, path: str | Path) -> "Impostor":
+    def load(cls, path: str | Path) -> Impostor:
         path = Path(path)
         try:
             meta = json.loads(path.with_suffix(".json").read_text())
             res, ref = int(meta["res"]), np.asarray(meta["reference"], float)
         except (OSError, ValueError, KeyError, TypeError) as err:
-            raise StudyError(f"impostor metadata unreadable ({err})", file=str(path.with_suffix('.json')))
+            raise StudyError(
+                f"impostor metadata unreadable ({err})", file=str(path.with_suffix(".json"))
+            ) from None
         a = read_exr(path)
         if a.shape != (6 * res, res, 4):
-            raise StudyError(f"impostor EXR has shape {a.shape}, expected {(6 * res, res, 4)}", file=str(path))
+            raise StudyError(
+                f"impostor EXR has shape {a.shape}, expected {(6 * res, res, 4)}", file=str(path)
+            )
         a = a.reshape(6, res, res, 4)
         if not np.all(np.isfinite(a)) or np.any(a[..., 3] <= 0):
             raise StudyError("impostor holds non-finite values or non-positive distances", file=str(path))
@@ -76,8 +83,11 @@ def distances_from(tracer: Tracer, o, res: int, *, key: str = "reference.point")
     t = tracer.distance(np.broadcast_to(np.asarray(o, float), dirs.shape), dirs)
     open_ = ~np.isfinite(t)
     if open_.mean() > MAX_OPEN:
-        raise StudyError(f"no closed region around it: {100 * open_.mean():.0f} % of the texel rays leave the scene "
-                         f"(at most {100 * MAX_OPEN:.0f} % may)", key=key)
+        raise StudyError(
+            f"no closed region around it: {100 * open_.mean():.0f} % of the texel rays leave the scene "
+            f"(at most {100 * MAX_OPEN:.0f} % may)",
+            key=key,
+        )
     return np.where(open_, cubemap.FAR, t).reshape(6, res, res).astype(np.float32)
 
 
@@ -86,7 +96,9 @@ def capture_distance(scene: Scene, res: int, tracer: Tracer | None = None) -> np
     return distances_from(tracer or make_tracer(scene.mesh()), scene.reference.point, res)
 
 
-def capture(scene: Scene, *, res: int | None = None, spp: int | None = None, tracer: Tracer | None = None) -> Impostor:
+def capture(
+    scene: Scene, *, res: int | None = None, spp: int | None = None, tracer: Tracer | None = None
+) -> Impostor:
     """Capture the distance impostor of ``scene`` from its reference point (object excluded)."""
     res = res or scene.render.cube_res
     radiance = render_cube(scene, res, spp or scene.render.cube_spp)
@@ -113,7 +125,14 @@ def render_cube(scene: Scene, res: int, spp: int) -> np.ndarray:
 
 def impostor_key(scene: Scene, res: int | None = None, spp: int | None = None) -> str:
     """Content key of an impostor: everything that affects it, and nothing that does not (the object)."""
-    fields = {"environment": env_key(scene), "light": scene.light.model_dump(), "reference": scene.reference.model_dump(),
-              "res": res or scene.render.cube_res, "spp": spp or scene.render.cube_spp,
-              "max_depth": scene.render.max_depth, "seed": scene.render.seed, "v": 2}
+    fields = {
+        "environment": env_key(scene),
+        "light": scene.light.model_dump(),
+        "reference": scene.reference.model_dump(),
+        "res": res or scene.render.cube_res,
+        "spp": spp or scene.render.cube_spp,
+        "max_depth": scene.render.max_depth,
+        "seed": scene.render.seed,
+        "v": 2,
+    }
     return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:16]

@@ -31,6 +31,7 @@ a point x + R·FAR looked up from the reference point lies, to float32 precision
 
 These functions are backend-generic: ``xp`` is a :class:`study.backend.Backend`, vectors are 1-D arrays.
 """
+
 from __future__ import annotations
 
 import functools
@@ -43,14 +44,17 @@ FAR = 1.0e6
 FAR_MIN = 0.5 * FAR
 
 #: (forward, right, up) per face, in face order.
-FACES = np.array([
-    [[1, 0, 0], [0, 0, 1], [0, 1, 0]],
-    [[-1, 0, 0], [0, 0, -1], [0, 1, 0]],
-    [[0, 1, 0], [1, 0, 0], [0, 0, 1]],
-    [[0, -1, 0], [1, 0, 0], [0, 0, -1]],
-    [[0, 0, 1], [-1, 0, 0], [0, 1, 0]],
-    [[0, 0, -1], [1, 0, 0], [0, 1, 0]],
-], dtype=np.float64)
+FACES = np.array(
+    [
+        [[1, 0, 0], [0, 0, 1], [0, 1, 0]],
+        [[-1, 0, 0], [0, 0, -1], [0, 1, 0]],
+        [[0, 1, 0], [1, 0, 0], [0, 0, 1]],
+        [[0, -1, 0], [1, 0, 0], [0, 0, -1]],
+        [[0, 0, 1], [-1, 0, 0], [0, 1, 0]],
+        [[0, 0, -1], [1, 0, 0], [0, 1, 0]],
+    ],
+    dtype=np.float64,
+)
 
 
 @functools.lru_cache(maxsize=8)
@@ -58,11 +62,14 @@ def texel_directions(res: int) -> np.ndarray:
     """Unit directions through every texel centre: (6, R, R, 3) float64, read-only (one array per resolution,
     shared by every caller)."""
     c = (np.arange(res) + 0.5) / res * 2 - 1
-    s = c[None, :]             # along columns
-    t = -c[:, None]            # along rows, downwards
+    s = c[None, :]  # along columns
+    t = -c[:, None]  # along rows, downwards
     fwd, right, up = FACES[:, 0], FACES[:, 1], FACES[:, 2]
-    d = (fwd[:, None, None, :] + s[None, ..., None] * right[:, None, None, :]
-         + t[None, ..., None] * up[:, None, None, :])
+    d = (
+        fwd[:, None, None, :]
+        + s[None, ..., None] * right[:, None, None, :]
+        + t[None, ..., None] * up[:, None, None, :]
+    )
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
     d.flags.writeable = False
     return d
@@ -74,8 +81,11 @@ def face_uv(xp, dx, dy, dz):
     is_x = (ax >= ay) & (ax >= az)
     is_y = ~is_x & (ay >= az)
     # per face: major coordinate ma, s = dot(d, right)/ma, t = dot(d, up)/ma (table FACES above)
-    face = xp.select(is_x, xp.select(dx >= 0, 0.0, 1.0),
-                     xp.select(is_y, xp.select(dy >= 0, 2.0, 3.0), xp.select(dz >= 0, 4.0, 5.0)))
+    face = xp.select(
+        is_x,
+        xp.select(dx >= 0, 0.0, 1.0),
+        xp.select(is_y, xp.select(dy >= 0, 2.0, 3.0), xp.select(dz >= 0, 4.0, 5.0)),
+    )
     ma = xp.select(is_x, ax, xp.select(is_y, ay, az))
     sc = xp.select(is_x, xp.select(dx >= 0, dz, -dz), xp.select(is_y, dx, xp.select(dz >= 0, -dx, dx)))
     tc = xp.select(is_x, dy, xp.select(is_y, xp.select(dy >= 0, dz, -dz), dy))
@@ -88,7 +98,11 @@ def face_uv(xp, dx, dy, dz):
 def face_uv_to_direction(face: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Inverse of :func:`face_uv` (numpy only): unit directions (..., 3)."""
     f = FACES[np.asarray(face, int)]
-    d = f[..., 0, :] + (2 * np.asarray(u) - 1)[..., None] * f[..., 1, :] + (1 - 2 * np.asarray(v))[..., None] * f[..., 2, :]
+    d = (
+        f[..., 0, :]
+        + (2 * np.asarray(u) - 1)[..., None] * f[..., 1, :]
+        + (1 - 2 * np.asarray(v))[..., None] * f[..., 2, :]
+    )
     return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
@@ -97,9 +111,11 @@ def lookup_ref(texels: np.ndarray, d: np.ndarray) -> np.ndarray:
 
     texels: (6, R, R, C); d: (N, 3). Returns (N, C) float64.
     """
+
     class _np:
         abs, maximum = staticmethod(np.abs), staticmethod(np.maximum)
         select = staticmethod(np.where)
+
     R = texels.shape[1]
     out = np.empty((len(d), texels.shape[-1]))
     for n, (x, y, z) in enumerate(np.asarray(d, float)):
@@ -110,6 +126,7 @@ def lookup_ref(texels: np.ndarray, d: np.ndarray) -> np.ndarray:
         fj, fi = cj - j0, ci - i0
         t = texels[int(f)].astype(np.float64)
         j1, i1 = min(j0 + 1, R - 1), min(i0 + 1, R - 1)
-        out[n] = ((1 - fi) * ((1 - fj) * t[i0, j0] + fj * t[i0, j1])
-                  + fi * ((1 - fj) * t[i1, j0] + fj * t[i1, j1]))
+        out[n] = (1 - fi) * ((1 - fj) * t[i0, j0] + fj * t[i0, j1]) + fi * (
+            (1 - fj) * t[i1, j0] + fj * t[i1, j1]
+        )
     return out

@@ -1,4 +1,5 @@
 """A cube map bound to an array backend: what methods search (:class:`EnvMap`)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -20,8 +21,8 @@ class EnvMap:
     def __init__(self, texels: np.ndarray, B: Backend, info: dict | None = None):
         self.B, self.res, self.channels = B, texels.shape[1], texels.shape[-1]
         self.info = dict(info or {})
-        self.tex = B.texture(texels[..., :-1]) if self.channels > 1 else None   # colour channels
-        self.dist = B.texture(texels[..., -1:])                                  # distance |v'|
+        self.tex = B.texture(texels[..., :-1]) if self.channels > 1 else None  # colour channels
+        self.dist = B.texture(texels[..., -1:])  # distance |v'|
 
     def lookup(self, v: V3) -> list:
         face, u, w = cubemap.face_uv(self.B, v.x, v.y, v.z)

@@ -8,6 +8,7 @@ have), distances |p − c_k| by Embree through its texel centres (:func:`~study.
 The N maps share one resolution and are stacked into one (6N, R, R, C) texture, so a lookup into the probe k of
 each ray (k an (N,) array) costs one fetch whatever N is: face index 6k + face.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -47,7 +48,7 @@ def probe_texels(tracer: Tracer, point, res: int, radiance, dist: np.ndarray | N
     """One probe's texels (6, R, R, 4): RGB = ``radiance`` (a (6, R, R, 3) array, or a function of the (6·R·R, 3)
     texel-centre surface points), distance from ``point`` (``dist`` when given, else traced by ``tracer``)."""
     if dist is None:
-        dist = distances_from(tracer, point, res, key="method.points")      # FAR where a texel ray escapes
+        dist = distances_from(tracer, point, res, key="method.points")  # FAR where a texel ray escapes
     dist = np.asarray(dist, np.float32).reshape(6, res, res)
     if callable(radiance):
         pts = np.asarray(point, float) + cubemap.texel_directions(res).reshape(-1, 3) * dist.reshape(-1, 1)
@@ -56,8 +57,9 @@ def probe_texels(tracer: Tracer, point, res: int, radiance, dist: np.ndarray | N
     return np.concatenate([rgb, dist[..., None]], -1).astype(np.float32)
 
 
-def capture_probes(scene: Scene, spec: ProbeSpec, cache: Cache, texels0: np.ndarray,
-                   tracer: Tracer, bounds=None) -> tuple[np.ndarray, np.ndarray]:
+def capture_probes(
+    scene: Scene, spec: ProbeSpec, cache: Cache, texels0: np.ndarray, tracer: Tracer, bounds=None
+) -> tuple[np.ndarray, np.ndarray]:
     """Texels (N, 6, R, R, 4) and world centres (N, 3) of the probe set ``spec`` of ``scene``: probe 0 the
     reference impostor (``texels0``), then one probe per :func:`probe_points` (``bounds``: the environment's),
     its radiance rendered by Mitsuba from there and its distances traced, both cached like an impostor taken there."""
@@ -66,10 +68,18 @@ def capture_probes(scene: Scene, spec: ProbeSpec, cache: Cache, texels0: np.ndar
     maps, centres = [np.asarray(texels0, np.float32)], [np.asarray(scene.reference.point, float)]
     for p in pts:
         at = scene.with_updates({"reference.point": [float(c) for c in p]})
-        rad = cache.get("radiance", impostor_key(at), lambda at=at: render_cube(at, r.cube_res, r.cube_spp),
-                        code=render_cube)
-        dist = cache.get("distance", impostor_key(at),
-                         lambda p=p: distances_from(tracer, p, r.cube_res, key="method.points"), code=distances_from)
+        rad = cache.get(
+            "radiance",
+            impostor_key(at),
+            lambda at=at: render_cube(at, r.cube_res, r.cube_spp),
+            code=render_cube,
+        )
+        dist = cache.get(
+            "distance",
+            impostor_key(at),
+            lambda p=p: distances_from(tracer, p, r.cube_res, key="method.points"),
+            code=distances_from,
+        )
         maps.append(probe_texels(tracer, p, r.cube_res, rad, dist))
         centres.append(p)
     return np.stack(maps), np.stack(centres)
@@ -110,7 +120,7 @@ class ProbeSet:
     def nearest(self, k, v: V3):
         B, R = self.B, float(self.res)
         face, u, w = self._face(k, v)
-        uc = (B.minimum(B.floor(u * R), R - 1.0) + 0.5) / R        # the texel centre nearest to (u, w)
+        uc = (B.minimum(B.floor(u * R), R - 1.0) + 0.5) / R  # the texel centre nearest to (u, w)
         wc = (B.minimum(B.floor(w * R), R - 1.0) + 0.5) / R
         return B.sample(self.dist, face, uc, wc)[0]
 

@@ -12,6 +12,7 @@ T = tan(fov/2) horizontally, T·H/W vertically): z = (p − e)·f, X = (p − e)
 pixel coordinates px = (X/(z T) + 1) W/2 (columns), py = (1 − Y/(z T H/W)) H/2 (rows); pixel (row i, column j)
 covers [j, j+1) × [i, i+1), its centre is the camera ray of :func:`study.scene.camera.camera_rays`.
 """
+
 from __future__ import annotations
 
 import math
@@ -50,8 +51,8 @@ class ScreenView:
         self.tan_y = self.tan_x * self.height / self.width
         self.side = max(self.width, self.height)
         buf = np.zeros((1, self.side, self.side, 4), np.float32)
-        buf[0, :self.height, :self.width, :3] = colour
-        buf[0, :self.height, :self.width, 3] = np.where(np.isfinite(depth), depth, 3e38)
+        buf[0, : self.height, : self.width, :3] = colour
+        buf[0, : self.height, : self.width, 3] = np.where(np.isfinite(depth), depth, 3e38)
         self.tex = B.texture(buf)
 
     @classmethod
@@ -63,13 +64,18 @@ class ScreenView:
         """(X, Y, z) of points p relative to o."""
         e = self.eye
         c = V3(p.x - float(e[0]), p.y - float(e[1]), p.z - float(e[2]))
-        return tuple(c.x * float(a[0]) + c.y * float(a[1]) + c.z * float(a[2])
-                     for a in (self.right, self.up, self.forward))
+        return tuple(
+            c.x * float(a[0]) + c.y * float(a[1]) + c.z * float(a[2])
+            for a in (self.right, self.up, self.forward)
+        )
 
     def project(self, p: V3):
         X, Y, z = self.camera_space(p)
-        return ((X / (z * self.tan_x) + 1.0) * (0.5 * self.width),
-                (1.0 - Y / (z * self.tan_y)) * (0.5 * self.height), z)
+        return (
+            (X / (z * self.tan_x) + 1.0) * (0.5 * self.width),
+            (1.0 - Y / (z * self.tan_y)) * (0.5 * self.height),
+            z,
+        )
 
     def fetch(self, j, i) -> list:
         s = float(self.side)

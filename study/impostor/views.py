@@ -20,6 +20,7 @@ request; the caller (:func:`study.measure.case.run_case`) merges the requests of
 (:meth:`Views.merge`), captures what was asked, and puts it into ``env.info`` (keys in :mod:`study.methods.base`):
 ``"layers"`` (list of EnvMap), ``"probes"`` ({:class:`ProbeSpec`: ProbeSet}) and ``"screen"`` (ScreenView).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -34,6 +35,7 @@ class ProbeSpec:
     ``points`` (world coordinates, metres) when given; otherwise the centres of a ``grid`` = (nx, ny, nz) of equal
     cells filling the environment's bounds (``env.info["room"]``), less those inside geometry or closer than
     ``clearance`` metres to a surface (:func:`study.impostor.probes.probe_points`)."""
+
     grid: tuple[int, int, int] = (2, 2, 2)
     points: tuple[Vec3, ...] | None = None
     clearance: float = 0.1
@@ -43,6 +45,7 @@ class ProbeSpec:
 class Views:
     """A request for views: ``layers`` depth layers from o (1: the plain impostor), the probe sets ``probes`` and,
     with ``screen``, the camera's depth and colour buffer."""
+
     layers: int = 1
     probes: tuple[ProbeSpec, ...] = field(default_factory=tuple)
     screen: bool = False
@@ -51,5 +54,8 @@ class Views:
     def merge(*requests: Views) -> Views:
         """One request covering all of ``requests``: the most layers, every probe set once, a screen if any."""
         probes = tuple(dict.fromkeys(p for r in requests for p in r.probes))
-        return Views(layers=max((r.layers for r in requests), default=1), probes=probes,
-                     screen=any(r.screen for r in requests))
+        return Views(
+            layers=max((r.layers for r in requests), default=1),
+            probes=probes,
+            screen=any(r.screen for r in requests),
+        )

@@ -5,6 +5,7 @@ A reader can follow one ray here: camera ray → object (``shading.object_rays``
 Embree exact hit → outcome class and angular error; the images → image error against the oracle_map, the
 truth_at_hit and Mitsuba, and the error decomposition (:mod:`study.measure.truth`).
 """
+
 from __future__ import annotations
 
 import time
@@ -34,18 +35,20 @@ from study.scene.sources import key_fields
 @dataclass
 class CaseOutput:
     scene: Scene
-    rows: list[dict]                                       # one per method (and one for the oracle)
-    images: dict[str, np.ndarray] = field(default_factory=dict)      # label → (H, W, 3) linear RGB
+    rows: list[dict]  # one per method (and one for the oracle)
+    images: dict[str, np.ndarray] = field(default_factory=dict)  # label → (H, W, 3) linear RGB
     angle_maps: dict[str, np.ndarray] = field(default_factory=dict)  # label → (H, W) mean angular error, deg
     outcome_maps: dict[str, np.ndarray] = field(default_factory=dict)  # label → (H, W) majority outcome class
     #   (codes of study.measure.outcomes: 0 correct … 3 no hit; ties to the worse; NaN off the object)
-    flip_maps: dict[str, np.ndarray] = field(default_factory=dict)   # label → (H, W) LDR-FLIP against truth_at_hit
+    flip_maps: dict[str, np.ndarray] = field(
+        default_factory=dict
+    )  # label → (H, W) LDR-FLIP against truth_at_hit
     #   (metrics.flip_map over the whole frame; the flip_truth column is its mean over ``mask``)
-    oracle: np.ndarray | None = None                       # (H, W, 3) what a perfect localization shows
-    mitsuba: np.ndarray | None = None                      # (H, W, 3) Mitsuba's render with the object (2 seeds)
-    truth: np.ndarray | None = None                        # (H, W, 3) truth_at_hit composited (study.measure.truth)
-    occluded: np.ndarray | None = None                     # (H, W) fraction of sub-pixel rays occluded from o
-    mask: np.ndarray | None = None                         # (H, W) pixels fully on the object
+    oracle: np.ndarray | None = None  # (H, W, 3) what a perfect localization shows
+    mitsuba: np.ndarray | None = None  # (H, W, 3) Mitsuba's render with the object (2 seeds)
+    truth: np.ndarray | None = None  # (H, W, 3) truth_at_hit composited (study.measure.truth)
+    occluded: np.ndarray | None = None  # (H, W) fraction of sub-pixel rays occluded from o
+    mask: np.ndarray | None = None  # (H, W) pixels fully on the object
 
 
 # ---------------------------------------------------------------------------------------------- cached inputs
@@ -53,22 +56,38 @@ def impostor(scene: Scene, cache: Cache, tracer: Tracer | None = None) -> Impost
     r = scene.render
     key = impostor_key(scene)
     rad = cache.get("radiance", key, lambda: render_cube(scene, r.cube_res, r.cube_spp), code=render_cube)
-    dist = cache.get("distance", key, lambda: capture_distance(scene, r.cube_res, tracer), code=capture_distance)
-    return Impostor(np.asarray(scene.reference.point, float), rad.reshape(6, r.cube_res, r.cube_res, 3),
-                    dist.reshape(6, r.cube_res, r.cube_res))
+    dist = cache.get(
+        "distance", key, lambda: capture_distance(scene, r.cube_res, tracer), code=capture_distance
+    )
+    return Impostor(
+        np.asarray(scene.reference.point, float),
+        rad.reshape(6, r.cube_res, r.cube_res, 3),
+        dist.reshape(6, r.cube_res, r.cube_res),
+    )
 
 
 def camera_render(scene: Scene, cache: Cache, *, with_object: bool) -> np.ndarray:
     s = scene
-    parts = [env_key(s), s.light.model_dump(),
-             s.camera.model_dump(), s.render.spp, s.render.max_depth, s.render.seed, "v2"]
+    parts = [
+        env_key(s),
+        s.light.model_dump(),
+        s.camera.model_dump(),
+        s.render.spp,
+        s.render.max_depth,
+        s.render.seed,
+        "v2",
+    ]
     if with_object:
-        parts.append(key_fields(s.object))              # a mesh file by its bytes
+        parts.append(key_fields(s.object))  # a mesh file by its bytes
         if s.object.material.type == "dielectric":
-            parts.append("dielectric depth +2")           # see mitsuba.scene_dict
+            parts.append("dielectric depth +2")  # see mitsuba.scene_dict
     key = content_key(*parts)
-    img = cache.get("mitsuba" if with_object else "background", key,
-                    lambda: render_camera(scene, with_object=with_object), code=render_camera)
+    img = cache.get(
+        "mitsuba" if with_object else "background",
+        key,
+        lambda: render_camera(scene, with_object=with_object),
+        code=render_camera,
+    )
     return img.reshape(s.camera.height, s.camera.width, 3)
 
 
@@ -87,105 +106,174 @@ def open_environment(imp: Impostor) -> bool:
 def knob_columns(m: Method) -> dict:
     """The columns that place a method on its cost/accuracy curve: family (label without the knob), knob (the
     parameter's name, '' without one) and knob_value (NaN without one)."""
-    return {"family": m.family(), "knob": m.knob.param if m.knob else "",
-            "knob_value": float(m.knob_value) if m.knob else np.nan}
+    return {
+        "family": m.family(),
+        "knob": m.knob.param if m.knob else "",
+        "knob_value": float(m.knob_value) if m.knob else np.nan,
+    }
 
 
 # ---------------------------------------------------------------------------------------------- the case
-def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cache: Cache | None = None,
-             case_id: str = "", keep_images: bool = True) -> CaseOutput:
+def run_case(
+    scene: Scene,
+    methods: list[Method],
+    *,
+    backend: str = "numpy",
+    cache: Cache | None = None,
+    case_id: str = "",
+    keep_images: bool = True,
+) -> CaseOutput:
     from study.errors import StudyError
+
     cache = cache or Cache(None)
     B = backends.get(backend)
     tracer = make_tracer(scene.mesh())
-    rays = shading.object_rays(scene, occluder=tracer.distance)                  # a case that would be empty is refused before rendering
-    if int(rays.full.sum()) < 4:                       # too few object pixels: every image metric would be NaN
-        raise StudyError(f"the camera sees {int(rays.full.sum())} pixel(s) fully on the object, at least 4 are "
-                         "needed; move object.center into view, closer, or turn camera.target towards it (or raise "
-                         "camera.width/height)", key="object.center")
+    rays = shading.object_rays(
+        scene, occluder=tracer.distance
+    )  # a case that would be empty is refused before rendering
+    if int(rays.full.sum()) < 4:  # too few object pixels: every image metric would be NaN
+        raise StudyError(
+            f"the camera sees {int(rays.full.sum())} pixel(s) fully on the object, at least 4 are "
+            "needed; move object.center into view, closer, or turn camera.target towards it (or raise "
+            "camera.width/height)",
+            key="object.center",
+        )
     o = np.asarray(scene.reference.point, float)
 
     # ------------------------------------------------------------------ inputs: impostor, renders, rays
     imp = impostor(scene, cache, tracer)
     background = camera_render(scene, cache, with_object=False)
-    seeds = [camera_render(sc, cache, with_object=True)                 # Mitsuba with the object, two seeds
-             for sc in (scene, scene.with_updates({"render.seed": scene.render.seed + truth.SEED_OFFSET}))]
-    for what, img in (("impostor radiance", imp.radiance), ("camera render", background), ("render", seeds[0]),
-                      ("render", seeds[1])):                # float32 overflow would still give plausible metrics
+    seeds = [
+        camera_render(sc, cache, with_object=True)  # Mitsuba with the object, two seeds
+        for sc in (scene, scene.with_updates({"render.seed": scene.render.seed + truth.SEED_OFFSET}))
+    ]
+    for what, img in (
+        ("impostor radiance", imp.radiance),
+        ("camera render", background),
+        ("render", seeds[0]),
+        ("render", seeds[1]),
+    ):  # float32 overflow would still give plausible metrics
         if not np.isfinite(img).all():
-            raise StudyError(f"the {what} is not finite (Mitsuba's float32 radiance overflows); lower "
-                             f"light.intensity (now {max(scene.light.intensity):g})", key="light.intensity")
+            raise StudyError(
+                f"the {what} is not finite (Mitsuba's float32 radiance overflows); lower "
+                f"light.intensity (now {max(scene.light.intensity):g})",
+                key="light.intensity",
+            )
     mitsuba = (seeds[0] + seeds[1]) / 2
     F = shading.fresnel(scene, rays)
     mask = rays.full
 
     # ------------------------------------------------------------------ exact references: Embree and oracle
-    ex_o, ex_d = rays.exact_rays()                                    # dielectrics: the exactly traced rays
+    ex_o, ex_d = rays.exact_rays()  # dielectrics: the exactly traced rays
     exact = tracer.intersect(ex_o, ex_d)["point"]
-    escapes = ~np.all(np.isfinite(exact), axis=-1)                    # open environments: the ray leaves the scene
-    exact[escapes] = ex_o[escapes] + ex_d[escapes] * FAR              # "no surface": at infinity (cubemap.FAR)
+    escapes = ~np.all(np.isfinite(exact), axis=-1)  # open environments: the ray leaves the scene
+    exact[escapes] = ex_o[escapes] + ex_d[escapes] * FAR  # "no surface": at infinity (cubemap.FAR)
     to_hit = exact - o
     hit_dist = np.linalg.norm(to_hit, axis=-1)
     seen = tracer.distance(np.broadcast_to(o, to_hit.shape), to_hit / hit_dist[:, None])
-    occluded = seen < hit_dist * (1 - 1e-4) - 1e-5                   # the exact hit is hidden from o
+    occluded = seen < hit_dist * (1 - 1e-4) - 1e-5  # the exact hit is hidden from o
     nb = backends.get("numpy")
     env_np = EnvMap(imp.texels(), nb)
     oracle_rad = np.stack([np.asarray(c) for c in env_np.lookup(nb.vec(to_hit))[:3]], -1)
-    oracle_img = shading.composite(rays, oracle_rad * F, background)   # oracle_map: what the map holds
-    ref = truth.build(scene, cache, rays, F, background, seeds)         # truth_at_hit and the noise images
+    oracle_img = shading.composite(rays, oracle_rad * F, background)  # oracle_map: what the map holds
+    ref = truth.build(scene, cache, rays, F, background, seeds)  # truth_at_hit and the noise images
     visible = mask & (rays.per_pixel(occluded.astype(float), fill=1.0) == 0)  # pixels whose hits o sees
 
-    def image_columns(img, reference=False, fmap=None):               # one image against every reference
-        cols = {**metrics.image_errors(img, oracle_img, mask=mask, suffix="oracle"),               # fmap: its
-                **metrics.image_errors(img, ref.image, mask=mask, suffix="truth", flip_emap=fmap),  # FLIP map
-                **metrics.image_errors(img, mitsuba, mask=mask, suffix="mitsuba"),
-                **truth.columns(img, oracle_img, ref, mitsuba, mask=mask, visible=visible)}
-        if reference:                                                 # the truth is not split against itself
+    def image_columns(img, reference=False, fmap=None):  # one image against every reference
+        cols = {
+            **metrics.image_errors(img, oracle_img, mask=mask, suffix="oracle"),  # fmap: its
+            **metrics.image_errors(img, ref.image, mask=mask, suffix="truth", flip_emap=fmap),  # FLIP map
+            **metrics.image_errors(img, mitsuba, mask=mask, suffix="mitsuba"),
+            **truth.columns(img, oracle_img, ref, mitsuba, mask=mask, visible=visible),
+        }
+        if reference:  # the truth is not split against itself
             cols.update({k: np.nan for k in cols if k.startswith("dec_")})
         return cols
 
-    base = {"case": case_id, "cube_res": scene.render.cube_res, "object_x": scene.object.center[0],
-            "object_y": scene.object.center[1], "object_z": scene.object.center[2], "backend": backend,
-            "displacement": float(np.linalg.norm(np.subtract(scene.object.center, o))
-                                  / np.linalg.norm(np.subtract(*scene.bounds()))),
-            "rays": len(rays.x), "occluded_fraction": float(occluded.mean()) if len(occluded) else np.nan,
-            **rays.stats}
-    out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=mitsuba, truth=ref.image, mask=mask,
-                     occluded=rays.per_pixel(occluded.astype(float), fill=0.0))
-    eps = outcomes.tolerance(o, exact, scene.render.cube_res)        # per ray: max(1 cm, one texel at the hit)
+    base = {
+        "case": case_id,
+        "cube_res": scene.render.cube_res,
+        "object_x": scene.object.center[0],
+        "object_y": scene.object.center[1],
+        "object_z": scene.object.center[2],
+        "backend": backend,
+        "displacement": float(
+            np.linalg.norm(np.subtract(scene.object.center, o)) / np.linalg.norm(np.subtract(*scene.bounds()))
+        ),
+        "rays": len(rays.x),
+        "occluded_fraction": float(occluded.mean()) if len(occluded) else np.nan,
+        **rays.stats,
+    }
+    out = CaseOutput(
+        scene,
+        [],
+        oracle=oracle_img,
+        mitsuba=mitsuba,
+        truth=ref.image,
+        mask=mask,
+        occluded=rays.per_pixel(occluded.astype(float), fill=0.0),
+    )
+    eps = outcomes.tolerance(o, exact, scene.render.cube_res)  # per ray: max(1 cm, one texel at the hit)
 
-    def classify(shown):                                              # outcome classes against the exact hits
+    def classify(shown):  # outcome classes against the exact hits
         return outcomes.classify(rays.x, rays.R, shown, exact, eps=eps, exact_origin=rays.exact_x)
 
-    for name, img in (("oracle_map", oracle_img), ("truth_at_hit", ref.image)):   # the exact hit, two radiances
-        out.rows.append({**base, "method": name, "label": name, "family": name, "knob": "", "knob_value": np.nan,
-                         **metrics.summary(np.zeros(len(rays.x)), "angle", "_deg"), "dist_median": 0.0,
-                         **outcomes.outcome_columns(classify(exact), occluded, np.zeros(len(rays.x))),  # correct
-                         **outcomes.offscreen_columns(classify(exact), outcomes.off_screen(scene.camera, exact)),
-                         **image_columns(img, reference=name == "truth_at_hit"),
-                         "valid_fraction": 1.0, "ratio_residual_median": 0.0,
-                         "lookups_per_ray": 1 if name == "oracle_map" else 0, "seconds": 0.0})
+    for name, img in (
+        ("oracle_map", oracle_img),
+        ("truth_at_hit", ref.image),
+    ):  # the exact hit, two radiances
+        out.rows.append(
+            {
+                **base,
+                "method": name,
+                "label": name,
+                "family": name,
+                "knob": "",
+                "knob_value": np.nan,
+                **metrics.summary(np.zeros(len(rays.x)), "angle", "_deg"),
+                "dist_median": 0.0,
+                **outcomes.outcome_columns(classify(exact), occluded, np.zeros(len(rays.x))),  # correct
+                **outcomes.offscreen_columns(classify(exact), outcomes.off_screen(scene.camera, exact)),
+                **image_columns(img, reference=name == "truth_at_hit"),
+                "valid_fraction": 1.0,
+                "ratio_residual_median": 0.0,
+                "lookups_per_ray": 1 if name == "oracle_map" else 0,
+                "seconds": 0.0,
+            }
+        )
 
     # ------------------------------------------------------------------ every method on the same rays
     env = EnvMap(imp.texels(), B, info={**env_info(scene), "open": open_environment(imp)})
-    views = Views.merge(*(m.views_needed() for m in methods))         # what the methods search besides env
-    if views.layers > 1:                                              # depth layers for the methods that search them
-        env.info["layers"] = [EnvMap(t, B) for t in
-                              layered_impostor(scene, cache, views.layers, imp.radiance, tracer)]
-    if views.probes:                                                  # cube maps at several points (probe 0: env)
-        env.info["probes"] = {spec: probes.ProbeSet.around(*probes.capture_probes(scene, spec, cache, imp.texels(),
-                                                                                  tracer), o, B)
-                              for spec in views.probes}
-    if views.screen:                                                  # the camera's depth + colour (no object)
+    views = Views.merge(*(m.views_needed() for m in methods))  # what the methods search besides env
+    if views.layers > 1:  # depth layers for the methods that search them
+        env.info["layers"] = [
+            EnvMap(t, B) for t in layered_impostor(scene, cache, views.layers, imp.radiance, tracer)
+        ]
+    if views.probes:  # cube maps at several points (probe 0: env)
+        env.info["probes"] = {
+            spec: probes.ProbeSet.around(
+                *probes.capture_probes(scene, spec, cache, imp.texels(), tracer), o, B
+            )
+            for spec in views.probes
+        }
+    if views.screen:  # the camera's depth + colour (no object)
         env.info["screen"] = screen.ScreenView.of_scene(scene, background, tracer, B)
-    offscreen = outcomes.off_screen(scene.camera, exact)              # exact hits the camera's frame does not show
+    offscreen = outcomes.off_screen(scene.camera, exact)  # exact hits the camera's frame does not show
     x, R = B.vec(rays.x - o), B.vec(rays.R)
     for m in methods:
         t0 = time.perf_counter()
-        with np.errstate(divide="ignore", invalid="ignore"):   # numpy evaluates both sides of every select
+        with np.errstate(divide="ignore", invalid="ignore"):  # numpy evaluates both sides of every select
             tr = m.trace(B, env, x, R)
-        B.eval(tr.shown.x, tr.shown.y, tr.shown.z, tr.radiance.x, tr.radiance.y, tr.radiance.z, tr.ratio,
-               tr.valid)                            # one kernel for all outputs, not one per numpy copy
+        B.eval(
+            tr.shown.x,
+            tr.shown.y,
+            tr.shown.z,
+            tr.radiance.x,
+            tr.radiance.y,
+            tr.radiance.z,
+            tr.ratio,
+            tr.valid,
+        )  # one kernel for all outputs, not one per numpy copy
         shown = B.to_numpy(tr.shown).astype(np.float64) + o
         rad = B.to_numpy(tr.radiance).astype(np.float64)
         ratio, valid = B.numpy(tr.ratio), B.numpy(tr.valid).astype(bool)
@@ -194,18 +282,27 @@ def run_case(scene: Scene, methods: list[Method], *, backend: str = "numpy", cac
         ang = metrics.angular_error(rays.x, shown, exact)
         oc = classify(shown)
         fmap = metrics.flip_map(img, ref.image) if keep_images else None
-        row = {**base, "method": m.name, "label": m.label, **knob_columns(m),
-               **metrics.summary(ang, "angle", "_deg"),
-               "dist_median": float(np.nanmedian(np.linalg.norm(shown - exact, axis=-1))),
-               **outcomes.outcome_columns(oc, occluded, ang), **outcomes.offscreen_columns(oc, offscreen),
-               **image_columns(img, fmap=fmap),
-               "valid_fraction": float(valid.mean()),
-               "ratio_residual_median": float(np.nanmedian(np.abs(ratio - 1))),
-               "lookups_per_ray": m.lookups_per_ray(), "seconds": seconds}
+        row = {
+            **base,
+            "method": m.name,
+            "label": m.label,
+            **knob_columns(m),
+            **metrics.summary(ang, "angle", "_deg"),
+            "dist_median": float(np.nanmedian(np.linalg.norm(shown - exact, axis=-1))),
+            **outcomes.outcome_columns(oc, occluded, ang),
+            **outcomes.offscreen_columns(oc, offscreen),
+            **image_columns(img, fmap=fmap),
+            "valid_fraction": float(valid.mean()),
+            "ratio_residual_median": float(np.nanmedian(np.abs(ratio - 1))),
+            "lookups_per_ray": m.lookups_per_ray(),
+            "seconds": seconds,
+        }
         out.rows.append(row)
         if keep_images:
             out.images[m.label] = img
             out.angle_maps[m.label] = rays.per_pixel(ang, fill=np.nan)
             out.flip_maps[m.label] = fmap
-            out.outcome_maps[m.label] = outcomes.majority(rays.per_pixel(outcomes.class_fractions(oc), fill=np.nan))
+            out.outcome_maps[m.label] = outcomes.majority(
+                rays.per_pixel(outcomes.class_fractions(oc), fill=np.nan)
+            )
     return out

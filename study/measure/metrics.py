@@ -8,6 +8,7 @@ on the mask's bounding box + 8 px (its 7×7 window reaches 3 px), FLIP on the bo
 reach < 12 px at 67 ppd). The values are those of the whole frame (FLIP bit for bit, SSIM to float64 rounding,
 tests/test_bench.py), at a fraction of the cost of a sweep's case.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -55,6 +56,7 @@ def _crop(mask: np.ndarray, margin: int, *images):
 def psnr(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
     """PSNR (dB) of the LDR images over the masked pixels (scikit-image, data_range 1)."""
     from skimage.metrics import peak_signal_noise_ratio
+
     a, b = to_ldr(np.asarray(ref)[mask]), to_ldr(np.asarray(test)[mask])
     if a.size == 0:
         return np.nan
@@ -66,6 +68,7 @@ def psnr(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
 def ssim(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
     """Mean SSIM of the LDR images over the masked pixels (scikit-image's SSIM map, 7×7 window)."""
     from skimage.metrics import structural_similarity
+
     if not mask.any():
         return np.nan
     mask, test, ref = _crop(mask, 8, test, ref)
@@ -87,9 +90,13 @@ def flip_map(test: np.ndarray, ref: np.ndarray) -> np.ndarray:
         FLIP error per pixel, in [0, 1] (0: indistinguishable).
     """
     import flip_evaluator
-    emap, _, _ = flip_evaluator.evaluate(np.ascontiguousarray(to_ldr(ref), np.float32),
-                                         np.ascontiguousarray(to_ldr(test), np.float32), "LDR",
-                                         applyMagma=False)
+
+    emap, _, _ = flip_evaluator.evaluate(
+        np.ascontiguousarray(to_ldr(ref), np.float32),
+        np.ascontiguousarray(to_ldr(test), np.float32),
+        "LDR",
+        applyMagma=False,
+    )
     return np.asarray(emap, np.float32)[..., 0]
 
 
@@ -100,15 +107,20 @@ def flip(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray, emap: np.ndarra
     not computed again)."""
     if not mask.any():
         return np.nan
-    if emap is None:        # only the mask's bounding box + 24 px: FLIP's filters reach < 12 px (67 ppd), so the
-        mask, test, ref = _crop(mask, 24, test, ref)   # masked pixels' errors are bit-identical
+    if emap is None:  # only the mask's bounding box + 24 px: FLIP's filters reach < 12 px (67 ppd), so the
+        mask, test, ref = _crop(mask, 24, test, ref)  # masked pixels' errors are bit-identical
         emap = flip_map(test, ref)
     return float(np.asarray(emap)[mask].mean())
 
 
-def image_errors(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray, suffix: str,
-                 flip_emap: np.ndarray | None = None) -> dict[str, float]:
+def image_errors(
+    test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray, suffix: str, flip_emap: np.ndarray | None = None
+) -> dict[str, float]:
     """``rmse_<suffix>``, ``psnr_<suffix>``, ``ssim_<suffix>`` and ``flip_<suffix>`` of ``test`` against ``ref``
     over ``mask`` (``flip_emap``: the FLIP map of the two images, if already computed)."""
-    return {f"rmse_{suffix}": rmse(test, ref, mask=mask), f"psnr_{suffix}": psnr(test, ref, mask=mask),
-            f"ssim_{suffix}": ssim(test, ref, mask=mask), f"flip_{suffix}": flip(test, ref, mask=mask, emap=flip_emap)}
+    return {
+        f"rmse_{suffix}": rmse(test, ref, mask=mask),
+        f"psnr_{suffix}": psnr(test, ref, mask=mask),
+        f"ssim_{suffix}": ssim(test, ref, mask=mask),
+        f"flip_{suffix}": flip(test, ref, mask=mask, emap=flip_emap),
+    }

@@ -1,4 +1,5 @@
-"""Per-ray outcome classes: did a method show the exact hit, the right ray at the wrong depth, another surface, or nothing.
+"""Per-ray outcome classes: did a method show the exact hit, the right ray at the wrong depth, another
+surface, or nothing.
 
 The angular error (:func:`study.measure.metrics.angular_error`) is blind to a wrong depth on the same ray: a
 shown point anywhere on the ray x + t R, t > 0, has angle 0 at x. The classes here are not:
@@ -34,6 +35,7 @@ the method's own, slightly wrong ray then count as WRONG_SURFACE unless they are
 :func:`classify` is vectorised; :func:`classify_ref` is its slow, obvious twin (one ray at a time) for tests.
 :func:`outcome_columns` turns the classes into the columns of a results table.
 """
+
 from __future__ import annotations
 
 import math
@@ -55,13 +57,14 @@ EPS_FIXED = 0.01
 @dataclass(frozen=True)
 class Outcomes:
     """Per-ray results of :func:`classify` (N rays)."""
-    cls: np.ndarray          # (N,) int8: CORRECT, WRONG_DEPTH, WRONG_SURFACE or NO_HIT
-    dist: np.ndarray         # (N,) |shown − exact|, m (NaN for NO_HIT)
+
+    cls: np.ndarray  # (N,) int8: CORRECT, WRONG_DEPTH, WRONG_SURFACE or NO_HIT
+    dist: np.ndarray  # (N,) |shown − exact|, m (NaN for NO_HIT)
     depth_error: np.ndarray  # (N,) signed depth error along the exact ray, m: > 0 behind the exact hit
-    eps: np.ndarray          # (N,) the tolerance used, m
+    eps: np.ndarray  # (N,) the tolerance used, m
 
 
-class _np:                      # the numpy "backend" that cubemap.face_uv needs
+class _np:  # the numpy "backend" that cubemap.face_uv needs
     abs, maximum = staticmethod(np.abs), staticmethod(np.maximum)
     select = staticmethod(np.where)
 
@@ -146,13 +149,14 @@ def classify(x, R, shown, exact, *, eps, exact_origin=None) -> Outcomes:
     dist = np.linalg.norm(shown - exact, axis=-1)
     missing = ~np.all(np.isfinite(shown), axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        cls = np.where(dist <= eps, CORRECT,
-                       np.where((off_line <= eps) & (t_shown > 0), WRONG_DEPTH, WRONG_SURFACE))
+        cls = np.where(
+            dist <= eps, CORRECT, np.where((off_line <= eps) & (t_shown > 0), WRONG_DEPTH, WRONG_SURFACE)
+        )
         # ------------------------------------------------------- at infinity (open environments): by direction
         r_shown, r_exact = np.linalg.norm(rel, axis=-1), np.linalg.norm(exact - x0, axis=-1)
         far_e, far_s = r_exact >= FAR_MIN, ~missing & (r_shown >= FAR_MIN)
-        tol = eps / r_exact                                         # the tolerance as an angle, radians
-        along = np.arccos(np.clip(t_shown / r_shown, -1, 1)) <= tol   # shown direction within it of the ray's
+        tol = eps / r_exact  # the tolerance as an angle, radians
+        along = np.arccos(np.clip(t_shown / r_shown, -1, 1)) <= tol  # shown direction within it of the ray's
         near_line = (off_line <= np.fmax(EPS_FIXED, tol * r_shown)) & (t_shown > 0)
         cls = np.where(far_e & far_s, np.where(along, CORRECT, WRONG_SURFACE), cls)
         cls = np.where(far_e & ~far_s, np.where(near_line, WRONG_DEPTH, WRONG_SURFACE), cls)
@@ -181,7 +185,7 @@ def classify_ref(x, R, shown, exact, *, eps, exact_origin=None) -> Outcomes:
             continue
         rs = sum((s[k] - o[k]) ** 2 for k in range(3)) ** 0.5
         re = sum((e[k] - o[k]) ** 2 for k in range(3)) ** 0.5
-        if rs >= FAR_MIN or re >= FAR_MIN:                          # at infinity: compared by direction
+        if rs >= FAR_MIN or re >= FAR_MIN:  # at infinity: compared by direction
             tol = eps[i] / re
             cos = sum((s[k] - o[k]) * d[k] for k in range(3)) / rs
             along = math.acos(max(-1.0, min(1.0, cos))) <= tol
@@ -199,7 +203,7 @@ def classify_ref(x, R, shown, exact, *, eps, exact_origin=None) -> Outcomes:
         ts = sum((s[k] - o[k]) * d[k] for k in range(3))
         te = sum((e[k] - o[k]) * d[k] for k in range(3))
         depth[i] = ts - te
-        foot = [o[k] + ts * d[k] for k in range(3)]                 # the nearest point of the ray's line
+        foot = [o[k] + ts * d[k] for k in range(3)]  # the nearest point of the ray's line
         off = sum((s[k] - foot[k]) ** 2 for k in range(3)) ** 0.5
         if dist[i] <= eps[i]:
             cls[i] = CORRECT
@@ -249,12 +253,16 @@ def outcome_columns(outcomes: Outcomes, hidden, angle) -> dict[str, float]:
     wrong = c != CORRECT
     on_ray = (c == CORRECT) | (c == WRONG_DEPTH)
     return {
-        "correct_fraction": _frac(c == CORRECT), "wrong_fraction": _frac(wrong),
-        "wrong_depth_fraction": _frac(c == WRONG_DEPTH), "wrong_surface_fraction": _frac(c == WRONG_SURFACE),
+        "correct_fraction": _frac(c == CORRECT),
+        "wrong_fraction": _frac(wrong),
+        "wrong_depth_fraction": _frac(c == WRONG_DEPTH),
+        "wrong_surface_fraction": _frac(c == WRONG_SURFACE),
         "no_hit_fraction": _frac(c == NO_HIT),
-        "wrong_fraction_visible": _frac(wrong, ~hidden), "wrong_fraction_hidden": _frac(wrong, hidden),
+        "wrong_fraction_visible": _frac(wrong, ~hidden),
+        "wrong_fraction_hidden": _frac(wrong, hidden),
         "hidden_fraction": _frac(hidden),
-        "dist_p50": _pct(outcomes.dist, 50), "dist_p95": _pct(outcomes.dist, 95),
+        "dist_p50": _pct(outcomes.dist, 50),
+        "dist_p95": _pct(outcomes.dist, 95),
         "dist_p99": _pct(outcomes.dist, 99),
         "depth_error_p95": _pct(np.abs(outcomes.depth_error[on_ray]), 95),
         "angle_p95_visible_deg": _pct(np.asarray(angle)[~hidden], 95),
@@ -289,6 +297,7 @@ def off_screen(camera, points) -> np.ndarray:
         World points (the exact hits).
     """
     from study.scene.camera import look_at_basis
+
     f, r, u = look_at_basis(camera.eye, camera.target, camera.up)
     c = np.asarray(points, float) - np.asarray(camera.eye, float)
     z = c @ f
@@ -304,5 +313,7 @@ def offscreen_columns(outcomes: Outcomes, offscreen) -> dict[str, float]:
     camera's screen, :func:`off_screen`) and ``wrong_fraction_offscreen`` (the fraction of those rays the method
     got wrong, NaN where there are none), as ``wrong_fraction_hidden`` is for the rays hidden from o."""
     offscreen = np.asarray(offscreen, bool)
-    return {"offscreen_fraction": _frac(offscreen),
-            "wrong_fraction_offscreen": _frac(np.asarray(outcomes.cls) != CORRECT, offscreen)}
+    return {
+        "offscreen_fraction": _frac(offscreen),
+        "wrong_fraction_offscreen": _frac(np.asarray(outcomes.cls) != CORRECT, offscreen),
+    }

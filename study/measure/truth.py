@@ -24,6 +24,7 @@ filtering, capture noise); ``dec_noise`` = truth_at_hit's own noise. If the part
 dec_total² = localization² + representation² + noise²; ``dec_ratio`` = √(sum of the parts²) / dec_total says how
 well that holds.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -37,38 +38,52 @@ from study.reference.mitsuba import radiance_along
 from study.scene import Scene
 from study.scene.sources import key_fields
 
-REL_EPS = 1e-2          # ε of relMSE, (W/m²/sr)²
-SEED_OFFSET = 7919      # the second seed of every two-seed Mitsuba reference
+REL_EPS = 1e-2  # ε of relMSE, (W/m²/sr)²
+SEED_OFFSET = 7919  # the second seed of every two-seed Mitsuba reference
 
 
 @dataclass
 class Truth:
-    image: np.ndarray            # (H, W, 3) truth_at_hit composited: Fresnel-weighted, over the background
-    noise: np.ndarray            # (H, W, 3) its noise: half the two seeds' difference (Fresnel-weighted)
-    mitsuba_noise: np.ndarray    # (H, W, 3) the same for Mitsuba's camera render with the object
+    image: np.ndarray  # (H, W, 3) truth_at_hit composited: Fresnel-weighted, over the background
+    noise: np.ndarray  # (H, W, 3) its noise: half the two seeds' difference (Fresnel-weighted)
+    mitsuba_noise: np.ndarray  # (H, W, 3) the same for Mitsuba's camera render with the object
 
 
 def truth_at_hit(scene: Scene, cache: Cache, rays: shading.ObjectRays) -> tuple[np.ndarray, np.ndarray]:
     """Radiance along each exact secondary ray, (K, 3) twice: seeds ``render.seed`` and ``+ SEED_OFFSET``."""
     origins, dirs = rays.exact_rays()
-    s = key_fields(scene)                       # files by their bytes
+    s = key_fields(scene)  # files by their bytes
     s["render"] = {k: v for k, v in s["render"].items() if k not in ("cube_res", "cube_spp", "object_res")}
     out = []
     for seed in (scene.render.seed, scene.render.seed + SEED_OFFSET):
         key = content_key(s, seed, "truth-at-hit-v1")
-        out.append(cache.get("truth_at_hit", key, lambda: radiance_along(
-            scene, origins, dirs, spp=scene.render.spp, seed=seed), code=radiance_along).reshape(-1, 3))
+        out.append(
+            cache.get(
+                "truth_at_hit",
+                key,
+                lambda: radiance_along(scene, origins, dirs, spp=scene.render.spp, seed=seed),  # noqa: B023
+                code=radiance_along,
+            ).reshape(-1, 3)
+        )
     return out[0], out[1]
 
 
-def build(scene: Scene, cache: Cache, rays: shading.ObjectRays, F: np.ndarray, background: np.ndarray,
-          mitsuba: tuple[np.ndarray, np.ndarray]) -> Truth:
+def build(
+    scene: Scene,
+    cache: Cache,
+    rays: shading.ObjectRays,
+    F: np.ndarray,
+    background: np.ndarray,
+    mitsuba: tuple[np.ndarray, np.ndarray],
+) -> Truth:
     """The truth image and the noise images (module docstring); ``mitsuba`` = the camera render's two seeds."""
     t1, t2 = truth_at_hit(scene, cache, rays)
     zero = np.zeros_like(background)
-    return Truth(image=shading.composite(rays, (t1 + t2) / 2 * F, background),
-                 noise=shading.composite(rays, (t1 - t2) / 2 * F, zero),
-                 mitsuba_noise=(mitsuba[0] - mitsuba[1]) / 2)
+    return Truth(
+        image=shading.composite(rays, (t1 + t2) / 2 * F, background),
+        noise=shading.composite(rays, (t1 - t2) / 2 * F, zero),
+        mitsuba_noise=(mitsuba[0] - mitsuba[1]) / 2,
+    )
 
 
 def noise_rms(noise: np.ndarray, mask: np.ndarray) -> float:
@@ -88,8 +103,15 @@ def relmse(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
     return float(np.mean(d * d / (r * r + REL_EPS))) if d.size else np.nan
 
 
-def columns(img: np.ndarray, oracle: np.ndarray, truth: Truth, mitsuba: np.ndarray, *, mask: np.ndarray,
-            visible: np.ndarray) -> dict[str, float]:
+def columns(
+    img: np.ndarray,
+    oracle: np.ndarray,
+    truth: Truth,
+    mitsuba: np.ndarray,
+    *,
+    mask: np.ndarray,
+    visible: np.ndarray,
+) -> dict[str, float]:
     """The truth columns of one method's image (or the oracle's): errors against truth_at_hit (raw, debiased,
     relMSE), against Mitsuba debiased, and the decomposition on ``visible`` pixels (module docstring)."""
     sigma, sigma_v = noise_rms(truth.noise, mask), noise_rms(truth.noise, visible)
@@ -97,9 +119,18 @@ def columns(img: np.ndarray, oracle: np.ndarray, truth: Truth, mitsuba: np.ndarr
     rep = debiased(rmse(oracle, truth.image, mask=visible), sigma_v)
     parts = np.sqrt(loc * loc + rep * rep + sigma_v * sigma_v)
     rmse_truth = rmse(img, truth.image, mask=mask)
-    return {"rmse_truth": rmse_truth, "rmse_truth_debiased": debiased(rmse_truth, sigma),
-            "relmse_truth": relmse(img, truth.image, mask), "truth_noise_rmse": sigma,
-            "rmse_mitsuba_debiased": debiased(rmse(img, mitsuba, mask=mask), noise_rms(truth.mitsuba_noise, mask)),
-            "mitsuba_noise_rmse": noise_rms(truth.mitsuba_noise, mask),
-            "dec_total": total, "dec_localization": loc, "dec_representation": rep, "dec_noise": sigma_v,
-            "dec_ratio": float(parts / total) if total > 0 else np.nan}
+    return {
+        "rmse_truth": rmse_truth,
+        "rmse_truth_debiased": debiased(rmse_truth, sigma),
+        "relmse_truth": relmse(img, truth.image, mask),
+        "truth_noise_rmse": sigma,
+        "rmse_mitsuba_debiased": debiased(
+            rmse(img, mitsuba, mask=mask), noise_rms(truth.mitsuba_noise, mask)
+        ),
+        "mitsuba_noise_rmse": noise_rms(truth.mitsuba_noise, mask),
+        "dec_total": total,
+        "dec_localization": loc,
+        "dec_representation": rep,
+        "dec_noise": sigma_v,
+        "dec_ratio": float(parts / total) if total > 0 else np.nan,
+    }

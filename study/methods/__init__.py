@@ -5,6 +5,7 @@ Methods from outside the package register the same way (``@register``) from a mo
 one named by ``--plugin MODULE`` on the command line or in the environment variable ``STUDY_PLUGINS``
 (comma-separated; worker processes inherit it), or one advertised under the entry-point group ``study.methods``.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -56,5 +57,16 @@ def all_methods() -> list[Method]:
     return [make(n) for n in names()]
 
 
-__all__ = ["Knob", "Localization", "Method", "Trace", "TracingMethod", "all_methods", "load_plugins", "make", "names",
-           "register", "REGISTRY"]
+__all__ = [
+    "Knob",
+    "Localization",
+    "Method",
+    "Trace",
+    "TracingMethod",
+    "all_methods",
+    "load_plugins",
+    "make",
+    "names",
+    "register",
+    "REGISTRY",
+]

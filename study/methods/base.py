@@ -35,9 +35,11 @@ back to. Keys, all in world coordinates (metres):
     "open"      : bool, some texels of the impostor see no surface (distance ``cubemap.FAR``: an open environment);
                   then :meth:`Method.trace` lets a ray that a method found no hit for, and whose direction R sees no
                   surface from o, escape: shown at infinity in direction R with the background's radiance
-    "layers"    : list[EnvMap] the layered impostor, nearest layer first (see :mod:`study.impostor.layers`); present when
+    "layers"    : list[EnvMap] the layered impostor, nearest layer first (see :mod:`study.impostor.layers`);
+    present when
                   some method's :meth:`Method.layers_needed` asked for more than one layer
-    "probes"    : {ProbeSpec: ProbeSet} cube maps at several points, probe 0 the impostor (:mod:`study.impostor.probes`);
+    "probes"    : {ProbeSpec: ProbeSet} cube maps at several points, probe 0 the impostor
+    (:mod:`study.impostor.probes`);
                   one set per :class:`~study.impostor.views.ProbeSpec` some method's views_needed() asked for
     "screen"    : ScreenView the camera's depth and colour buffer (:mod:`study.impostor.screen`), when asked for
 
@@ -45,6 +47,7 @@ A method that reads the shown point or its radiance from another view than ``env
 (as ``layered``, ``ssr`` and ``multi_probe`` do): the shown point is then the hit it found, its radiance read from
 the view that saw it.
 """
+
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
@@ -64,8 +67,9 @@ from study.validation import first_error
 @dataclass(frozen=True)
 class Knob:
     """The parameter of a method that trades cost for accuracy, and the values curves and the bench try."""
-    param: str                      # name of the parameter in the method's Params
-    ladder: tuple                   # values tried by error-vs-cost curves, ``study bench`` and claims
+
+    param: str  # name of the parameter in the method's Params
+    ladder: tuple  # values tried by error-vs-cost curves, ``study bench`` and claims
 
 
 class NoParams(BaseModel):
@@ -74,17 +78,17 @@ class NoParams(BaseModel):
 
 @dataclass
 class Localization:
-    l: V3            # lookup vector from the reference point
-    valid: Any       # hit found
+    l: V3  # lookup vector from the reference point
+    valid: Any  # hit found
 
 
 @dataclass
 class Trace:
-    l: V3            # lookup vector from the reference point
-    shown: V3        # shown point relative to the reference point: l̂ |l'|
-    radiance: V3     # RGB read from the impostor in direction l
-    ratio: Any       # final |l| / |l'|
-    valid: Any       # hit found
+    l: V3  # lookup vector from the reference point
+    shown: V3  # shown point relative to the reference point: l̂ |l'|
+    radiance: V3  # RGB read from the impostor in direction l
+    ratio: Any  # final |l| / |l'|
+    valid: Any  # hit found
 
 
 class Method(ABC):
@@ -99,8 +103,9 @@ class Method(ABC):
             key, msg = first_error(err, self.Params)
             msg = "unknown parameter" if msg.startswith("unknown key") else msg
             allowed = ", ".join(self.Params.model_fields) or "none"
-            raise StudyError(f"{msg} (parameters of {self.name!r}: {allowed})",
-                             key=f"method.{key}" if key else "method") from None
+            raise StudyError(
+                f"{msg} (parameters of {self.name!r}: {allowed})", key=f"method.{key}" if key else "method"
+            ) from None
 
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self.params.model_dump().items())
@@ -112,7 +117,10 @@ class Method(ABC):
         'localized(iterations=10)'; just the name for a method without a knob and with nothing set."""
         shown = self.params.model_dump(exclude_unset=True)
         if self.knob is not None:
-            shown = {self.knob.param: self.knob_value, **{k: v for k, v in shown.items() if k != self.knob.param}}
+            shown = {
+                self.knob.param: self.knob_value,
+                **{k: v for k, v in shown.items() if k != self.knob.param},
+            }
         args = ", ".join(f"{k}={v!r}" for k, v in shown.items())
         return f"{self.name}({args})" if args else self.name
 
@@ -123,17 +131,20 @@ class Method(ABC):
 
     def family(self) -> str:
         """The label without the knob: the curve this method belongs to in an error-vs-knob plot."""
-        shown = {k: v for k, v in self.params.model_dump(exclude_unset=True).items()
-                 if self.knob is None or k != self.knob.param}
+        shown = {
+            k: v
+            for k, v in self.params.model_dump(exclude_unset=True).items()
+            if self.knob is None or k != self.knob.param
+        }
         args = ", ".join(f"{k}={v!r}" for k, v in shown.items())
         return f"{self.name}({args})" if args else self.name
 
-    def with_knob(self, value) -> "Method":
+    def with_knob(self, value) -> Method:
         """The same method with the knob set to ``value``."""
         params = {**self.params.model_dump(exclude_unset=True), self.knob.param: value}
         return type(self)(**params)
 
-    def ladder(self) -> list["Method"]:
+    def ladder(self) -> list[Method]:
         """This method at every value of its knob's ladder (itself alone without a knob)."""
         return [self.with_knob(v) for v in self.knob.ladder] if self.knob is not None else [self]
 
@@ -161,14 +172,22 @@ class Method(ABC):
         the reference point (|x| > |x'|: outside the room, inside geometry, or hidden behind it) are flagged
         invalid rather than shaded: no method can localize them."""
         loc = self.localize(B, env, x, R)
-        if getattr(env, "info", {}).get("open"):        # open environment: a ray with no hit whose direction sees no surface escapes
-            escape = ~loc.valid & (env.distance(R) >= FAR_MIN)          # (one more lookup, only where it is open)
-            loc = Localization(V3(*(B.select(escape, c * FAR, a) for c, a in zip((R.x, R.y, R.z),
-                                                                                    (loc.l.x, loc.l.y, loc.l.z)))),
-                               loc.valid | escape)
+        if getattr(env, "info", {}).get(
+            "open"
+        ):  # open environment: a ray with no hit whose direction sees no surface escapes
+            escape = ~loc.valid & (env.distance(R) >= FAR_MIN)  # (one more lookup, only where it is open)
+            loc = Localization(
+                V3(
+                    *(
+                        B.select(escape, c * FAR, a)
+                        for c, a in zip((R.x, R.y, R.z), (loc.l.x, loc.l.y, loc.l.z))
+                    )
+                ),
+                loc.valid | escape,
+            )
         valid = loc.valid & B.isfinite(B.length(R))
         if check_origin:
-            valid = valid & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)   # x is an undershoot
+            valid = valid & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)  # x is an undershoot
         # ----------------------------------------------------------- shown point and its radiance
         r, g, b, dist = env.lookup(loc.l)
         lhat = B.normalize(loc.l)

@@ -5,6 +5,7 @@ Exact when the ray starts at the reference point (x = 0) or the environment is i
 Open environments: where direction R sees no surface, the lookup reads the background and the shown
 point lies at infinity along R (exact for the escaping rays, whatever x).
 """
+
 from __future__ import annotations
 
 from study.methods.base import Localization, Method, register

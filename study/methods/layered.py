@@ -40,6 +40,7 @@ ray; n depends on the cube resolution, so :meth:`Layered.lookups_per_ray` report
 Open environments: no-surface texels hold FAR in every layer, so such rays find no entry into a solid and
 escape through :meth:`Method.trace`, as for ``linear_secant``.
 """
+
 from __future__ import annotations
 
 import math
@@ -55,10 +56,10 @@ from study.methods.linear_secant import TexelMarchParams, march_steps
 from study.methods.search import arc_samples, first_entry, refine, secant_point
 
 
-class Params(TexelMarchParams):                                  # + steps_per_texel, max_steps
-    layers: Annotated[int, Field(ge=1, le=16)] = 3               # depth layers searched
-    iterations: Annotated[int, Field(ge=0, le=1000)] = 10        # secant steps on the kept entry
-    hold: Annotated[float, Field(ge=0, le=64)] = 4.0             # texels of arc that decide an entry (see above)
+class Params(TexelMarchParams):  # + steps_per_texel, max_steps
+    layers: Annotated[int, Field(ge=1, le=16)] = 3  # depth layers searched
+    iterations: Annotated[int, Field(ge=0, le=1000)] = 10  # secant steps on the kept entry
+    hold: Annotated[float, Field(ge=0, le=64)] = 4.0  # texels of arc that decide an entry (see above)
 
 
 def _pick(B, e, values):
@@ -73,7 +74,7 @@ def _pick(B, e, values):
 class Layered(Method):
     name = "layered"
     Params = Params
-    knob = Knob("steps_per_texel", (0.25, 0.5, 1.0, 2.0))   # below 1, thin crossings can fall between samples
+    knob = Knob("steps_per_texel", (0.25, 0.5, 1.0, 2.0))  # below 1, thin crossings can fall between samples
 
     def layers_needed(self) -> int:
         return self.params.layers
@@ -81,22 +82,22 @@ class Layered(Method):
     def _search(self, B, env, x, R):
         """Returns (l, valid, [r, g, b], distance) of the kept hit."""
         p = self.params
-        maps = list(env.info.get("layers") or [env])[:p.layers]
+        maps = list(env.info.get("layers") or [env])[: p.layers]
         # ------------------------------------------------------------- parameterization and samples
         xl = B.length(x)
-        a = B.maximum(xl, 1e-6)                        # a = |x|
-        cos = x.dot(R) / a                             # x̂·R
+        a = B.maximum(xl, 1e-6)  # a = |x|
+        cos = x.dot(R) / a  # x̂·R
         res = getattr(maps[0], "res", 0)
         n = march_steps(res, p)
-        per_texel = n / (math.pi * res) if res else p.steps_per_texel   # samples per texel after the cap
-        hold = round(p.hold * per_texel)               # in samples
+        per_texel = n / (math.pi * res) if res else p.steps_per_texel  # samples per texel after the cap
+        hold = round(p.hold * per_texel)  # in samples
         self._spent = len(maps) * (1 + n + p.iterations + 1)
         zero = xl * 0.0
 
-        def point(t):                                  # p(t) = (1 − t) x + t a R
+        def point(t):  # p(t) = (1 − t) x + t a R
             return x * (1.0 - t) + R * (a * t)
 
-        shared = all(isinstance(m, EnvMap) and m.res == res for m in maps)   # one face/uv for every layer
+        shared = all(isinstance(m, EnvMap) and m.res == res for m in maps)  # one face/uv for every layer
 
         def gs(t):
             pt = point(t)
@@ -107,13 +108,22 @@ class Layered(Method):
             return [lp - (1.0 - t) * m.distance(pt) for m in maps]
 
         # ------------------------------------------------------------- march: the first entry that is not skin
-        br, e = first_entry(B, gs, zero, gs(zero), arc_samples(B, cos, n), n, hold=hold, t_max=1.0,
-                            default=(zero, zero - 1.0, zero + 1.0, zero + 1.0))   # harmless dummy bracket
+        br, e = first_entry(
+            B,
+            gs,
+            zero,
+            gs(zero),
+            arc_samples(B, cos, n),
+            n,
+            hold=hold,
+            t_max=1.0,
+            default=(zero, zero - 1.0, zero + 1.0, zero + 1.0),
+        )  # harmless dummy bracket
 
         # ------------------------------------------------------------- secant steps on the entry's layer
         br = refine(B, lambda t: _pick(B, e, gs(t)), br, p.iterations)
         t = secant_point(br)
-        l = point(t) / B.maximum(1.0 - t, 1e-7)        # x + R d(t)
+        l = point(t) / B.maximum(1.0 - t, 1e-7)  # x + R d(t)
         chs = [m.lookup(l) for m in maps]
         ch = [_pick(B, e, [c[i] for c in chs]) for i in range(len(chs[0]))]
         return l, br.found & B.isfinite(t), ch[:3], ch[-1]
@@ -127,7 +137,7 @@ class Layered(Method):
         l, valid, rgb, dist = self._search(B, env, x, R)
         valid = valid & B.isfinite(B.length(R))
         if check_origin:
-            valid = valid & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)   # x is an undershoot
+            valid = valid & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)  # x is an undershoot
         lhat = B.normalize(l)
         nan = float("nan")
         shown = V3(*(B.select(valid, c * dist, nan) for c in (lhat.x, lhat.y, lhat.z)))

@@ -31,6 +31,7 @@ what the last search spent (before any search: the most it can spend, with n = `
 Open environments: samples whose texel holds FAR (no surface) are undershoots, so a ray that leaves the scene
 finds no crossing; :meth:`Method.trace` then lets it escape when its direction R sees no surface from o.
 """
+
 from __future__ import annotations
 
 import math
@@ -44,9 +45,12 @@ from study.methods.search import arc_samples, first_crossing, refine, secant_poi
 
 class TexelMarchParams(BaseModel):
     """The linear search's sampling (shared with ``layered``)."""
+
     model_config = ConfigDict(extra="forbid", frozen=True)
-    steps_per_texel: Annotated[float, Field(gt=0, le=16)] = 1.0   # samples per texel of arc (≥ 1: none stepped over)
-    max_steps: Annotated[int, Field(ge=1, le=65536)] = 4096      # cap on the steps for a half turn
+    steps_per_texel: Annotated[float, Field(gt=0, le=16)] = (
+        1.0  # samples per texel of arc (≥ 1: none stepped over)
+    )
+    max_steps: Annotated[int, Field(ge=1, le=65536)] = 4096  # cap on the steps for a half turn
 
 
 def march_steps(res: int, p: TexelMarchParams) -> int:
@@ -58,40 +62,41 @@ def march_steps(res: int, p: TexelMarchParams) -> int:
 
 
 class Params(TexelMarchParams):
-    secant_steps: Annotated[int, Field(ge=0, le=100)] = 4        # secant lookups after the linear search
-    illinois: bool = True                                        # Illinois rule against one-sided stagnation
+    secant_steps: Annotated[int, Field(ge=0, le=100)] = 4  # secant lookups after the linear search
+    illinois: bool = True  # Illinois rule against one-sided stagnation
 
 
 @register
 class LinearSecant(Method):
     name = "linear_secant"
     Params = Params
-    knob = Knob("steps_per_texel", (0.25, 0.5, 1.0, 2.0))   # below 1, thin crossings can fall between samples
+    knob = Knob("steps_per_texel", (0.25, 0.5, 1.0, 2.0))  # below 1, thin crossings can fall between samples
 
     def localize(self, B, env, x, R):
         p = self.params
         # ------------------------------------------------------------- parameterization and samples
-        xl = B.length(x)                               # |x|
-        a = B.maximum(xl, 1e-6)                        # a = |x| (kept > 0: rays from o walk along R itself)
-        cos = x.dot(R) / a                             # x̂·R
+        xl = B.length(x)  # |x|
+        a = B.maximum(xl, 1e-6)  # a = |x| (kept > 0: rays from o walk along R itself)
+        cos = x.dot(R) / a  # x̂·R
         n = march_steps(getattr(env, "res", 0), p)
         self._steps = n
 
         def g(t):
-            pt = x * (1.0 - t) + R * (a * t)           # p(t)
+            pt = x * (1.0 - t) + R * (a * t)  # p(t)
             return B.length(pt) - (1.0 - t) * env.distance(pt)
 
         # ------------------------------------------------------------- linear search for the first crossing
         zero = xl * 0.0
         g0 = g(zero)
         # bracket: last undershoot, first overshoot (no crossing: the whole arc, t = 0 to the point at infinity)
-        br = first_crossing(B, g, zero, g0, arc_samples(B, cos, n), n, t_max=1.0,
-                            default=(zero, g0, zero + 1.0, a))
+        br = first_crossing(
+            B, g, zero, g0, arc_samples(B, cos, n), n, t_max=1.0, default=(zero, g0, zero + 1.0, a)
+        )
 
         # ------------------------------------------------------------- secant steps inside the bracket
         br = refine(B, g, br, p.secant_steps, illinois=p.illinois, rising=True)
         t = secant_point(br)
-        l = (x * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)   # x + R d(t)
+        l = (x * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)  # x + R d(t)
         return Localization(l=l, valid=br.found & B.isfinite(t))
 
     def lookups_per_ray(self) -> int:

@@ -9,6 +9,7 @@ Open environments: a texel with no surface holds FAR (:data:`study.impostor.cube
 d = FAR·(1 − q(0)), i.e. at infinity along R, where q = 1 and the search stops: the ray escapes. A ray that in
 truth hits a wall near the open side, while R seen from o escapes, is shown at infinity (wrong depth).
 """
+
 from __future__ import annotations
 
 from typing import Annotated
@@ -20,36 +21,39 @@ from study.methods.base import Knob, Localization, Method, register
 
 class Params(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-    iterations: Annotated[int, Field(ge=0, le=1000)] = 10   # NITER
-    band_lo: Annotated[float, Field(gt=0, le=1)] = 0.999     # |l|/|l'| below: undershooting
-    band_hi: Annotated[float, Field(ge=1)] = 1.001           # |l|/|l'| above: overshooting
+    iterations: Annotated[int, Field(ge=0, le=1000)] = 10  # NITER
+    band_lo: Annotated[float, Field(gt=0, le=1)] = 0.999  # |l|/|l'| below: undershooting
+    band_hi: Annotated[float, Field(ge=1)] = 1.001  # |l|/|l'| above: overshooting
 
 
 @register
 class Localized(Method):
     name = "localized"
     Params = Params
-    knob = Knob("iterations", (0, 1, 3, 10, 20))      # false-position steps
+    knob = Knob("iterations", (0, 1, 3, 10, 20))  # false-position steps
 
     def localize(self, B, env, x, R):
         p = self.params
         # ------------------------------------------------------------- start: eq. 2 from p = x, overshoot at r
-        r_len = env.distance(R)                        # |r|
-        pun = B.length(x) / env.distance(x)            # |p|/|p'| of the last undershoot (p = x at d = 0)
-        dun = pun * 0.0                                # ray parameter of the last undershoot
-        dov = pun * 0.0                                # ray parameter of the last overshoot (0: none yet)
-        pov = pun * 0.0                                # |p|/|p'| of the last overshoot (read only once dov != 0)
-        dl = r_len * (1.0 - pun)                       # eq. 2
+        r_len = env.distance(R)  # |r|
+        pun = B.length(x) / env.distance(x)  # |p|/|p'| of the last undershoot (p = x at d = 0)
+        dun = pun * 0.0  # ray parameter of the last undershoot
+        dov = pun * 0.0  # ray parameter of the last overshoot (0: none yet)
+        pov = pun * 0.0  # |p|/|p'| of the last overshoot (read only once dov != 0)
+        dl = r_len * (1.0 - pun)  # eq. 2
 
         # ------------------------------------------------------------- false-position iterations
         def iteration(dl, dun, pun, dov, pov):
-            l = x + R * dl                             # ray equation
-            llp = B.length(l) / env.distance(l)        # |l|/|l'|
+            l = x + R * dl  # ray equation
+            llp = B.length(l) / env.distance(l)  # |l|/|l'|
             under = llp < p.band_lo
             over = llp > p.band_hi
-            step_under = B.select(dov == 0.0, r_len * (1.0 - llp),              # eq. 2
-                                  (dl - dov) * (1.0 - llp) / (llp - pov))       # eq. 3
-            step_over = (dl - dun) * (1.0 - llp) / (llp - pun)                  # eq. 3
+            step_under = B.select(
+                dov == 0.0,
+                r_len * (1.0 - llp),  # eq. 2
+                (dl - dov) * (1.0 - llp) / (llp - pov),
+            )  # eq. 3
+            step_over = (dl - dun) * (1.0 - llp) / (llp - pun)  # eq. 3
             dun, pun = B.select(under, dl, dun), B.select(under, llp, pun)
             dov, pov = B.select(over, dl, dov), B.select(over, llp, pov)
             dl = dl + B.select(under, step_under, B.select(over, step_over, 0.0))
@@ -57,8 +61,8 @@ class Localized(Method):
 
         # one recorded loop on Dr.Jit (the whole search is one kernel), a Python loop on numpy
         dl, dun, pun, dov, pov = B.loop(p.iterations, (dl, dun, pun, dov, pov), iteration)
-        l = x + R * dl                                 # ray equation
+        l = x + R * dl  # ray equation
         return Localization(l=l, valid=B.isfinite(dl))
 
     def lookups_per_ray(self) -> int:
-        return 3 + self.params.iterations              # |r|, |x'|, one per iteration, the shown point
+        return 3 + self.params.iterations  # |r|, |x'|, one per iteration, the shown point

@@ -37,6 +37,7 @@ stops when its ray is resolved; the vectorized march spends all n steps per roun
 + per round 1 + n + ``secant_steps`` + 3 (g(0), march, secant, the three nearest texels) + N per switch + 1 (the
 shown point); :meth:`MultiProbe.lookups_per_ray` reports the mean of the last trace (before any: N rounds).
 """
+
 from __future__ import annotations
 
 from typing import Annotated
@@ -54,14 +55,17 @@ from study.methods.search import arc_samples, first_crossing, refine, secant_poi
 Vec3 = tuple[float, float, float]
 
 
-class Params(TexelMarchParams):                                  # + steps_per_texel, max_steps
-    grid: tuple[Annotated[int, Field(ge=1, le=8)], Annotated[int, Field(ge=1, le=8)],
-                Annotated[int, Field(ge=1, le=8)]] = (2, 2, 2)    # probes on a grid in the environment's bounds
-    points: tuple[Vec3, ...] | None = None                    # or at these world points (besides o)
-    clearance: Annotated[float, Field(ge=0, le=10)] = 0.1        # grid probes at least this far from surfaces, m
-    secant_steps: Annotated[int, Field(ge=0, le=100)] = 4        # Illinois steps on each crossing
-    thickness: Annotated[float, Field(ge=0, le=10)] = 0.05       # HIT tolerance, m …
-    slack: Annotated[float, Field(ge=0, le=64)] = 4.0            # … + r·slack/res (texels of arc)
+class Params(TexelMarchParams):  # + steps_per_texel, max_steps
+    grid: tuple[
+        Annotated[int, Field(ge=1, le=8)],
+        Annotated[int, Field(ge=1, le=8)],
+        Annotated[int, Field(ge=1, le=8)],
+    ] = (2, 2, 2)  # probes on a grid in the environment's bounds
+    points: tuple[Vec3, ...] | None = None  # or at these world points (besides o)
+    clearance: Annotated[float, Field(ge=0, le=10)] = 0.1  # grid probes at least this far from surfaces, m
+    secant_steps: Annotated[int, Field(ge=0, le=100)] = 4  # Illinois steps on each crossing
+    thickness: Annotated[float, Field(ge=0, le=10)] = 0.05  # HIT tolerance, m …
+    slack: Annotated[float, Field(ge=0, le=64)] = 4.0  # … + r·slack/res (texels of arc)
 
 
 class _Single:
@@ -71,9 +75,14 @@ class _Single:
         self.env, self.B, self.n, self.res = env, env.B, 1, getattr(env, "res", 0)
         self.centres = np.zeros((1, 3))
 
-    def distance(self, k, v): return self.env.distance(v)
-    def lookup(self, k, v): return self.env.lookup(v)
-    def centre(self, k): return V3(k * 0.0, k * 0.0, k * 0.0)
+    def distance(self, k, v):
+        return self.env.distance(v)
+
+    def lookup(self, k, v):
+        return self.env.lookup(v)
+
+    def centre(self, k):
+        return V3(k * 0.0, k * 0.0, k * 0.0)
 
     def nearest(self, k, v):
         if not self.res or not hasattr(self.env, "dist"):
@@ -125,16 +134,16 @@ class MultiProbe(TracingMethod):
         N, res = P.n, P.res
         n = march_steps(res, p)
         zero = x.x * 0.0
-        never = B.isfinite(zero) & ~B.isfinite(zero)          # all False
+        never = B.isfinite(zero) & ~B.isfinite(zero)  # all False
         nan = float("nan")
         # ------------------------------------------------------------- the first probe: nearest that sees x
         untried = [~never for _ in range(N)]
         k = self._choose(B, P, x, untried)
         active = (k >= 0.0) & B.isfinite(B.length(R))
-        R, x = _finite(B, R), _finite(B, x)            # dropped rays (NaN) stay inactive; lookups see no NaN
+        R, x = _finite(B, R), _finite(B, x)  # dropped rays (NaN) stay inactive; lookups see no NaN
         untried = [u & (k != float(i)) for i, u in enumerate(untried)]
         spent = zero + float(N)
-        d0 = zero                                      # ray parameter where the current segment starts
+        d0 = zero  # ray parameter where the current segment starts
         found, have_first = never, never
         hit_l, hit_k, first_l, first_k = x, zero, x, zero
         for _ in range(N):
@@ -147,22 +156,32 @@ class MultiProbe(TracingMethod):
             kk = k
 
             def g(t, xs=xs, a=a, kk=kk):
-                pt = _finite(B, xs * (1.0 - t) + R * (a * t))    # a secant point may be NaN (g_hi = g_lo)
+                pt = _finite(B, xs * (1.0 - t) + R * (a * t))  # a secant point may be NaN (g_hi = g_lo)
                 return B.length(pt) - (1.0 - t) * P.distance(kk, pt)
 
             g0 = g(zero)
-            br = first_crossing(B, g, zero, g0, arc_samples(B, xs.dot(R) / a, n), n, t_max=1.0,
-                                default=(zero, g0, zero + 1.0, a))
+            br = first_crossing(
+                B,
+                g,
+                zero,
+                g0,
+                arc_samples(B, xs.dot(R) / a, n),
+                n,
+                t_max=1.0,
+                default=(zero, g0, zero + 1.0, a),
+            )
             br = refine(B, g, br, p.secant_steps, rising=True)
             t = secant_point(br)
             t_ok = B.isfinite(t)
             t = B.select(t_ok, t, zero)
-            l = _finite(B, (xs * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7))   # the crossing, from c_k
+            l = _finite(
+                B, (xs * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)
+            )  # the crossing, from c_k
             # --------------------------------------------------------- HIT, UNKNOWN or MISS
             r = B.length(l)
             tol = p.thickness + (r * (p.slack / res) if res else zero)
             cross = br.found & t_ok
-            w = l / B.maximum(r, 1e-9)                                        # texels either side along the arc
+            w = l / B.maximum(r, 1e-9)  # texels either side along the arc
             tan = R - w * w.dot(R)
             tan = tan * ((2.0 / max(res, 1)) / B.maximum(B.length(tan), 1e-9))
             d_lo, d_at, d_hi = P.nearest(k, w - tan), P.nearest(k, l), P.nearest(k, w + tan)
@@ -190,7 +209,7 @@ class MultiProbe(TracingMethod):
         valid = found | use_first
         kf = B.select(use_first, first_k, hit_k)
         v = _sel(B, use_first, first_l, hit_l) - P.centre(kf)
-        v = _sel(B, valid, v, R)                        # finite everywhere (numpy gathers every ray)
+        v = _sel(B, valid, v, R)  # finite everywhere (numpy gathers every ray)
         ch = P.lookup(kf, v)
         shown = P.centre(kf) + B.normalize(v) * ch[-1]
         self._spent = float(np.mean(B.numpy(spent))) + 1.0 if B.numpy(spent).size else 1.0

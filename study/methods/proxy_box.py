@@ -12,9 +12,8 @@ Open environments: the proxy box closes the open side, so an escaping ray hits t
 in the direction of that hit from the capture point — the background seen in another direction (wrong surface
 in the outcome classes; right only where the background is uniform, as the Cornell box's black).
 """
-from __future__ import annotations
 
-from typing import Optional
+from __future__ import annotations
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
@@ -27,8 +26,8 @@ Vec3 = tuple[float, float, float]
 
 class Params(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-    box_min: Optional[Vec3] = None     # proxy corner, world coordinates (default: fitted, see module docstring)
-    box_max: Optional[Vec3] = None
+    box_min: Vec3 | None = None  # proxy corner, world coordinates (default: fitted, see module docstring)
+    box_max: Vec3 | None = None
 
 
 def reference_point(env) -> np.ndarray:
@@ -45,9 +44,13 @@ def room_box(B, env) -> tuple[np.ndarray, np.ndarray]:
     # through a texel centre next to each axis (face coordinates ±1/R), so the stored distance is exact there;
     # its component along the axis is the distance to the plane of a wall perpendicular to that axis
     axes = np.concatenate([np.eye(3), -np.eye(3)])
-    w = axes + (1.0 / env.res) * np.abs(np.roll(axes, 1, axis=1)) + (1.0 / env.res) * np.abs(np.roll(axes, 2, axis=1))
+    w = (
+        axes
+        + (1.0 / env.res) * np.abs(np.roll(axes, 1, axis=1))
+        + (1.0 / env.res) * np.abs(np.roll(axes, 2, axis=1))
+    )
     w /= np.linalg.norm(w, axis=1, keepdims=True)
-    d = B.numpy(env.distance(B.vec(w))).astype(float) * np.abs(w[axes != 0])    # plane distance per axis
+    d = B.numpy(env.distance(B.vec(w))).astype(float) * np.abs(w[axes != 0])  # plane distance per axis
     return -d[3:], d[:3]
 
 
@@ -68,13 +71,19 @@ class ProxyBox(Method):
         # ------------------------------------------------------------- slab exit distance t*
         t = None
         for xi, Ri, a, b in ((x.x, R.x, lo[0], hi[0]), (x.y, R.y, lo[1], hi[1]), (x.z, R.z, lo[2], hi[2])):
-            plane = B.select(Ri > 0.0, xi * 0.0 + float(b), xi * 0.0 + float(a))   # the face the ray leaves by
+            plane = B.select(Ri > 0.0, xi * 0.0 + float(b), xi * 0.0 + float(a))  # the face the ray leaves by
             ti = B.select(Ri == 0.0, xi * 0.0 + np.float32(np.inf), (plane - xi) / Ri)
             t = ti if t is None else B.minimum(t, ti)
-        inside = ((x.x >= lo[0]) & (x.x <= hi[0]) & (x.y >= lo[1]) & (x.y <= hi[1])
-                  & (x.z >= lo[2]) & (x.z <= hi[2]))
-        l = x + R * t                                  # hit on the proxy
+        inside = (
+            (x.x >= lo[0])
+            & (x.x <= hi[0])
+            & (x.y >= lo[1])
+            & (x.y <= hi[1])
+            & (x.z >= lo[2])
+            & (x.z <= hi[2])
+        )
+        l = x + R * t  # hit on the proxy
         return Localization(l=l, valid=inside & B.isfinite(t))
 
     def lookups_per_ray(self) -> int:
-        return 1                                       # the shown point (the proxy hit is analytic)
+        return 1  # the shown point (the proxy hit is analytic)

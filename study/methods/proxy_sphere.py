@@ -14,9 +14,10 @@ away).
 Open environments: as ``proxy_box``, the proxy sphere is closed: an escaping ray is looked up in the direction of
 its exit through the sphere, which sees the background in another direction.
 """
+
 from __future__ import annotations
 
-from typing import Annotated, Optional
+from typing import Annotated
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -31,8 +32,8 @@ Vec3 = tuple[float, float, float]
 
 class Params(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-    center: Optional[Vec3] = None                                   # world coordinates (default: o)
-    radius: Optional[Annotated[float, Field(gt=0)]] = None          # metres (default: fitted to the room)
+    center: Vec3 | None = None  # world coordinates (default: o)
+    radius: Annotated[float, Field(gt=0)] | None = None  # metres (default: fitted to the room)
 
 
 def fibonacci_directions(n: int) -> np.ndarray:
@@ -63,16 +64,15 @@ class ProxySphere(Method):
 
     def localize(self, B, env, x, R):
         p = self.params
-        c = (np.zeros(3) if p.center is None else np.asarray(p.center, float) - reference_point(env))
+        c = np.zeros(3) if p.center is None else np.asarray(p.center, float) - reference_point(env)
         rho = p.radius if p.radius is not None else fitted_radius(B, env)
         # ------------------------------------------------------------- far root of |L + R t| = ρ
-        L = V3(x.x - float(c[0]), x.y - float(c[1]), x.z - float(c[2]))   # x − c
+        L = V3(x.x - float(c[0]), x.y - float(c[1]), x.z - float(c[2]))  # x − c
         b = L.dot(R)
         disc = b * b - (L.dot(L) - float(rho) ** 2)
         t = -b + B.sqrt(B.maximum(disc, 0.0))
-        l = x + R * t                                  # hit on the proxy
+        l = x + R * t  # hit on the proxy
         return Localization(l=l, valid=(disc >= 0.0) & (t > 0.0))
 
     def lookups_per_ray(self) -> int:
-        return 1                                       # the shown point (the proxy hit is analytic)
-
+        return 1  # the shown point (the proxy hit is analytic)

@@ -38,6 +38,7 @@ Each search function has a slow, obvious ``_ref`` twin (one ray, plain Python fl
 :mod:`study.methods.search_ref` that the tests compare it with; :func:`arc_samples` is checked against the arc's
 geometry.
 """
+
 from __future__ import annotations
 
 import math
@@ -46,11 +47,11 @@ from typing import Any, NamedTuple
 
 
 class Bracket(NamedTuple):
-    t_lo: Any        # the last sample before the sign change
-    g_lo: Any        # g(t_lo)
-    t_hi: Any        # the first sample after it
-    g_hi: Any        # g(t_hi)
-    found: Any       # a sign change was found (else the bracket is the default)
+    t_lo: Any  # the last sample before the sign change
+    g_lo: Any  # g(t_lo)
+    t_hi: Any  # the first sample after it
+    g_hi: Any  # g(t_hi)
+    found: Any  # a sign change was found (else the bracket is the default)
 
 
 def secant_point(b: Bracket):
@@ -64,6 +65,7 @@ class Samples:
     from step to step, ``at(k, state)`` returns (t_k, the next state); k is a Python int on numpy and in unrolled
     loops, a Dr.Jit Float in a symbolic loop. Calling the object, ``samples(k)`` for k = 1, 2, … in order, gives
     the same t_k outside a loop."""
+
     state: tuple = ()
 
     def at(self, k, state):
@@ -81,7 +83,7 @@ class _Uniform(Samples):
         self.t0, self.dt = t0, dt
 
     def at(self, k, state):
-        return self.t0 + self.dt * k, state            # t0 + k dt (k exact in float32)
+        return self.t0 + self.dt * k, state  # t0 + k dt (k exact in float32)
 
 
 def _samples(t0, dt) -> Samples:
@@ -111,12 +113,12 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
         self.s = B.sqrt(B.maximum(1.0 - c * c, 0.0))
         self.one = c * 0.0 + 1.0
         self.cd, self.sd = math.cos(math.pi / steps), math.sin(math.pi / steps)
-        big = B.maximum(c, 2.0)                        # = 2, but computed: Dr.Jit must not fold the rotation
-        self.state = (big * 0.5, big - 2.0)            # cos φ_0, sin φ_0 (φ_0 = 0), not literals
+        big = B.maximum(c, 2.0)  # = 2, but computed: Dr.Jit must not fold the rotation
+        self.state = (big * 0.5, big - 2.0)  # cos φ_0, sin φ_0 (φ_0 = 0), not literals
 
     def at(self, k, state):
         B, c = self.B, self.c
-        end = k >= self.steps                          # φ = π: every arc has ended
+        end = k >= self.steps  # φ = π: every arc has ended
         if end is True:
             return self.one, state
         cp, sp = state
@@ -129,64 +131,96 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
 
     def __call__(self, k):
         t = super().__call__(k)
-        self.B.eval(t, *self._seq)                     # outside a loop: keep Dr.Jit's graph short
+        self.B.eval(t, *self._seq)  # outside a loop: keep Dr.Jit's graph short
         return t
 
 
 # ---------------------------------------------------------------------------------------------- linear search
-def first_crossing(B, g: Callable, t0, g0, dt, steps: int, *, t_max: float | None = None,
-                   default: tuple | None = None):
+def first_crossing(
+    B, g: Callable, t0, g0, dt, steps: int, *, t_max: float | None = None, default: tuple | None = None
+):
     """The first step from g < 0 to g ≥ 0: a :class:`Bracket` (a list of them when g returns a list)."""
     return _scan(B, g, t0, g0, dt, steps, t_max=t_max, default=default, count=1, rising=True, first=True)
 
 
-def sign_changes(B, g: Callable, t0, g0, dt, steps: int, *, count: int = 2, t_max: float | None = None,
-                 default: tuple | None = None):
+def sign_changes(
+    B,
+    g: Callable,
+    t0,
+    g0,
+    dt,
+    steps: int,
+    *,
+    count: int = 2,
+    t_max: float | None = None,
+    default: tuple | None = None,
+):
     """The first ``count`` sign changes in either direction (g < 0 → g ≥ 0 or back), in order along t: a list of
     ``count`` :class:`Bracket`\\ s (a list of such lists, one per function, when g returns a list)."""
-    return _scan(B, g, t0, g0, dt, steps, t_max=t_max, default=default, count=count, rising=False, first=False)
+    return _scan(
+        B, g, t0, g0, dt, steps, t_max=t_max, default=default, count=count, rising=False, first=False
+    )
 
 
 def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first):
     many = isinstance(g0, (list, tuple))
     G = len(g0) if many else 1
-    never = B.isfinite(t0) & ~B.isfinite(t0)          # all False
+    never = B.isfinite(t0) & ~B.isfinite(t0)  # all False
     smp = _samples(t0, dt)
     # per function, per crossing: found, t_lo, g_lo, t_hi, g_hi (the default, or a placeholder until the end)
     start = [tuple(default) if default is not None else (t0, gp, t0, gp) for gp in (g0 if many else [g0])]
-    state = (t0, *(g0 if many else [g0]), *(v for s in start for _ in range(count) for v in (never, *s)),
-             *smp.state)                               # t_prev, g_prev per function, the crossings, the sampler's
+    state = (
+        t0,
+        *(g0 if many else [g0]),
+        *(v for s in start for _ in range(count) for v in (never, *s)),
+        *smp.state,
+    )  # t_prev, g_prev per function, the crossings, the sampler's
     ns = len(smp.state)
 
     def step(k, t_prev, *rest):
-        g_prev, flat, sst = list(rest[:G]), rest[G:len(rest) - ns], rest[len(rest) - ns:]
+        g_prev, flat, sst = list(rest[:G]), rest[G : len(rest) - ns], rest[len(rest) - ns :]
         t, sst = _next(B, smp, k, sst, t_max)
         gts = g(t) if many else [g(t)]
         out = []
         for i, gt in enumerate(gts):
             change = (g_prev[i] < 0.0) & (gt >= 0.0) if rising else (g_prev[i] < 0.0) != (gt < 0.0)
-            before = None                              # found of the previous crossing, before this step
+            before = None  # found of the previous crossing, before this step
             for j in range(count):
-                f, *b = flat[(i * count + j) * 5:(i * count + j + 1) * 5]
+                f, *b = flat[(i * count + j) * 5 : (i * count + j + 1) * 5]
                 new = change & ~f if before is None else change & before & ~f
                 before = f
                 out += [f | new, *(B.select(new, v, o) for v, o in zip((t_prev, g_prev[i], t, gt), b))]
         return (t, *gts, *out, *sst)
 
     t_last, *rest = B.loop(steps, state, step, index=True)
-    g_last, flat = rest[:G], rest[G:len(rest) - ns]
-    cross = [[flat[(i * count + j) * 5:(i * count + j + 1) * 5] for j in range(count)] for i in range(G)]
+    g_last, flat = rest[:G], rest[G : len(rest) - ns]
+    cross = [[flat[(i * count + j) * 5 : (i * count + j + 1) * 5] for j in range(count)] for i in range(G)]
     # ----------------------------------------------------------------------- rays without a crossing
-    if default is None:                                # the whole range: (t0, g0, last sample, g there)
-        cross = [[[f, t_lo, g_lo, B.select(f, t_hi, t_last), B.select(f, g_hi, gp)] for f, t_lo, g_lo, t_hi, g_hi in c]
-                 for c, gp in zip(cross, g_last)]
+    if default is None:  # the whole range: (t0, g0, last sample, g there)
+        cross = [
+            [
+                [f, t_lo, g_lo, B.select(f, t_hi, t_last), B.select(f, g_hi, gp)]
+                for f, t_lo, g_lo, t_hi, g_hi in c
+            ]
+            for c, gp in zip(cross, g_last)
+        ]
     out = [[Bracket(t_lo, g_lo, t_hi, g_hi, f) for f, t_lo, g_lo, t_hi, g_hi in c] for c in cross]
     out = [c[0] for c in out] if first else out
     return out if many else out[0]
 
 
-def first_entry(B, g: Callable, t0, g0: list, dt, steps: int, *, hold: int, t_max: float | None = None,
-                default: tuple | None = None):
+def first_entry(
+    B,
+    g: Callable,
+    t0,
+    g0: list,
+    dt,
+    steps: int,
+    *,
+    hold: int,
+    t_max: float | None = None,
+    default: tuple | None = None,
+):
     """The first step into the inside of nested surfaces that is not skin: a (:class:`Bracket`, e) pair.
 
     ``g`` returns K functions ordered g_0 ≥ g_1 ≥ … (the layers of a layered map, nearest first: behind layer k
@@ -221,7 +255,7 @@ def first_entry(B, g: Callable, t0, g0: list, dt, steps: int, *, hold: int, t_ma
             m = m | (c == float(v))
         return m
 
-    def pick(gs, e):                                   # gs[e] per ray
+    def pick(gs, e):  # gs[e] per ray
         out = gs[-1]
         for i in range(K - 2, -1, -1):
             out = B.select(e == float(i), gs[i], out)
@@ -237,18 +271,18 @@ def first_entry(B, g: Callable, t0, g0: list, dt, steps: int, *, hold: int, t_ma
     state = (*g_prev, c_prev, in_prev, t0, never, never, never, zero, zero, *res, *res, *smp.state)
 
     def step(k, *s):
-        g_prev, (c_prev, in_prev, t_prev, found, pend, clip, age, c_pend) = list(s[:K]), s[K:K + 8]
-        res, pb, sst = s[K + 8:K + 13], s[K + 13:K + 18], s[K + 18:]
+        g_prev, (c_prev, in_prev, t_prev, found, pend, clip, age, c_pend) = list(s[:K]), s[K : K + 8]
+        res, pb, sst = s[K + 8 : K + 13], s[K + 13 : K + 18], s[K + 18 :]
         t, sst = _next(B, smp, k, sst, t_max)
         gs = list(g(t))
         c = count(gs)
         ins = inside(c, gs)
         # ---------------------------------------------------- decide the pending entries
         age = age + 1.0
-        held = pend & ~clip & (age >= float(hold))                     # still inside (or through) after hold
+        held = pend & ~clip & (age >= float(hold))  # still inside (or through) after hold
         out = pend & ~clip & ~held & ~ins
-        back = out & (c <= c_pend)                                     # came back out in front: a clip …
-        quiet = clip & (c == c_pend) & (age >= float(hold))            # … kept once c stays put for hold
+        back = out & (c <= c_pend)  # came back out in front: a clip …
+        quiet = clip & (c == c_pend) & (age >= float(hold))  # … kept once c stays put for hold
         drop = (out & ~back) | (clip & (c != c_pend))
         keep = held | quiet | (back if hold <= 0 else never)
         res = tuple(B.select(keep, v, r) for v, r in zip(pb, res))
@@ -265,7 +299,7 @@ def first_entry(B, g: Callable, t0, g0: list, dt, steps: int, *, hold: int, t_ma
         return (*gs, c, ins, t, found, pend, clip, age, c_pend, *res, *pb, *sst)
 
     s = B.loop(steps, state, step, index=True)
-    found, pend, res, pb = s[K + 3], s[K + 4], s[K + 8:K + 13], s[K + 13:K + 18]
+    found, pend, res, pb = s[K + 3], s[K + 4], s[K + 8 : K + 13], s[K + 13 : K + 18]
     res = tuple(B.select(pend, v, r) for v, r in zip(pb, res))
     found = found | pend
     return Bracket(*res[:4], found), res[4]
@@ -285,7 +319,9 @@ def secant_update(B, replace_a, t, gt, ta, ga, tb, gb, side, *, illinois: bool =
     return ta, ga, tb, gb, B.select(replace_a, side * 0.0 + 1.0, side * 0.0 - 1.0)
 
 
-def refine(B, g: Callable, bracket: Bracket, steps: int, *, illinois: bool = True, rising: bool = False) -> Bracket:
+def refine(
+    B, g: Callable, bracket: Bracket, steps: int, *, illinois: bool = True, rising: bool = False
+) -> Bracket:
     """``steps`` secant steps inside ``bracket`` (one evaluation of g each): the secant point t replaces the end
     on its side of the sign change, the end whose g has the same sign (g < 0 or g ≥ 0); with ``rising`` (the
     bracket is known to run from g < 0 to g ≥ 0, as from :func:`first_crossing`), the lo end where g(t) < 0 — the
@@ -294,8 +330,8 @@ def refine(B, g: Callable, bracket: Bracket, steps: int, *, illinois: bool = Tru
     :func:`secant_point` is the estimate."""
     t_lo, g_lo, t_hi, g_hi, found = bracket
 
-    def step(t_lo, g_lo, t_hi, g_hi, side):           # side: +1 the last step replaced the lo end, −1 hi, 0 none
-        t = t_lo - g_lo * (t_hi - t_lo) / (g_hi - g_lo)   # secant point
+    def step(t_lo, g_lo, t_hi, g_hi, side):  # side: +1 the last step replaced the lo end, −1 hi, 0 none
+        t = t_lo - g_lo * (t_hi - t_lo) / (g_hi - g_lo)  # secant point
         gt = g(t)
         replace_lo = (gt < 0.0) if rising else ((gt < 0.0) == (g_lo < 0.0))
         return secant_update(B, replace_lo, t, gt, t_lo, g_lo, t_hi, g_hi, side, illinois=illinois)

@@ -2,6 +2,7 @@
 same contract; the tests compare the vectorized searches with them. ``dt`` may be a callable k ↦ t_k here too
 (an :func:`~study.methods.search.arc_samples` called in order gives plain floats per ray). It registers no
 method."""
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -9,9 +10,18 @@ from collections.abc import Callable
 from study.methods.search import Bracket, secant_point
 
 
-def sign_changes_ref(g: Callable[[float], float], t0: float, g0: float, dt: float, steps: int, *, count: int = 2,
-                     t_max: float | None = None, default: tuple | None = None,
-                     rising: bool = False) -> list[Bracket]:
+def sign_changes_ref(
+    g: Callable[[float], float],
+    t0: float,
+    g0: float,
+    dt: float,
+    steps: int,
+    *,
+    count: int = 2,
+    t_max: float | None = None,
+    default: tuple | None = None,
+    rising: bool = False,
+) -> list[Bracket]:
     """One ray, plain floats: the first ``count`` sign changes (``rising``: only g < 0 → g ≥ 0)."""
     found = []
     t_prev, g_prev = t0, g0
@@ -28,17 +38,26 @@ def sign_changes_ref(g: Callable[[float], float], t0: float, g0: float, dt: floa
     return found + [Bracket(*fill, False)] * (count - len(found))
 
 
-def first_crossing_ref(g: Callable[[float], float], t0: float, g0: float, dt: float, steps: int, *,
-                       t_max: float | None = None, default: tuple | None = None) -> Bracket:
+def first_crossing_ref(
+    g: Callable[[float], float],
+    t0: float,
+    g0: float,
+    dt: float,
+    steps: int,
+    *,
+    t_max: float | None = None,
+    default: tuple | None = None,
+) -> Bracket:
     """One ray, plain floats: the first step from g < 0 to g ≥ 0."""
     return sign_changes_ref(g, t0, g0, dt, steps, count=1, t_max=t_max, default=default, rising=True)[0]
 
 
-def refine_ref(g: Callable[[float], float], bracket: Bracket, steps: int, *, illinois: bool = True,
-               rising: bool = False) -> Bracket:
+def refine_ref(
+    g: Callable[[float], float], bracket: Bracket, steps: int, *, illinois: bool = True, rising: bool = False
+) -> Bracket:
     """One ray, plain floats: ``steps`` secant (Illinois) steps inside ``bracket``."""
     t_lo, g_lo, t_hi, g_hi, found = bracket
-    last = 0                                           # which end the last step replaced: +1 lo, −1 hi
+    last = 0  # which end the last step replaced: +1 lo, −1 hi
     for _ in range(steps):
         t = secant_point(Bracket(t_lo, g_lo, t_hi, g_hi, found))
         gt = g(t)
@@ -54,8 +73,17 @@ def refine_ref(g: Callable[[float], float], bracket: Bracket, steps: int, *, ill
     return Bracket(t_lo, g_lo, t_hi, g_hi, found)
 
 
-def first_entry_ref(g: Callable[[float], list], t0: float, g0: list, dt, steps: int, *, hold: int,
-                    t_max: float | None = None, default: tuple | None = None) -> tuple[Bracket, int]:
+def first_entry_ref(
+    g: Callable[[float], list],
+    t0: float,
+    g0: list,
+    dt,
+    steps: int,
+    *,
+    hold: int,
+    t_max: float | None = None,
+    default: tuple | None = None,
+) -> tuple[Bracket, int]:
     """One ray, plain floats: the first kept entry into the inside of nested surfaces (see :func:`first_entry`)."""
     K = len(g0)
 
@@ -66,7 +94,7 @@ def first_entry_ref(g: Callable[[float], list], t0: float, g0: list, dt, steps: 
         return c % 2 == 1 or (c == K and (K == 1 or gs[-1] == gs[-2]))
 
     g_prev, t_prev = list(g0), t0
-    pending = None                                     # [age, c before the entry (after a clip), bracket, e, clip]
+    pending = None  # [age, c before the entry (after a clip), bracket, e, clip]
     for k in range(1, steps + 1):
         t = dt(k) if callable(dt) else t0 + dt * k
         if t_max is not None:
@@ -77,7 +105,7 @@ def first_entry_ref(g: Callable[[float], list], t0: float, g0: list, dt, steps: 
         if pending is not None:
             pending[0] += 1
             age, c_pend, br, e, clip = pending
-            if clip:                                   # waiting for c to stay put after a clip
+            if clip:  # waiting for c to stay put after a clip
                 if c != c_pend:
                     pending = None
                 elif age >= hold:
@@ -86,7 +114,7 @@ def first_entry_ref(g: Callable[[float], list], t0: float, g0: list, dt, steps: 
                 return br, e
             elif not ins:
                 if c > c_pend:
-                    pending = None                     # left to the far side: skin
+                    pending = None  # left to the far side: skin
                 elif hold <= 0:
                     return br, e
                 else:

@@ -26,6 +26,7 @@ overridden for that). Cost: one depth fetch per step actually taken (the loop st
 mean over rays is reported), one colour fetch, plus the fallback's lookups on the rays it traces
 (:meth:`SSR.lookups_per_ray` reports what the last trace spent; before any trace, the most it can spend).
 """
+
 from __future__ import annotations
 
 from typing import Annotated, Literal
@@ -37,16 +38,16 @@ from study.backend import V3
 from study.impostor.views import Views
 from study.methods.base import REGISTRY, Knob, Method, Trace, TracingMethod, register
 
-NEAR = 0.01           # near plane of the clipped ray, metres
+NEAR = 0.01  # near plane of the clipped ray, metres
 
 
 class Params(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-    max_steps: Annotated[int, Field(ge=1, le=16384)] = 512       # DDA step budget
-    stride: Annotated[float, Field(ge=1, le=64)] = 1.0           # pixels per step
-    thickness: Annotated[float, Field(gt=0, le=100)] = 0.25      # assumed surface thickness behind its depth, m
-    max_distance: Annotated[float, Field(gt=0)] | None = None   # ray length, m (default: room diagonal)
-    fallback: Literal["none", "proxy_box", "localized"] = "proxy_box"   # for the rays without a screen hit
+    max_steps: Annotated[int, Field(ge=1, le=16384)] = 512  # DDA step budget
+    stride: Annotated[float, Field(ge=1, le=64)] = 1.0  # pixels per step
+    thickness: Annotated[float, Field(gt=0, le=100)] = 0.25  # assumed surface thickness behind its depth, m
+    max_distance: Annotated[float, Field(gt=0)] | None = None  # ray length, m (default: room diagonal)
+    fallback: Literal["none", "proxy_box", "localized"] = "proxy_box"  # for the rays without a screen hit
 
 
 @register
@@ -76,8 +77,8 @@ class SSR(TracingMethod):
         px1, py1, z1 = scr.project(x + R * d_end)
         k0, k1 = 1.0 / z0, 1.0 / z1
         dx, dy = px1 - px0, py1 - py0
-        length = B.maximum(B.maximum(B.abs(dx), B.abs(dy)), 1e-6) / p.stride      # steps to the end
-        sx, sy, sk = dx / length, dy / length, (k1 - k0) / length                  # per step
+        length = B.maximum(B.maximum(B.abs(dx), B.abs(dy)), 1e-6) / p.stride  # steps to the end
+        sx, sy, sk = dx / length, dy / length, (k1 - k0) / length  # per step
         start = (z0 > NEAR) & scr.on_screen(px0, py0) & B.isfinite(length) & (d_end > 0.0)
         zero = z0 * 0.0
 
@@ -108,8 +109,8 @@ class SSR(TracingMethod):
         zh = B.minimum(B.maximum(hz, B.minimum(za, zc)), B.maximum(za, zc))
         s = B.select(B.abs(sk) > 1e-12, (1.0 / zh - k0) / B.select(B.abs(sk) > 1e-12, sk, zero + 1.0), hs)
         s = B.minimum(B.maximum(s, B.maximum(hs - 0.5, 0.0)), B.minimum(hs + 0.5, length))
-        a = s / length                                  # fraction of the projected segment
-        beta = a * k1 / (a * k1 + (1.0 - a) * k0)       # perspective-correct fraction of the ray
+        a = s / length  # fraction of the projected segment
+        beta = a * k1 / (a * k1 + (1.0 - a) * k0)  # perspective-correct fraction of the ray
         rgbz = scr.fetch(hj, hi)
         return found & B.isfinite(beta), d_end * beta, rgbz[:3], spent
 
@@ -130,29 +131,37 @@ class SSR(TracingMethod):
                 d_max = 100.0
             found, d, rgb, spent = self._march(B, scr, x, R, d_max)
             self._spent = float(np.mean(B.numpy(spent))) + 1.0 if n else 1.0
-        else:                                          # no camera buffer: nothing on screen
+        else:  # no camera buffer: nothing on screen
             found, d, rgb = B.isfinite(x.x) & ~B.isfinite(x.x), x.x * nan, [x.x * nan] * 3
             self._spent = 0.0
         found = found & B.isfinite(B.length(R))
         if check_origin:
-            found = found & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)   # x is an undershoot
+            found = found & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)  # x is an undershoot
         shown = x + R * d
         shown = V3(*(B.select(found, c, nan) for c in (shown.x, shown.y, shown.z)))
         rad = V3(*(B.select(found, c, nan) for c in rgb))
         valid, l = found, shown
         fb = self._fallback()
-        if fb is not None:                              # engines: a reflection probe where the screen has nothing
+        if fb is not None:  # engines: a reflection probe where the screen has nothing
             tr = fb.trace(B, env, x, R, check_origin=check_origin)
-            shown = V3(*(B.select(found, a, b) for a, b in zip((shown.x, shown.y, shown.z),
-                                                                (tr.shown.x, tr.shown.y, tr.shown.z))))
-            rad = V3(*(B.select(found, a, b) for a, b in zip((rad.x, rad.y, rad.z),
-                                                              (tr.radiance.x, tr.radiance.y, tr.radiance.z))))
+            shown = V3(
+                *(
+                    B.select(found, a, b)
+                    for a, b in zip((shown.x, shown.y, shown.z), (tr.shown.x, tr.shown.y, tr.shown.z))
+                )
+            )
+            rad = V3(
+                *(
+                    B.select(found, a, b)
+                    for a, b in zip((rad.x, rad.y, rad.z), (tr.radiance.x, tr.radiance.y, tr.radiance.z))
+                )
+            )
             l = V3(*(B.select(found, a, b) for a, b in zip((l.x, l.y, l.z), (tr.l.x, tr.l.y, tr.l.z))))
             rest = float(np.mean(~B.numpy(found).astype(bool))) if n else 0.0
             self._spent += rest * fb.lookups_per_ray()
             valid = found | tr.valid
         safe = V3(*(B.select(valid, a, b) for a, b in zip((shown.x, shown.y, shown.z), (R.x, R.y, R.z))))
-        ratio = B.select(valid, B.length(safe) / env.distance(safe), nan)   # diagnostic: 1 on the impostor
+        ratio = B.select(valid, B.length(safe) / env.distance(safe), nan)  # diagnostic: 1 on the impostor
         return Trace(l, shown, rad, ratio, valid)
 
     def lookups_per_ray(self) -> float:

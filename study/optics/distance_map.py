@@ -5,6 +5,7 @@ texel the outward normal and the distance of the *farthest* surface point in tha
 envelope: for a ray inside the object, leaving the object means crossing it; directions that miss the object, as
 through a torus' hole, hold distance 0).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -35,8 +36,9 @@ class DistanceMap:
     2 + steps + iterations lookups per ray (f(0), the linear steps, the false-position steps, the normal).
     """
 
-    def __init__(self, geom: ObjectGeometry, res: int, *, steps: int = 16, iterations: int = 8,
-                 backend: str = "numpy"):
+    def __init__(
+        self, geom: ObjectGeometry, res: int, *, steps: int = 16, iterations: int = 8, backend: str = "numpy"
+    ):
         self.c, self.radius, self.res = geom.center, geom.radius, res
         self.steps, self.iterations = steps, iterations
         dirs = cubemap.texel_directions(res).reshape(-1, 3)
@@ -49,16 +51,16 @@ class DistanceMap:
         """Rays p + s d, p and d (N, 3) world space (d unit) → exit points e (N, 3), outward normals (N, 3)
         (float64 numpy) and ok (N,) bool: a crossing was found and the normal faces along d."""
         B, env = self.B, self.env
-        x = B.vec(np.asarray(p, float) - self.c)         # ray origins relative to the centre
+        x = B.vec(np.asarray(p, float) - self.c)  # ray origins relative to the centre
         dv = B.vec(np.asarray(d, float))
 
-        def f(s):                                        # |l| − |l'|, l = x + s d
+        def f(s):  # |l| − |l'|, l = x + s d
             l = x + dv * s
             return B.length(l) - env.distance(l)
 
         # ------------------------------------------------------------- linear search for the first under → over step
         zero = x.x * 0.0
-        f0 = B.minimum(f(zero), -1e-7)                   # the ray starts inside: under at s = 0
+        f0 = B.minimum(f(zero), -1e-7)  # the ray starts inside: under at s = 0
         s_max = 2.1 * self.radius
         br = first_crossing(B, f, zero, f0, s_max / self.steps, self.steps)
 
@@ -72,10 +74,12 @@ class DistanceMap:
         nl = B.length(V3(r, g, b))
         radial = B.normalize(l)
         inv = 1.0 / B.maximum(nl, 1e-12)
-        has = nl > 1e-3                                  # the map holds a normal there
+        has = nl > 1e-3  # the map holds a normal there
         nrm = V3(*(B.select(has, c * inv, rc) for c, rc in zip((r, g, b), (radial.x, radial.y, radial.z))))
-        out = nrm.dot(dv) > 1e-6                         # must face along d to refract out
-        nrm = V3(*(B.select(out, c, rc) for c, rc in zip((nrm.x, nrm.y, nrm.z), (radial.x, radial.y, radial.z))))
+        out = nrm.dot(dv) > 1e-6  # must face along d to refract out
+        nrm = V3(
+            *(B.select(out, c, rc) for c, rc in zip((nrm.x, nrm.y, nrm.z), (radial.x, radial.y, radial.z)))
+        )
         ok = br.found & (nrm.dot(dv) > 0.0)
         e = B.to_numpy(l).astype(float) + self.c
         return e, B.to_numpy(nrm).astype(float), np.asarray(B.numpy(ok), bool)

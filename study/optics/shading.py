@@ -6,14 +6,17 @@ from ``supersample²`` stratified sub-pixel rays; a sub-pixel ray that misses th
 Dielectric objects (``material.type = "dielectric"``) hand the methods two secondary rays per camera ray: the
 reflected ray at the entry point (weight F_in) and the transmitted ray (weight (1 − F_in)(1 − F_out)). With
 ``render.refraction = "single"`` (the paper) the transmitted ray is the refracted ray at the entry point, looked up
-from there; with ``"double"`` it is the ray leaving the object's far side (:func:`study.optics.interfaces.through_object`),
+from there; with ``"double"`` it is the ray leaving the object's far side
+(:func:`study.optics.interfaces.through_object`),
 found exactly (sphere: closed form; mesh: Embree) or through the object's own distance map
-(:class:`study.optics.distance_map.DistanceMap`), after at most ``render.internal_bounces`` total internal reflections. Rays
+(:class:`study.optics.distance_map.DistanceMap`), after at most ``render.internal_bounces`` total internal
+reflections. Rays
 still inside after that, or whose exit was not found, are dropped from the secondary rays (so no NaN reaches the
 metrics) and counted (``dropped_fraction``); their energy is lost, as is the part reflected back inside at a
 transmitting exit. The exact reference (Embree) traces the exact outgoing ray: where the methods get the ray from
 the distance map, ``exact_x``/``exact_R`` hold the exactly traced one.
 """
+
 from __future__ import annotations
 
 import warnings
@@ -30,21 +33,24 @@ from study.scene import Scene, camera_rays, objects
 @dataclass
 class ObjectRays:
     """The secondary rays leaving the object, one per sub-pixel ray that hits it (M of them)."""
-    hit: np.ndarray        # (H, W, S) bool: sub-pixel ray hits the object
-    x: np.ndarray          # (M, 3) shading points, world space
-    N: np.ndarray          # (M, 3) unit normals
-    V: np.ndarray          # (M, 3) unit view directions (camera → x)
-    R: np.ndarray          # (M, 3) unit reflected directions
+
+    hit: np.ndarray  # (H, W, S) bool: sub-pixel ray hits the object
+    x: np.ndarray  # (M, 3) shading points, world space
+    N: np.ndarray  # (M, 3) unit normals
+    V: np.ndarray  # (M, 3) unit view directions (camera → x)
+    R: np.ndarray  # (M, 3) unit reflected directions
     # ----- dielectrics: K secondary rays (x, R above are then (K, 3)), several per camera ray
-    src: np.ndarray | None = None       # (K,) index of the camera ray (among the M hits) each ray belongs to
-    weight: np.ndarray | None = None    # (K, 3) Fresnel weight of each secondary ray
-    exact_x: np.ndarray | None = None   # (K, 3) exactly traced outgoing rays for Embree (default x, R)
+    src: np.ndarray | None = None  # (K,) index of the camera ray (among the M hits) each ray belongs to
+    weight: np.ndarray | None = None  # (K, 3) Fresnel weight of each secondary ray
+    exact_x: np.ndarray | None = None  # (K, 3) exactly traced outgoing rays for Embree (default x, R)
     exact_R: np.ndarray | None = None
-    stats: dict = field(default_factory=dict)   # extra per-case numbers for the metrics table
+    stats: dict = field(default_factory=dict)  # extra per-case numbers for the metrics table
 
     def exact_rays(self) -> tuple[np.ndarray, np.ndarray]:
         """The exact outgoing rays (origins, directions), one per secondary ray, for the exact reference."""
-        return (self.x if self.exact_x is None else self.exact_x), (self.R if self.exact_R is None else self.exact_R)
+        return (self.x if self.exact_x is None else self.exact_x), (
+            self.R if self.exact_R is None else self.exact_R
+        )
 
     def per_camera_ray(self, values: np.ndarray, *, total: bool = False) -> np.ndarray:
         """Secondary-ray values (K, ...) → camera-ray values (M, ...): the sum (``total``) or the weighted mean
@@ -76,7 +82,7 @@ class ObjectRays:
         out = np.full((H, W, S) + values.shape[1:], np.nan)
         out[self.hit] = values
         with np.errstate(invalid="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)         # all-NaN pixels: filled below
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN pixels: filled below
             red = np.nanmean(out, axis=2) if reduce == "mean" else np.nanmax(out, axis=2)
         return np.where(np.isnan(red), fill, red)
 
@@ -96,7 +102,9 @@ def object_rays(scene: Scene, occluder=None) -> ObjectRays:
     V = d.reshape(-1, 3)[hit]
     x = o.reshape(-1, 3)[hit] + V * t[hit, None]
     N = n[hit]
-    N = np.where((np.sum(N * V, -1) < 0)[:, None], N, N - 2 * np.sum(N * V, -1, keepdims=True) * V)  # face the eye
+    N = np.where(
+        (np.sum(N * V, -1) < 0)[:, None], N, N - 2 * np.sum(N * V, -1, keepdims=True) * V
+    )  # face the eye
     N /= np.linalg.norm(N, axis=-1, keepdims=True)
     R = optics.reflect(V, N)
     R /= np.linalg.norm(R, axis=-1, keepdims=True)
@@ -136,9 +144,19 @@ def dielectric_rays(scene: Scene, rays: ObjectRays, geom) -> ObjectRays:
     keep = np.nonzero(ok)[0]
     src = np.concatenate([np.arange(M), keep])
     w = np.concatenate([F_in, tw[keep]])
-    cat = lambda a, b: np.concatenate([a, b[keep]])                 # noqa: E731
-    return ObjectRays(rays.hit, cat(x, tx), cat(N, N), cat(V, V), cat(R, tR), src=src,
-                      weight=np.repeat(w[:, None], 3, axis=1), exact_x=cat(x, ex), exact_R=cat(R, eR), stats=stats)
+    cat = lambda a, b: np.concatenate([a, b[keep]])  # noqa: E731
+    return ObjectRays(
+        rays.hit,
+        cat(x, tx),
+        cat(N, N),
+        cat(V, V),
+        cat(R, tR),
+        src=src,
+        weight=np.repeat(w[:, None], 3, axis=1),
+        exact_x=cat(x, ex),
+        exact_R=cat(R, eR),
+        stats=stats,
+    )
 
 
 # ---------------------------------------------------------------------------------------------- Fresnel
@@ -148,7 +166,7 @@ def fresnel_approx(n, k, cos_theta) -> np.ndarray:
     n, k: (3,) per RGB channel; cos_theta: (M,) = N·R. Returns (M, 3)."""
     n, k = np.asarray(n, float), np.asarray(k, float)
     c = np.clip(np.asarray(cos_theta, float), 0, 1)[:, None]
-    return ((n - 1) ** 2 + k ** 2 + 4 * n * (1 - c) ** 5) / ((n + 1) ** 2 + k ** 2)
+    return ((n - 1) ** 2 + k**2 + 4 * n * (1 - c) ** 5) / ((n + 1) ** 2 + k**2)
 
 
 def fresnel_conductor(n, k, cos_theta) -> np.ndarray:

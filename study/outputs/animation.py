@@ -17,6 +17,7 @@ when all are written): ``motion.gif`` and/or ``motion.mp4``, ``frames.csv`` (the
 method, with ``frame`` and ``path_m``, the distance travelled), ``motion.png`` (wrong-hit fraction per method
 along the path) and ``metadata.json``.
 """
+
 from __future__ import annotations
 
 import json
@@ -41,7 +42,7 @@ from study.scene import Vec3
 from study.tables import to_csv
 from study.validation import validate_file
 
-ALPHA = 0.6               # opacity of an outcome colour over the image
+ALPHA = 0.6  # opacity of an outcome colour over the image
 
 
 class MotionConfig(BaseModel):
@@ -51,8 +52,12 @@ class MotionConfig(BaseModel):
     path: list[Vec3] = Field(min_length=2)
     frames: int = Field(24, ge=2, le=480)
     fps: float = Field(8.0, gt=0, le=60)
-    methods: MethodSpecs = [{"name": "classical"}, {"name": "localized", "iterations": 10},
-                            {"name": "proxy_box"}, {"name": "layered"}]
+    methods: MethodSpecs = [
+        {"name": "classical"},
+        {"name": "localized", "iterations": 10},
+        {"name": "proxy_box"},
+        {"name": "layered"},
+    ]
     formats: list[Literal["gif", "mp4"]] = Field(["gif", "mp4"], min_length=1)
 
 
@@ -73,9 +78,13 @@ def load_motion_config(path: str | Path):
     cfg = validate_file(MotionConfig, path)
     scene = configured_scene(cfg, path)
     pts, s = positions(np.asarray(cfg.path, float), cfg.frames)
-    scenes = [(f"motion-f{i:03d}", scene.with_updates({"object.center": [float(x) for x in p]},
-                                                      source=f"{path} path"))
-              for i, p in enumerate(pts)]
+    scenes = [
+        (
+            f"motion-f{i:03d}",
+            scene.with_updates({"object.center": [float(x) for x in p]}, source=f"{path} path"),
+        )
+        for i, p in enumerate(pts)
+    ]
     return cfg, scenes, expand_methods(cfg.methods, source=str(path)), s
 
 
@@ -83,6 +92,7 @@ def load_motion_config(path: str | Path):
 def overlay(image: np.ndarray, outcome: np.ndarray) -> np.ndarray:
     """sRGB image (H, W, 3) in [0, 1] with the outcome classes other than *correct* blended over it."""
     from matplotlib.colors import to_rgb
+
     out = image.copy()
     for code, color in enumerate(OUTCOME_COLORS):
         m = outcome == code
@@ -104,14 +114,17 @@ def crop_box(masks: list[np.ndarray], margin: float = 0.25) -> tuple[slice, slic
     return slice(y0, y0 + int(2 * half)), slice(x0, x0 + int(2 * half))
 
 
-def frame_image(case: CaseOutput, labels: list[str], *, title: str,
-                crop: tuple[slice, slice] = (slice(None), slice(None))) -> np.ndarray:
+def frame_image(
+    case: CaseOutput, labels: list[str], *, title: str, crop: tuple[slice, slice] = (slice(None), slice(None))
+) -> np.ndarray:
     """One frame (H, W, 3) uint8: methods and Mitsuba on top, outcome overlays and the legend below; the images
     cut to ``crop`` (rows, columns)."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.patches import Patch
+
     n = len(labels) + 1
     fig, ax = plt.subplots(2, n, figsize=(1.6 * n, 3.6), dpi=100)
     rows = {r["label"]: r for r in case.rows}
@@ -124,10 +137,17 @@ def frame_image(case: CaseOutput, labels: list[str], *, title: str,
     ax[0, -1].imshow(to_ldr(case.mitsuba)[crop], interpolation="nearest")
     ax[0, -1].set_title("Mitsuba\n(path traced)", fontsize=6.5)
     ax[1, -1].axis("off")
-    ax[1, -1].legend(handles=[Patch(facecolor=c, label=nm) for c, nm in zip(OUTCOME_COLORS[1:], OUTCOME_NAMES[1:])],
-                     loc="center", fontsize=6, frameon=False, title="outcome", title_fontsize=6.5)
+    ax[1, -1].legend(
+        handles=[Patch(facecolor=c, label=nm) for c, nm in zip(OUTCOME_COLORS[1:], OUTCOME_NAMES[1:])],
+        loc="center",
+        fontsize=6,
+        frameon=False,
+        title="outcome",
+        title_fontsize=6.5,
+    )
     for a in ax.ravel():
-        a.set_xticks([]); a.set_yticks([])
+        a.set_xticks([])
+        a.set_yticks([])
     fig.suptitle(title, fontsize=7)
     fig.subplots_adjust(left=0.01, right=0.99, bottom=0.01, top=0.84, wspace=0.05, hspace=0.25)
     fig.canvas.draw()
@@ -140,13 +160,21 @@ def frame_image(case: CaseOutput, labels: list[str], *, title: str,
 def plot(rows: list[dict], labels: list[str], path: Path) -> None:
     """Wrong-hit fraction of each method against the distance travelled."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
     for k, lab in enumerate(labels):
         rs = [r for r in rows if r["label"] == lab]
-        ax.plot([r["path_m"] for r in rs], [100 * r["wrong_fraction"] for r in rs], marker="osD^v<>"[k % 7],
-                ls=("-", "--", ":", "-.")[k % 4], ms=4, label=lab)
+        ax.plot(
+            [r["path_m"] for r in rs],
+            [100 * r["wrong_fraction"] for r in rs],
+            marker="osD^v<>"[k % 7],
+            ls=("-", "--", ":", "-.")[k % 4],
+            ms=4,
+            label=lab,
+        )
     ax.set_xlabel("distance travelled along the path (m)")
     ax.set_ylabel("wrong hits (% of rays)")
     ax.set_ylim(bottom=0)
@@ -156,11 +184,18 @@ def plot(rows: list[dict], labels: list[str], path: Path) -> None:
     atomic_savefig(fig, path, dpi=110)
 
 
-def animate(config: str | Path, out: str | Path, *, backend: str = "numpy", cache: str | Path | None = ".cache",
-            progress=None) -> list[dict]:
+def animate(
+    config: str | Path,
+    out: str | Path,
+    *,
+    backend: str = "numpy",
+    cache: str | Path | None = ".cache",
+    progress=None,
+) -> list[dict]:
     """Render every frame of a motion config and write the animation, ``frames.csv``, ``motion.png`` and
     ``metadata.json`` into ``out``. Returns the rows."""
     import imageio.v3 as iio
+
     cfg, scenes, methods, travelled = load_motion_config(config)
     labels = [m.label for m in methods]
     budget.check_backend(backend)
@@ -169,8 +204,9 @@ def animate(config: str | Path, out: str | Path, *, backend: str = "numpy", cach
     t0 = time.perf_counter()
     with output_set(out, ["motion.gif", "motion.mp4", "motion.png", "frames.csv", "metadata.json"]) as tmp:
         for i, (case_id, sc) in enumerate(scenes):
-            case = run_config_case(sc, methods, backend=backend, cache=store, case_id=case_id,
-                                   where=f"{config} path (frame {i})")
+            case = run_config_case(
+                sc, methods, backend=backend, cache=store, case_id=case_id, where=f"{config} path (frame {i})"
+            )
             for r in case.rows:
                 rows.append({"frame": i, "path_m": float(travelled[i]), **r})
             cases.append(case)
@@ -179,9 +215,16 @@ def animate(config: str | Path, out: str | Path, *, backend: str = "numpy", cach
         crop = crop_box([c.mask for c in cases])
         for i, (case, (_, sc)) in enumerate(zip(cases, scenes)):
             cx, cy, cz = sc.object.center
-            frames.append(frame_image(case, labels, crop=crop, title=f"frame {i + 1}/{len(scenes)}: sphere at "
-                                      f"({cx:.2f}, {cy:.2f}, {cz:.2f}), {travelled[i]:.2f} m along the path; "
-                                      f"cube {sc.render.cube_res}², backend {backend}"))
+            frames.append(
+                frame_image(
+                    case,
+                    labels,
+                    crop=crop,
+                    title=f"frame {i + 1}/{len(scenes)}: sphere at "
+                    f"({cx:.2f}, {cy:.2f}, {cz:.2f}), {travelled[i]:.2f} m along the path; "
+                    f"cube {sc.render.cube_res}², backend {backend}",
+                )
+            )
         stack = np.stack(frames)
         if "gif" in cfg.formats:
             iio.imwrite(tmp / "motion.gif", stack, extension=".gif", duration=1000 / cfg.fps, loop=0)
@@ -189,8 +232,15 @@ def animate(config: str | Path, out: str | Path, *, backend: str = "numpy", cach
             _mp4(tmp / "motion.mp4", stack, cfg.fps)
         (tmp / "frames.csv").write_text(to_csv(rows))
         plot(rows, labels, tmp / "motion.png")
-        meta = metadata(config, backend=backend, seed=scenes[0][1].render.seed, methods=labels,
-                        cases=len(scenes), kind="animation", seconds=round(time.perf_counter() - t0, 1))
+        meta = metadata(
+            config,
+            backend=backend,
+            seed=scenes[0][1].render.seed,
+            methods=labels,
+            cases=len(scenes),
+            kind="animation",
+            seconds=round(time.perf_counter() - t0, 1),
+        )
         (tmp / "metadata.json").write_text(json.dumps(meta, indent=2))
     return rows
 
@@ -198,13 +248,24 @@ def animate(config: str | Path, out: str | Path, *, backend: str = "numpy", cach
 def _mp4(path: Path, frames: np.ndarray, fps: float) -> None:
     """H.264 MP4 (imageio-ffmpeg), frames padded to even sizes, yuv420p so that browsers play it."""
     import imageio.v2 as iio2
+
     H, W = frames.shape[1:3]
     frames = np.pad(frames, ((0, 0), (0, H % 2), (0, W % 2), (0, 0)), mode="edge")
     try:
-        with iio2.get_writer(path, format="FFMPEG", fps=fps, codec="libx264", pixelformat="yuv420p",
-                             macro_block_size=1, quality=8) as w:
+        with iio2.get_writer(
+            path,
+            format="FFMPEG",
+            fps=fps,
+            codec="libx264",
+            pixelformat="yuv420p",
+            macro_block_size=1,
+            quality=8,
+        ) as w:
             for f in frames:
                 w.append_data(f)
     except (ImportError, RuntimeError) as err:
-        raise StudyError(f"cannot write MP4 ({err}); install imageio-ffmpeg or set formats = [\"gif\"]",
-                         key="formats", code=3) from None
+        raise StudyError(
+            f'cannot write MP4 ({err}); install imageio-ffmpeg or set formats = ["gif"]',
+            key="formats",
+            code=3,
+        ) from None

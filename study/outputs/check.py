@@ -6,6 +6,7 @@ The check file (``configs/check.toml``) names the sweep, the baseline directory,
 rewrites the baseline (results.csv + metadata.json, one output set: both or neither) instead of comparing. A
 malformed baseline is bad input (a StudyError naming the file, exit 2), never a regression (exit 1).
 """
+
 from __future__ import annotations
 
 import csv
@@ -51,7 +52,9 @@ def load_check(path: str | Path) -> tuple[CheckConfig, Path, Path]:
     known = [c.id for c in claim_registry.CLAIMS]
     for i, c in enumerate(cfg.claims):
         if c not in known:
-            raise StudyError(f"unknown claim {c!r}; allowed: {', '.join(known)}", file=str(path), key=f"claims[{i}]")
+            raise StudyError(
+                f"unknown claim {c!r}; allowed: {', '.join(known)}", file=str(path), key=f"claims[{i}]"
+            )
     return cfg, path.parent / cfg.sweep, path.parent / cfg.baseline
 
 
@@ -68,36 +71,53 @@ def compare(new: list[dict], base: list[dict], tolerance: dict[str, Tolerance]) 
         seen.add(k)
         for metric, tol in tolerance.items():
             if metric not in r or metric not in b:
-                fails.append(Failure(f"{metric}: missing from the {'results' if metric not in r else 'baseline'}"))
+                fails.append(
+                    Failure(f"{metric}: missing from the {'results' if metric not in r else 'baseline'}")
+                )
                 continue
             x, y = float(r[metric]), float(b[metric])
             if math.isnan(x) and math.isnan(y) or x == y:
                 continue
             allowed = tol.abs + tol.rel * abs(y)
             if not (abs(x - y) <= allowed):
-                fails.append(Failure(f"{metric} of {k[1]} in {k[0]} moved from {y:.6g} to {x:.6g} "
-                                     f"(by {x - y:+.3g}; tolerance ±{allowed:.3g} = {tol.abs:g} + {tol.rel:g}·|baseline|)"))
+                fails.append(
+                    Failure(
+                        f"{metric} of {k[1]} in {k[0]} moved from {y:.6g} to {x:.6g} "
+                        f"(by {x - y:+.3g}; tolerance ±{allowed:.3g} = {tol.abs:g} + {tol.rel:g}·|baseline|)"
+                    )
+                )
     for k in index.keys() - seen:
         fails.append(Failure(f"{k[1]} in {k[0]}: in the baseline but not in the results"))
     return fails
 
 
-def run_check(path: str | Path = "configs/check.toml", *, update: bool = False, cache: str | Path | None = ".cache",
-              backend: str = "numpy") -> tuple[list[Failure], list[str]]:
+def run_check(
+    path: str | Path = "configs/check.toml",
+    *,
+    update: bool = False,
+    cache: str | Path | None = ".cache",
+    backend: str = "numpy",
+) -> tuple[list[Failure], list[str]]:
     """Returns (failures, report lines). With ``update`` the baseline is rewritten and failures are empty."""
     cfg, sweep_path, base_dir = load_check(path)
-    if not update:                                   # a missing or malformed baseline stops before the sweep runs
+    if not update:  # a missing or malformed baseline stops before the sweep runs
         if not (base_dir / "results.csv").is_file():
-            raise StudyError("no baseline yet; create it with `study check --update`",
-                             file=str(base_dir / "results.csv"))
+            raise StudyError(
+                "no baseline yet; create it with `study check --update`", file=str(base_dir / "results.csv")
+            )
         base = read_table(base_dir / "results.csv", numeric=list(cfg.tolerance))
     with tempfile.TemporaryDirectory(prefix="study-check-") as tmp:
         rows, stats = run_sweep(sweep_path, Path(tmp) / "run", backend=backend, cache=cache)
         meta = json.loads((Path(tmp) / "run" / "metadata.json").read_text())
     lines = [f"check: {stats['cases']} cases × {len(meta['methods'])} methods in {stats['seconds']:.1f} s"]
     if update:
-        write_set(base_dir, {"results.csv": to_csv(without_timing(rows)),       # timing is not a regression
-                             "metadata.json": json.dumps(meta, indent=2)})
+        write_set(
+            base_dir,
+            {
+                "results.csv": to_csv(without_timing(rows)),  # timing is not a regression
+                "metadata.json": json.dumps(meta, indent=2),
+            },
+        )
         lines.append(f"baseline written: {base_dir / 'results.csv'} ({len(rows)} rows)")
         return [], lines
     parsed = read_csv_rows(rows)
@@ -111,12 +131,15 @@ def run_check(path: str | Path = "configs/check.toml", *, update: bool = False, 
         lines.append(f"claim {cid}: {'✓' if v.ok else '✗'} {v.number}")
         if not v.ok:
             fails.append(Failure(f"claim {cid} ({c.text}) does not hold: {v.number}"))
-    lines.append(f"{len(parsed)} rows × {len(cfg.tolerance)} metrics compared with {base_dir / 'results.csv'}")
+    lines.append(
+        f"{len(parsed)} rows × {len(cfg.tolerance)} metrics compared with {base_dir / 'results.csv'}"
+    )
     return fails, lines
 
 
-def read_table(path: str | Path, *, required: tuple[str, ...] = ("case", "label"),
-               numeric: list[str] = ()) -> list[dict]:
+def read_table(
+    path: str | Path, *, required: tuple[str, ...] = ("case", "label"), numeric: list[str] = ()
+) -> list[dict]:
     """A results table (:func:`study.tables.read_csv`) that must be well formed: UTF-8 CSV with a header, every
     row as long as the header, the ``required`` columns, and numbers (or empty cells) in the ``numeric`` columns
     it has. Anything else is one StudyError naming the file (bad input, exit 2)."""
@@ -135,18 +158,25 @@ def read_table(path: str | Path, *, required: tuple[str, ...] = ("case", "label"
     header = raw[0] if raw else []
     missing = [c for c in required if c not in header]
     if missing:
-        raise StudyError(f"malformed results table: no column {missing[0]!r} (header: "
-                         f"{','.join(header)[:60] or 'empty'})", file=str(path))
+        raise StudyError(
+            f"malformed results table: no column {missing[0]!r} (header: {','.join(header)[:60] or 'empty'})",
+            file=str(path),
+        )
     for i, cells in enumerate(raw[1:]):
         if cells and len(cells) != len(header):
-            raise StudyError(f"malformed results table: line {i + 2} has {len(cells)} cells, the header "
-                             f"{len(header)}", file=str(path))
+            raise StudyError(
+                f"malformed results table: line {i + 2} has {len(cells)} cells, the header {len(header)}",
+                file=str(path),
+            )
     rows = read_csv(path)
     for i, r in enumerate(rows):
         bad = next((c for c in numeric if c in r and not isinstance(r[c], float)), None)
         if bad:
-            raise StudyError(f"malformed results table: line {i + 2}, column {bad!r} holds {str(r[bad])[:20]!r}, "
-                             "not a number", file=str(path))
+            raise StudyError(
+                f"malformed results table: line {i + 2}, column {bad!r} holds {str(r[bad])[:20]!r}, "
+                "not a number",
+                file=str(path),
+            )
     if not rows:
         raise StudyError("malformed results table: no rows", file=str(path))
     return rows

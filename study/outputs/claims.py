@@ -3,11 +3,12 @@
 A claim reads the rows of one table (a figure's metrics.csv or a sweep's results.csv) and returns a
 :class:`Verdict`; a claim whose table lacks the rows it needs returns ``None`` (not applicable).
 """
+
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -17,14 +18,14 @@ from study import methods as registry
 @dataclass
 class Verdict:
     ok: bool
-    number: str          # the evidence, e.g. "median 0.0005° vs 39.7° at the farthest position"
+    number: str  # the evidence, e.g. "median 0.0005° vs 39.7° at the farthest position"
 
 
 @dataclass
 class Claim:
     id: str
-    text: str            # the claim, in the paper's words where possible
-    source: str          # where in the paper
+    text: str  # the claim, in the paper's words where possible
+    source: str  # where in the paper
     test: Callable[[list[dict]], Verdict | None]
 
 
@@ -42,7 +43,7 @@ def _default(name: str) -> str:
 
 
 def _get(rows, case, label, metric):
-    hit = [r.get(metric) for r in rows if r["case"] == case and r["label"] == label]   # None: an older table
+    hit = [r.get(metric) for r in rows if r["case"] == case and r["label"] == label]  # None: an older table
     return hit[0] if hit else None
 
 
@@ -55,13 +56,16 @@ def _convex(rows):
 
 # ---------------------------------------------------------------------------------------------- the claims
 def localized_beats_classical(rows):
-    """localized (default parameters: 10 iterations) has a lower median angular error than classical in every case off the
+    """localized (default parameters: 10 iterations) has a lower median angular error than classical in every
+    case off the
     reference point (object centre ≠ reference point)."""
     worst = None
     n = 0
     for c in _cases(rows):
-        loc, cla = _get(rows, c, _default("localized"), "angle_median_deg"), _get(rows, c, "classical",
-                                                                                      "angle_median_deg")
+        loc, cla = (
+            _get(rows, c, _default("localized"), "angle_median_deg"),
+            _get(rows, c, "classical", "angle_median_deg"),
+        )
         disp = _get(rows, c, "classical", "displacement")
         if loc is None or cla is None or not disp:
             continue
@@ -72,7 +76,9 @@ def localized_beats_classical(rows):
     if worst is None:
         return None
     ratio, c, loc, cla = worst
-    return Verdict(ratio < 1, f"{n} cases; worst ratio localized/classical {ratio:.2g} ({c}: {loc:.3g}° vs {cla:.3g}°)")
+    return Verdict(
+        ratio < 1, f"{n} cases; worst ratio localized/classical {ratio:.2g} ({c}: {loc:.3g}° vs {cla:.3g}°)"
+    )
 
 
 def _iteration_medians(rows):
@@ -80,9 +86,14 @@ def _iteration_medians(rows):
     out = []
     conv = _convex(rows)
     for c in _cases(conv):
-        meds = {int(r["knob_value"]): r["angle_median_deg"] for r in conv
-                if r["case"] == c and r["method"] == "localized" and r.get("family") == "localized"
-                and np.isfinite(r.get("knob_value", np.nan))}
+        meds = {
+            int(r["knob_value"]): r["angle_median_deg"]
+            for r in conv
+            if r["case"] == c
+            and r["method"] == "localized"
+            and r.get("family") == "localized"
+            and np.isfinite(r.get("knob_value", np.nan))
+        }
         out.append((c, meds))
     return out
 
@@ -95,8 +106,11 @@ def iterations_do_not_hurt(rows):
         return None
     bad = [(c, a, b) for c, a, b in pairs if b > a * 1.001 + 1e-6]
     worst = max(pairs, key=lambda p: p[2] / max(p[1], 1e-12))
-    return Verdict(not bad, f"{len(pairs)} convex cases, {len(bad)} rising; largest 10-it/1-it ratio "
-                            f"{worst[2] / max(worst[1], 1e-12):.2g} ({worst[0]})")
+    return Verdict(
+        not bad,
+        f"{len(pairs)} convex cases, {len(bad)} rising; largest 10-it/1-it ratio "
+        f"{worst[2] / max(worst[1], 1e-12):.2g} ({worst[0]})",
+    )
 
 
 def converges_quickly(rows):
@@ -106,7 +120,9 @@ def converges_quickly(rows):
     if not meds:
         return None
     c, worst = max(meds, key=lambda p: p[1])
-    return Verdict(worst < 0.05, f"{len(meds)} convex cases; largest median at 3 iterations {worst:.3g}° ({c})")
+    return Verdict(
+        worst < 0.05, f"{len(meds)} convex cases; largest median at 3 iterations {worst:.3g}° ({c})"
+    )
 
 
 def occlusion_breaks_it(rows):
@@ -122,9 +138,11 @@ def occlusion_breaks_it(rows):
         (occ if f > 0.02 else free).append(e)
     if not occ or not free:
         return None
-    return Verdict(np.median(occ) > np.median(free),
-                   f"median RMSE vs oracle {np.median(occ):.3g} with > 2 % hidden rays ({len(occ)} cases) vs "
-                   f"{np.median(free):.3g} without ({len(free)} cases)")
+    return Verdict(
+        np.median(occ) > np.median(free),
+        f"median RMSE vs oracle {np.median(occ):.3g} with > 2 % hidden rays ({len(occ)} cases) vs "
+        f"{np.median(free):.3g} without ({len(free)} cases)",
+    )
 
 
 def hardly_visible(rows):
@@ -162,9 +180,11 @@ def hidden_wrong(rows):
         return None
     c_h, low, _ = min(found, key=lambda f: f[1])
     c_v, _, high = max(found, key=lambda f: f[2])
-    return Verdict(low >= 0.9 and high <= 0.05,
-                   f"{len(found)} cases with hidden rays; lowest wrong fraction on hidden hits {low:.3g} ({c_h}), "
-                   f"highest on visible hits {high:.3g} ({c_v})")
+    return Verdict(
+        low >= 0.9 and high <= 0.05,
+        f"{len(found)} cases with hidden rays; lowest wrong fraction on hidden hits {low:.3g} ({c_h}), "
+        f"highest on visible hits {high:.3g} ({c_v})",
+    )
 
 
 def iterations_never_raise_wrong(rows):
@@ -173,9 +193,15 @@ def iterations_never_raise_wrong(rows):
     conv = _convex(rows)
     steps, bad, worst = 0, [], None
     for c in _cases(conv):
-        wf = sorted((r["knob_value"], r["wrong_fraction"]) for r in conv
-                    if r["case"] == c and r["method"] == "localized" and r.get("family") == "localized"
-                    and np.isfinite(r.get("knob_value", np.nan)) and _finite(r.get("wrong_fraction")))
+        wf = sorted(
+            (r["knob_value"], r["wrong_fraction"])
+            for r in conv
+            if r["case"] == c
+            and r["method"] == "localized"
+            and r.get("family") == "localized"
+            and np.isfinite(r.get("knob_value", np.nan))
+            and _finite(r.get("wrong_fraction"))
+        )
         for (k0, a), (k1, b) in itertools.pairwise(wf):
             steps += 1
             rise = (b - a, c, k0, k1, a, b)
@@ -185,8 +211,11 @@ def iterations_never_raise_wrong(rows):
     if not steps:
         return None
     d, c, k0, k1, a, b = worst
-    return Verdict(not bad, f"{steps} ladder steps in convex cases, {len(bad)} raising the wrong fraction; largest "
-                            f"change {d:+.2g} ({c}: {a:.3g} at {k0:g} → {b:.3g} at {k1:g} iterations)")
+    return Verdict(
+        not bad,
+        f"{steps} ladder steps in convex cases, {len(bad)} raising the wrong fraction; largest "
+        f"change {d:+.2g} ({c}: {a:.3g} at {k0:g} → {b:.3g} at {k1:g} iterations)",
+    )
 
 
 def layered_fixes_occlusion(rows):
@@ -202,28 +231,64 @@ def layered_fixes_occlusion(rows):
     if not pairs:
         return None
     b, c, a = max(pairs)
-    return Verdict(b <= 0.05, f"{len(pairs)} cases with > 2 % hidden rays that localized gets wrong; worst wrong "
-                              f"fraction on hidden hits: layered {b:.3g} vs localized {a:.3g} ({c})")
+    return Verdict(
+        b <= 0.05,
+        f"{len(pairs)} cases with > 2 % hidden rays that localized gets wrong; worst wrong "
+        f"fraction on hidden hits: layered {b:.3g} vs localized {a:.3g} ({c})",
+    )
 
 
 CLAIMS = [
-    Claim("beats-classical", "Localized lookup is more accurate than classical environment mapping off the "
-          "reference point", "Fig. 4", localized_beats_classical),
-    Claim("monotone", "More iterations do not increase the error in a convex room (false position converges)",
-          "Sec. 'Localization', Fig. 4", iterations_do_not_hurt),
-    Claim("fast-convergence", "In a convex room the search converges very quickly (3 iterations: median < 0.05°)",
-          "Fig. 4 text", converges_quickly),
-    Claim("occlusion", "Points hidden from the reference point cannot be found: larger error where rays hit them",
-          "Fig. 5", occlusion_breaks_it),
-    Claim("hardly-visible", "Remaining localization errors are hardly visible (FLIP within 0.01 of a perfect "
-          "localization)", "Sec. 'Localization'", hardly_visible),
-    Claim("hidden-wrong", "Hidden hits are wrong, visible ones right: localized is wrong on ≥ 90 % of the rays "
-          "whose hit is hidden from the reference point and on ≤ 5 % of the others", "Fig. 5 (issue 17)",
-          hidden_wrong),
-    Claim("monotone-wrong", "More iterations never raise the fraction of wrong rays in a convex room",
-          "Sec. 'Localization' (issue 17)", iterations_never_raise_wrong),
-    Claim("layered", "Beyond the paper: layered distance maps are wrong on ≤ 5 % of the hidden hits that "
-          "localized gets wrong", "related methods (issues 4, 17)", layered_fixes_occlusion),
+    Claim(
+        "beats-classical",
+        "Localized lookup is more accurate than classical environment mapping off the reference point",
+        "Fig. 4",
+        localized_beats_classical,
+    ),
+    Claim(
+        "monotone",
+        "More iterations do not increase the error in a convex room (false position converges)",
+        "Sec. 'Localization', Fig. 4",
+        iterations_do_not_hurt,
+    ),
+    Claim(
+        "fast-convergence",
+        "In a convex room the search converges very quickly (3 iterations: median < 0.05°)",
+        "Fig. 4 text",
+        converges_quickly,
+    ),
+    Claim(
+        "occlusion",
+        "Points hidden from the reference point cannot be found: larger error where rays hit them",
+        "Fig. 5",
+        occlusion_breaks_it,
+    ),
+    Claim(
+        "hardly-visible",
+        "Remaining localization errors are hardly visible (FLIP within 0.01 of a perfect localization)",
+        "Sec. 'Localization'",
+        hardly_visible,
+    ),
+    Claim(
+        "hidden-wrong",
+        "Hidden hits are wrong, visible ones right: localized is wrong on ≥ 90 % of the rays "
+        "whose hit is hidden from the reference point and on ≤ 5 % of the others",
+        "Fig. 5 (issue 17)",
+        hidden_wrong,
+    ),
+    Claim(
+        "monotone-wrong",
+        "More iterations never raise the fraction of wrong rays in a convex room",
+        "Sec. 'Localization' (issue 17)",
+        iterations_never_raise_wrong,
+    ),
+    Claim(
+        "layered",
+        "Beyond the paper: layered distance maps are wrong on ≤ 5 % of the hidden hits that "
+        "localized gets wrong",
+        "related methods (issues 4, 17)",
+        layered_fixes_occlusion,
+    ),
 ]
 
 

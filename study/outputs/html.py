@@ -9,6 +9,7 @@ drag to pan; an exposure slider for the linear radiance; the value under the cur
 from its script when it scrolls into view. What a figure lacks (no viewer images, EXRs not made here) is said in
 the page, never an error.
 """
+
 from __future__ import annotations
 
 import html as _html
@@ -61,11 +62,16 @@ def table(rows: list[dict], cols: list[str]) -> str:
         for c in cols:
             v = r.get(c, "")
             sv = _sort_value(v)
-            cells.append(f'<td data-v="{sv}" class="num">{esc(fmt_number(v, 3))}</td>' if sv is not None
-                         else f"<td>{inline(v)}</td>")
+            cells.append(
+                f'<td data-v="{sv}" class="num">{esc(fmt_number(v, 3))}</td>'
+                if sv is not None
+                else f"<td>{inline(v)}</td>"
+            )
         body.append("<tr>" + "".join(cells) + "</tr>")
-    return (f'<div class="scroll"><table class="sortable"><thead><tr>{head}</tr></thead>'
-            f'<tbody>{"".join(body)}</tbody></table></div>')
+    return (
+        f'<div class="scroll"><table class="sortable"><thead><tr>{head}</tr></thead>'
+        f"<tbody>{''.join(body)}</tbody></table></div>"
+    )
 
 
 # ---------------------------------------------------------------------------------------------- viewers
@@ -89,36 +95,54 @@ def viewer_note(reports: Path, fig: str) -> str:
     """One Markdown line on a figure's per-case images (for ``index.md``)."""
     m = _figure_viewers(reports, fig)
     if m is None:
-        return (f"No per-case images for {fig} here: `study figure {fig}` writes them (EXRs under `{fig}/exr/`, the "
-                f"viewer's images under `{fig}/viewer/`).")
+        return (
+            f"No per-case images for {fig} here: `study figure {fig}` writes them (EXRs under `{fig}/exr/`, the "
+            f"viewer's images under `{fig}/viewer/`)."
+        )
     have = sum(la["have"] for c in m["cases"] for la in c["layers"])
-    exr = (f"EXRs per case under [{fig}/exr/]({fig}/exr/)" if have else
-           f"EXRs per case (`{fig}/exr/<case>/`) are not in this copy: `bash scripts/reproduce.sh` makes them")
+    exr = (
+        f"EXRs per case under [{fig}/exr/]({fig}/exr/)"
+        if have
+        else f"EXRs per case (`{fig}/exr/<case>/`) are not in this copy: `bash scripts/reproduce.sh` makes them"
+    )
     return f"Per-case image viewer ({len(m['cases'])} cases): [index.html](index.html#viewers-{fig}); {exr}."
 
 
 def _viewers_html(reports: Path, fig: str, manifests: dict) -> str:
     m = _figure_viewers(reports, fig)
     if m is None:
-        return (f'<p class="note" id="viewers-{esc(fig)}">No per-case images for {esc(fig)} in this copy: '
-                f"<code>study figure {esc(fig)}</code> writes them (viewer images and EXRs).</p>")
+        return (
+            f'<p class="note" id="viewers-{esc(fig)}">No per-case images for {esc(fig)} in this copy: '
+            f"<code>study figure {esc(fig)}</code> writes them (viewer images and EXRs).</p>"
+        )
     manifests[fig] = m
     have = sum(la["have"] for c in m["cases"] for la in c["layers"])
-    note = ("" if have else f" EXR files are not in this copy (<code>bash scripts/reproduce.sh</code> makes them "
-                            f"under <code>{esc(fig)}/exr/</code>).")
-    divs = "".join(f'<div class="viewer" tabindex="0" data-fig="{esc(fig)}" data-case="{i}"></div>'
-                   for i in range(len(m["cases"])))
-    return (f'<h3 id="viewers-{esc(fig)}">{esc(fig)}: images per case</h3><p class="note">Click a viewer, then: '
-            "number keys or ←/→ pick the image, ↑/↓ the layer (image, angular error, outcome, …), wheel or +/− to "
-            "zoom (f: fit), drag to pan; the slider sets the exposure of the linear radiance (0 = as rendered, "
-            f"clipped at 1, sRGB).{note}</p><div class=\"viewers\">{divs}</div>")
+    note = (
+        ""
+        if have
+        else f" EXR files are not in this copy (<code>bash scripts/reproduce.sh</code> makes them "
+        f"under <code>{esc(fig)}/exr/</code>)."
+    )
+    divs = "".join(
+        f'<div class="viewer" tabindex="0" data-fig="{esc(fig)}" data-case="{i}"></div>'
+        for i in range(len(m["cases"]))
+    )
+    return (
+        f'<h3 id="viewers-{esc(fig)}">{esc(fig)}: images per case</h3><p class="note">Click a viewer, then: '
+        "number keys or ←/→ pick the image, ↑/↓ the layer (image, angular error, outcome, …), wheel or +/− to "
+        "zoom (f: fit), drag to pan; the slider sets the exposure of the linear radiance (0 = as rendered, "
+        f'clipped at 1, sRGB).{note}</p><div class="viewers">{divs}</div>'
+    )
 
 
 def _luts() -> dict:
     """The colour maps the viewers use, 256 RGB entries each (matplotlib's)."""
     import matplotlib
+
     names = {d["cmap"] for d in viewer.DISPLAY.values() if "cmap" in d}
-    return {n: [[round(255 * x) for x in matplotlib.colormaps[n](i / 255)[:3]] for i in range(256)] for n in names}
+    return {
+        n: [[round(255 * x) for x in matplotlib.colormaps[n](i / 255)[:3]] for i in range(256)] for n in names
+    }
 
 
 def _script_json(obj) -> str:
@@ -144,19 +168,36 @@ def page(blocks: list[tuple], reports: Path, *, title: str) -> str:
         elif kind == "table":
             body.append(table(b[1], b[2]))
         elif kind == "img":
-            body.append(f'<figure><a href="{esc(b[1])}"><img src="{esc(b[1])}" alt="{esc(b[2])}"></a></figure>')
+            body.append(
+                f'<figure><a href="{esc(b[1])}"><img src="{esc(b[1])}" alt="{esc(b[2])}"></a></figure>'
+            )
         elif kind == "media":
-            tag = (f'<video src="{esc(b[1])}" controls loop muted></video>' if b[1].endswith((".mp4", ".webm"))
-                   else f'<img src="{esc(b[1])}" alt="{esc(b[2])}">')
-            body.append(f'<figure>{tag}<figcaption><a href="{esc(b[1])}">{esc(b[1])}</a></figcaption></figure>')
+            tag = (
+                f'<video src="{esc(b[1])}" controls loop muted></video>'
+                if b[1].endswith((".mp4", ".webm"))
+                else f'<img src="{esc(b[1])}" alt="{esc(b[2])}">'
+            )
+            body.append(
+                f'<figure>{tag}<figcaption><a href="{esc(b[1])}">{esc(b[1])}</a></figcaption></figure>'
+            )
         elif kind == "viewer":
             body.append(_viewers_html(reports, b[1], manifests))
     css = (_HERE / "html.css").read_text(encoding="utf-8")
     js = (_HERE / "viewer.js").read_text(encoding="utf-8")
-    return "\n".join([
-        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">', f"<title>{esc(title)}</title>",
-        f"<style>{css}</style></head><body>", f'<nav class="toc">{" · ".join(toc)}</nav><main>', *body, "</main>",
-        f'<script type="application/json" id="study-manifest">{_script_json(manifests)}</script>',
-        f'<script type="application/json" id="study-luts">{_script_json(_luts() if manifests else {})}</script>',
-        f"<script>{js}</script>", "</body></html>", ""])
+    return "\n".join(
+        [
+            "<!DOCTYPE html>",
+            '<html lang="en"><head><meta charset="utf-8">',
+            '<meta name="viewport" content="width=device-width, initial-scale=1">',
+            f"<title>{esc(title)}</title>",
+            f"<style>{css}</style></head><body>",
+            f'<nav class="toc">{" · ".join(toc)}</nav><main>',
+            *body,
+            "</main>",
+            f'<script type="application/json" id="study-manifest">{_script_json(manifests)}</script>',
+            f'<script type="application/json" id="study-luts">{_script_json(_luts() if manifests else {})}</script>',
+            f"<script>{js}</script>",
+            "</body></html>",
+            "",
+        ]
+    )

@@ -5,6 +5,7 @@ Each plot is a PNG with the numbers it shows in a CSV of the same name beside it
 holds every other axis of the sweep at one value (stated in the plot's title): cube resolution at its largest, the
 other axes at their first value, unless the curve varies them.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -15,11 +16,23 @@ from study.io import atomic_savefig
 from study.tables import REFERENCE_ROWS, write_csv
 
 #: metric → (axis label, floor of the log axis: values at or below it are marked at the bottom, not hidden)
-METRICS = {"wrong_fraction": ("fraction of wrong rays", 1e-4),
-           "angle_median_deg": ("median angular error (deg)", 1e-6),
-           "angle_p95_deg": ("p95 angular error (deg)", 1e-6)}
-_COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
-            "#17becf"]
+METRICS = {
+    "wrong_fraction": ("fraction of wrong rays", 1e-4),
+    "angle_median_deg": ("median angular error (deg)", 1e-6),
+    "angle_p95_deg": ("p95 angular error (deg)", 1e-6),
+}
+_COLOURS = [
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#d62728",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+    "#17becf",
+]
 _MARKERS = ["o", "s", "^", "D", "P", "X", "*"]
 _LINES = ["-", "--", ":", "-."]
 
@@ -60,13 +73,22 @@ def _hold(rows: list[dict], vary: set[str]) -> tuple[list[dict], dict]:
     return [r for r in rows if all(r.get(k) == v for k, v in held.items())], held
 
 
-def _plot(path: Path, series: dict[str, list[tuple[float, float]]], *, xlabel: str, metric: str, title: str,
-          logx: bool = False) -> int:
+def _plot(
+    path: Path,
+    series: dict[str, list[tuple[float, float]]],
+    *,
+    xlabel: str,
+    metric: str,
+    title: str,
+    logx: bool = False,
+) -> int:
     """Curves on a log y axis; points at or below the metric's floor are drawn as open ▽ on the axis's bottom.
     Returns how many points were drawn that way."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     ylabel, floor = METRICS[metric]
     fig, ax = plt.subplots(figsize=(7.2, 4.6))
     n_low = 0
@@ -85,7 +107,9 @@ def _plot(path: Path, series: dict[str, list[tuple[float, float]]], *, xlabel: s
         ax.set_xscale("log", base=2)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.set_title(title + (f"\n▽ on the bottom edge: value ≤ {floor:g} (0 included)" if n_low else ""), fontsize=8)
+    ax.set_title(
+        title + (f"\n▽ on the bottom edge: value ≤ {floor:g} (0 included)" if n_low else ""), fontsize=8
+    )
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=6, ncol=2, loc="best")
     fig.tight_layout()
@@ -97,15 +121,22 @@ def cost_plot(rows: list[dict], path: Path, *, metric: str, title: str) -> list[
     """Error (median over the rows of each method) against cube-map lookups per ray, one point per method, the
     Pareto front (no method cheaper and better) drawn as a line. Returns the table behind it."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     ylabel, floor = METRICS[metric]
     labels = list(dict.fromkeys(r["label"] for r in rows))
     table = []
     for lab in labels:
         sel = [r for r in rows if r["label"] == lab]
-        table.append({"method": lab, "lookups_per_ray": float(np.nanmedian([r["lookups_per_ray"] for r in sel])),
-                      metric: float(np.nanmedian([r[metric] for r in sel]))})
+        table.append(
+            {
+                "method": lab,
+                "lookups_per_ray": float(np.nanmedian([r["lookups_per_ray"] for r in sel])),
+                metric: float(np.nanmedian([r[metric] for r in sel])),
+            }
+        )
     pts = [(t["lookups_per_ray"], t[metric]) for t in table]
     front = pareto_front(pts)
     for i, t in enumerate(table):
@@ -116,8 +147,17 @@ def cost_plot(rows: list[dict], path: Path, *, metric: str, title: str) -> list[
     ax.step(fx, fy, where="post", color="0.6", lw=1, zorder=1, label="Pareto front")
     for i, (t, (x, y)) in enumerate(zip(table, pts)):
         st = style(i)
-        ax.plot([x], [max(y, floor)], ls="none", ms=8 if i in front else 6, marker="v" if y <= floor else st["marker"],
-                color=st["color"], mfc=st["color"] if y > floor else "none", label=t["method"], zorder=2)
+        ax.plot(
+            [x],
+            [max(y, floor)],
+            ls="none",
+            ms=8 if i in front else 6,
+            marker="v" if y <= floor else st["marker"],
+            color=st["color"],
+            mfc=st["color"] if y > floor else "none",
+            label=t["method"],
+            zorder=2,
+        )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_ylim(bottom=floor * 0.6)
@@ -163,9 +203,14 @@ def sweep_plots(rows: list[dict], out: str | Path) -> list[Path]:
 
     # ------------------------------------------------------------------ error vs displacement, cube resolution
     for x, vary, xlabel, logx in (
-            ("displacement", {pos_axis} if pos_axis else set(), "|object centre − reference point| / room diagonal",
-             False),
-            ("cube_res", {"cube_res", "axis:render.cube_res"}, "cube resolution (texels per face side)", True)):
+        (
+            "displacement",
+            {pos_axis} if pos_axis else set(),
+            "|object centre − reference point| / room diagonal",
+            False,
+        ),
+        ("cube_res", {"cube_res", "axis:render.cube_res"}, "cube resolution (texels per face side)", True),
+    ):
         if len({r[x] for r in rows}) < 2:
             continue
         sel, held = _hold(rows, vary)
@@ -183,6 +228,8 @@ def sweep_plots(rows: list[dict], out: str | Path) -> list[Path]:
     for metric in ("wrong_fraction", "angle_p95_deg"):
         if rows and metric in rows[0]:
             p = out / f"{metric}_vs_lookups.png"
-            write_csv(cost_plot(rows, p, metric=metric, title="every case of the sweep"), p.with_suffix(".csv"))
+            write_csv(
+                cost_plot(rows, p, metric=metric, title="every case of the sweep"), p.with_suffix(".csv")
+            )
             made.append(p)
     return made

@@ -9,6 +9,7 @@ twice from the same numbers: as Markdown here and as HTML by :mod:`study.outputs
 error naming it (exit 2), and ``index.md`` / ``index.html`` are replaced only when both are complete
 (:func:`study.io.write_set`, the reports directory locked).
 """
+
 from __future__ import annotations
 
 import json
@@ -25,16 +26,55 @@ from study.tables import REFERENCE_ROWS, fmt_number
 
 #: Outcome classes first (study.measure.outcomes): the angle alone is blind to a wrong depth on the same ray.
 OUTCOMES = ["wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95"]
-SUMMARY = [*OUTCOMES, "wrong_fraction_offscreen", "angle_median_deg", "angle_p95_deg", "rmse_oracle", "rmse_truth_debiased",
-           "rmse_mitsuba_debiased", "flip_truth", "occluded_fraction", "lookups_per_ray"]
+SUMMARY = [
+    *OUTCOMES,
+    "wrong_fraction_offscreen",
+    "angle_median_deg",
+    "angle_p95_deg",
+    "rmse_oracle",
+    "rmse_truth_debiased",
+    "rmse_mitsuba_debiased",
+    "flip_truth",
+    "occluded_fraction",
+    "lookups_per_ray",
+]
 #: The error decomposition (study.measure.truth): the parts add up in quadrature to dec_total.
-DECOMPOSITION = ["dec_total", "dec_localization", "dec_representation", "dec_noise", "dec_ratio",
-                 "rmse_truth", "rmse_truth_debiased", "truth_noise_rmse", "rmse_mitsuba", "rmse_mitsuba_debiased",
-                 "mitsuba_noise_rmse"]
-COMPARISON = [*OUTCOMES, "wrong_fraction_offscreen", "angle_p95_deg", "rmse_oracle", "rmse_truth_debiased", "rmse_mitsuba_debiased",
-              "flip_truth", "valid_fraction", "lookups_per_ray"]
-CAUSTIC_COLS = ["caustic_res", "label", "photons", "lm_rmse", "lm_relmse", "img_rmse_mitsuba", "img_sum_ratio_mitsuba",
-                "mitsuba_noise_rmse", "photon_angle_p95_deg", "seconds_per_map"]
+DECOMPOSITION = [
+    "dec_total",
+    "dec_localization",
+    "dec_representation",
+    "dec_noise",
+    "dec_ratio",
+    "rmse_truth",
+    "rmse_truth_debiased",
+    "truth_noise_rmse",
+    "rmse_mitsuba",
+    "rmse_mitsuba_debiased",
+    "mitsuba_noise_rmse",
+]
+COMPARISON = [
+    *OUTCOMES,
+    "wrong_fraction_offscreen",
+    "angle_p95_deg",
+    "rmse_oracle",
+    "rmse_truth_debiased",
+    "rmse_mitsuba_debiased",
+    "flip_truth",
+    "valid_fraction",
+    "lookups_per_ray",
+]
+CAUSTIC_COLS = [
+    "caustic_res",
+    "label",
+    "photons",
+    "lm_rmse",
+    "lm_relmse",
+    "img_rmse_mitsuba",
+    "img_sum_ratio_mitsuba",
+    "mitsuba_noise_rmse",
+    "photon_angle_p95_deg",
+    "seconds_per_map",
+]
 
 
 def _meta(d: Path) -> dict:
@@ -79,8 +119,10 @@ TIE = 0.01
 
 def pareto_front(rows: list[dict], cost: str, err: str) -> list[dict]:
     """The rows no other row beats on both ``cost`` and ``err`` (lower is better), cheapest first."""
-    ok = sorted((r for r in rows if np.isfinite(r.get(cost, np.nan)) and np.isfinite(r.get(err, np.nan))),
-                key=lambda r: (r[cost], r[err]))
+    ok = sorted(
+        (r for r in rows if np.isfinite(r.get(cost, np.nan)) and np.isfinite(r.get(err, np.nan))),
+        key=lambda r: (r[cost], r[err]),
+    )
     front, best = [], np.inf
     for r in ok:
         if r[err] < best:
@@ -118,22 +160,34 @@ def summary_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
             continue
         cases = max(r["cases"] for r in rows)
         parts = []
-        for col, what, fmt in (("wrong_fraction", "fewest wrong hits", _pct),
-                               ("rmse_truth_debiased", "lowest image error against the truth (RMSE)", fmt_number)):
+        for col, what, fmt in (
+            ("wrong_fraction", "fewest wrong hits", _pct),
+            ("rmse_truth_debiased", "lowest image error against the truth (RMSE)", fmt_number),
+        ):
             if (w := _winner(rows, col, fmt)) is not None:
                 parts.append(f"{what}: {w}")
         front = pareto_front(rows, "lookups_per_ray", "wrong_fraction")
         if len(front) > 1:
-            parts.append("cost → wrong hits, each step buying fewer: " + " → ".join(
-                f"`{r['method']}` {_cost(r['lookups_per_ray'])}: {_pct(r['wrong_fraction'])}" for r in front))
+            parts.append(
+                "cost → wrong hits, each step buying fewer: "
+                + " → ".join(
+                    f"`{r['method']}` {_cost(r['lookups_per_ray'])}: {_pct(r['wrong_fraction'])}"
+                    for r in front
+                )
+            )
         items.append(f"**{name}** ({cases:g} case{'s' if cases != 1 else ''}): " + "; ".join(parts) + ".")
     if not items:
         return []
-    return [("h", 2, "Summary"),
-            ("p", "Written from the tables below: medians over each table's cases; *wrong hits* = rays whose shown "
-                  "point is not the exact hit (see *Method comparison*); cost in cube-map lookups per ray; of methods "
-                  f"within {TIE:.0%} of the best value the cheapest is named."),
-            ("list", items)]
+    return [
+        ("h", 2, "Summary"),
+        (
+            "p",
+            "Written from the tables below: medians over each table's cases; *wrong hits* = rays whose shown "
+            "point is not the exact hit (see *Method comparison*); cost in cube-map lookups per ray; of methods "
+            f"within {TIE:.0%} of the best value the cheapest is named.",
+        ),
+        ("list", items),
+    ]
 
 
 # ---------------------------------------------------------------------------------------------- sections
@@ -142,53 +196,86 @@ def _claims_section(tables: dict[str, list[dict]]) -> list[tuple]:
     for name, tab in tables.items():
         for cl, v in claim_registry.evaluate(tab):
             seen.add(cl.id)
-            rows.append({"claim": cl.text, "paper": cl.source, "table": name, "holds": "✓" if v.ok else "✗",
-                         "evidence": str(v.number)})
+            rows.append(
+                {
+                    "claim": cl.text,
+                    "paper": cl.source,
+                    "table": name,
+                    "holds": "✓" if v.ok else "✗",
+                    "evidence": str(v.number),
+                }
+            )
     figs = [n for n in tables if n.startswith("fig")]
-    if len(figs) > 1:                      # claims that contrast figures (e.g. occluded vs free cases)
+    if len(figs) > 1:  # claims that contrast figures (e.g. occluded vs free cases)
         for cl, v in claim_registry.evaluate([r for n in figs for r in tables[n]]):
             if cl.id not in seen:
-                rows.append({"claim": cl.text, "paper": cl.source, "table": " + ".join(figs),
-                             "holds": "✓" if v.ok else "✗", "evidence": str(v.number)})
-    return [("h", 2, "The paper's claims"), ("p", "Each claim is checked on every table it applies to (study/claims.py)."),
-            ("table", rows, ["claim", "paper", "table", "holds", "evidence"])]
+                rows.append(
+                    {
+                        "claim": cl.text,
+                        "paper": cl.source,
+                        "table": " + ".join(figs),
+                        "holds": "✓" if v.ok else "✗",
+                        "evidence": str(v.number),
+                    }
+                )
+    return [
+        ("h", 2, "The paper's claims"),
+        ("p", "Each claim is checked on every table it applies to (study/claims.py)."),
+        ("table", rows, ["claim", "paper", "table", "holds", "evidence"]),
+    ]
 
 
 def _decomposition_section(tables: dict[str, list[dict]]) -> list[tuple]:
     rows = [r for r in _medians(tables, DECOMPOSITION) if np.isfinite(r["dec_total"])]
     if not rows:
         return []
-    return [("h", 2, "Where the image error comes from"),
-            ("p", "Per table and method, medians over the cases, over the object's pixels whose exact hits the "
-             "reference point sees (study/measure/truth.py). dec_total = RMSE against *truth_at_hit* (Mitsuba's "
-             "radiance along each exact secondary ray, the impostor's bounce budget, no object shadow in either, the "
-             "methods' own sub-pixel rays); dec_localization = against *oracle_map* (the exact hit's radiance from "
-             "the impostor); dec_representation = oracle_map vs truth_at_hit, noise-debiased (what the map cannot "
-             "hold); dec_noise = truth_at_hit's own noise (two seeds). dec_ratio = √(loc² + rep² + noise²) / total "
-             "(1 when the parts add up in quadrature). *_debiased = √max(0, RMSE² − σ²) with σ the reference's "
-             "noise; rmse_mitsuba is against Mitsuba's own camera render with the object (two seeds), which differs "
-             "from what the methods are asked by the object's shadow and one bounce on the reflected path."),
-            ("table", rows, ["table", "method", "cases", *DECOMPOSITION])]
+    return [
+        ("h", 2, "Where the image error comes from"),
+        (
+            "p",
+            "Per table and method, medians over the cases, over the object's pixels whose exact hits the "
+            "reference point sees (study/measure/truth.py). dec_total = RMSE against *truth_at_hit* (Mitsuba's "
+            "radiance along each exact secondary ray, the impostor's bounce budget, no object shadow in either, the "
+            "methods' own sub-pixel rays); dec_localization = against *oracle_map* (the exact hit's radiance from "
+            "the impostor); dec_representation = oracle_map vs truth_at_hit, noise-debiased (what the map cannot "
+            "hold); dec_noise = truth_at_hit's own noise (two seeds). dec_ratio = √(loc² + rep² + noise²) / total "
+            "(1 when the parts add up in quadrature). *_debiased = √max(0, RMSE² − σ²) with σ the reference's "
+            "noise; rmse_mitsuba is against Mitsuba's own camera render with the object (two seeds), which differs "
+            "from what the methods are asked by the object's shadow and one bounce on the reflected path.",
+        ),
+        ("table", rows, ["table", "method", "cases", *DECOMPOSITION]),
+    ]
 
 
 def _comparison_section(tables: dict[str, list[dict]]) -> list[tuple]:
     """One row per table × method: the median over the table's cases of each metric, and the cost."""
-    return [("h", 2, "Method comparison"),
-            ("p", "Per table and method, the median over the table's cases of each metric. *wrong* = the fraction "
-             "of rays whose shown point is farther than ε = max(1 cm, one cube-map texel at the hit) from the exact "
-             "hit (wrong depth on the same ray, another surface, or no hit), over all rays, the rays whose exact hit "
-             "is visible from the reference point and those whose hit is hidden from it (– where there are none); "
-             "dist_p95 = 95th percentile of |shown − exact| (m). The cost is cube-map lookups per ray (the oracle's "
-             "single lookup is the radiance read at the exact hit)."),
-            ("table", _medians(tables, COMPARISON), ["table", "method", "cases", *COMPARISON])]
+    return [
+        ("h", 2, "Method comparison"),
+        (
+            "p",
+            "Per table and method, the median over the table's cases of each metric. *wrong* = the fraction "
+            "of rays whose shown point is farther than ε = max(1 cm, one cube-map texel at the hit) from the exact "
+            "hit (wrong depth on the same ray, another surface, or no hit), over all rays, the rays whose exact hit "
+            "is visible from the reference point and those whose hit is hidden from it (– where there are none); "
+            "dist_p95 = 95th percentile of |shown − exact| (m). The cost is cube-map lookups per ray (the oracle's "
+            "single lookup is the radiance read at the exact hit).",
+        ),
+        ("table", _medians(tables, COMPARISON), ["table", "method", "cases", *COMPARISON]),
+    ]
 
 
 def _figure_section(reports: Path, d: Path, rows: list[dict]) -> list[tuple]:
     meta = _meta(d)
-    out = [("h", 2, d.name),
-           ("p", f"Config `{meta.get('config', '?')}`, backend {meta.get('backend', '?')}; table: "
-                 f"[{d.name}/metrics.csv]({d.name}/metrics.csv)"
-                 + (f" ([Parquet]({d.name}/metrics.parquet))" if (d / "metrics.parquet").is_file() else "") + ".")]
+    out = [
+        ("h", 2, d.name),
+        (
+            "p",
+            f"Config `{meta.get('config', '?')}`, backend {meta.get('backend', '?')}; table: "
+            f"[{d.name}/metrics.csv]({d.name}/metrics.csv)"
+            + (f" ([Parquet]({d.name}/metrics.parquet))" if (d / "metrics.parquet").is_file() else "")
+            + ".",
+        ),
+    ]
     out += [("img", f"{d.name}/{png.name}", d.name) for png in _shown(d.glob("*.png"))]
     out.append(("viewer", d.name))
     return out + [("table", rows, ["case", "label", *SUMMARY])]
@@ -198,9 +285,14 @@ def _sweep_section(d: Path, rows: list[dict]) -> list[tuple]:
     meta = _meta(d)
     rel = d.name
     parquet = f" ([Parquet]({rel}/results.parquet))" if (d / "results.parquet").is_file() else ""
-    out = [("h", 2, f"Sweep `{meta.get('config', d.name)}`"),
-           ("p", f"{meta.get('cases', '?')} cases × {len(meta.get('methods', []))} methods "
-                 f"({', '.join(meta.get('methods', []))}); table: [{rel}/results.csv]({rel}/results.csv){parquet}.")]
+    out = [
+        ("h", 2, f"Sweep `{meta.get('config', d.name)}`"),
+        (
+            "p",
+            f"{meta.get('cases', '?')} cases × {len(meta.get('methods', []))} methods "
+            f"({', '.join(meta.get('methods', []))}); table: [{rel}/results.csv]({rel}/results.csv){parquet}.",
+        ),
+    ]
     out += [("img", f"{rel}/plots/{png.name}", png.stem) for png in _shown((d / "plots").glob("*.png"))]
     # one compact table: per axis combination at the largest cube resolution, median angular error per method
     axes = [k for k in rows[0] if k.startswith("axis:") and k != "axis:render.cube_res"] if rows else []
@@ -213,8 +305,10 @@ def _sweep_section(d: Path, rows: list[dict]) -> list[tuple]:
         g[r["label"]] = r["angle_median_deg"]
         g["occluded"] = r["occluded_fraction"]
     if groups:
-        out += [("p", f"Median angular error (degrees) at cube resolution {top:g}:"),
-                ("table", list(groups.values()), [a.removeprefix("axis:") for a in axes] + ["occluded"] + labels)]
+        out += [
+            ("p", f"Median angular error (degrees) at cube resolution {top:g}:"),
+            ("table", list(groups.values()), [a.removeprefix("axis:") for a in axes] + ["occluded"] + labels),
+        ]
     return out
 
 
@@ -224,14 +318,21 @@ def _caustics_section(reports: Path) -> list[tuple]:
     d = reports / "fig8"
     pngs = _shown(d.glob("*.png"))
     if not (d / "sweep" / "results.csv").is_file():
-        return [("h", 2, "fig8: caustics"), *[("img", f"fig8/{p.name}", "fig8") for p in pngs]] if pngs else []
+        return (
+            [("h", 2, "fig8: caustics"), *[("img", f"fig8/{p.name}", "fig8") for p in pngs]] if pngs else []
+        )
     rows = read_table(d / "sweep" / "results.csv", required=("label",), numeric=["caustic_res"])
-    out = [("h", 2, "fig8: caustics"),
-           ("p", "Glass sphere (n = 1.3) focusing the point light; caustic map from the light, photon hits localized "
-                 "in the distance impostor, splatted into light maps (study/caustics.py, study/lightmap.py). "
-                 "lm_* = light-map error against exact photon tracing (a), W/m²; img_* = caustic-only image against "
-                 "Mitsuba ptracer (b); mitsuba_noise_rmse = Mitsuba's own noise (two seeds). "
-                 "Table: [fig8/sweep/results.csv](fig8/sweep/results.csv).")]
+    out = [
+        ("h", 2, "fig8: caustics"),
+        (
+            "p",
+            "Glass sphere (n = 1.3) focusing the point light; caustic map from the light, photon hits localized "
+            "in the distance impostor, splatted into light maps (study/caustics.py, study/lightmap.py). "
+            "lm_* = light-map error against exact photon tracing (a), W/m²; img_* = caustic-only image against "
+            "Mitsuba ptracer (b); mitsuba_noise_rmse = Mitsuba's own noise (two seeds). "
+            "Table: [fig8/sweep/results.csv](fig8/sweep/results.csv).",
+        ),
+    ]
     out += [("img", f"fig8/{p.name}", "fig8") for p in pngs]
     return out + [("table", rows, CAUSTIC_COLS)]
 
@@ -242,33 +343,47 @@ def _media_section(reports: Path) -> list[tuple]:
     files = _shown(p for p in d.glob("*") if p.suffix.lower() in (".gif", ".mp4", ".webm"))
     if not files:
         return []
-    return [("h", 2, "Animations"), *[("media", f"animation/{p.name}", p.stem) for p in files],
-            *[("img", f"animation/{p.name}", p.stem) for p in _shown(d.glob("*.png"))]]
+    return [
+        ("h", 2, "Animations"),
+        *[("media", f"animation/{p.name}", p.stem) for p in files],
+        *[("img", f"animation/{p.name}", p.stem) for p in _shown(d.glob("*.png"))],
+    ]
 
 
 def _versions_section(dirs: list[Path]) -> list[tuple]:
     rows = []
     for d in dirs:
         m = _meta(d)
-        rows.append({"table": d.name, "command": f"`{m.get('command') or '?'}`",
-                     "config sha256": str(m.get("config_sha256", "?")), "seed": str(m.get("seed", "?")),
-                     "backend": str(m.get("backend", "?")), "git commit": str(m.get("git_commit", "?"))[:10],
-                     "versions": ", ".join(f"{k} {v}" for k, v in m.get("versions", {}).items() if v)})
-    return [("h", 2, "Versions and commands"),
-            ("table", rows, ["table", "command", "config sha256", "seed", "backend", "git commit", "versions"]),
-            ("p", "Regenerate everything: `bash scripts/reproduce.sh` (figures, the main sweep, this report).")]
+        rows.append(
+            {
+                "table": d.name,
+                "command": f"`{m.get('command') or '?'}`",
+                "config sha256": str(m.get("config_sha256", "?")),
+                "seed": str(m.get("seed", "?")),
+                "backend": str(m.get("backend", "?")),
+                "git commit": str(m.get("git_commit", "?"))[:10],
+                "versions": ", ".join(f"{k} {v}" for k, v in m.get("versions", {}).items() if v),
+            }
+        )
+    return [
+        ("h", 2, "Versions and commands"),
+        ("table", rows, ["table", "command", "config sha256", "seed", "backend", "git commit", "versions"]),
+        ("p", "Regenerate everything: `bash scripts/reproduce.sh` (figures, the main sweep, this report)."),
+    ]
 
 
 # ---------------------------------------------------------------------------------------------- the report
-INTRO = ("Outcome per ray (study/measure/outcomes.py): *correct* when the shown point is within ε = max(1 cm, "
-         "one cube-map texel at the hit) of the exact (Embree) hit, else *wrong depth* (on the same ray), *wrong "
-         "surface* or *no hit*; wrong_fraction = 1 − correct. Angular error: at the shading point, between the "
-         "direction to the shown point and the direction to the exact (Embree) hit (blind to a wrong depth on the "
-         "same ray). Image errors over the object's pixels: RMSE on linear radiance; PSNR, SSIM (scikit-image) and "
-         "FLIP (flip-evaluator, LDR mode) on images clipped at 1 and sRGB-encoded. *oracle_map* = exact hit, "
-         "radiance read from the impostor (a perfect localization); *truth_at_hit* = exact hit, Mitsuba's radiance "
-         "along the same ray (the truth the methods are measured against); *mitsuba* = Mitsuba's camera render "
-         "with the object.")
+INTRO = (
+    "Outcome per ray (study/measure/outcomes.py): *correct* when the shown point is within ε = max(1 cm, "
+    "one cube-map texel at the hit) of the exact (Embree) hit, else *wrong depth* (on the same ray), *wrong "
+    "surface* or *no hit*; wrong_fraction = 1 − correct. Angular error: at the shading point, between the "
+    "direction to the shown point and the direction to the exact (Embree) hit (blind to a wrong depth on the "
+    "same ray). Image errors over the object's pixels: RMSE on linear radiance; PSNR, SSIM (scikit-image) and "
+    "FLIP (flip-evaluator, LDR mode) on images clipped at 1 and sRGB-encoded. *oracle_map* = exact hit, "
+    "radiance read from the impostor (a perfect localization); *truth_at_hit* = exact hit, Mitsuba's radiance "
+    "along the same ray (the truth the methods are measured against); *mitsuba* = Mitsuba's camera render "
+    "with the object."
+)
 TITLE = "study: how close do ray-tracing effects without tracing rays come to ray tracing?"
 
 
@@ -280,9 +395,15 @@ def blocks(reports: Path) -> list[tuple]:
     tables = {d.name: read_table(d / "metrics.csv", numeric=numeric) for d in figs}
     tables.update({d.name: read_table(d / "results.csv", numeric=numeric) for d in sweeps})
 
-    out = [("h", 1, TITLE), ("p", "Generated by `study report` from the tables under `reports/` (nothing here is "
-                                   "computed by hand); the same report with image viewers: [index.html](index.html)."),
-           ("p", INTRO)]
+    out = [
+        ("h", 1, TITLE),
+        (
+            "p",
+            "Generated by `study report` from the tables under `reports/` (nothing here is "
+            "computed by hand); the same report with image viewers: [index.html](index.html).",
+        ),
+        ("p", INTRO),
+    ]
     out += summary_blocks(tables)
     out += _claims_section(tables) + _comparison_section(tables) + _decomposition_section(tables)
     for d in figs:
@@ -291,16 +412,21 @@ def blocks(reports: Path) -> list[tuple]:
         out += _sweep_section(d, tables[d.name])
     out += _caustics_section(reports) + _media_section(reports)
     others = _shown(p for p in reports.glob("*.md") if p.name != "index.md")
-    others += _shown(p for p in reports.glob("*/*.md") if p.parent.name not in {d.name for d in figs + sweeps})
+    others += _shown(
+        p for p in reports.glob("*/*.md") if p.parent.name not in {d.name for d in figs + sweeps}
+    )
     if others:
-        out += [("h", 2, "Other reports"),
-                ("list", [f"[{p.relative_to(reports)}]({p.relative_to(reports)})" for p in others])]
+        out += [
+            ("h", 2, "Other reports"),
+            ("list", [f"[{p.relative_to(reports)}]({p.relative_to(reports)})" for p in others]),
+        ]
     return out + _versions_section(figs + sweeps)
 
 
 def markdown_text(blocks_: list[tuple], reports: Path) -> str:
     """The blocks as Markdown (``index.md``)."""
     from study.tables import markdown
+
     lines = []
     for b in blocks_:
         kind = b[0]
@@ -328,4 +454,4 @@ def build_report(reports: str | Path = "reports") -> Path:
     with locked(reports):
         bl = blocks(reports)
         files = {"index.md": markdown_text(bl, reports), "index.html": html.page(bl, reports, title=TITLE)}
-        return write_set(reports, files, lock=False, swap=False)[0]   # others write beside it
+        return write_set(reports, files, lock=False, swap=False)[0]  # others write beside it

@@ -7,7 +7,8 @@ For every case of a figure (:class:`~study.measure.case.CaseOutput`) the figure 
   ``outcome-<label>`` (codes 0 correct, 1 wrong depth, 2 wrong surface, 3 no hit; NaN off the object),
   ``flip-<label>`` / ``error-<label>`` where the case has them, ``hidden`` (fraction of each pixel's rays whose exact
   hit the reference point cannot see) and ``mask`` (1 on the object's pixels). Openable in tev or with
-  :func:`study.io.read_exr`. They are large, so not committed (``.gitignore``); ``bash scripts/reproduce.sh`` makes them.
+  :func:`study.io.read_exr`. They are large, so not committed (``.gitignore``); ``bash scripts/reproduce.sh``
+  makes them.
 * ``viewer/<case>.js``: the same images cropped to the object (:func:`crop_box`) as RGBE-coded PNGs
   (:func:`rgbe_png`: mantissas on the left half, the shared exponent on the right, no alpha, so the browser hands
   the bytes over unchanged) embedded as data URLs in a script, which the report's viewer loads on demand (a script
@@ -15,6 +16,7 @@ For every case of a figure (:class:`~study.measure.case.CaseOutput`) the figure 
 * ``viewer/index.json``: what each case holds (sources, layers, how each is displayed, its EXR), which the
   report embeds (:mod:`study.outputs.html`).
 """
+
 from __future__ import annotations
 
 import base64
@@ -33,15 +35,37 @@ OUTCOME_COLORS = ("#9fd39a", "#f28e2b", "#d62728", "#3b3b3b")
 #: How each layer is shown: radiance with an exposure; maps through a colour map over a fixed range.
 DISPLAY = {
     "image": {"type": "hdr"},
-    "angle": {"type": "log", "lo": 0.01, "hi": 30.0, "cmap": "magma", "unit": "deg",
-              "title": "angular error at the shading point"},
-    "outcome": {"type": "classes", "colors": list(OUTCOME_COLORS), "names": list(OUTCOME_NAMES),
-                "title": "outcome: most frequent class of the pixel's rays"},
-    "flip": {"type": "linear", "lo": 0.0, "hi": 1.0, "cmap": "magma", "unit": "",
-             "title": "LDR-FLIP against truth_at_hit"},
+    "angle": {
+        "type": "log",
+        "lo": 0.01,
+        "hi": 30.0,
+        "cmap": "magma",
+        "unit": "deg",
+        "title": "angular error at the shading point",
+    },
+    "outcome": {
+        "type": "classes",
+        "colors": list(OUTCOME_COLORS),
+        "names": list(OUTCOME_NAMES),
+        "title": "outcome: most frequent class of the pixel's rays",
+    },
+    "flip": {
+        "type": "linear",
+        "lo": 0.0,
+        "hi": 1.0,
+        "cmap": "magma",
+        "unit": "",
+        "title": "LDR-FLIP against truth_at_hit",
+    },
     "error": {"type": "linear", "lo": 0.0, "hi": None, "cmap": "magma", "unit": "", "title": "error map"},
-    "hidden": {"type": "linear", "lo": 0.0, "hi": 1.0, "cmap": "viridis", "unit": "",
-               "title": "fraction of the pixel's rays whose exact hit is hidden from the reference point"},
+    "hidden": {
+        "type": "linear",
+        "lo": 0.0,
+        "hi": 1.0,
+        "cmap": "viridis",
+        "unit": "",
+        "title": "fraction of the pixel's rays whose exact hit is hidden from the reference point",
+    },
 }
 MANIFEST = "viewer/index.json"
 
@@ -61,7 +85,8 @@ def crop_box(mask: np.ndarray, margin: float = 0.35) -> tuple[slice, slice]:
     cy, cx = (ys.min() + ys.max()) / 2, (xs.min() + xs.max()) / 2
     half = max(ys.max() - ys.min(), xs.max() - xs.min()) / 2 * (1 + margin) + 2
     half = min(half, H / 2, W / 2)
-    y0 = int(np.clip(cy - half, 0, H - 2 * half)); x0 = int(np.clip(cx - half, 0, W - 2 * half))
+    y0 = int(np.clip(cy - half, 0, H - 2 * half))
+    x0 = int(np.clip(cx - half, 0, W - 2 * half))
     return slice(y0, y0 + int(2 * half)), slice(x0, x0 + int(2 * half))
 
 
@@ -74,8 +99,8 @@ def rgbe(a: np.ndarray) -> np.ndarray:
     bad = ~np.isfinite(a).all(-1)
     v = np.where(np.isfinite(a), np.maximum(a, 0.0), 0.0)
     mx = v.max(-1)
-    frac, e = np.frexp(mx)                                   # mx = frac · 2^e, frac in [0.5, 1)
-    ok = mx > 2.0 ** -120
+    frac, e = np.frexp(mx)  # mx = frac · 2^e, frac in [0.5, 1)
+    ok = mx > 2.0**-120
     scale = np.where(ok, 2.0 ** (8 - e.astype(float)), 0.0)  # m = v · 2^(8 − e)  (≤ 256·frac < 256)
     m = np.clip(np.rint(v * scale[..., None]), 0, 255)
     E = np.where(ok, np.clip(e + 128, 1, 255), 0)
@@ -95,8 +120,11 @@ def unrgbe(b: np.ndarray) -> np.ndarray:
 def png(a: np.ndarray) -> bytes:
     """A uint8 (H, W) or (H, W, 3) array as PNG bytes (Pillow; no gamma or colour-profile chunk)."""
     from PIL import Image
+
     buf = io.BytesIO()
-    Image.fromarray(a[..., 0] if a.ndim == 3 and a.shape[-1] == 1 else a).save(buf, format="PNG", compress_level=9)
+    Image.fromarray(a[..., 0] if a.ndim == 3 and a.shape[-1] == 1 else a).save(
+        buf, format="PNG", compress_level=9
+    )
     return buf.getvalue()
 
 
@@ -110,27 +138,41 @@ def rgbe_png(a: np.ndarray) -> bytes:
 def case_layers(case, labels: list[str]) -> list[tuple[str, str, np.ndarray]]:
     """(source, layer, full-frame array) of every image of a case: the references and each method's image, then
     each method's maps (those the case has), then the hidden fraction. ``labels``: the methods, in order."""
-    out = [("truth_at_hit", "image", case.truth), *[(lab, "image", case.images[lab]) for lab in labels],
-           ("oracle_map", "image", case.oracle), ("mitsuba", "image", case.mitsuba)]
-    for layer, maps in (("angle", case.angle_maps), ("outcome", case.outcome_maps),
-                        ("flip", getattr(case, "flip_maps", None) or {}),
-                        ("error", getattr(case, "error_maps", None) or {})):
+    out = [
+        ("truth_at_hit", "image", case.truth),
+        *[(lab, "image", case.images[lab]) for lab in labels],
+        ("oracle_map", "image", case.oracle),
+        ("mitsuba", "image", case.mitsuba),
+    ]
+    for layer, maps in (
+        ("angle", case.angle_maps),
+        ("outcome", case.outcome_maps),
+        ("flip", getattr(case, "flip_maps", None) or {}),
+        ("error", getattr(case, "error_maps", None) or {}),
+    ):
         out += [(lab, layer, maps[lab]) for lab in labels if maps.get(lab) is not None]
     if case.occluded is not None:
-        out.append(("truth_at_hit", "hidden", np.where(case.mask | (case.occluded > 0), case.occluded, np.nan)))
+        out.append(
+            ("truth_at_hit", "hidden", np.where(case.mask | (case.occluded > 0), case.occluded, np.nan))
+        )
     return [(s, la, np.asarray(a, np.float32)) for s, la, a in out if a is not None]
 
 
 def exr_name(source: str, layer: str) -> str:
-    return f"{safe_name(source)}.exr" if layer == "image" else \
-        f"{layer}.exr" if layer == "hidden" else f"{layer}-{safe_name(source)}.exr"
+    return (
+        f"{safe_name(source)}.exr"
+        if layer == "image"
+        else f"{layer}.exr"
+        if layer == "hidden"
+        else f"{layer}-{safe_name(source)}.exr"
+    )
 
 
 def _display(layer: str, a: np.ndarray) -> dict:
     d = dict(DISPLAY[layer])
     if layer == "error" and a.ndim == 3 and a.shape[-1] == 3:
         d = {"type": "hdr", "title": "error image"}
-    elif d.get("hi", 0) is None:                              # a map without a fixed range: its 99th percentile
+    elif d.get("hi", 0) is None:  # a map without a fixed range: its 99th percentile
         fin = a[np.isfinite(a)]
         d["hi"] = float(max(np.percentile(fin, 99), 1e-6)) if fin.size else 1.0
     return d
@@ -139,7 +181,9 @@ def _display(layer: str, a: np.ndarray) -> dict:
 def write_case(tmp: Path, name: str, case_id: str, case, labels: list[str], title: str = "") -> dict:
     """Write one case's EXRs and viewer script under ``tmp`` (a figure's output set); return its manifest entry."""
     layers = case_layers(case, labels)
-    sy, sx = crop_box(case.mask | (case.occluded > 0)) if case.mask is not None else (slice(None), slice(None))
+    sy, sx = (
+        crop_box(case.mask | (case.occluded > 0)) if case.mask is not None else (slice(None), slice(None))
+    )
     ex = Path("exr") / safe_name(case_id)
     for source, layer, a in layers:
         write_exr(tmp / ex / exr_name(source, layer), a if a.ndim == 3 else a[..., None])
@@ -149,18 +193,37 @@ def write_case(tmp: Path, name: str, case_id: str, case, labels: list[str], titl
     for source, layer, a in layers:
         crop = a[sy, sx]
         urls.append("data:image/png;base64," + base64.b64encode(rgbe_png(crop)).decode())
-        entries.append({"source": source, "layer": layer, "channels": 1 if crop.ndim == 2 else crop.shape[-1],
-                        "display": _display(layer, a), "exr": (ex / exr_name(source, layer)).as_posix()})
+        entries.append(
+            {
+                "source": source,
+                "layer": layer,
+                "channels": 1 if crop.ndim == 2 else crop.shape[-1],
+                "display": _display(layer, a),
+                "exr": (ex / exr_name(source, layer)).as_posix(),
+            }
+        )
     H, W = layers[0][2].shape[:2]
     y0, x0 = sy.start or 0, sx.start or 0
     script = f"viewer/{safe_name(case_id)}.js"
     key = f"{name}/{case_id}"
     (tmp / script).parent.mkdir(parents=True, exist_ok=True)
-    (tmp / script).write_text("(window.STUDY_VIEWER_DATA = window.STUDY_VIEWER_DATA || {})[" + json.dumps(key)
-                              + "] = " + json.dumps(urls) + ";\n")
-    return {"id": case_id, "key": key, "title": title or case_id, "size": [H, W],
-            "crop": [y0, x0, (sy.stop or H) - y0, (sx.stop or W) - x0], "script": script,
-            "mask_exr": (ex / "mask.exr").as_posix(), "layers": entries}
+    (tmp / script).write_text(
+        "(window.STUDY_VIEWER_DATA = window.STUDY_VIEWER_DATA || {})["
+        + json.dumps(key)
+        + "] = "
+        + json.dumps(urls)
+        + ";\n"
+    )
+    return {
+        "id": case_id,
+        "key": key,
+        "title": title or case_id,
+        "size": [H, W],
+        "crop": [y0, x0, (sy.stop or H) - y0, (sx.stop or W) - x0],
+        "script": script,
+        "mask_exr": (ex / "mask.exr").as_posix(),
+        "layers": entries,
+    }
 
 
 def write_manifest(tmp: Path, name: str, cases: list[dict]) -> None:
@@ -175,7 +238,12 @@ def read_manifest(fig_dir: Path) -> dict | None:
         m = json.loads((fig_dir / MANIFEST).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    ok = isinstance(m, dict) and isinstance(m.get("cases"), list) and all(
-        isinstance(c, dict) and isinstance(c.get("layers"), list) and isinstance(c.get("script"), str)
-        for c in m["cases"])
+    ok = (
+        isinstance(m, dict)
+        and isinstance(m.get("cases"), list)
+        and all(
+            isinstance(c, dict) and isinstance(c.get("layers"), list) and isinstance(c.get("script"), str)
+            for c in m["cases"]
+        )
+    )
     return m if ok else None

@@ -1,4 +1,5 @@
 """Exact first hits with Embree (embreex) on the very triangles Mitsuba renders (:func:`study.scene.room_mesh`)."""
+
 from __future__ import annotations
 
 import os
@@ -18,14 +19,15 @@ class Tracer:
     def __init__(self, mesh: RoomMesh, *, threads: int | None = None):
         from embreex import rtcore_scene as rtcs
         from embreex.mesh_construction import TriangleMesh
+
         self.mesh = mesh
         self.scene = rtcs.EmbreeScene()
         TriangleMesh(self.scene, mesh.vertices.astype(np.float32), mesh.faces.astype(np.int32))
         self.threads = max(1, threads or int(os.environ.get("STUDY_THREADS") or 0) or os.cpu_count() or 1)
-        self._pool: tuple[int, ThreadPoolExecutor] | None = None     # (pid, pool), made on first use
+        self._pool: tuple[int, ThreadPoolExecutor] | None = None  # (pid, pool), made on first use
 
     @classmethod
-    def from_triangles(cls, V: np.ndarray, F: np.ndarray, *, threads: int | None = None) -> "Tracer":
+    def from_triangles(cls, V: np.ndarray, F: np.ndarray, *, threads: int | None = None) -> Tracer:
         """A tracer of raw triangles (V, 3), (F, 3): one untextured surface (uv and surface ids all zero)."""
         V = np.ascontiguousarray(V, np.float32).reshape(-1, 3)
         F = np.ascontiguousarray(F, np.int32).reshape(-1, 3)
@@ -45,17 +47,23 @@ class Tracer:
         prim = np.full(n, -1, np.int64)
         bu, bv = np.zeros(n), np.zeros(n)
         for s in range(0, n, chunk):
-            res = self.scene.run(o[s:s + chunk], d[s:s + chunk], output=1)
+            res = self.scene.run(o[s : s + chunk], d[s : s + chunk], output=1)
             hit = res["geomID"] != -1
-            t[s:s + chunk] = np.where(hit, res["tfar"], np.inf)
-            prim[s:s + chunk] = np.where(hit, res["primID"], -1)
-            bu[s:s + chunk], bv[s:s + chunk] = res["u"], res["v"]
+            t[s : s + chunk] = np.where(hit, res["tfar"], np.inf)
+            prim[s : s + chunk] = np.where(hit, res["primID"], -1)
+            bu[s : s + chunk], bv[s : s + chunk] = res["u"], res["v"]
         hit = prim >= 0
         point = o.astype(np.float64) + d.astype(np.float64) * np.where(hit, t, np.nan)[:, None]
         surface = np.where(hit, self.mesh.surface[np.maximum(prim, 0)], -1)
-        tri_uv = self.mesh.uv[self.mesh.faces[np.maximum(prim, 0)]]          # (N, 3, 2)
+        tri_uv = self.mesh.uv[self.mesh.faces[np.maximum(prim, 0)]]  # (N, 3, 2)
         uv = (1 - bu - bv)[:, None] * tri_uv[:, 0] + bu[:, None] * tri_uv[:, 1] + bv[:, None] * tri_uv[:, 2]
-        return {"t": t, "point": point, "prim": prim, "surface": surface, "uv": np.where(hit[:, None], uv, np.nan)}
+        return {
+            "t": t,
+            "point": point,
+            "prim": prim,
+            "surface": surface,
+            "uv": np.where(hit[:, None], uv, np.nan),
+        }
 
     def distance(self, o: np.ndarray, d: np.ndarray) -> np.ndarray:
         """|hit − o| for unit directions d (inf on a miss): (N,) float64, the ``t`` of :meth:`intersect`.
@@ -74,7 +82,7 @@ class Tracer:
             cast(0, len(o))
             return t
         cuts = np.linspace(0, len(o), self.threads + 1).astype(int)
-        list(self._executor().map(cast, cuts[:-1], cuts[1:]))         # list(): wait, and raise a chunk's error
+        list(self._executor().map(cast, cuts[:-1], cuts[1:]))  # list(): wait, and raise a chunk's error
         return t
 
     def _executor(self) -> ThreadPoolExecutor:

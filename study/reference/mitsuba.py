@@ -2,11 +2,14 @@
 
 The environment is built from :func:`study.scene.environment.geometry` (the very triangles Embree intersects): the
 box room's surfaces with their procedural textures, a mesh file's parts with their textures or colours (two-sided
-diffuse BSDFs), or a Mitsuba scene's own shapes, BSDFs and emitters; box and mesh environments get the point light; the object is a Mitsuba sphere with
+diffuse BSDFs), or a Mitsuba scene's own shapes, BSDFs and emitters; box and mesh environments get the point
+light; the object is a Mitsuba sphere with
 its real material (``conductor`` with per-channel eta and k, a perfect mirror, or a ``dielectric``), or a mesh with
-smooth vertex normals for mesh shapes. A dielectric object gets ``max_depth + 2`` (in and out of the glass). Rendering uses the
+smooth vertex normals for mesh shapes. A dielectric object gets ``max_depth + 2`` (in and out of the glass).
+Rendering uses the
 ``llvm_ad_rgb`` variant on the CPU (``cuda_ad_rgb`` on a GPU) and the ``path`` integrator.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -55,8 +58,11 @@ def object_bsdf(scene: Scene) -> dict:
         return {"type": "conductor", "material": "none"}
     if mat.type == "dielectric":
         return {"type": "dielectric", "int_ior": mat.ior, "ext_ior": 1.0}
-    return {"type": "conductor", "eta": {"type": "rgb", "value": list(mat.n)},
-            "k": {"type": "rgb", "value": list(mat.k)}}
+    return {
+        "type": "conductor",
+        "eta": {"type": "rgb", "value": list(mat.n)},
+        "k": {"type": "rgb", "value": list(mat.k)},
+    }
 
 
 def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dict | None = None) -> dict:
@@ -67,27 +73,42 @@ def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dic
     env = geometry(scene)
     depth = scene.render.max_depth
     if with_object and scene.object.material.type == "dielectric":
-        depth += 2                        # entering and leaving the glass: the room behind gets max_depth as well
-    d = {"type": "scene", "sensor": sensor,
-         "integrator": integrator or {"type": "path", "max_depth": depth}}
+        depth += 2  # entering and leaving the glass: the room behind gets max_depth as well
+    d = {"type": "scene", "sensor": sensor, "integrator": integrator or {"type": "path", "max_depth": depth}}
     if env.point_light:
-        d["light"] = {"type": "point", "position": list(scene.light.position),
-                      "intensity": {"type": "rgb", "value": list(scene.light.intensity)}}
-    for i, e in enumerate(env.emitters):  # a Mitsuba scene's own emitters (area lights come with their shapes)
+        d["light"] = {
+            "type": "point",
+            "position": list(scene.light.position),
+            "intensity": {"type": "rgb", "value": list(scene.light.intensity)},
+        }
+    for i, e in enumerate(
+        env.emitters
+    ):  # a Mitsuba scene's own emitters (area lights come with their shapes)
         d[f"emitter_{i}"] = e
     mesh = env.mesh
     for sid, part in enumerate(env.parts):
         if not np.any(mesh.surface == sid):
             continue
-        if part.native is not None:       # a Mitsuba scene's shape, with its BSDF and area light
+        if part.native is not None:  # a Mitsuba scene's shape, with its BSDF and area light
             d[f"surface_{sid}"] = part.native
             continue
         V, F, UV = mesh.part(sid)
-        d[f"surface_{sid}"] = triangle_mesh(m, part.name, V, F, UV, part_bsdf(m, part),
-                                            colors=mesh.part_colors(sid) if part.vertex_colors else None)
+        d[f"surface_{sid}"] = triangle_mesh(
+            m,
+            part.name,
+            V,
+            F,
+            UV,
+            part_bsdf(m, part),
+            colors=mesh.part_colors(sid) if part.vertex_colors else None,
+        )
     if with_object and scene.object.shape == "sphere":
-        d["object"] = {"type": "sphere", "center": list(scene.object.center), "radius": scene.object.radius,
-                       "bsdf": object_bsdf(scene)}
+        d["object"] = {
+            "type": "sphere",
+            "center": list(scene.object.center),
+            "radius": scene.object.radius,
+            "bsdf": object_bsdf(scene),
+        }
     elif with_object:
         d["object"] = object_mesh(scene)
     return d
@@ -111,14 +132,28 @@ def object_mesh(scene: Scene):
 
 def sensor(origin, target, up, fov, width, height, spp, seed, *, jitter=True) -> dict:
     m = mi()
-    sampler = ({"type": "independent", "sample_count": spp, "seed": seed} if jitter else
-               {"type": "stratified", "sample_count": 1, "jitter": False, "seed": seed})
-    return {"type": "perspective", "fov": fov, "fov_axis": "x", "near_clip": 1e-4,
-            "to_world": m.ScalarTransform4f().look_at(origin=list(map(float, origin)),
-                                                      target=list(map(float, target)), up=list(map(float, up))),
-            "film": {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": "box"},
-                     "pixel_format": "rgb"},
-            "sampler": sampler}
+    sampler = (
+        {"type": "independent", "sample_count": spp, "seed": seed}
+        if jitter
+        else {"type": "stratified", "sample_count": 1, "jitter": False, "seed": seed}
+    )
+    return {
+        "type": "perspective",
+        "fov": fov,
+        "fov_axis": "x",
+        "near_clip": 1e-4,
+        "to_world": m.ScalarTransform4f().look_at(
+            origin=list(map(float, origin)), target=list(map(float, target)), up=list(map(float, up))
+        ),
+        "film": {
+            "type": "hdrfilm",
+            "width": width,
+            "height": height,
+            "rfilter": {"type": "box"},
+            "pixel_format": "rgb",
+        },
+        "sampler": sampler,
+    }
 
 
 def render_camera(scene: Scene, *, with_object: bool = True, spp: int | None = None) -> np.ndarray:
@@ -137,8 +172,16 @@ def triangle_scene(V: np.ndarray, F: np.ndarray, variant: str | None = None):
     return m, m.load_dict({"type": "scene", "room": mesh})
 
 
-def radiance_along(scene: Scene, origins: np.ndarray, dirs: np.ndarray, *, spp: int, seed: int = 0,
-                   max_depth: int | None = None, chunk: int = 1 << 20) -> np.ndarray:
+def radiance_along(
+    scene: Scene,
+    origins: np.ndarray,
+    dirs: np.ndarray,
+    *,
+    spp: int,
+    seed: int = 0,
+    max_depth: int | None = None,
+    chunk: int = 1 << 20,
+) -> np.ndarray:
     """Radiance arriving at ``origins`` along −``dirs`` (what a ray o + t d sees), path traced by Mitsuba in the
     scene without the object: (N, 3) float32, the mean of ``spp`` samples per ray.
 
@@ -148,17 +191,23 @@ def radiance_along(scene: Scene, origins: np.ndarray, dirs: np.ndarray, *, spp: 
     m = mi()
     o = np.asarray(scene.reference.point, float)
     integrator = {"type": "path", "max_depth": max_depth or scene.render.max_depth}
-    sc = m.load_dict(scene_dict(scene, with_object=False, integrator=integrator,
-                                sensor=sensor(o, o + [0, 0, 1], [0, 1, 0], 90.0, 8, 8, 1, seed)))
+    sc = m.load_dict(
+        scene_dict(
+            scene,
+            with_object=False,
+            integrator=integrator,
+            sensor=sensor(o, o + [0, 0, 1], [0, 1, 0], 90.0, 8, 8, 1, seed),
+        )
+    )
     integ = sc.integrator()
     out = np.zeros((len(origins), 3), np.float32)
     per = max(1, chunk // spp)
     for s in range(0, len(origins), per):
-        org = np.repeat(np.asarray(origins[s:s + per], np.float32), spp, axis=0)
-        d = np.repeat(np.asarray(dirs[s:s + per], np.float32), spp, axis=0)
+        org = np.repeat(np.asarray(origins[s : s + per], np.float32), spp, axis=0)
+        d = np.repeat(np.asarray(dirs[s : s + per], np.float32), spp, axis=0)
         sampler = m.load_dict({"type": "independent"})
         sampler.seed(seed + s, len(org))
         ray = m.Ray3f(m.Point3f(*org.T), m.Vector3f(*d.T))
         rgb, _, _ = integ.sample(sc, sampler, ray)
-        out[s:s + per] = np.array(rgb, np.float32).T.reshape(-1, spp, 3).mean(1)
+        out[s : s + per] = np.array(rgb, np.float32).T.reshape(-1, spp, 3).mean(1)
     return out

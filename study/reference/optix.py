@@ -7,6 +7,7 @@ All the room's triangles are one Mitsuba mesh, so a hit's ``prim_index`` is the 
 as Embree's ``u``, ``v``. Only ``scene.ray_intersect_preliminary`` is asked (no SurfaceInteraction): the cheapest
 query that answers "where is the first hit". float32 inside, as Embree is.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -24,16 +25,18 @@ class MitsubaTracer:
         self.mesh = mesh
         self.m, self.scene = mitsuba_ref.triangle_scene(mesh.vertices, mesh.faces, variant)
         self.variant = self.m.variant()
-        self.threads = 1                            # one device call per chunk; the device is parallel
+        self.threads = 1  # one device call per chunk; the device is parallel
 
     def _query(self, o: np.ndarray, d: np.ndarray):
         m = mitsuba_ref.mi(self.variant)
         ray = m.Ray3f(m.Point3f(np.ascontiguousarray(o.T)), m.Vector3f(np.ascontiguousarray(d.T)))
         pi = self.scene.ray_intersect_preliminary(ray)
         hit = pi.is_valid()
-        return (np.where(np.asarray(hit), np.asarray(pi.t, np.float64), np.inf),
-                np.where(np.asarray(hit), np.asarray(pi.prim_index).astype(np.int64), -1),
-                np.asarray(pi.prim_uv, np.float64).reshape(2, -1))
+        return (
+            np.where(np.asarray(hit), np.asarray(pi.t, np.float64), np.inf),
+            np.where(np.asarray(hit), np.asarray(pi.prim_index).astype(np.int64), -1),
+            np.asarray(pi.prim_uv, np.float64).reshape(2, -1),
+        )
 
     def intersect(self, o: np.ndarray, d: np.ndarray, *, chunk: int = 1 << 22) -> dict[str, np.ndarray]:
         """First hits of rays o + t d (t > 0), (N, 3) each: ``t``, ``point``, ``prim``, ``surface``, ``uv`` as
@@ -43,14 +46,22 @@ class MitsubaTracer:
         n = len(o)
         t, prim, bary = np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((2, n))
         for s in range(0, n, chunk):
-            t[s:s + chunk], prim[s:s + chunk], bary[:, s:s + chunk] = self._query(o[s:s + chunk], d[s:s + chunk])
+            t[s : s + chunk], prim[s : s + chunk], bary[:, s : s + chunk] = self._query(
+                o[s : s + chunk], d[s : s + chunk]
+            )
         hit = prim >= 0
         point = o.astype(np.float64) + d.astype(np.float64) * np.where(hit, t, np.nan)[:, None]
         surface = np.where(hit, self.mesh.surface[np.maximum(prim, 0)], -1)
-        tri_uv = self.mesh.uv[self.mesh.faces[np.maximum(prim, 0)]]          # (N, 3, 2)
+        tri_uv = self.mesh.uv[self.mesh.faces[np.maximum(prim, 0)]]  # (N, 3, 2)
         bu, bv = bary
         uv = (1 - bu - bv)[:, None] * tri_uv[:, 0] + bu[:, None] * tri_uv[:, 1] + bv[:, None] * tri_uv[:, 2]
-        return {"t": t, "point": point, "prim": prim, "surface": surface, "uv": np.where(hit[:, None], uv, np.nan)}
+        return {
+            "t": t,
+            "point": point,
+            "prim": prim,
+            "surface": surface,
+            "uv": np.where(hit[:, None], uv, np.nan),
+        }
 
     def distance(self, o: np.ndarray, d: np.ndarray) -> np.ndarray:
         """|hit − o| for unit directions d (inf on a miss): (N,) float64."""

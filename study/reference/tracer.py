@@ -1,5 +1,6 @@
 """The exact tracer of the render device (:func:`study.runtime.render_device`): Embree on the CPU, Mitsuba's
 OptiX ray queries on CUDA — one interface (``intersect``, ``distance``, ``mesh``, ``threads``)."""
+
 from __future__ import annotations
 
 from study import runtime

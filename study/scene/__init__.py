@@ -4,11 +4,26 @@ the box room, a mesh file or a Mitsuba scene as triangles with their materials (
 mesh) as geometry.
 
 Owns: :class:`Scene` (``schema``), :class:`RoomMesh` (``room``), :func:`camera_rays` (``camera``), object meshes
-and their exact ray queries (``objects``). Imports nothing of study but the bottom modules (errors, io, validation; runtime to load Mitsuba scenes).
+and their exact ray queries (``objects``). Imports nothing of study but the bottom modules (errors, io,
+validation; runtime to load Mitsuba scenes).
 """
+
 from study.scene.camera import camera_rays, look_at_basis
 from study.scene.room import SURFACES, RoomMesh, room_mesh, texture
 from study.scene.schema import Camera, Column, Scene, Sphere, Vec3, load_scene, scene_from_dict
 
-__all__ = ["Camera", "Column", "RoomMesh", "SURFACES", "Scene", "Sphere", "Vec3", "camera_rays", "load_scene",
-           "look_at_basis", "room_mesh", "scene_from_dict", "texture"]
+__all__ = [
+    "Camera",
+    "Column",
+    "RoomMesh",
+    "SURFACES",
+    "Scene",
+    "Sphere",
+    "Vec3",
+    "camera_rays",
+    "load_scene",
+    "look_at_basis",
+    "room_mesh",
+    "scene_from_dict",
+    "texture",
+]

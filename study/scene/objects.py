@@ -24,6 +24,7 @@ moved to ``center``):
   mesh gets trimesh's area-weighted vertex normals. A file that trimesh cannot read, or that holds no faces, is a
   :class:`~study.errors.StudyError` naming the file and ``object.file``.
 """
+
 from __future__ import annotations
 
 import functools
@@ -35,19 +36,20 @@ import numpy as np
 from study.errors import StudyError
 from study.scene.schema import Scene, Sphere
 
-EPS = 1e-4          # ray-origin offset (m) when leaving a surface
+EPS = 1e-4  # ray-origin offset (m) when leaving a surface
 
 
 # ---------------------------------------------------------------------------------------------- meshes
 @dataclass(frozen=True)
 class ObjectMesh:
-    vertices: np.ndarray    # (V, 3) float64, world space
-    faces: np.ndarray       # (F, 3) int32, counter-clockwise seen from outside
-    normals: np.ndarray     # (V, 3) float64, unit outward vertex normals (smooth)
+    vertices: np.ndarray  # (V, 3) float64, world space
+    faces: np.ndarray  # (F, 3) int32, counter-clockwise seen from outside
+    normals: np.ndarray  # (V, 3) float64, unit outward vertex normals (smooth)
 
 
 def _knot(detail: int):
     import trimesh
+
     n_t, n_c, r_tube = 96 * detail, 12 * detail, 0.12
     t = np.linspace(0, 2 * np.pi, n_t, endpoint=False)
 
@@ -59,20 +61,25 @@ def _knot(detail: int):
     T /= np.linalg.norm(T, axis=1, keepdims=True)
     # ----- rotation-minimising frames by parallel transport, closed by twisting the residual angle out
     U = np.zeros_like(T)
-    u = np.cross(T[0], [0.0, 0.0, 1.0]); u /= np.linalg.norm(u)
+    u = np.cross(T[0], [0.0, 0.0, 1.0])
+    u /= np.linalg.norm(u)
     for i in range(n_t):
-        u = u - np.dot(u, T[i]) * T[i]; u /= np.linalg.norm(u)
+        u = u - np.dot(u, T[i]) * T[i]
+        u /= np.linalg.norm(u)
         U[i] = u
     W0 = np.cross(T[0], U[0])
     u_end = U[-1] - np.dot(U[-1], T[0]) * T[0]
     twist = np.arctan2(np.dot(u_end, W0), np.dot(u_end, U[0]))
     ang = -twist * np.arange(n_t) / n_t
     W = np.cross(T, U)
-    U, W = U * np.cos(ang)[:, None] + W * np.sin(ang)[:, None], W * np.cos(ang)[:, None] - U * np.sin(ang)[:, None]
+    U, W = (
+        U * np.cos(ang)[:, None] + W * np.sin(ang)[:, None],
+        W * np.cos(ang)[:, None] - U * np.sin(ang)[:, None],
+    )
     phi = np.linspace(0, 2 * np.pi, n_c, endpoint=False)
-    scale = 1 / 3.0                                            # the trefoil reaches about 3 from its centre
+    scale = 1 / 3.0  # the trefoil reaches about 3 from its centre
     ring = np.cos(phi)[None, :, None] * U[:, None] + np.sin(phi)[None, :, None] * W[:, None]
-    V = (c[:, None] + r_tube * 3 * ring) * scale               # tube radius r_tube in unit-bounding units
+    V = (c[:, None] + r_tube * 3 * ring) * scale  # tube radius r_tube in unit-bounding units
     i, j = np.meshgrid(np.arange(n_t), np.arange(n_c), indexing="ij")
     a, b = i * n_c + j, ((i + 1) % n_t) * n_c + j
     c2, d2 = ((i + 1) % n_t) * n_c + (j + 1) % n_c, i * n_c + (j + 1) % n_c
@@ -82,9 +89,14 @@ def _knot(detail: int):
 
 def _blob(detail: int):
     import trimesh
+
     m = trimesh.creation.icosphere(subdivisions=detail + 1)
     v = m.vertices
-    r = 1 + 0.18 * np.sin(3 * v[:, 0] + 0.5) * np.sin(2 * v[:, 1] + 1.0) + 0.12 * np.sin(4 * v[:, 2] + 2 * v[:, 0])
+    r = (
+        1
+        + 0.18 * np.sin(3 * v[:, 0] + 0.5) * np.sin(2 * v[:, 1] + 1.0)
+        + 0.12 * np.sin(4 * v[:, 2] + 2 * v[:, 0])
+    )
     return trimesh.Trimesh(v * r[:, None], m.faces, process=True)
 
 
@@ -94,24 +106,30 @@ def read_mesh_file(path: str):
     try:
         st = os.stat(path)
     except OSError as err:
-        raise StudyError(f"cannot read the mesh file ({os.strerror(err.errno)})", file=path, key="object.file") \
-            from None
+        raise StudyError(
+            f"cannot read the mesh file ({os.strerror(err.errno)})", file=path, key="object.file"
+        ) from None
     return _read_mesh(str(path), st.st_mtime_ns, st.st_size).copy()
 
 
 @functools.lru_cache(maxsize=8)
 def _read_mesh(path: str, mtime_ns: int, size: int):
     import trimesh
+
     try:
         m = trimesh.load(path, force="mesh")
-    except Exception as err:                       # trimesh raises many kinds on a damaged file
+    except Exception as err:  # trimesh raises many kinds on a damaged file
         first = (str(err).strip().splitlines() or [type(err).__name__])[0][:160]
         raise StudyError(f"unreadable mesh file ({first})", file=path, key="object.file") from None
     faces = np.asarray(getattr(m, "faces", np.zeros((0, 3))))
     if not isinstance(m, trimesh.Trimesh) or faces.ndim != 2 or len(faces) == 0:
-        raise StudyError("the mesh file holds no faces (triangles or polygons); a point cloud or an empty file "
-                         "cannot be shaded", file=path, key="object.file")
-    m = trimesh.Trimesh(np.asarray(m.vertices, float), faces, process=True)   # welded by position only
+        raise StudyError(
+            "the mesh file holds no faces (triangles or polygons); a point cloud or an empty file "
+            "cannot be shaded",
+            file=path,
+            key="object.file",
+        )
+    m = trimesh.Trimesh(np.asarray(m.vertices, float), faces, process=True)  # welded by position only
     m.update_faces(m.nondegenerate_faces())
     m.remove_unreferenced_vertices()
     if len(m.faces) == 0 or not np.isfinite(m.vertices).all() or np.ptp(m.vertices, axis=0).max() <= 0:
@@ -123,6 +141,7 @@ def unit_shape(shape: str, detail: int = 3, file: str | None = None):
     """The shape as a trimesh.Trimesh centred at the origin with bounding radius 1 and outward winding
     (``file``: the mesh file of shape "mesh")."""
     import trimesh
+
     if shape == "mesh":
         if file is None:
             raise StudyError('shape "mesh" needs a mesh file', key="object.file")
@@ -136,7 +155,7 @@ def unit_shape(shape: str, detail: int = 3, file: str | None = None):
         m = _blob(detail)
     else:
         raise ValueError(f"not a mesh shape: {shape!r}")
-    m.fix_normals()                                            # consistent, outward winding
+    m.fix_normals()  # consistent, outward winding
     m.apply_translation(-m.bounding_box.centroid)
     m.apply_scale(1 / np.linalg.norm(m.vertices, axis=1).max())
     return m
@@ -214,6 +233,7 @@ class MeshGeometry(ObjectGeometry):
     def __init__(self, mesh: ObjectMesh, center, radius):
         from embreex import rtcore_scene as rtcs
         from embreex.mesh_construction import TriangleMesh
+
         self.mesh, self.center, self.radius = mesh, np.asarray(center, float), float(radius)
         self.scene = rtcs.EmbreeScene()
         TriangleMesh(self.scene, mesh.vertices.astype(np.float32), mesh.faces.astype(np.int32))
@@ -258,7 +278,9 @@ def geometry(scene: Scene) -> ObjectGeometry:
     return MeshGeometry(object_mesh(obj), obj.center, obj.radius)
 
 
-def farthest_surface(geom: ObjectGeometry, dirs: np.ndarray, max_layers: int = 16) -> tuple[np.ndarray, np.ndarray]:
+def farthest_surface(
+    geom: ObjectGeometry, dirs: np.ndarray, max_layers: int = 16
+) -> tuple[np.ndarray, np.ndarray]:
     """Distance (N,) and outward normal (N, 3) of the farthest surface along rays from the centre (0 on a miss)."""
     c = np.broadcast_to(geom.center, dirs.shape)
     if isinstance(geom, SphereGeometry):

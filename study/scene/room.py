@@ -1,4 +1,5 @@
 """The environment as triangles — the very ones Mitsuba renders and Embree intersects — and their textures."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -24,6 +25,7 @@ class RoomMesh:
     surfaces : names of the textured surfaces, in texture-id order
     colors : (V, 3) float32 linear RGB per vertex, or None (mesh files with vertex or face colours)
     """
+
     vertices: np.ndarray
     faces: np.ndarray
     uv: np.ndarray
@@ -81,7 +83,10 @@ def room_mesh(scene: Scene) -> RoomMesh:
     def add(quad, sid):
         nonlocal n
         v, f, uv = quad
-        V.append(v); F.append(f + n); UV.append(uv); S.append(np.full(len(f), sid))
+        V.append(v)
+        F.append(f + n)
+        UV.append(uv)
+        S.append(np.full(len(f), sid))
         n += len(v)
 
     for name, quad in _box_quads(scene.room.min, scene.room.max, inward=True).items():
@@ -89,8 +94,13 @@ def room_mesh(scene: Scene) -> RoomMesh:
     for col in scene.columns:
         for quad in _box_quads(*col.box(scene.room), inward=False, skip_bottom=True).values():
             add(quad, SURFACES.index("column"))
-    return RoomMesh(np.concatenate(V).astype(np.float32), np.concatenate(F).astype(np.int32),
-                    np.concatenate(UV).astype(np.float32), np.concatenate(S).astype(np.int32), SURFACES)
+    return RoomMesh(
+        np.concatenate(V).astype(np.float32),
+        np.concatenate(F).astype(np.int32),
+        np.concatenate(UV).astype(np.float32),
+        np.concatenate(S).astype(np.int32),
+        SURFACES,
+    )
 
 
 # ---------------------------------------------------------------------------------------------- textures
@@ -102,10 +112,15 @@ def texture(surface: str, size: int = 256) -> np.ndarray:
     ceiling and stripes on columns.
     """
     y, x = np.mgrid[0:size, 0:size] / size
-    hues = {"floor": ((0.75, 0.72, 0.65), (0.25, 0.22, 0.2)), "ceiling": ((0.8, 0.8, 0.8), (0.55, 0.55, 0.6)),
-            "wall_x-": ((0.75, 0.3, 0.25), (0.85, 0.7, 0.5)), "wall_x+": ((0.25, 0.45, 0.75), (0.7, 0.8, 0.85)),
-            "wall_z-": ((0.3, 0.65, 0.3), (0.8, 0.85, 0.6)), "wall_z+": ((0.8, 0.65, 0.2), (0.45, 0.3, 0.6)),
-            "column": ((0.85, 0.85, 0.8), (0.2, 0.2, 0.35))}
+    hues = {
+        "floor": ((0.75, 0.72, 0.65), (0.25, 0.22, 0.2)),
+        "ceiling": ((0.8, 0.8, 0.8), (0.55, 0.55, 0.6)),
+        "wall_x-": ((0.75, 0.3, 0.25), (0.85, 0.7, 0.5)),
+        "wall_x+": ((0.25, 0.45, 0.75), (0.7, 0.8, 0.85)),
+        "wall_z-": ((0.3, 0.65, 0.3), (0.8, 0.85, 0.6)),
+        "wall_z+": ((0.8, 0.65, 0.2), (0.45, 0.3, 0.6)),
+        "column": ((0.85, 0.85, 0.8), (0.2, 0.2, 0.35)),
+    }
     a, b = (np.array(h, np.float32) for h in hues[surface])
     if surface == "floor":
         m = ((np.floor(x * 8) + np.floor(y * 8)) % 2)[..., None]

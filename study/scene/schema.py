@@ -59,13 +59,22 @@ Meshes: ``object.shape = "torus" | "knot" | "blob"`` with ``rotation = [rx, ry, 
 Every error is a :class:`~study.errors.StudyError` whose message names the file, the key and what is allowed.
 Numbers are strict: a boolean or a string is not a number (``radius = true`` is an error, not 1.0).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 from pydantic_core import PydanticCustomError
 
 from study.errors import StudyError
@@ -77,11 +86,13 @@ from study.validation import KeyedError, first_error
 
 def _number(kind: str):
     """A before-validator: booleans and strings are not numbers (pydantic would read true as 1, "2" as 2)."""
+
     def check(v):
         if isinstance(v, (bool, np.bool_, str, bytes)):
             what = "a boolean" if isinstance(v, (bool, np.bool_)) else "a string"
             raise PydanticCustomError(f"{kind}_type", f"Input should be a valid {kind}, not {what}")
         return v
+
     return BeforeValidator(check)
 
 
@@ -90,8 +101,8 @@ Int = Annotated[int, _number("integer")]
 Vec3 = tuple[Float, Float, Float]
 Vec2 = tuple[Float, Float]
 PosFloat = Annotated[Float, Field(gt=0, allow_inf_nan=False)]
-MAX_SEED = 2 ** 31 - 1          # Mitsuba's seeds are 32-bit; study adds offsets (second seeds, ray chunks)
-MAX_SAMPLES = 2 ** 31 - 1       # per pixel or texel (Mitsuba's sample counts are 32-bit)
+MAX_SEED = 2**31 - 1  # Mitsuba's seeds are 32-bit; study adds offsets (second seeds, ray chunks)
+MAX_SAMPLES = 2**31 - 1  # per pixel or texel (Mitsuba's sample counts are 32-bit)
 
 
 class _Strict(BaseModel):
@@ -129,7 +140,7 @@ class Light(_Strict):
 
 class Reference(_Strict):
     point: Vec3 = (0.0, 1.5, 0.0)
-    box: Optional[tuple[Vec3, Vec3]] = None    # the proxy box of proxy methods (min, max); default: the bounds
+    box: tuple[Vec3, Vec3] | None = None  # the proxy box of proxy methods (min, max); default: the bounds
 
     @model_validator(mode="after")
     def _box(self):
@@ -150,10 +161,12 @@ class Conductor(_Strict):
 
 class Dielectric(_Strict):
     type: Literal["dielectric"]
-    ior: Annotated[Float, Field(gt=1, le=4, allow_inf_nan=False)] = 1.5   # index of refraction inside (outside: 1)
+    ior: Annotated[Float, Field(gt=1, le=4, allow_inf_nan=False)] = (
+        1.5  # index of refraction inside (outside: 1)
+    )
 
 
-Material = Annotated[Union[Mirror, Conductor, Dielectric], Field(discriminator="type")]
+Material = Annotated[Mirror | Conductor | Dielectric, Field(discriminator="type")]
 
 
 #: mesh file formats an object may be read from (through trimesh)
@@ -167,17 +180,18 @@ class Sphere(_Strict):
     ``shape = "mesh"`` reads the triangles from ``file`` (OBJ, PLY, GLB/glTF, STL, OFF through trimesh; relative to
     the scene file; ``shape`` may be left out when ``file`` is given), centred on its bounding box and scaled
     in the same way; ``detail`` does not apply to it. Cache keys hash the file's bytes, not its path."""
+
     shape: Literal["mesh", "sphere", "torus", "knot", "blob"] = "sphere"
     center: Vec3 = (0.5, 1.2, 0.3)
-    radius: PosFloat = 0.4                       # sphere radius, or bounding-sphere radius of a mesh
+    radius: PosFloat = 0.4  # sphere radius, or bounding-sphere radius of a mesh
     material: Material = Mirror(type="mirror")
-    rotation: Vec3 = (0.0, 0.0, 0.0)             # meshes: Euler angles x, y, z in degrees
+    rotation: Vec3 = (0.0, 0.0, 0.0)  # meshes: Euler angles x, y, z in degrees
     detail: Annotated[Int, Field(ge=1, le=6)] = 3  # meshes: tessellation level
-    file: str | None = None                      # shape "mesh": the mesh file (stored as an absolute path)
+    file: str | None = None  # shape "mesh": the mesh file (stored as an absolute path)
 
     @model_validator(mode="before")
     @classmethod
-    def _mesh_by_file(cls, data):                # a file alone means shape "mesh"
+    def _mesh_by_file(cls, data):  # a file alone means shape "mesh"
         implied = isinstance(data, dict) and data.get("file") and "shape" not in data
         return {**data, "shape": "mesh"} if implied else data
 
@@ -190,8 +204,11 @@ class Sphere(_Strict):
     def _file_for_mesh(self):
         known = (self.file or ".obj").lower().endswith(MESH_SUFFIXES)
         if (self.shape == "mesh") != (self.file is not None) or not known:
-            raise KeyedError("object.file", f"a mesh file ({', '.join(MESH_SUFFIXES)}) for shape \"mesh\", and only "
-                             f"for it (shape {self.shape!r}, file {self.file!r})")
+            raise KeyedError(
+                "object.file",
+                f'a mesh file ({", ".join(MESH_SUFFIXES)}) for shape "mesh", and only '
+                f"for it (shape {self.shape!r}, file {self.file!r})",
+            )
         return self
 
 
@@ -214,16 +231,22 @@ class Render(_Strict):
     max_depth: Annotated[Int, Field(ge=2, le=64)] = 4
     supersample: Annotated[Int, Field(ge=1, le=8)] = 2
     seed: Annotated[Int, Field(ge=0, le=MAX_SEED)] = 0
-    fresnel: Literal["exact", "approx"] = "exact"   # object shading: exact conductor Fresnel or the paper's
-    refraction: Literal["single", "double"] = "double"  # dielectric objects: paper's single refraction or in-and-out
+    fresnel: Literal["exact", "approx"] = "exact"  # object shading: exact conductor Fresnel or the paper's
+    refraction: Literal["single", "double"] = (
+        "double"  # dielectric objects: paper's single refraction or in-and-out
+    )
     exit: Literal["auto", "exact", "distance_map"] = "auto"  # double refraction: how the far side is found
-    internal_bounces: Annotated[Int, Field(ge=0, le=16)] = 8   # total internal reflections followed, then dropped
-    object_res: Annotated[Int, Field(ge=4, le=2048)] = 128     # face resolution of the object's own distance map
+    internal_bounces: Annotated[Int, Field(ge=0, le=16)] = (
+        8  # total internal reflections followed, then dropped
+    )
+    object_res: Annotated[Int, Field(ge=4, le=2048)] = 128  # face resolution of the object's own distance map
 
 
 class Scene(_Strict):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, arbitrary_types_allowed=True)
-    environment: Environment = BoxEnv()          # box room (default), mesh file or Mitsuba scene (study.scene.sources)
+    environment: Environment = (
+        BoxEnv()
+    )  # box room (default), mesh file or Mitsuba scene (study.scene.sources)
     room: Room = Room()
     columns: tuple[Column, ...] = ()
     light: Light = Light()
@@ -243,28 +266,36 @@ class Scene(_Strict):
             return self._placement_any()
         lo, hi = np.array(self.room.min), np.array(self.room.max)
         c, r = np.array(self.object.center), self.object.radius
-        mesh = self.object.shape != "sphere"         # meshes are checked by their bounding sphere
+        mesh = self.object.shape != "sphere"  # meshes are checked by their bounding sphere
         what = f"{self.object.shape} (bounding radius {r})" if mesh else f"sphere (radius {r})"
         who = f"{self.object.shape} (its bounding sphere)" if mesh else "sphere"
         if np.any(c - r <= lo) or np.any(c + r >= hi):
-            raise KeyedError("object.center", f"the {what} must lie inside the room "
-                              f"{list(self.room.min)}..{list(self.room.max)}")
+            raise KeyedError(
+                "object.center",
+                f"the {what} must lie inside the room {list(self.room.min)}..{list(self.room.max)}",
+            )
         for i, col in enumerate(self.columns):
             blo, bhi = col.box(self.room)
             if np.any(blo[[0, 2]] < lo[[0, 2]]) or np.any(bhi[[0, 2]] > hi[[0, 2]]) or bhi[1] >= hi[1]:
                 raise KeyedError(f"columns[{i}]", "the column must lie inside the room")
             if _box_sphere_distance(blo, bhi, c) <= r:
                 raise KeyedError("object.center", f"the {who} overlaps columns[{i}]; move it or the column")
-        for key, p in (("reference.point", self.reference.point), ("light.position", self.light.position),
-                       ("camera.eye", self.camera.eye)):
+        for key, p in (
+            ("reference.point", self.reference.point),
+            ("light.position", self.light.position),
+            ("camera.eye", self.camera.eye),
+        ):
             p = np.array(p)
             if np.any(p <= lo) or np.any(p >= hi):
                 raise KeyedError(key, "must lie strictly inside the room")
             for i, col in enumerate(self.columns):
                 if _box_sphere_distance(*col.box(self.room), p) <= 0:
                     raise KeyedError(key, f"lies inside columns[{i}]")
-        for key, p in (("light.position", self.light.position), ("camera.eye", self.camera.eye),
-                       ("reference.point", self.reference.point)):
+        for key, p in (
+            ("light.position", self.light.position),
+            ("camera.eye", self.camera.eye),
+            ("reference.point", self.reference.point),
+        ):
             if key != "reference.point" and float(np.linalg.norm(np.subtract(p, c))) <= r:
                 raise KeyedError(key, "lies inside the object")
         if np.linalg.norm(np.cross(np.subtract(self.camera.target, self.camera.eye), self.camera.up)) < 1e-9:
@@ -273,18 +304,21 @@ class Scene(_Strict):
 
     def _placement_any(self):
         from study.scene.placement import check_scene
+
         check_scene(self)
         return self
 
     # ------------------------------------------------------------------ derived geometry
-    def with_updates(self, updates: dict[str, Any], *, source: str = "<override>") -> "Scene":
+    def with_updates(self, updates: dict[str, Any], *, source: str = "<override>") -> Scene:
         """A new scene with dotted-key overrides (``{"object.center": [1, 1, 0]}``), validated again."""
         data = self.model_dump(mode="python")
         for key, value in updates.items():
             node, parts = data, key.split(".")
             for p in parts[:-1]:
                 if not isinstance(node, dict) or p not in node:
-                    raise StudyError(f"unknown scene key; allowed top-level keys: {sorted(data)}", file=source, key=key)
+                    raise StudyError(
+                        f"unknown scene key; allowed top-level keys: {sorted(data)}", file=source, key=key
+                    )
                 node = node[p]
             if not isinstance(node, dict) or (parts[-1] not in node and parts[-1] != "material"):
                 raise StudyError("unknown scene key", file=source, key=key)
@@ -295,11 +329,13 @@ class Scene(_Strict):
         """The environment as triangles (:func:`study.scene.environment.geometry`): the box room and its columns,
         a mesh file's or a Mitsuba scene's triangles."""
         from study.scene.environment import geometry
+
         return geometry(self).mesh
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(min, max) of the environment: the room box, or the bounding box of the environment's triangles."""
         from study.scene.environment import geometry
+
         return geometry(self).bounds
 
 
@@ -314,9 +350,11 @@ def scene_from_dict(data: dict, *, source: str = "<scene>", base: str | Path | N
     try:
         return Scene.model_validate(data, context={"base": str(base) if base is not None else None})
     except ValidationError as err:
-        key, msg = first_error(err, Scene, skip=("mirror", "conductor", "dielectric", "box", "mesh", "mitsuba"))
+        key, msg = first_error(
+            err, Scene, skip=("mirror", "conductor", "dielectric", "box", "mesh", "mitsuba")
+        )
         raise StudyError(msg, file=source, key=key or "(top level)") from None
-    except StudyError as err:                      # an environment that cannot be loaded (study.scene.environment)
+    except StudyError as err:  # an environment that cannot be loaded (study.scene.environment)
         if err.file:
             raise
         raise StudyError(err.detail, file=source, key=err.key) from None

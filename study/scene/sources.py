@@ -19,14 +19,23 @@ A relative ``file`` is resolved against the directory of the scene file that nam
 ``"base"``; the working directory otherwise) and stored absolute. Cache keys hash the file's bytes, not its path
 (:func:`key_fields`).
 """
+
 from __future__ import annotations
 
 import hashlib
 import json
 from pathlib import Path
-from typing import Annotated, Any, Dict, Literal, Optional, Union
+from typing import Annotated, Any, Literal
 
-from pydantic import AliasChoices, BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+from pydantic import (
+    AliasChoices,
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 from pydantic_core import PydanticCustomError
 
 Vec3 = tuple[float, float, float]
@@ -56,11 +65,13 @@ class BoxEnv(_Strict):
 
 class MeshEnv(_Strict):
     type: Literal["mesh"]
-    file: str                                            # OBJ / PLY / GLB / STL / OFF, read by trimesh
-    scale: Annotated[float, Field(gt=0)] = 1.0           # applied first
-    rotation: Vec3 = (0.0, 0.0, 0.0)                     # then Euler angles x, y, z in degrees
-    translate: Vec3 = (0.0, 0.0, 0.0)                    # then moved
-    color: tuple[Annotated[float, Field(ge=0, le=1)], ...] = Field((0.6, 0.6, 0.6), min_length=3, max_length=3)
+    file: str  # OBJ / PLY / GLB / STL / OFF, read by trimesh
+    scale: Annotated[float, Field(gt=0)] = 1.0  # applied first
+    rotation: Vec3 = (0.0, 0.0, 0.0)  # then Euler angles x, y, z in degrees
+    translate: Vec3 = (0.0, 0.0, 0.0)  # then moved
+    color: tuple[Annotated[float, Field(ge=0, le=1)], ...] = Field(
+        (0.6, 0.6, 0.6), min_length=3, max_length=3
+    )
     #   linear RGB albedo of parts without a texture or colour of their own
 
     @field_validator("file", mode="before")
@@ -72,9 +83,9 @@ class MeshEnv(_Strict):
 class MitsubaEnv(_Strict):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, arbitrary_types_allowed=True)
     type: Literal["mitsuba"]
-    file: Optional[str] = None                           # a Mitsuba XML scene
-    builtin: Optional[Literal["cornell_box"]] = None     # Mitsuba's own test scenes
-    scene: Optional[Dict[str, Any]] = Field(None, validation_alias=AliasChoices("scene", "dict"))
+    file: str | None = None  # a Mitsuba XML scene
+    builtin: Literal["cornell_box"] | None = None  # Mitsuba's own test scenes
+    scene: dict[str, Any] | None = Field(None, validation_alias=AliasChoices("scene", "dict"))
     #   a scene dict (Python API; also accepted as ``dict``)
 
     @field_validator("file", mode="before")
@@ -86,12 +97,16 @@ class MitsubaEnv(_Strict):
     def _one_source(self):
         given = [k for k in ("file", "builtin", "scene") if getattr(self, k) is not None]
         if len(given) != 1:
-            raise PydanticCustomError("source", "give exactly one of environment.file (XML), environment.builtin (\"cornell_box\") "
-                             "or environment.scene (a dict; got {given})", {"given": ", ".join(given) or "none"})
+            raise PydanticCustomError(
+                "source",
+                'give exactly one of environment.file (XML), environment.builtin ("cornell_box") '
+                "or environment.scene (a dict; got {given})",
+                {"given": ", ".join(given) or "none"},
+            )
         return self
 
 
-Environment = Annotated[Union[BoxEnv, MeshEnv, MitsubaEnv], Field(discriminator="type")]
+Environment = Annotated[BoxEnv | MeshEnv | MitsubaEnv, Field(discriminator="type")]
 
 
 # ---------------------------------------------------------------------------------------------- content keys
@@ -99,7 +114,7 @@ def file_digest(path: str) -> str:
     """sha256 of a file's bytes (and of an OBJ's material library and textures beside it: they change it too)."""
     h = hashlib.sha256(Path(path).read_bytes())
     p = Path(path)
-    if p.suffix.lower() == ".obj":                       # materials and textures an OBJ names
+    if p.suffix.lower() == ".obj":  # materials and textures an OBJ names
         for line in p.read_text(errors="replace").splitlines():
             if line.startswith("mtllib "):
                 mtl = p.parent / line.split(None, 1)[1].strip()
@@ -131,9 +146,12 @@ def key_fields(model: BaseModel | dict) -> dict:
 
     def walk(v):
         if isinstance(v, dict):
-            return {k: (file_digest(x) if k == "file" and isinstance(x, str) and Path(x).is_file() else walk(x))
-                    for k, x in v.items()}
+            return {
+                k: (file_digest(x) if k == "file" and isinstance(x, str) and Path(x).is_file() else walk(x))
+                for k, x in v.items()
+            }
         if isinstance(v, (list, tuple)):
             return [walk(x) for x in v]
         return v
+
     return json.loads(json.dumps(_canon(walk(data)), sort_keys=True))
