@@ -18,6 +18,7 @@ import errno
 import fcntl
 import glob
 import os
+import re
 import shutil
 import stat
 import tempfile
@@ -150,30 +151,34 @@ def locked(out: str | Path):
     try:
         if not os.access(out, os.W_OK | os.X_OK):
             raise EnvironmentProblem("the output directory is not writable", file=str(out))
-        path = out / LOCK
-        while True:
-            try:
-                f = open(path, "a+")
-            except OSError as err:
-                raise os_problem(err, "cannot lock the output directory", out) from None
-            try:
-                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
+        path, f = out / LOCK, None
+        try:  # an interrupt anywhere after the lock file is opened still removes it (if no one else holds it)
+            while True:
+                try:
+                    f = open(path, "a+")
+                except OSError as err:
+                    raise os_problem(err, "cannot lock the output directory", out) from None
+                try:
+                    fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    f.close()
+                    f = None
+                    raise EnvironmentProblem(
+                        "another study command is writing to this directory; wait for it or choose another --out",
+                        file=str(out),
+                    ) from None
+                if _same_file(path, f):  # not a lock file that its last holder removed meanwhile
+                    break
                 f.close()
-                raise EnvironmentProblem(
-                    "another study command is writing to this directory; wait for it or choose another --out",
-                    file=str(out),
-                ) from None
-            if _same_file(path, f):  # not a lock file that its last holder removed meanwhile
-                break
-            f.close()
-        try:
+                f = None
             yield
         finally:
-            if _same_file(path, f):
+            if f is not None:
                 with contextlib.suppress(OSError):
-                    os.unlink(path)
-            f.close()
+                    fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)  # a no-op if held; if free, ours now
+                    if _same_file(path, f):
+                        os.unlink(path)
+                f.close()
     except BaseException:
         _remove_created(out, top)
         raise
@@ -239,9 +244,7 @@ def output_set(
     if out.is_symlink():
         out = out.resolve()  # swap the directory it names, not the link
     with locked(out) if lock else contextlib.nullcontext():
-        for stale in out.parent.glob(
-            f".{glob.escape(out.name)}.new-*"
-        ):  # left by a killed run (the lock is held)
+        for stale in _stale_temps(out):  # left by a killed run (the lock is held)
             shutil.rmtree(stale, ignore_errors=True)
         try:
             tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.new-"))
@@ -275,6 +278,13 @@ def write_set(
             (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
             (tmp / rel).write_bytes(data.encode() if isinstance(data, str) else data)
     return [Path(out) / rel for rel in files]
+
+
+def _stale_temps(out: Path) -> list[Path]:
+    """The temporary directories an earlier run on ``out`` left (``.<name>.new-`` and mkdtemp's 8 characters), and
+    no others: a sibling output named ``<name>.new-x`` has temporaries ``.<name>.new-x.new-…``, which are alive."""
+    pat = re.compile(re.escape(f".{out.name}.new-") + r"[A-Za-z0-9_]{8}")
+    return [p for p in out.parent.glob(f".{glob.escape(out.name)}.new-*") if pat.fullmatch(p.name)]
 
 
 def _owned(rel: str, owns: set[str]) -> bool:
