@@ -24,8 +24,10 @@ __all__ = ["__version__", *_API]
 def __getattr__(name: str):
     if name in _API:
         return getattr(importlib.import_module("study.api"), name)
+    if name == "methods":  # `import study` then `@study.methods.register`, as the README shows
+        return importlib.import_module("study.methods")
     raise AttributeError(f"module 'study' has no attribute {name!r}")
 
 
 def __dir__():
-    return sorted([*globals(), *_API])
+    return sorted([*globals(), *_API, "methods"])

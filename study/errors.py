@@ -66,13 +66,46 @@ def user_error(err: BaseException) -> StudyError:
         return err
     if isinstance(err, OSError):
         return os_problem(err, "cannot read or write a file")
+    if isinstance(err, UnicodeError):  # a file or directory name (or a file) that is not UTF-8
+        bad = getattr(err, "object", b"")
+        where = os.fsdecode(bad) if isinstance(bad, bytes) else str(bad)
+        return EnvironmentProblem(
+            f"a file or directory name is not valid UTF-8 ({where[:80]!r}); rename it or choose another --out"
+        )
+    if isinstance(err, ModuleNotFoundError):
+        return EnvironmentProblem(
+            f"a Python package is missing: {err.name} (run `bash scripts/setup.sh`, or pip install it)"
+        )
+    if _full_disk(err):  # Mitsuba's Bitmap and other C++ writers report these as RuntimeError
+        return EnvironmentProblem(f"cannot write a file ({_first(err)})")
+    if type(err).__name__ == "KilledWorker":
+        return EnvironmentProblem(
+            f"a Dask worker died repeatedly ({_first(err)}); too little memory per worker?"
+        )
     if isinstance(err, MemoryError):
         return EnvironmentProblem(
             "out of memory; lower the resolution, supersampling or samples, or --max-memory"
         )
-    first = (str(err).strip().splitlines() or [""])[0][:200]
+    first = _first(err)
     return StudyError(
         f"internal error ({type(err).__name__}: {first}); please report it, `study --debug …` "
         "shows the traceback",
         code=INTERNAL,
     )
+
+
+_MACHINE_WORDS = (
+    "no space left on device",
+    "disk quota exceeded",
+    "read-only file system",
+    "input/output error",
+)
+
+
+def _first(err: BaseException) -> str:
+    return (str(err).strip().splitlines() or [""])[0][:200]
+
+
+def _full_disk(err: BaseException) -> bool:
+    text = str(err).lower()
+    return isinstance(err, RuntimeError) and any(w in text for w in _MACHINE_WORDS)

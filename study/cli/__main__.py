@@ -1,3 +1,3 @@
-from study.cli.app import main
+from study.cli import main
 
 main()

@@ -102,6 +102,9 @@ def sweep(
         TimeRemainingColumn,
     )
 
+    from study.harness.cluster import check_address
+
+    dask = check_address(dask)  # before any work: '' and 'banana' are refused, not run locally
     out = out or Path("reports") / f"sweep-{config.stem}"
     prepare_sweep(config, backend=backend, jobs=jobs)  # every case checked before the progress bar appears
     with Progress(
