@@ -20,6 +20,7 @@ from study.caustics import photons as caustics
 from study.caustics.study import (
     CausticSetup,
     caustic_rows,
+    check_budget,
     direct_irradiance,
     load_caustic_config,
     radiance,
@@ -105,6 +106,7 @@ def fig8(
     cfg, scene, methods = load_caustic_config(config)
     out = Path(out)
     budget.check_backend(backend)
+    check_budget(cfg, scene, sweep=sweep, source=str(config))
     cache_s = str(cache) if cache else None
     show = next((m for m in methods if m.label == (cfg.show or methods[-1].label)), None)
     if show is None:

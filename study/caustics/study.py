@@ -20,10 +20,10 @@ What is compared with what (like with like):
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from study import backend as backends
 from study.cache import Cache, content_key
@@ -51,15 +51,22 @@ class CausticParams(BaseModel):
     res: int = Field(64, ge=2, le=2048)
     cube_res: int = Field(256, ge=4, le=4096)
     lightmap_res: int = Field(256, ge=8, le=4096)
-    sigma: float = Field(0.02, gt=0)
-    eps: float = Field(0.01, gt=0)
+    sigma: float = Field(0.02, gt=0, allow_inf_nan=False)
+    eps: float = Field(0.01, gt=0, allow_inf_nan=False)
 
 
 class MitsubaParams(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-    spp: int = Field(1024, ge=1)
-    seeds: list[int] = Field([1, 2], min_length=2)
-    max_depth: int = Field(4, ge=4)
+    spp: int = Field(1024, ge=1, le=1 << 20)
+    seeds: list[int] = Field([1, 2], min_length=2, max_length=16)
+    max_depth: int = Field(4, ge=4, le=64)
+
+    @field_validator("seeds")
+    @classmethod
+    def _distinct(cls, v):
+        if len(set(v)) != len(v):
+            raise ValueError("seeds must differ (the references' noise is estimated from two distinct seeds)")
+        return v
 
 
 class CausticConfig(BaseModel):
@@ -68,9 +75,56 @@ class CausticConfig(BaseModel):
     overrides: dict[str, Any] = {}
     methods: MethodSpecs = "all"
     show: str | None = None
-    resolutions: list[int] = [16, 32, 64, 128, 256]
+    resolutions: list[Annotated[int, Field(ge=2, le=2048)]] = Field(
+        [16, 32, 64, 128, 256], min_length=1, max_length=32
+    )
     caustic: CausticParams = CausticParams()
     mitsuba: MitsubaParams = MitsubaParams()
+
+    @field_validator("resolutions")
+    @classmethod
+    def _distinct(cls, v):
+        if len(set(v)) != len(v):
+            raise ValueError("resolutions must differ (each is one row per method)")
+        return v
+
+
+#: Bytes per entry of the splatting kernel's window (indices, weights, offsets: int64/float64, a few copies) and
+#: per light-map texel (RGB float64, the map and its copies); measured loosely, meant to catch orders of magnitude.
+BYTES_PER_SPLAT_ENTRY, BYTES_PER_LIGHTMAP_TEXEL = 96, 4 * 3 * 8
+
+
+def check_budget(cfg: CausticConfig, scene: Scene, *, sweep: bool, source: str | None = None) -> None:
+    """Refuse (one line naming the key) a caustics run whose splatting or light maps need more memory than
+    ``--max-memory``, or whose Mitsuba references would take longer than ``--max-minutes``, before any work."""
+    from study.harness.budget import LIMITS, MITSUBA_SAMPLES_PER_S
+
+    cp, mp, cam = cfg.caustic, cfg.mitsuba, scene.camera
+    frames = lightmap.SurfaceFrames.of(scene.mesh())
+    K = int(np.ceil(3 * cp.sigma / (min(frames.size_u.min(), frames.size_v.min()) / cp.lightmap_res)))
+    res = max([cp.res, *(cfg.resolutions if sweep else [])])
+    mem = {
+        "caustic.res": res**2 * (2 * K + 1) ** 2 * BYTES_PER_SPLAT_ENTRY,  # photons × kernel window
+        "caustic.lightmap_res": len(frames.size_u) * cp.lightmap_res**2 * BYTES_PER_LIGHTMAP_TEXEL,
+    }
+    if sum(mem.values()) > LIMITS.max_memory_gib * (1 << 30):
+        key = max(mem, key=mem.get)
+        raise StudyError(
+            f"would need about {sum(mem.values()) / (1 << 30):.1f} GiB, over the limit of "
+            f"{LIMITS.max_memory_gib:g} GiB (--max-memory); most of it for {key} "
+            f"(with caustic.sigma = {cp.sigma:g} m the splatting window is {2 * K + 1}² texels): lower it",
+            file=source,
+            key=key,
+        )
+    renders = 2 * len(mp.seeds) + 1  # ptracer with glass and black object per seed, one path render
+    seconds = renders * cam.width * cam.height * mp.spp / (MITSUBA_SAMPLES_PER_S * 4 / mp.max_depth)
+    if seconds > LIMITS.max_minutes * 60:
+        raise StudyError(
+            f"the Mitsuba references would take about {seconds / 3600:.1f} h here, over the limit of "
+            f"{LIMITS.max_minutes:g} min (--max-minutes): lower mitsuba.spp or the number of mitsuba.seeds",
+            file=source,
+            key="mitsuba.spp",
+        )
 
 
 def load_caustic_config(path: str | Path) -> tuple[CausticConfig, Scene, list[Method]]:
