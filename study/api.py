@@ -20,10 +20,13 @@ outside the package (``@study.methods.register`` in a notebook cell, ``--plugin`
 from __future__ import annotations
 
 import base64
+import copy
 import io as _io
 import json
+import os
 import re
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -97,6 +100,11 @@ def load_scene(
         tables of a scene TOML); or a Scene.
     overrides, **more : dotted scene keys → values, e.g. ``{"object.radius": 0.3, "camera.width": 64}``.
     """
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise StudyError(
+            f"overrides is a dict of dotted scene keys → values, not {type(overrides).__name__}",
+            key="overrides",
+        )
     updates = {**(overrides or {}), **more}
     if isinstance(source, Scene):
         return source.with_updates(updates) if updates else source
@@ -105,7 +113,7 @@ def load_scene(
             return _environment_scene({"type": "mitsuba", "scene": source}, updates, source="<mitsuba dict>")
         from study.scene import scene_from_dict
 
-        data = json.loads(json.dumps(source, default=list)) if updates else source
+        data = copy.deepcopy(source) if updates else source  # sets stay sets: refused as points
         for k, v in updates.items():
             _set_dotted(data, k, v, source="<scene dict>")
         return scene_from_dict(data, source="<scene dict>")
@@ -287,6 +295,7 @@ def evaluate(
     backend: str = "numpy",
     cache: str | Path | None = ".cache",
     overrides: dict[str, Any] | None = None,
+    source: str | None = None,
 ) -> Result:
     """Run every method on ``scene`` (anything :func:`load_scene` takes) and measure it (one case,
     :func:`study.measure.case.run_case`).
@@ -298,6 +307,7 @@ def evaluate(
     backend : ``"numpy"``, ``"llvm"`` or ``"cuda"``: where the methods run.
     cache : directory of cached impostors and Mitsuba renders (None: no cache).
     overrides : dotted scene keys applied first.
+    source : the name refusals give (the budget's, say); default the scene's file, else ``evaluate``.
 
     Returns
     -------
@@ -311,10 +321,14 @@ def evaluate(
     from study.measure.metrics import flip_map
     from study.tables import columns_of
 
+    if cache is not None and not isinstance(cache, str | os.PathLike):
+        raise StudyError(f"cache is a directory path or None, not {type(cache).__name__}", key="cache")
+    if source is None:
+        source = str(scene) if isinstance(scene, str | os.PathLike) else "evaluate"
     scene = load_scene(scene, overrides)
     ms = method_list(methods)
     budget.check_backend(backend)
-    budget.check([("run", scene)], ms, source="evaluate")
+    budget.check([("run", scene)], ms, source=source)
     from study import runtime
 
     with runtime.using_render_device("cuda" if backend == "cuda" else None):  # renders and exact hits too, as

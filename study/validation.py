@@ -52,7 +52,7 @@ def first_error(
     inner = (e.get("ctx") or {}).get("error")
     if isinstance(inner, KeyedError):
         return inner.key, str(inner)
-    loc = tuple(p for p in e["loc"] if p not in skip)
+    loc = tuple(p for p in e["loc"] if p not in skip and not str(p).startswith("<"))  # "<tag>": union tags
     key = ".".join(str(p) for p in loc)
     if e["type"] == "extra_forbidden":
         allowed = allowed_keys(model, loc)

@@ -90,7 +90,7 @@ def run(
     out = out or Path("reports") / f"run-{scene.stem}"
     t0 = time.perf_counter()
     with console.status(f"{scene.name}: rendering and measuring…"):
-        res = evaluate(sc, methods, backend=backend, cache=cache)
+        res = evaluate(sc, methods, backend=backend, cache=cache, source=str(scene))
     shown = res.shown()
     t = Table(title=res.summary())
     for c in shown.columns:

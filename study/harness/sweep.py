@@ -37,9 +37,9 @@ import itertools
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag
 
 from study.codehash import code_hash
 from study.errors import StudyError
@@ -66,12 +66,20 @@ class Axis(BaseModel):
     line: Line | None = None
 
 
+#: An axis: a plain list of values, or a table (values, named or line). Which one is decided by the input's type
+#: (a discriminator), so an error inside a table names that table's key (``axes.K.line.steps``), not "a valid list".
+AxisSpec = Annotated[
+    Annotated[list[Any], Tag("<list>")] | Annotated[Axis, Tag("<table>")],
+    Discriminator(lambda v: "<table>" if isinstance(v, dict | Axis) else "<list>"),
+]
+
+
 class SweepConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
     scene: str | dict[str, Any]
     seed: Int | None = Field(default=None, ge=0, le=MAX_SEED)
     overrides: dict[str, Any] = {}
-    axes: dict[str, list[Any] | Axis] = {}
+    axes: dict[str, AxisSpec] = {}
     zip: list[list[str]] = []
     methods: MethodSpecs = "all"
 

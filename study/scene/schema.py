@@ -98,7 +98,15 @@ def _number(kind: str):
 
 Float = Annotated[float, _number("number")]
 Int = Annotated[int, _number("integer")]
-Vec3 = tuple[Float, Float, Float]
+
+
+def _not_a_set(v):
+    if isinstance(v, set | frozenset):
+        raise ValueError("a point is a list [x, y, z]; a set has no order")
+    return v
+
+
+Vec3 = Annotated[tuple[Float, Float, Float], BeforeValidator(_not_a_set)]
 Vec2 = tuple[Float, Float]
 PosFloat = Annotated[Float, Field(gt=0, allow_inf_nan=False)]
 MAX_SEED = 2**31 - 1  # Mitsuba's seeds are 32-bit; study adds offsets (second seeds, ray chunks)
