@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -81,15 +82,22 @@ class Cache:
             return
         a = np.ascontiguousarray(a, np.float32)
         d = self.root / kind
-        try:
-            d.mkdir(parents=True, exist_ok=True)
-            atomic_write(d / f"{key}.npy", _npy_bytes(a))
-            atomic_write(
-                d / f"{key}.json",
-                json.dumps({"key": key, "shape": list(a.shape), "sha256": _digest(a)}).encode(),
-            )
-        except OSError as err:
-            raise StudyError(f"cannot write the cache ({err.strerror})", file=str(d)) from None
+        meta = json.dumps({"key": key, "shape": list(a.shape), "sha256": _digest(a)}).encode()
+        for attempt in range(
+            3
+        ):  # `study cache clear` running meanwhile may remove the directory: write again
+            try:
+                d.mkdir(parents=True, exist_ok=True)
+                atomic_write(d / f"{key}.npy", _npy_bytes(a))
+                atomic_write(d / f"{key}.json", meta)
+                return
+            except FileNotFoundError:
+                if attempt == 2:
+                    raise StudyError(
+                        "cannot write the cache (its directory keeps vanishing)", file=str(d)
+                    ) from None
+            except OSError as err:
+                raise StudyError(f"cannot write the cache ({err.strerror})", file=str(d)) from None
 
     def get(self, kind: str, key: str, make: Callable[[], np.ndarray], *, code) -> np.ndarray:
         """The cached array, or ``make()`` stored under (kind, key + the hash of ``code``).
@@ -133,7 +141,7 @@ class Cache:
                     for p in (e, e.with_suffix(".npy"), e.with_suffix(".exr"))
                     if p.exists()
                 }
-                strays = [p for p in files if p not in mine]
+                strays = [p for p in files if p not in mine and not _in_flight(p)]
                 if all(
                     p.suffix in _OURS or p.name.startswith(".") and p.suffix in (".tmp", *_OURS)
                     for p in strays
@@ -186,6 +194,17 @@ class Cache:
 
 
 _OURS = (".npy", ".exr")  # array files the cache writes (.exr: the format before issue 15)
+
+
+#: A temporary file younger than this may belong to a write in progress (a running sweep's): clear leaves it.
+IN_FLIGHT_S = 600.0
+
+
+def _in_flight(p: Path) -> bool:
+    try:
+        return p.name.startswith(".") and time.time() - p.stat().st_mtime < IN_FLIGHT_S
+    except OSError:
+        return False
 
 
 def _is_entry(p: Path) -> bool:

@@ -156,6 +156,7 @@ def test_cache_info_and_clear(tmp_path):
     (root / "mitsuba" / "notes.txt").write_text("mine")  # not the cache's: never counted, never removed
     (root / "mitsuba" / "metadata.json").write_text('{"a": 1}')
     (root / "radiance" / ".x.abc.tmp").write_text("leftover")  # an interrupted write: the cache's
+    os.utime(root / "radiance" / ".x.abc.tmp", (1e9, 1e9))  # left long ago (a young one may be in flight)
     run = CliRunner().invoke
     r = run(app, ["cache", "info", "--cache", str(root)])
     assert r.exit_code == 0, r.output
