@@ -115,3 +115,28 @@ def test_pixel_columns_flag_a_handful_of_bad_pixels():
     assert cols["sqerr_top_share_truth"] > 0.99
     assert cols["rmse_truth_trim"] < 0.02 < r
     assert cols["n_pixels"] == 10000
+
+
+def test_a_real_case_carries_counts_and_intervals(tmp_path):
+    """The real pipeline on a small scene: every method's row has its counts, its texel-relative wrong fraction
+    under both names, and intervals that bracket the value they belong to."""
+    from conftest import small_scene_dict
+
+    from study.cache import Cache
+    from study.measure.case import run_case
+    from study.scene import scene_from_dict
+
+    scene = scene_from_dict(small_scene_dict())
+    ms = [methods.make("classical"), methods.make("localized")]
+    for r in run_case(scene, ms, cache=Cache(tmp_path)).rows:
+        assert r["n_rays"] == r["rays"] and r["n_pixels"] >= 4
+        assert r["wrong_fraction_texel"] == r["wrong_fraction"]
+        for col in ("wrong_fraction_texel", "wrong_fraction_1cm", "rmse_truth", "relmse_truth", "flip_truth"):
+            if r["label"] == "truth_at_hit" and col != "wrong_fraction_texel" and col != "wrong_fraction_1cm":
+                continue
+            lo, hi = r.get(f"{col}_lo"), r.get(f"{col}_hi")
+            if lo is None:  # flip needs the FLIP map: only for methods
+                assert col == "flip_truth" and r["label"] in ("oracle_map", "truth_at_hit")
+                continue
+            assert lo - 1e-12 <= r[col] <= hi + 1e-12, (r["label"], col, lo, r[col], hi)
+        assert r["angle_dropped"] == 0 and r["wrong_fraction_1cm"] <= r["wrong_fraction_1cm_hi"]

@@ -20,6 +20,7 @@ Every bootstrap is percentile, :data:`N_RESAMPLES` resamples, seed :data:`SEED` 
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -93,12 +94,17 @@ def bootstrap_ci(data, statistic, *, level: float = LEVEL, n_resamples: int = N_
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
+@functools.lru_cache(maxsize=65536)
+def _wilson(k: int, n: int, level: float) -> tuple[float, float]:
+    ci = sps.binomtest(k, n).proportion_ci(confidence_level=level, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
 def fraction_ci(k: int, n: int, level: float = LEVEL) -> tuple[float, float]:
-    """Wilson score interval of a fraction k/n (NaN, NaN when n = 0)."""
+    """Wilson score interval of a fraction k/n (NaN, NaN when n = 0); ``scipy.stats.binomtest``, memoised."""
     if n <= 0:
         return math.nan, math.nan
-    ci = sps.binomtest(int(k), int(n)).proportion_ci(confidence_level=level, method="wilson")
-    return float(ci.low), float(ci.high)
+    return _wilson(int(k), int(n), float(level))
 
 
 def quantile_ci(data, p: float, level: float = LEVEL) -> tuple[float, float]:
@@ -136,10 +142,9 @@ def tolerance_curve(err: np.ndarray, tolerances=tuple(TOLERANCES.values())) -> n
 def _frac_cols(name: str, wrong, n_only=False) -> dict:
     w = np.asarray(wrong, bool)
     k, n = int(w.sum()), int(w.size)
-    lo, hi = fraction_ci(k, n)
     out = {name: k / n if n else math.nan}
     if not n_only:
-        out.update({f"{name}_lo": lo, f"{name}_hi": hi})
+        out[f"{name}_lo"], out[f"{name}_hi"] = fraction_ci(k, n)
     return out
 
 

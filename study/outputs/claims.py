@@ -273,20 +273,20 @@ CLAIMS = [
         "hidden-wrong",
         "Hidden hits are wrong, visible ones right: localized is wrong on ≥ 90 % of the rays "
         "whose hit is hidden from the reference point and on ≤ 5 % of the others",
-        "Fig. 5 (issue 17)",
+        "Fig. 5",
         hidden_wrong,
     ),
     Claim(
         "monotone-wrong",
         "More iterations never raise the fraction of wrong rays in a convex room",
-        "Sec. 'Localization' (issue 17)",
+        "Sec. 'Localization'",
         iterations_never_raise_wrong,
     ),
     Claim(
         "layered",
         "Beyond the paper: layered distance maps are wrong on ≤ 5 % of the hidden hits that "
         "localized gets wrong",
-        "related methods (issues 4, 17)",
+        "beyond the paper: related methods",
         layered_fixes_occlusion,
     ),
 ]
