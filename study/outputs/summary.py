@@ -30,6 +30,9 @@ WRONG = "wrong_fraction"
 IMAGE = "rmse_truth_debiased"
 COST = "lookups_per_ray"
 ALPHA = 0.05
+#: Comparison columns: fixed tolerances (one meaning at every cube resolution), the rays angle statistics leave out.
+FIXED = ["wrong_fraction_1cm", "wrong_fraction_10cm", "wrong_fraction_0p5deg"]
+DROPPED = ["dist_dropped", "angle_dropped"]  # shown beside the dist_* / angle_* columns
 
 
 def _pct(v: float) -> str:
@@ -263,6 +266,29 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
             "ε = max(1 cm, one texel); the fixed-tolerance columns (wrong_fraction_1cm, _3cm, _10cm) keep one "
             "meaning at every cube resolution.",
         ),
+    ]
+
+
+def column_notes() -> list[str]:
+    """What the uncertainty columns of a results table mean (:mod:`study.measure.stats`), for the report."""
+    return [
+        "*wrong_fraction* (= *wrong_fraction_texel*): tolerance texel-relative, ε = max(1 cm, one cube-map texel "
+        "at the hit), so it tightens as the map gets finer; *wrong_fraction_1cm / _3cm / _10cm*: the same "
+        "distance at every resolution; *wrong_fraction_0p5deg*: |shown − exact| subtends > 0.5° seen from the "
+        "shading point. A ray with no hit is wrong at every tolerance.",
+        "*_lo / _hi*: 95 % interval of the column within its case: over the rays (fractions: Wilson; angle and "
+        "dist percentiles: order-statistic interval) or over the pixels (rmse, relmse, flip: bootstrap of the "
+        "per-pixel error, 1000 resamples, fixed seed). *n_rays*, *n_hidden*, *n_wrong*, *n_pixels*: the counts "
+        "behind them.",
+        "*angle_dropped* / *dist_dropped*: the share of rays that angle_* / dist_* leave out (no hit; for dist "
+        "also points at infinity): angle_* and dist_* describe only the rays that remain. "
+        "*angle_p95_all_deg* counts the dropped rays as infinite error instead.",
+        "*rmse_truth_trim*, *rmse_truth_debiased_trim*: RMSE without the worst 0.1 % of pixels; "
+        "*sqerr_top_share_truth*: the share of the squared error those pixels carry (near 1: a handful of pixels "
+        "decide the RMSE). *relmse_truth*: mean of (test − truth)² / (truth² + 0.01).",
+        "In these tables the value per table and method is the median over cases; the summary above gives it "
+        "with a bootstrap interval over the cases and tests differences between methods over the same cases "
+        "(Wilcoxon signed-rank).",
     ]
 
 
