@@ -43,6 +43,11 @@ def _cost(v: float) -> str:
     return f"{v:.0f}" if v >= 10 else fmt_number(v)
 
 
+def _span(costs) -> str:
+    lo, hi = min(costs), max(costs)
+    return _cost(lo) if lo == hi else f"{_cost(lo)}–{_cost(hi)}"
+
+
 def _labels(tab: list[dict]) -> list[str]:
     return [lab for lab in dict.fromkeys(r["label"] for r in tab) if lab not in REFERENCE_ROWS]
 
@@ -93,7 +98,8 @@ def separated(tab: list[dict], a: str, b: str, col: str = WRONG) -> tuple[int, i
 
 
 def ranking(tab: list[dict], col: str) -> list[dict]:
-    """Methods by their median over the cases of ``col`` (lowest first; ties to the cheaper), each with
+    """Methods by their median over the cases of ``col`` (lowest first; ties to the lower worst case, then to the
+    cheaper), each with
     ``median``, ``lo``/``hi`` (bootstrap over cases), ``max`` and ``worst`` (the case of the max), ``n`` (cases)
     and ``cost`` (median lookups per ray)."""
     cases = list(dict.fromkeys(r["case"] for r in tab))
@@ -117,7 +123,7 @@ def ranking(tab: list[dict], col: str) -> list[dict]:
                 "cost": cost,
             }
         )
-    return sorted(out, key=lambda r: (r["median"], r["cost"] if r["cost"] == r["cost"] else np.inf))
+    return sorted(out, key=lambda r: (r["median"], r["max"], r["cost"] if r["cost"] == r["cost"] else np.inf))
 
 
 def versus(tab: list[dict], a: str, b: str, col: str) -> dict:
@@ -219,7 +225,7 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
     for name, (_, use) in recs.items():
         groups.setdefault(use["label"], []).append(name)
     uses = "; ".join(
-        f"`{lab}` ({_cost(recs[names[0]][1]['cost'])} lookups/ray) in {', '.join(names)}"
+        f"`{lab}` ({_span([recs[n][1]['cost'] for n in names])} lookups/ray) in {', '.join(names)}"
         for lab, names in sorted(groups.items(), key=lambda g: recs[g[1][0]][1]["cost"])
     )
     sig, few = 0, 0
@@ -236,8 +242,8 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
         hid = [cost[n] for n in recs if n not in clear]
         where = (
             f" Where nothing is hidden from the reference point ({', '.join(clear)}) that method costs "
-            f"{_cost(min(cost[n] for n in clear))}–{_cost(max(cost[n] for n in clear))} lookups/ray; where exact "
-            f"hits hide from it (the other {len(hid)} tables), {_cost(min(hid))}–{_cost(max(hid))}."
+            f"{_span([cost[n] for n in clear])} lookups/ray; where exact hits hide from it (the other {len(hid)} "
+            f"tables), {_span(hid)}."
         )
     return (
         f"**Use**, per table, the cheapest method whose wrong-hit fraction is indistinguishable from the best's "
