@@ -94,3 +94,19 @@ def test_tolerance_curve_data_and_plot(tmp_path):
 
 def test_claims_name_no_internal_issue_numbers():
     assert not [c.id for c in claims.CLAIMS if "issue" in (c.source + c.text).lower()]
+
+
+def test_claim_evidence_carries_the_rays_interval():
+    """hidden-wrong on a case whose visible wrong fraction (6 % of 200 rays) is within its interval of the 5 %
+    bound: the evidence gives the interval and says the bound is not decided by these rays."""
+    lab = claims._default("localized")
+    row = {
+        "case": "c0",
+        "label": lab,
+        "rays": 1000.0,
+        "hidden_fraction": 0.8,
+        "wrong_fraction_hidden": 0.95,
+        "wrong_fraction_visible": 0.06,
+    }
+    v = claims.hidden_wrong([row])
+    assert not v.ok and "0.06 [0." in v.number and "within the rays' uncertainty of the bound" in v.number
