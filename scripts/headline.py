@@ -12,6 +12,7 @@ from pathlib import Path
 
 from study.outputs import summary
 from study.outputs.check import read_table
+from study.tables import markdown
 
 
 def tables_of(reports: Path) -> dict[str, list[dict]]:
@@ -35,6 +36,8 @@ def main() -> None:
             print(b[1], "\n")
         elif b[0] == "list":
             print("\n".join(f"- {t}" for t in b[1]), "\n")
+        elif b[0] == "table":
+            print(markdown(b[1], b[2]), "\n")
     if a.curves:
         a.curves.mkdir(parents=True, exist_ok=True)
         for name, tab in tables.items():

@@ -255,6 +255,59 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
     )
 
 
+#: The columns of :func:`interval_rows`.
+INTERVAL_COLUMNS = [
+    "table",
+    "method",
+    "cases",
+    "lookups",
+    "wrong",
+    "wrong_lo",
+    "wrong_hi",
+    "wrong_max",
+    "worse_cases",
+    "p_vs_best",
+    "rmse",
+    "rmse_lo",
+    "rmse_hi",
+]
+
+
+def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
+    """Per table and method: the median over cases of the wrong fraction and of the debiased RMSE with their
+    bootstrap intervals over the cases (``_lo``/``_hi``), the worst case (``wrong_max``), the cases where the
+    method's wrong fraction lies above the best's beyond both rays' intervals (``worse_cases``) and the Wilcoxon
+    p-value of its wrong fractions against the best's over the same cases (``p_vs_best``)."""
+    out = []
+    for name, tab in tables.items():
+        rank = ranking(tab, WRONG)
+        if not rank:
+            continue
+        best = rank[0]["label"]
+        img = {r["label"]: r for r in ranking(tab, IMAGE)}
+        for r in rank:
+            i = img.get(r["label"], {})
+            same = r["label"] == best
+            out.append(
+                {
+                    "table": name,
+                    "method": r["label"],
+                    "cases": r["n"],
+                    "lookups": r["cost"],
+                    "wrong": r["median"],
+                    "wrong_lo": r["lo"],
+                    "wrong_hi": r["hi"],
+                    "wrong_max": r["max"],
+                    "worse_cases": 0 if same else separated(tab, r["label"], best)[1],
+                    "p_vs_best": math.nan if same else versus(tab, r["label"], best, WRONG)["p"],
+                    "rmse": i.get("median", math.nan),
+                    "rmse_lo": i.get("lo", math.nan),
+                    "rmse_hi": i.get("hi", math.nan),
+                }
+            )
+    return out
+
+
 def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
     """The report blocks of the headline: a heading, the headline paragraph and one sentence per table."""
     head = headline(tables)
@@ -270,8 +323,12 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
             "Intervals: 95 %; per case over the rays (Wilson) or pixels (bootstrap), over cases a bootstrap of "
             "the median (study/measure/stats.py); *wrong hits* use the texel-relative tolerance "
             "ε = max(1 cm, one texel); the fixed-tolerance columns (wrong_fraction_1cm, _3cm, _10cm) keep one "
-            "meaning at every cube resolution.",
+            "meaning at every cube resolution. The table: per table and method (best first), the medians over "
+            "the cases with their 95 % bootstrap intervals over the cases, the worst case, the cases where the "
+            "method is wrong more often than the best beyond both rays' intervals, and the Wilcoxon p-value "
+            "against the best over the same cases.",
         ),
+        ("table", interval_rows(tables), INTERVAL_COLUMNS),
     ]
 
 
