@@ -30,8 +30,15 @@ WRONG = "wrong_fraction"
 IMAGE = "rmse_truth_debiased"
 COST = "lookups_per_ray"
 ALPHA = 0.05
-#: Comparison columns: fixed tolerances (one meaning at every cube resolution), the rays angle statistics leave out.
-FIXED = ["wrong_fraction_1cm", "wrong_fraction_10cm", "wrong_fraction_0p5deg"]
+#: Comparison columns: fixed tolerances (one meaning at every cube resolution) and robust image errors.
+COMPARED = [
+    "wrong_fraction_1cm",
+    "wrong_fraction_10cm",
+    "wrong_fraction_0p5deg",
+    "relmse_truth",
+    "rmse_truth_debiased_trim",
+    "sqerr_top_share_truth",
+]
 DROPPED = ["dist_dropped", "angle_dropped"]  # shown beside the dist_* / angle_* columns
 
 
@@ -126,6 +133,16 @@ def ranking(tab: list[dict], col: str) -> list[dict]:
     return sorted(out, key=lambda r: (r["median"], r["max"], r["cost"] if r["cost"] == r["cost"] else np.inf))
 
 
+def cost_front(rank: list[dict]) -> list[dict]:
+    """The rows of :func:`ranking` that no cheaper (or equally cheap) row matches in median, cheapest first."""
+    front, low = [], math.inf
+    for r in sorted((r for r in rank if r["cost"] == r["cost"]), key=lambda r: (r["cost"], r["median"])):
+        if r["median"] < low:
+            front.append(r)
+            low = r["median"]
+    return front
+
+
 def versus(tab: list[dict], a: str, b: str, col: str) -> dict:
     """Paired comparison of methods a and b over the table's cases (:func:`study.measure.stats.paired`)."""
     cases = list(dict.fromkeys(r["case"] for r in tab))
@@ -197,6 +214,12 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
                 f"lookups/ray), has median {_pct(cheap['median'])} and more wrong hits beyond its rays' "
                 f"uncertainty in {above} of {nc} cases"
             )
+    front = cost_front(rank)
+    if len(front) > 1:
+        parts.append(
+            "cost → wrong hits (medians), each step buying fewer: "
+            + " → ".join(f"`{r['label']}` {_cost(r['cost'])}: {_pct(r['median'])}" for r in front)
+        )
     img = ranking(tab, IMAGE)
     if len(img) > 1:
         a, b = img[0], img[1]
@@ -315,7 +338,7 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
         return []
     items = [s for name, tab in tables.items() if (s := table_sentence(name, tab))]
     return [
-        ("h", 2, "In short"),
+        ("h", 2, "Summary"),
         ("p", head),
         ("list", items),
         (
