@@ -67,7 +67,8 @@ def test_a_winner_decided_by_the_worst_pixels_is_flagged():
     tab = _table(8, [("a", 1, lambda i, r: 0.0, 0.0), ("b", 2, lambda i, r: 0.0, 0.01)])
     for r in tab:
         r["rmse_truth_debiased_trim"] = r["rmse_truth_debiased"] + (0.05 if r["label"] == "a" else 0.0)
-    assert "without the worst 0.1 % of pixels the winner is `b`" in summary.table_sentence("t", tab)
+    s = summary.table_sentence("t", tab)
+    assert "without the worst 0.1 % of pixels the winner is `b`" in s and "1 of 1 pairs of methods swap" in s
 
 
 def test_older_tables_get_intervals_from_their_counts():

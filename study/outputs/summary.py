@@ -133,6 +133,14 @@ def ranking(tab: list[dict], col: str) -> list[dict]:
     return sorted(out, key=lambda r: (r["median"], r["max"], r["cost"] if r["cost"] == r["cost"] else np.inf))
 
 
+def swapped_pairs(a: list[dict], b: list[dict]) -> tuple[int, int]:
+    """(pairs of methods ordered differently, pairs compared) by two rankings of :func:`ranking`."""
+    pa, pb = {r["label"]: i for i, r in enumerate(a)}, {r["label"]: i for i, r in enumerate(b)}
+    common = [lab for lab in pa if lab in pb]
+    pairs = [(x, y) for i, x in enumerate(common) for y in common[i + 1 :]]
+    return sum((pa[x] < pa[y]) != (pb[x] < pb[y]) for x, y in pairs), len(pairs)
+
+
 def cost_front(rank: list[dict]) -> list[dict]:
     """The rows of :func:`ranking` that no cheaper (or equally cheap) row matches in median, cheapest first."""
     front, low = [], math.inf
@@ -232,6 +240,9 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
         trim = ranking(tab, f"{IMAGE}_trim")
         if trim and trim[0]["label"] != a["label"]:
             text += f"; **without the worst 0.1 % of pixels the winner is `{trim[0]['label']}`**"
+        swaps, pairs = swapped_pairs(img, trim)
+        if swaps:
+            text += f"; without them {swaps} of {pairs} pairs of methods swap places"
         parts.append(text)
     hid = _hidden(tab)
     where = "nothing hidden from the reference point" if hid == 0 else f"median hidden rays {_pct(hid)}"
