@@ -45,7 +45,7 @@ def test_the_cheapest_as_good_as_the_best_is_recommended():
     assert cmp["a_better"] == 10 and cmp["p"] < 0.01
     assert summary.separated(tab, "bad", "best") == (0, 10, 10)
     s = summary.table_sentence("t", tab)
-    assert "as good and cheaper: `cheap` at 1 lookups/ray" in s
+    assert "as good and cheaper: `cheap` at 1 lookup/ray" in s
     assert "`best`, median 1 %" in s and "worst case 1 %" in s
 
 

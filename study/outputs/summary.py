@@ -55,6 +55,11 @@ def _span(costs) -> str:
     return _cost(lo) if lo == hi else f"{_cost(lo)}–{_cost(hi)}"
 
 
+def _per_ray(*costs) -> str:
+    """'1 lookup/ray', '13 lookups/ray', '428–1047 lookups/ray'."""
+    return f"{_span(costs)} lookup{'' if set(costs) == {1} else 's'}/ray"
+
+
 def _labels(tab: list[dict]) -> list[str]:
     return [lab for lab in dict.fromkeys(r["label"] for r in tab) if lab not in REFERENCE_ROWS]
 
@@ -210,7 +215,7 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
         )
     if use is not best:
         parts.append(
-            f"as good and cheaper: `{use['label']}` at {_cost(use['cost'])} lookups/ray (vs {_cost(best['cost'])}),"
+            f"as good and cheaper: `{use['label']}` at {_per_ray(use['cost'])} (vs {_cost(best['cost'])}),"
             f" median {_pct(use['median'])}, worst {_pct(use['max'])}"
         )
     else:
@@ -218,8 +223,8 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
         if cheap["label"] != best["label"]:
             _, above, nc = separated(tab, cheap["label"], best["label"])
             parts.append(
-                f"no cheaper method is as good: the cheapest, `{cheap['label']}` ({_cost(cheap['cost'])} "
-                f"lookups/ray), has median {_pct(cheap['median'])} and more wrong hits beyond its rays' "
+                f"no cheaper method is as good: the cheapest, `{cheap['label']}` ({_per_ray(cheap['cost'])}), "
+                f"has median {_pct(cheap['median'])} and more wrong hits beyond its rays' "
                 f"uncertainty in {above} of {nc} cases"
             )
     front = cost_front(rank)
@@ -259,7 +264,7 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
     for name, (_, use) in recs.items():
         groups.setdefault(use["label"], []).append(name)
     uses = "; ".join(
-        f"`{lab}` ({_span([recs[n][1]['cost'] for n in names])} lookups/ray) in {', '.join(names)}"
+        f"`{lab}` ({_per_ray(*[recs[n][1]['cost'] for n in names])}) in {', '.join(names)}"
         for lab, names in sorted(groups.items(), key=lambda g: recs[g[1][0]][1]["cost"])
     )
     sig, few = 0, 0
@@ -276,7 +281,7 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
         hid = [cost[n] for n in recs if n not in clear]
         where = (
             f" Where nothing is hidden from the reference point ({', '.join(clear)}) that method costs "
-            f"{_span([cost[n] for n in clear])} lookups/ray; where exact hits hide from it (the other {len(hid)} "
+            f"{_per_ray(*[cost[n] for n in clear])}; where exact hits hide from it (the other {len(hid)} "
             f"tables), {_span(hid)}."
         )
     return (
