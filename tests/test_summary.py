@@ -47,6 +47,11 @@ def test_the_cheapest_as_good_as_the_best_is_recommended():
     s = summary.table_sentence("t", tab)
     assert "as good and cheaper: `cheap` at 1 lookup/ray" in s
     assert "`best`, median 1 %" in s and "worst case 1 %" in s
+    assert "fixed 1 cm" not in s  # an older table: no fixed-tolerance columns
+    for r in tab:
+        r["wrong_fraction_1cm"] = 0.2 if r["label"] == "cheap" else 0.02
+    s = summary.table_sentence("t", tab)
+    assert "at a fixed 1 cm tolerance `best` is wrong on 2 % (median; worst 2 %), `cheap` on 20 %" in s
 
 
 def test_no_cheaper_method_and_too_few_cases():

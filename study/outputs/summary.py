@@ -227,6 +227,14 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
                 f"has median {_pct(cheap['median'])} and more wrong hits beyond its rays' "
                 f"uncertainty in {above} of {nc} cases"
             )
+    fixed = {r["label"]: r for r in ranking(tab, "wrong_fraction_1cm")}
+    if best["label"] in fixed:  # tables written with the fixed-tolerance columns
+        f = fixed[best["label"]]
+        parts.append(
+            f"at a fixed 1 cm tolerance `{best['label']}` is wrong on {_pct(f['median'])} (median; worst "
+            f"{_pct(f['max'])})"
+            + (f", `{use['label']}` on {_pct(fixed[use['label']]['median'])}" if use is not best else "")
+        )
     front = cost_front(rank)
     if len(front) > 1:
         parts.append(
