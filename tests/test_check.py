@@ -45,6 +45,20 @@ def test_compare_tolerances():
     assert "not in the baseline" in compare([{"case": "c1", "label": "m", "x": 1.0}], base, tol)[0].message
 
 
+def test_compare_within_the_baseline_interval():
+    """A move beyond the fixed tolerance but inside the baseline's own 95 % interval (sampling noise of its rays)
+    passes; one outside both fails and names the interval; ``interval = false`` keeps the fixed tolerance alone."""
+    base = [{"case": "c0", "label": "m", "x": 0.10, "x_lo": 0.07, "x_hi": 0.14}]
+    tol = {"x": Tolerance(abs=0.001, rel=0.0)}
+    assert compare([{"case": "c0", "label": "m", "x": 0.13}], base, tol) == []
+    fails = compare([{"case": "c0", "label": "m", "x": 0.16}], base, tol)
+    assert len(fails) == 1 and "baseline interval [0.07, 0.14]" in fails[0].message
+    strict = {"x": Tolerance(abs=0.001, rel=0.0, interval=False)}
+    assert len(compare([{"case": "c0", "label": "m", "x": 0.13}], base, strict)) == 1
+    no_ci = [{"case": "c0", "label": "m", "x": 0.10, "x_lo": float("nan"), "x_hi": 0.14}]
+    assert len(compare([{"case": "c0", "label": "m", "x": 0.13}], no_ci, tol)) == 1
+
+
 def test_bad_check_file(tmp_path):
     p = tmp_path / "c.toml"
     p.write_text(

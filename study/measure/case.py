@@ -21,7 +21,7 @@ from study.impostor.cubemap import FAR, FAR_MIN
 from study.impostor.envmap import EnvMap
 from study.impostor.layers import layered_impostor
 from study.impostor.views import Views
-from study.measure import metrics, outcomes, truth
+from study.measure import metrics, outcomes, stats, truth
 from study.methods import Method
 from study.optics import shading
 from study.reference.embree import Tracer
@@ -178,6 +178,7 @@ def run_case(
     oracle_img = shading.composite(rays, oracle_rad * F, background)  # oracle_map: what the map holds
     ref = truth.build(scene, cache, rays, F, background, seeds)  # truth_at_hit and the noise images
     visible = mask & (rays.per_pixel(occluded.astype(float), fill=1.0) == 0)  # pixels whose hits o sees
+    sigma = truth.noise_rms(ref.noise, mask)  # the truth's own noise (debiased columns)
 
     def image_columns(img, reference=False, fmap=None):  # one image against every reference
         cols = {
@@ -185,6 +186,9 @@ def run_case(
             **metrics.image_errors(img, ref.image, mask=mask, suffix="truth", flip_emap=fmap),  # FLIP map
             **metrics.image_errors(img, mitsuba, mask=mask, suffix="mitsuba"),
             **truth.columns(img, oracle_img, ref, mitsuba, mask=mask, visible=visible),
+            **stats.pixel_columns(  # intervals over pixels, robust variants (issue 24)
+                img, ref.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS, emap=fmap
+            ),
         }
         if reference:  # the truth is not split against itself
             cols.update({k: np.nan for k in cols if k.startswith("dec_")})
@@ -233,6 +237,7 @@ def run_case(
                 **metrics.summary(np.zeros(len(rays.x)), "angle", "_deg"),
                 "dist_median": 0.0,
                 **outcomes.outcome_columns(classify(exact), occluded, np.zeros(len(rays.x))),  # correct
+                **stats.ray_columns(classify(exact), np.zeros(len(rays.x)), occluded, rays.x, exact),
                 **outcomes.offscreen_columns(classify(exact), outcomes.off_screen(scene.camera, exact)),
                 **image_columns(img, reference=name == "truth_at_hit"),
                 "valid_fraction": 1.0,
@@ -290,6 +295,7 @@ def run_case(
             **metrics.summary(ang, "angle", "_deg"),
             "dist_median": float(np.nanmedian(np.linalg.norm(shown - exact, axis=-1))),
             **outcomes.outcome_columns(oc, occluded, ang),
+            **stats.ray_columns(oc, ang, occluded, rays.x, exact),  # counts, intervals, fixed tolerances
             **outcomes.offscreen_columns(oc, offscreen),
             **image_columns(img, fmap=fmap),
             "valid_fraction": float(valid.mean()),

@@ -24,7 +24,10 @@ against infinite); else *wrong surface*. ``dist`` and ``depth_error`` are NaN th
 
 The tolerance is per ray, ``ε = max(EPS_FIXED, texel_footprint(o, exact, res))`` with ``EPS_FIXED = 0.01`` m:
 one centimetre, or the world-space size of one cube-map texel at the exact hit seen from the reference point o,
-whichever is larger — a method that reads a cube map cannot be asked to be finer than one of its texels.
+whichever is larger — a method that reads a cube map cannot be asked to be finer than one of its texels. This
+tolerance is *texel-relative*: it changes with the cube resolution (about 6 cm at 64², 1 cm at 512²), so a finer
+map can make a method look worse; :mod:`study.measure.stats` adds wrong fractions at fixed distances
+(``wrong_fraction_1cm``, ``_3cm``, ``_10cm``, …) and at a fixed angle, which keep one meaning.
 
 Which ray: the exact ray is the one Embree traced, from its origin (``exact_origin``, by default the method's
 ray origin x) through the exact hit; its direction is R when ``exact_origin`` is not given (the method's ray is
@@ -247,6 +250,10 @@ def outcome_columns(outcomes: Outcomes, hidden, angle) -> dict[str, float]:
         (|shown − exact| over the rays with a shown point, m); ``depth_error_p95``: the 95th percentile of the
         *absolute* signed depth error over the rays shown on the exact ray (CORRECT or WRONG_DEPTH), m;
         ``angle_p95_visible_deg`` / ``angle_p95_hidden_deg``. Every fraction counts secondary rays, unweighted.
+        ``wrong_fraction`` uses the texel-relative ε of :func:`tolerance` (also written as
+        ``wrong_fraction_texel``); the dist/angle percentiles leave out the rays without a finite value, and
+        :func:`study.measure.stats.ray_columns` writes how many (``dist_dropped``, ``angle_dropped``) beside the
+        counts, intervals and fixed-tolerance fractions.
     """
     c = np.asarray(outcomes.cls)
     hidden = np.asarray(hidden, bool)

@@ -2,9 +2,13 @@
 
 The check file (``configs/check.toml``) names the sweep, the baseline directory, the paper's claims that must hold
 (:mod:`study.outputs.claims`) and a tolerance per metric: a metric passes when |new − baseline| ≤ abs + rel·|baseline|
-(NaN equals NaN). Rows are matched by (case, label); a row missing on either side is a failure. ``update=True``
-rewrites the baseline (results.csv + metadata.json, one output set: both or neither) instead of comparing. A
-malformed baseline is bad input (a StudyError naming the file, exit 2), never a regression (exit 1).
+(NaN equals NaN) or, where the baseline row carries the metric's 95 % interval (``<metric>_lo``, ``<metric>_hi``:
+:mod:`study.measure.stats`) and the tolerance has ``interval = true`` (the default), when the new value lies
+within that interval widened by the same tolerance: a move smaller than the sampling uncertainty of the baseline's
+own rays or pixels is not a regression. Rows are matched by (case, label); a row missing on either side is a
+failure. ``update=True`` rewrites the baseline (results.csv + metadata.json, one output set: both or neither)
+instead of comparing. A malformed baseline is bad input (a StudyError naming the file, exit 2), never a regression
+(exit 1).
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ class Tolerance(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
     abs: Float = Field(ge=0)
     rel: Float = Field(ge=0)
+    interval: bool = True  # also accept values within the baseline's own interval (module docstring)
 
 
 class CheckConfig(BaseModel):
@@ -79,16 +84,31 @@ def compare(new: list[dict], base: list[dict], tolerance: dict[str, Tolerance]) 
             if math.isnan(x) and math.isnan(y) or x == y:
                 continue
             allowed = tol.abs + tol.rel * abs(y)
-            if not (abs(x - y) <= allowed):
-                fails.append(
-                    Failure(
-                        f"{metric} of {k[1]} in {k[0]} moved from {y:.6g} to {x:.6g} "
-                        f"(by {x - y:+.3g}; tolerance ±{allowed:.3g} = {tol.abs:g} + {tol.rel:g}·|baseline|)"
-                    )
+            if abs(x - y) <= allowed:
+                continue
+            band = _interval(b, metric) if tol.interval else None
+            if band is not None and band[0] - allowed <= x <= band[1] + allowed:
+                continue
+            within = f"; baseline interval [{band[0]:.4g}, {band[1]:.4g}]" if band else ""
+            fails.append(
+                Failure(
+                    f"{metric} of {k[1]} in {k[0]} moved from {y:.6g} to {x:.6g} "
+                    f"(by {x - y:+.3g}; tolerance ±{allowed:.3g} = {tol.abs:g} + {tol.rel:g}·|baseline|"
+                    f"{within})"
                 )
+            )
     for k in index.keys() - seen:
         fails.append(Failure(f"{k[1]} in {k[0]}: in the baseline but not in the results"))
     return fails
+
+
+def _interval(row: dict, metric: str) -> tuple[float, float] | None:
+    """The baseline's interval of ``metric`` (``<metric>_lo``, ``<metric>_hi``) where it has a finite one."""
+    try:
+        lo, hi = float(row[f"{metric}_lo"]), float(row[f"{metric}_hi"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    return (lo, hi) if math.isfinite(lo) and math.isfinite(hi) else None
 
 
 def run_check(

@@ -1,0 +1,156 @@
+"""Numbers with their uncertainty (study.measure.stats): intervals agree with scipy's closed forms, paired tests
+find a planted difference and not a null one, fixed tolerances keep their meaning across cube resolutions, and no
+statistic drops rays silently."""
+
+import numpy as np
+from conftest import BOX_HI, BOX_LO
+from scipy import stats as sps
+
+from study import backend as backends
+from study import methods
+from study.impostor import analytic
+from study.impostor.envmap import EnvMap
+from study.measure import metrics, outcomes, stats
+
+
+def test_bootstrap_mean_matches_the_t_interval():
+    """A normal sample's mean: the percentile bootstrap agrees with the t-interval within a few % of its width."""
+    x = np.random.default_rng(1).normal(3.0, 2.0, 400)
+    lo, hi = stats.bootstrap_ci(x, np.mean)
+    tlo, thi = sps.t.interval(0.95, len(x) - 1, loc=x.mean(), scale=sps.sem(x))
+    width = thi - tlo
+    assert abs(lo - tlo) < 0.05 * width and abs(hi - thi) < 0.05 * width
+    assert stats.bootstrap_ci(x, np.mean) == (lo, hi)  # fixed seed: deterministic
+
+
+def test_quantile_interval_matches_the_bootstrap_and_covers():
+    """The order-statistic interval of a percentile agrees with scipy's percentile bootstrap on a large sample
+    and covers the true 95th percentile of a normal in about 95 % of 200 samples."""
+    x = np.random.default_rng(2).normal(0, 1, 3000)
+    lo, hi = stats.quantile_ci(x, 95)
+    blo, bhi = stats.bootstrap_ci(x, lambda v, axis=-1: np.percentile(v, 95, axis=axis))
+    assert abs(lo - blo) < 0.1 * (hi - lo) + 0.02 and abs(hi - bhi) < 0.1 * (hi - lo) + 0.02
+    true = sps.norm.ppf(0.95)
+    rng = np.random.default_rng(3)
+    cover = sum(a <= true <= b for a, b in (stats.quantile_ci(rng.normal(0, 1, 300), 95) for _ in range(200)))
+    assert 180 <= cover <= 200
+    assert stats.quantile_ci([1.0, 2.0], 95)[1] == np.inf  # too few values to bound it above
+
+
+def test_fraction_interval_matches_the_bootstrap_and_stays_honest_at_zero():
+    w = np.zeros(500, bool)
+    w[:40] = True
+    lo, hi = stats.fraction_ci(40, 500)
+    blo, bhi = stats.bootstrap_ci(w.astype(float), np.mean)
+    assert abs(lo - blo) < 0.01 and abs(hi - bhi) < 0.01
+    lo0, hi0 = stats.fraction_ci(0, 300)  # no wrong ray seen: still not "exactly 0"
+    assert lo0 == 0 and 0.005 < hi0 < 0.02
+
+
+def test_paired_test_finds_a_planted_difference_and_not_a_null_one():
+    """40 seeds, 20 cases with a case-to-case spread far larger than the planted difference (b = a + 0.1, noise
+    σ = 0.05 per method): the Wilcoxon test finds it at 1 % in ≥ 95 % of the seeds; with no difference ≥ 95 % of
+    the seeds find none at 1 %, and at 5 % no more than the binomial 99.9 % bound for a 5 % false-positive rate."""
+    found, false, false5 = 0, 0, 0
+    for seed in range(40):
+        rng = np.random.default_rng(seed)
+        case = rng.lognormal(0, 1.0, 20)  # what the cases share: much larger than the difference
+        a = case + rng.normal(0, 0.05, 20)
+        b = case + 0.1 + rng.normal(0, 0.05, 20)
+        null = case + rng.normal(0, 0.05, 20)
+        found += stats.paired(a, b)["p"] < 0.01
+        p_null = stats.paired(a, null)["p"]
+        false, false5 = false + (p_null < 0.01), false5 + (p_null < 0.05)
+    assert found >= 38 and false <= 2
+    assert false5 <= sps.binom.ppf(0.999, 40, 0.05)
+
+
+def test_paired_counts_and_the_smallest_p():
+    r = stats.paired([1, 2, 3, np.nan], [2, 2, 4, 1])
+    assert (r["n"], r["a_better"], r["ties"], r["b_better"]) == (3, 2, 1, 0)
+    assert stats.paired([1, 2], [1, 2])["p"] == 1.0
+    assert stats.min_p(5) > 0.05 > stats.min_p(6)  # fewer than 6 cases can never be significant at 5 %
+    assert "no significant" in stats.significance(0.67) and "1 %" in stats.significance(0.001)
+
+
+def test_fixed_tolerance_does_not_rise_with_cube_resolution():
+    """A converged method (localized, 10 iterations) in the analytic box: its wrong fraction at 1 cm / 3 cm does
+    not rise as the cube map gets finer, although the texel-relative tolerance shrinks from 6 cm to < 1 cm."""
+    B = backends.get("numpy")
+    x, R = analytic.random_rays(1500, extent=1.0, seed=3)
+    exact = analytic.box_hit(x, R, BOX_LO, BOX_HI)
+    curve, texel_eps = {}, {}
+    for res in (32, 64, 128, 256):
+        env = EnvMap(analytic.box_impostor(res, BOX_LO, BOX_HI), B)
+        tr = methods.make("localized", iterations=10).trace(B, env, B.vec(x), B.vec(R))
+        shown = B.to_numpy(tr.shown).astype(float)
+        eps = outcomes.tolerance(np.zeros(3), exact, res)
+        oc = outcomes.classify(x, R, shown, exact, eps=eps)
+        cols = stats.ray_columns(oc, metrics.angular_error(x, shown, exact), np.zeros(len(x), bool), x, exact)
+        curve[res] = (cols["wrong_fraction_1cm"], cols["wrong_fraction_3cm"], cols["wrong_fraction_10cm"])
+        texel_eps[res] = float(np.median(eps))
+    assert texel_eps[32] > 0.05 > 0.02 > texel_eps[256]  # the texel tolerance changes meaning
+    res = sorted(curve)
+    for lo, hi in zip(res, res[1:]):
+        assert all(b <= a + 2e-3 for a, b in zip(curve[lo], curve[hi])), curve  # never rises (up to 3 rays)
+    assert curve[256][0] <= 0.01, curve
+
+
+def test_a_method_that_misses_most_rays_reports_what_it_dropped():
+    """ssr(fallback='none')-like: 96 % no hit, the rest exact. The finite-only angle p95 is ~0, but the row says
+    that 96 % were dropped, counts them as wrong at every tolerance and gives an infinite all-ray p95."""
+    n = 1000
+    x, R = analytic.random_rays(n, extent=1.0, seed=0)
+    exact = analytic.box_hit(x, R, BOX_LO, BOX_HI)
+    shown = exact.copy()
+    shown[: int(0.96 * n)] = np.nan
+    oc = outcomes.classify(x, R, shown, exact, eps=0.01)
+    ang = metrics.angular_error(x, shown, exact)
+    cols = stats.ray_columns(oc, ang, np.zeros(n, bool), x, exact)
+    assert metrics.summary(ang, "angle", "_deg")["angle_p95_deg"] < 1e-3  # what the finite-only column says
+    assert cols["angle_dropped"] >= 0.95 and cols["dist_dropped"] >= 0.95
+    assert cols["angle_p95_all_deg"] == np.inf
+    assert cols["wrong_fraction_1cm"] >= 0.95 and cols["wrong_fraction_0p5deg"] >= 0.95
+    assert cols["n_rays"] == n and cols["n_wrong"] == int(0.96 * n)
+    assert cols["wrong_fraction_texel_lo"] <= 0.96 <= cols["wrong_fraction_texel_hi"]
+
+
+def test_pixel_columns_flag_a_handful_of_bad_pixels():
+    """Ten pixels carry almost all of the squared error: the share says so and the trimmed RMSE leaves them out;
+    the interval brackets the RMSE."""
+    rng = np.random.default_rng(0)
+    ref = rng.uniform(0.2, 0.8, (100, 100, 3))
+    img = ref + rng.normal(0, 0.01, ref.shape)
+    img[:1, :10] += 5.0  # 10 fireflies among 10⁴ pixels
+    mask = np.ones((100, 100), bool)
+    cols = stats.pixel_columns(img, ref, mask=mask, sigma=0.0, rel_eps=1e-2)
+    r = metrics.rmse(img, ref, mask=mask)
+    assert cols["rmse_truth_lo"] <= r <= cols["rmse_truth_hi"]
+    assert cols["sqerr_top_share_truth"] > 0.99
+    assert cols["rmse_truth_trim"] < 0.02 < r
+    assert cols["n_pixels"] == 10000
+
+
+def test_a_real_case_carries_counts_and_intervals(tmp_path):
+    """The real pipeline on a small scene: every method's row has its counts, its texel-relative wrong fraction
+    under both names, and intervals that bracket the value they belong to."""
+    from conftest import small_scene_dict
+
+    from study.cache import Cache
+    from study.measure.case import run_case
+    from study.scene import scene_from_dict
+
+    scene = scene_from_dict(small_scene_dict())
+    ms = [methods.make("classical"), methods.make("localized")]
+    for r in run_case(scene, ms, cache=Cache(tmp_path)).rows:
+        assert r["n_rays"] == r["rays"] and r["n_pixels"] >= 4
+        assert r["wrong_fraction_texel"] == r["wrong_fraction"]
+        for col in ("wrong_fraction_texel", "wrong_fraction_1cm", "rmse_truth", "relmse_truth", "flip_truth"):
+            if r["label"] == "truth_at_hit" and col != "wrong_fraction_texel" and col != "wrong_fraction_1cm":
+                continue
+            lo, hi = r.get(f"{col}_lo"), r.get(f"{col}_hi")
+            if lo is None:  # flip needs the FLIP map: only for methods
+                assert col == "flip_truth" and r["label"] in ("oracle_map", "truth_at_hit")
+                continue
+            assert lo - 1e-12 <= r[col] <= hi + 1e-12, (r["label"], col, lo, r[col], hi)
+        assert r["angle_dropped"] == 0 and r["wrong_fraction_1cm"] <= r["wrong_fraction_1cm_hi"]

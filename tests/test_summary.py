@@ -1,0 +1,118 @@
+"""The report's headline (study.outputs.summary): the cheapest method as good as the best, how sure, and flags."""
+
+import numpy as np
+
+from study.outputs import claims, summary
+
+
+def _table(n_cases, methods, rays=2000, seed=0):
+    """Rows of n_cases × methods: (label, cost, wrong fraction per case, image error per case)."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i in range(n_cases):
+        case_err = rng.uniform(0.05, 0.2)
+        for lab, cost, wrong, img in methods:
+            rows.append(
+                {
+                    "case": f"c{i}",
+                    "label": lab,
+                    "method": lab,
+                    "lookups_per_ray": float(cost),
+                    "wrong_fraction": float(wrong(i, rng)),
+                    "rmse_truth_debiased": float(case_err + img + rng.normal(0, 0.001)),
+                    "rays": float(rays),
+                    "occluded_fraction": 0.0,
+                }
+            )
+    return rows
+
+
+def test_the_cheapest_as_good_as_the_best_is_recommended():
+    """'cheap' has the wrong fraction of 'best' up to the noise of a few rays (either side): it is recommended.
+    'bad' (cheaper still) is worse by 5 points in every case: never recommended, and the best beats it
+    significantly over 10 cases."""
+    tab = _table(
+        10,
+        [
+            ("best", 500, lambda i, r: 0.010, 0.0),
+            ("cheap", 1, lambda i, r: 0.0102 + r.normal(0, 0.001), 0.0),
+            ("bad", 0.5, lambda i, r: 0.06, 0.05),
+        ],
+    )
+    best, use = summary.recommend(tab)
+    assert best["label"] == "best" and use["label"] == "cheap"
+    cmp = summary.versus(tab, "best", "bad", "wrong_fraction")
+    assert cmp["a_better"] == 10 and cmp["p"] < 0.01
+    assert summary.separated(tab, "bad", "best") == (0, 10, 10)
+    s = summary.table_sentence("t", tab)
+    assert "as good and cheaper: `cheap` at 1 lookup/ray" in s
+    assert "`best`, median 1 %" in s and "worst case 1 %" in s
+    assert "fixed 1 cm" not in s  # an older table: no fixed-tolerance columns
+    for r in tab:
+        r["wrong_fraction_1cm"] = 0.2 if r["label"] == "cheap" else 0.02
+    s = summary.table_sentence("t", tab)
+    assert "at a fixed 1 cm tolerance `best` is wrong on 2 % (median; worst 2 %), `cheap` on 20 %" in s
+
+
+def test_no_cheaper_method_and_too_few_cases():
+    """3 cases: every over-case comparison is 'too few to be significant'; a cheap method separated by its rays
+    in every case is not recommended."""
+    tab = _table(3, [("best", 500, lambda i, r: 0.01, 0.0), ("cheap", 1, lambda i, r: 0.2, 0.1)])
+    best, use = summary.recommend(tab)
+    assert use is best
+    s = summary.table_sentence("t", tab)
+    assert "3 cases are too few for any difference to be significant at 5%" in s
+    assert "no cheaper method is as good: the cheapest, `cheap`" in s and "in 3 of 3 cases" in s
+    head = summary.headline({"t": tab})
+    assert head.startswith("**Use**") and "`best` (500 lookups/ray) in t" in head
+    assert "1 tables have fewer than 6 cases" in head
+
+
+def test_a_winner_decided_by_the_worst_pixels_is_flagged():
+    tab = _table(8, [("a", 1, lambda i, r: 0.0, 0.0), ("b", 2, lambda i, r: 0.0, 0.01)])
+    for r in tab:
+        r["rmse_truth_debiased_trim"] = r["rmse_truth_debiased"] + (0.05 if r["label"] == "a" else 0.0)
+    s = summary.table_sentence("t", tab)
+    assert "without the worst 0.1 % of pixels the winner is `b`" in s and "1 of 1 pairs of methods swap" in s
+
+
+def test_older_tables_get_intervals_from_their_counts():
+    row = {"wrong_fraction": 0.1, "rays": 1000.0, "hidden_fraction": 0.2, "wrong_fraction_hidden": 0.5}
+    lo, hi = summary.fraction_bounds(row, "wrong_fraction")
+    assert 0.08 < lo < 0.1 < hi < 0.125
+    lo, hi = summary.fraction_bounds(row, "wrong_fraction_hidden")  # over 200 hidden rays
+    assert 0.42 < lo < 0.5 < hi < 0.58
+    row.update(wrong_fraction_lo=0.01, wrong_fraction_hi=0.3)
+    assert summary.fraction_bounds(row, "wrong_fraction") == (0.01, 0.3)
+
+
+def test_tolerance_curve_data_and_plot(tmp_path):
+    tab = _table(4, [("a", 1, lambda i, r: 0.0, 0.0)])
+    for r in tab:
+        for k, name in enumerate(["1mm", "3mm", "1cm", "3cm", "10cm", "30cm"]):
+            r[f"wrong_fraction_{name}"] = 0.5 / (k + 1)
+    rows = summary.tolerance_curve_rows(tab)
+    assert [r["tolerance_m"] for r in rows] == [0.001, 0.003, 0.01, 0.03, 0.1, 0.3]
+    assert rows[0]["wrong"] == 0.5 and rows[-1]["wrong"] == 0.5 / 6
+    summary.plot_tolerance_curve(rows, tmp_path / "c.png", title="t")
+    assert (tmp_path / "c.png").stat().st_size > 1000
+
+
+def test_claims_name_no_internal_issue_numbers():
+    assert not [c.id for c in claims.CLAIMS if "issue" in (c.source + c.text).lower()]
+
+
+def test_claim_evidence_carries_the_rays_interval():
+    """hidden-wrong on a case whose visible wrong fraction (6 % of 200 rays) is within its interval of the 5 %
+    bound: the evidence gives the interval and says the bound is not decided by these rays."""
+    lab = claims._default("localized")
+    row = {
+        "case": "c0",
+        "label": lab,
+        "rays": 1000.0,
+        "hidden_fraction": 0.8,
+        "wrong_fraction_hidden": 0.95,
+        "wrong_fraction_visible": 0.06,
+    }
+    v = claims.hidden_wrong([row])
+    assert not v.ok and "0.06 [0." in v.number and "within the rays' uncertainty of the bound" in v.number
