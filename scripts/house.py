@@ -1,7 +1,8 @@
-"""Regenerate the README's map of the house ("Where things are") from the package and module docstrings.
+"""Regenerate the map of the house ("Where things are" in docs/architecture.md) from the package and module
+docstrings.
 
-python scripts/house.py           # rewrite the table between the markers in README.md
-python scripts/house.py --check   # exit 1 if README.md is not up to date (tests/test_architecture.py)
+python scripts/house.py           # rewrite the table between the markers in docs/architecture.md
+python scripts/house.py --check   # exit 1 if docs/architecture.md is not up to date (tests/test_architecture.py)
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+MAP = ROOT / "docs" / "architecture.md"  # the file that holds the map, between the markers
 BEGIN, END = "<!-- house:begin (scripts/house.py) -->", "<!-- house:end -->"
 #: top to bottom, as the layers of pyproject.toml
 ORDER = [
@@ -62,13 +64,14 @@ def table() -> str:
     return "\n".join(rows)
 
 
-def render(readme: str) -> str:
-    a, b = readme.index(BEGIN) + len(BEGIN), readme.index(END)
-    return readme[:a] + "\n" + table() + "\n" + readme[b:]
+def render(text: str) -> str:
+    """``text`` with the table between the markers made anew."""
+    a, b = text.index(BEGIN) + len(BEGIN), text.index(END)
+    return text[:a] + "\n" + table() + "\n" + text[b:]
 
 
 if __name__ == "__main__":
-    path = ROOT / "README.md"
+    path = MAP
     old = path.read_text()
     new = render(old)
     if "--check" in sys.argv:

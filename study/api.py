@@ -196,7 +196,7 @@ class Result:
 
     ``table``: pandas DataFrame, one row per method and the reference rows ``oracle_map`` (exact hit, impostor
     radiance) and ``truth_at_hit`` (exact hit, Mitsuba radiance); every column of a results table
-    (``README.md``: *What is measured*). Arrays are keyed by method label, (H, W) over the camera image:
+    (``docs/usage.md``: *What is measured*). Arrays are keyed by method label, (H, W) over the camera image:
     ``images`` (H, W, 3) linear RGB, with the references ``oracle_map``, ``truth_at_hit`` and ``mitsuba`` (Mitsuba's
     render with the object); ``error_maps``: RMS over RGB of the image minus ``truth_at_hit``; ``flip_maps``: LDR-FLIP
     against ``truth_at_hit``; ``angle_maps``: mean angular error at the shading point (degrees);
