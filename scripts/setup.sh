@@ -11,7 +11,7 @@ fi
 stamp=.venv/.study-installed
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   .venv/bin/python -m pip install -q --upgrade pip
-  .venv/bin/python -m pip install -q -e '.[test]'
+  .venv/bin/python -m pip install -q -e '.[test,video]'
   touch "$stamp"
 fi
 # A working libLLVM for Dr.Jit: Debian's libllvm19 when apt can install it, otherwise the PyPI wheel
