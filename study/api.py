@@ -64,21 +64,12 @@ def _set_dotted(data: dict, key: str, value: Any, *, source: str) -> None:
 
 
 def _environment_scene(env: dict, updates: dict, *, source: str) -> Scene:
-    """A scene in a mesh or Mitsuba environment: the environment's suggested placement, then ``updates``."""
-    from pydantic import TypeAdapter, ValidationError
+    """A scene in a mesh or Mitsuba environment: ``updates``, and the placement keys they leave out suggested
+    (:mod:`study.scene.autoplace`, as for a scene TOML naming the same environment)."""
+    from study.scene import scene_from_dict
 
-    from study.scene import environment, scene_from_dict, sources
-
-    try:
-        model = TypeAdapter(sources.Environment).validate_python(env)
-    except ValidationError as err:
-        raise StudyError(err.errors()[0]["msg"], file=source, key="environment") from None
-    try:
-        suggested = environment.suggest(model)
-    except StudyError as err:
-        raise StudyError(err.detail, file=err.file or source, key=err.key, code=err.code) from None
     data: dict = {"environment": env}
-    for k, v in {**suggested, **updates}.items():
+    for k, v in updates.items():
         _set_dotted(data, k, v, source=source)
     return scene_from_dict(data, source=source)
 

@@ -111,20 +111,16 @@ Environment = Annotated[BoxEnv | MeshEnv | MitsubaEnv, Field(discriminator="type
 
 # ---------------------------------------------------------------------------------------------- content keys
 def file_digest(path: str) -> str:
-    """sha256 of a file's bytes (and of an OBJ's material library and textures beside it: they change it too)."""
-    h = hashlib.sha256(Path(path).read_bytes())
+    """sha256 of a file's bytes and of every file it references (:func:`study.scene.references.referenced`: an
+    OBJ's materials and textures, a glTF's buffers and images, a Mitsuba XML's includes, meshes, textures and
+    envmaps): a change to any of them changes the key. A referenced file that is missing counts by its name."""
+    from study.scene.references import referenced
+
     p = Path(path)
-    if p.suffix.lower() == ".obj":  # materials and textures an OBJ names
-        for line in p.read_text(errors="replace").splitlines():
-            if line.startswith("mtllib "):
-                mtl = p.parent / line.split(None, 1)[1].strip()
-                if mtl.is_file():
-                    h.update(mtl.read_bytes())
-                    for ml in mtl.read_text(errors="replace").splitlines():
-                        if ml.strip().lower().startswith("map_kd "):
-                            tex = mtl.parent / ml.split(None, 1)[1].strip()
-                            if tex.is_file():
-                                h.update(tex.read_bytes())
+    h = hashlib.sha256(p.read_bytes())
+    for ref in referenced(p):
+        h.update(b"\0" + str(ref.name).encode() + b"\0")
+        h.update(ref.read_bytes() if ref.is_file() else b"<missing>")
     return "sha256:" + h.hexdigest()
 
 
@@ -140,14 +136,19 @@ def _canon(v: Any) -> Any:
 
 
 def key_fields(model: BaseModel | dict) -> dict:
-    """``model_dump`` of a scene (or part of one) for content keys: every field called ``file`` replaced by the
+    """``model_dump`` of a scene (or part of one) for content keys: every field called ``file`` (or ``filename``,
+    in a Mitsuba scene dict) replaced by the
     digest of the file's bytes, Python objects (Mitsuba transforms in a scene dict) by their repr."""
     data = model.model_dump(mode="python") if isinstance(model, BaseModel) else model
 
     def walk(v):
         if isinstance(v, dict):
             return {
-                k: (file_digest(x) if k == "file" and isinstance(x, str) and Path(x).is_file() else walk(x))
+                k: (
+                    file_digest(x)
+                    if k in ("file", "filename") and isinstance(x, str) and Path(x).is_file()
+                    else walk(x)
+                )
                 for k, x in v.items()
             }
         if isinstance(v, (list, tuple)):
