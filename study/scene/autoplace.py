@@ -69,7 +69,8 @@ def _reference(env) -> tuple[np.ndarray, float]:
 
 
 def _free_centre(mesh, start: np.ndarray, radius: float, around: np.ndarray) -> np.ndarray:
-    """``start`` if the sphere fits there, else the nearest of points between it and ``around`` or around it."""
+    """``start`` if the sphere fits there, else the first of points between it and ``around`` or around it that
+    fits; none fits: a StudyError on ``environment`` naming ``object.center``."""
     cands = [start] + [start + (around - start) * f for f in (0.25, 0.5, 0.75, 1.0)]
     cands += [around + 2 * radius * d for d in placement.directions(32)]
     for c in cands:
@@ -79,7 +80,11 @@ def _free_centre(mesh, start: np.ndarray, radius: float, around: np.ndarray) -> 
             except KeyedError:
                 continue
             return np.asarray(c, float)
-    return np.asarray(start, float)  # the check names it
+    raise StudyError(
+        f"automatic placement found no spot for object.center where a sphere of radius {radius:.3g} touches "
+        "nothing; set object.center yourself or make object.radius smaller",
+        key="environment",
+    )
 
 
 def _eye(env, centre, radius, best, gap, up) -> np.ndarray:
@@ -129,6 +134,7 @@ def suggest(env, given: dict[str, Any] | None = None) -> dict[str, Any]:
         out["reference.point"] = best.tolist()
     else:
         best = np.asarray(given["reference.point"], float)
+        placement.check_free(mesh, best, "reference.point", enclosed=True)  # the user's: checked first
         gap = placement.clearance(mesh, best)
     radius = float(given.get("object.radius", min(0.25 * gap, 0.08 * diag)))
     if want("object.radius"):
@@ -149,6 +155,7 @@ def suggest(env, given: dict[str, Any] | None = None) -> dict[str, Any]:
         out["object.center"] = centre.tolist()
     else:
         centre = np.asarray(given["object.center"], float)
+        placement.check_object(mesh, centre, radius, f"object (bounding radius {radius:g})")
     if want("camera.up"):
         out["camera.up"] = up.tolist()
     if want("camera.eye"):

@@ -59,7 +59,7 @@ def _index(tok: str, n: int, line_no: int, what: str, src: str) -> int:
     j = i - 1 if i > 0 else n + i
     if not 0 <= j < n:
         raise StudyError(
-            f"line {line_no}: {what} index {i} refers past the {n} {what}s defined so far", key=src
+            f"line {line_no}: {what} index {i} refers past the end of the list ({n} defined so far)", key=src
         )
     return j
 
