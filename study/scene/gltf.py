@@ -61,6 +61,7 @@ class _File:
         except (ValueError, struct.error) as err:
             raise StudyError(f"not a glTF 2.0 file ({err})", key=src) from None
         self._buffers: dict[int, bytes] = {}
+        self.images_used: set[int] = set()
 
     def fail(self, msg: str):
         raise StudyError(msg, key=self.src)
@@ -187,7 +188,8 @@ def _material(f: _File, i: int | None, out: Loaded, cache: dict, default: tuple)
         if "source" in t:
             tex = image_linear(f.image(t["source"])) * color.astype(np.float32)  # sRGB image × linear factor
             texcoord = pbr["baseColorTexture"].get("texCoord", 0)
-            out.textures += 1
+            f.images_used.add(t["source"])
+            out.textures = len(f.images_used)
             if "KHR_texture_transform" in pbr["baseColorTexture"].get("extensions", {}):
                 out.ignored["texture transform"] += 1
     emission = np.asarray(m.get("emissiveFactor", (0, 0, 0)), float)

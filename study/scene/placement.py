@@ -70,7 +70,7 @@ def cast(mesh: RoomMesh, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.n
     o = np.ascontiguousarray(np.broadcast_to(np.asarray(o, np.float32).reshape(-1, 3), d.shape))
     res = r.scene.run(o, d, output=1)
     prim = np.asarray(res["primID"])
-    hit = np.asarray(res["geomID"]) != -1
+    hit = (np.asarray(res["geomID"]) != -1) & (np.asarray(res["tfar"]) > 1e-6)  # a point on a surface: no hit
     t = np.where(hit, res["tfar"], np.inf).astype(float)
     front = hit & (np.sum(r.normal[np.where(hit, prim, 0)] * d, -1) < 0)
     return t, front

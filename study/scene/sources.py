@@ -6,9 +6,12 @@ table of a scene).
 =================  ============================================================================================
 ``"box"``          the axis-aligned ``[room]`` with its ``[[columns]]``, procedurally textured, lit by ``[light]``
                    (the default: the paper's scenes)
-``"mesh"``         the triangles of ``file`` (OBJ, PLY, GLB, STL, … through trimesh), moved by ``scale``,
-                   ``rotation`` (degrees about x, y, z) and ``translate``; each part keeps its texture, material
-                   colour or vertex colours where the file has them, else ``color``; lit by ``[light]``
+``"mesh"``         the triangles of ``file`` (OBJ and glTF/GLB by study's own readers, :mod:`study.scene.obj`,
+                   :mod:`study.scene.gltf`; PLY, STL, OFF through trimesh), moved by ``scale``, ``rotation``
+                   (degrees about x, y, z) and ``translate``; each part keeps its texture, material colour or
+                   vertex colours where the file has them, else ``color``; emissive materials are area lights
+                   and glTF punctual lights are lights; lit by ``[light]`` where the file has no light (or
+                   the scene gives ``[light]``); one summary line tells what was read and ignored
 ``"mitsuba"``      a Mitsuba 3 scene: ``file`` (XML), ``builtin = "cornell_box"`` (Mitsuba's own
                    ``mitsuba.cornell_box()``) or, from Python, ``scene`` (a scene dict); its meshes, BSDFs and
                    emitters (area lights included) are used as they are, ``[light]`` is ignored; shapes that are
@@ -16,8 +19,8 @@ table of a scene).
 =================  ============================================================================================
 
 A relative ``file`` is resolved against the directory of the scene file that names it (the validation context's
-``"base"``; the working directory otherwise) and stored absolute. Cache keys hash the file's bytes, not its path
-(:func:`key_fields`).
+``"base"``; the working directory otherwise) and stored absolute. Cache keys hash the file's bytes, not its path,
+and the bytes of every file it references (:func:`key_fields`, :mod:`study.scene.references`).
 """
 
 from __future__ import annotations
