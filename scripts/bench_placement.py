@@ -1,11 +1,12 @@
 """Benchmark (not a test): automatic placement in a generated room of about 300,000 triangles.
 
 The room is a 12 m × 4 m × 9 m box whose walls are finely tessellated, with a grid of pillars (finely tessellated
-cylinders) standing on the floor, written as a binary PLY in a temporary folder. Timed: reading it
+cylinders) standing on the floor, written as a binary PLY (or an OBJ, read by study's own reader) in a temporary
+folder. Timed: reading it
 (``geometry``), and placing the reference point, object, camera and light (``study.load_scene`` of the file,
 which suggests every placement key and checks them), each cold (a fresh process state for the mesh).
 
-    PYTHONPATH=$PWD .venv/bin/python scripts/bench_placement.py [--triangles 300000]
+    PYTHONPATH=$PWD .venv/bin/python scripts/bench_placement.py [--triangles 300000] [--format ply|obj]
 """
 
 from __future__ import annotations
@@ -69,6 +70,7 @@ def room(triangles: int):
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--triangles", type=int, default=300_000)
+    ap.add_argument("--format", choices=("ply", "obj"), default="ply", help="the file written and read")
     args = ap.parse_args()
     import trimesh
 
@@ -77,8 +79,9 @@ def main() -> None:
 
     V, F = room(args.triangles)
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "big_room.ply"
-        path.write_bytes(trimesh.Trimesh(V, F, process=False).export(file_type="ply"))
+        path = Path(tmp) / f"big_room.{args.format}"
+        data = trimesh.Trimesh(V, F, process=False).export(file_type=args.format)
+        path.write_bytes(data if isinstance(data, bytes) else data.encode())
         t0 = time.perf_counter()
         env = geometry({"type": "mesh", "file": str(path)})
         t1 = time.perf_counter()

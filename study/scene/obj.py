@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 from collections import Counter
+from operator import methodcaller
 from pathlib import Path
 
 import numpy as np
@@ -52,76 +53,145 @@ def read_mtl(path: Path, ignored: Counter) -> dict[str, dict]:
     return mats
 
 
-def _index(tok: str, n: int, line_no: int, what: str, src: str) -> int:
-    i = int(tok)
-    if i == 0:
-        raise StudyError(f"line {line_no}: {what} index 0 (OBJ indices start at 1; −1 is the last)", key=src)
-    j = i - 1 if i > 0 else n + i
-    if not 0 <= j < n:
-        raise StudyError(
-            f"line {line_no}: {what} index {i} refers past the end of the list ({n} defined so far)", key=src
+def _resolve(raw: np.ndarray, n_before: np.ndarray, lines: np.ndarray, what: str, src: str) -> np.ndarray:
+    """0-based indices of OBJ indices ``raw`` (1-based; negative: counted back from ``n_before``, the length of
+    the list when the face was read); index 0 or past the end: a StudyError naming the line."""
+    j = np.where(raw > 0, raw - 1, n_before + raw)
+    bad = (raw == 0) | (j < 0) | (j >= n_before)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        i, n = int(raw[k]), int(n_before[k])
+        why = (
+            "index 0 (OBJ indices start at 1; -1 is the last)"
+            if i == 0
+            else (f"index {i} refers past the end of the list ({n} defined so far)")
         )
+        raise StudyError(f"line {int(lines[k])}: {what} {why}", key=src)
     return j
+
+
+def _corners(tokens: list[str], line_of: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]:
+    """(vertex, texture coordinate) OBJ indices of face corners ``v``, ``v/t``, ``v//n`` or ``v/t/n`` (t = 0
+    where none is given)."""
+    k = tokens[0].count("/") if tokens else 0
+    if set(map(methodcaller("count", "/"), tokens)) <= {k}:  # one layout throughout: parsed at once
+        try:
+            text = " ".join(tokens).replace("//", "/0/").replace("/", " ")
+            a = np.fromiter(map(int, text.split()), np.int64).reshape(len(tokens), k + 1)
+            return a[:, 0], a[:, 1] if k >= 1 else np.zeros(len(tokens), np.int64)
+        except ValueError:
+            pass  # the loop below names the corner
+    v, t = np.zeros(len(tokens), np.int64), np.zeros(len(tokens), np.int64)
+    for i, tok in enumerate(tokens):
+        parts = tok.split("/")
+        try:
+            v[i] = int(parts[0])
+            t[i] = int(parts[1]) if len(parts) > 1 and parts[1] else 0
+        except ValueError:
+            raise StudyError(f"line {int(line_of[i])}: not a face corner: {tok!r}", key=src) from None
+    return v, t
 
 
 def read_obj(path: Path, src: str, default_color: tuple) -> Loaded:
     """The OBJ at ``path`` as parts (one per material), with their MTL colours, textures and emission."""
-    V: list[list[float]] = []
-    VT: list[list[float]] = []
-    faces: dict[str, list] = {}  # material → [(v0, t0), (v1, t1), (v2, t2)] per triangle
     mtllibs: list[Path] = []
     ignored: Counter = Counter()
-    mat = ""
-    text = path.read_text(errors="replace").replace("\\\n", " ")
-    for no, line in enumerate(text.splitlines(), 1):
-        if not line or line[0] == "#":
-            continue
-        tok = line.split()
-        if not tok:
+    lines = path.read_text(errors="replace").replace("\\\n", " ").splitlines()
+    head = [ln[:2] for ln in lines]
+    is_v = np.fromiter((h == "v " for h in head), bool, len(lines))
+    is_vt = np.fromiter(
+        (h == "vt" and ln[2:3] in (" ", "\t") for h, ln in zip(head, lines)), bool, len(lines)
+    )
+    is_f = np.fromiter((h == "f " for h in head), bool, len(lines))
+    materials: list[str] = [""]
+    mat_at = [(0, 0)]  # (line index, material) from that line on
+    skip = np.fromiter((h in ("vn", "# ") for h in head), bool, len(lines))  # normals: not used
+    for i in np.flatnonzero(~(is_v | is_vt | is_f | skip)):
+        tok = lines[i].split()
+        if not tok or tok[0].startswith("#"):
             continue
         k = tok[0]
-        if k == "v":
-            if len(tok) < 4:
-                raise StudyError(f"line {no}: a vertex needs x y z", key=src)
-            V.append([float(x) for x in tok[1:4]])
-            if len(tok) >= 7:
-                ignored["vertex colour"] += 1
-        elif k == "vt":
-            VT.append([float(tok[1]), float(tok[2]) if len(tok) > 2 else 0.0])
-        elif k == "f":
-            corners = []
-            for c in tok[1:]:
-                parts = c.split("/")
-                vi = _index(parts[0], len(V), no, "vertex", src)
-                ti = (
-                    _index(parts[1], len(VT), no, "texture coordinate", src)
-                    if len(parts) > 1 and parts[1]
-                    else -1
-                )
-                corners.append((vi, ti))
-            if len(corners) < 3:
-                raise StudyError(f"line {no}: a face needs at least 3 vertices", key=src)
-            lst = faces.setdefault(mat, [])
-            for a in range(1, len(corners) - 1):
-                lst.append((corners[0], corners[a], corners[a + 1]))
-        elif k == "usemtl":
-            mat = " ".join(tok[1:])
+        if k in ("v", "vt", "f"):  # separated by a tab: the slow path below is not needed, refuse plainly
+            raise StudyError(
+                f"line {i + 1}: {k} elements separated by tabs are not read; use spaces", key=src
+            )
+        if k == "usemtl":
+            name = " ".join(tok[1:])
+            if name not in materials:
+                materials.append(name)
+            mat_at.append((i, materials.index(name)))
         elif k == "mtllib":
             mtllibs += [path.parent / n for n in tok[1:]]
         elif k in ("l", "p"):
             ignored["line" if k == "l" else "point"] += 1
+    vlines = [lines[i][2:] for i in np.flatnonzero(is_v)]
+    vtok = " ".join(vlines).split()
+    try:
+        if len(vtok) == 3 * len(vlines):
+            Va = np.array(vtok, float).reshape(-1, 3)
+        else:  # w or vertex colours on some lines
+            rows = [ln.split() for ln in vlines]
+            if any(len(r) < 3 for r in rows):
+                i = next(j for j, r in enumerate(rows) if len(r) < 3)
+                raise StudyError(f"line {int(np.flatnonzero(is_v)[i]) + 1}: a vertex needs x y z", key=src)
+            ignored["vertex colour"] += sum(len(r) >= 6 for r in rows)
+            Va = np.array([r[:3] for r in rows], float).reshape(-1, 3)
+        VTa = np.array(
+            [(ln.split()[1:3] + ["0"])[:2] for ln in (lines[i] for i in np.flatnonzero(is_vt))], float
+        )
+        VTa = VTa.reshape(-1, 2)
+    except ValueError as err:
+        raise StudyError(f"a vertex is not a number ({err})", key=src) from None
+    fidx = np.flatnonzero(is_f)
+    fbody = [lines[i][2:].strip() for i in fidx]
+    tokens = " ".join(fbody).split()
+    counts = [b.count(" ") + 1 for b in fbody]  # single spaces (the usual): corners = spaces + 1
+    if sum(counts) != len(tokens):
+        counts = [len(b.split()) for b in fbody]
+    if counts and min(counts) < 3:
+        raise StudyError(
+            f"line {int(fidx[counts.index(min(counts))]) + 1}: a face needs at least 3 vertices", key=src
+        )
+    nv = np.cumsum(is_v)[fidx]  # vertices defined before each face
+    nvt = np.cumsum(is_vt)[fidx]
+    lines_no = fidx + 1
+    starts = np.array([m[0] for m in mat_at])
+    fmat = np.array([m[1] for m in mat_at])[np.searchsorted(starts, fidx, side="right") - 1]
+    counts_a = np.asarray(counts, np.int64)
+    per_corner = lambda a: np.repeat(np.asarray(a, np.int64), counts_a)  # noqa: E731
+    line_of = per_corner(lines_no)
+    rv, rt = _corners(tokens, line_of, src)
+    vi = _resolve(rv, per_corner(nv), line_of, "vertex", src)
+    has_t = rt != 0
+    ti = np.full(len(rt), -1, np.int64)
+    if has_t.any():
+        ti[has_t] = _resolve(rt[has_t], per_corner(nvt)[has_t], line_of[has_t], "texture coordinate", src)
+    start = np.concatenate([[0], np.cumsum(counts_a)[:-1]]).astype(np.int64)
+    faces: dict[str, list] = {}
+    tri_mat = []
+    tris = []
+    for c in np.unique(counts_a):  # fans: (0, a, a + 1) of every polygon of c corners
+        sel = np.flatnonzero(counts_a == c)
+        for a in range(1, int(c) - 1):
+            idx = np.stack([start[sel], start[sel] + a, start[sel] + a + 1], 1)
+            tris.append(idx)
+            tri_mat.append(np.asarray(fmat, np.int64)[sel])
+    if tris:
+        T, M = np.concatenate(tris), np.concatenate(tri_mat)
+        order = np.argsort(M, kind="stable")
+        T, M = T[order], M[order]
+        for m in np.unique(M):
+            t = T[M == m]
+            faces[materials[m]] = np.stack([vi[t], ti[t]], -1)  # (n, 3, 2)
     mats: dict[str, dict] = {}
     for lib in mtllibs:
         if not lib.is_file():
             ignored[f"missing material library {lib.name}"] += 1
             continue
         mats.update(read_mtl(lib, ignored))
-    Va = np.asarray(V, float).reshape(-1, 3)
-    VTa = np.asarray(VT, float).reshape(-1, 2)
     out = Loaded([], ignored=ignored)
     textures = set()
-    for name, tris in faces.items():
-        c = np.asarray(tris, np.int64).reshape(-1, 3, 2)
+    for name, c in faces.items():
         m = mats.get(name)
         if name and m is None:
             ignored["undefined material"] += 1

@@ -49,17 +49,18 @@ def _mtl_file(line: str) -> str:
 
 
 def _obj(path: Path) -> list[Path]:
+    import re
+
     out = []
-    for line in path.read_text(errors="replace").splitlines():
-        if line.startswith("mtllib"):
-            for name in line.split()[1:]:
-                mtl = path.parent / name
-                out.append(mtl)
-                if mtl.is_file():
-                    for ml in mtl.read_text(errors="replace").splitlines():
-                        ml = ml.strip()
-                        if ml.lower().startswith(MTL_MAPS) and len(ml.split()) > 1:
-                            out.append(mtl.parent / _mtl_file(ml))
+    for line in re.findall(r"^mtllib[ \t]+(.*)$", path.read_text(errors="replace"), re.M):
+        for name in line.split():
+            mtl = path.parent / name
+            out.append(mtl)
+            if mtl.is_file():
+                for ml in mtl.read_text(errors="replace").splitlines():
+                    ml = ml.strip()
+                    if ml.lower().startswith(MTL_MAPS) and len(ml.split()) > 1:
+                        out.append(mtl.parent / _mtl_file(ml))
     return out
 
 
