@@ -10,8 +10,10 @@
 
 :func:`load_scene` reads a scene TOML, a mesh file (the environment: OBJ/PLY/GLB/STL/OFF), a Mitsuba XML file, a
 Mitsuba scene dict (``{"type": "scene", ...}``, e.g. ``mitsuba.cornell_box()``) or a study scene dict; for mesh
-and Mitsuba sources the reference point, object, light and camera are placed by
-:func:`study.scene.environment.suggest` (the Mitsuba scene's own camera where it has one). Overrides are dotted
+and Mitsuba sources the placement keys left out (reference point, object, light, camera) are placed by
+:mod:`study.scene.autoplace` (the Mitsuba scene's own camera where it has one), alike for a file and a TOML naming
+it. ``scene.load_summary()`` is the one line of what the environment's file held and what was ignored (``study
+run`` prints it to stderr). Overrides are dotted
 scene keys, as keyword arguments (``**{"object.radius": 0.3}``) or an ``overrides`` dict. Methods registered from
 outside the package (``@study.methods.register`` in a notebook cell, ``--plugin``, entry points) are part of
 ``methods="all"``. Errors are :class:`~study.errors.StudyError` (one line naming file and key).

@@ -247,3 +247,77 @@ def test_the_cli_prints_the_summary_to_stderr(tmp_path):
     )  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     assert SUMMARIES["room.gltf"] in out.stderr
+
+
+# ---------------------------------------------------------------------------------------------- by hand, in tmp_path
+def write_glb(path: Path, V: np.ndarray, F: np.ndarray, node: dict | None = None, mode: int = 4) -> Path:
+    """A GLB of one mesh (V, F) written from the glTF 2.0 specification: JSON chunk + binary chunk."""
+    import json
+    import struct
+
+    pos = np.ascontiguousarray(V, np.float32).tobytes()
+    idx = np.ascontiguousarray(F, np.uint32).ravel().tobytes()
+    g = {
+        "asset": {"version": "2.0"},
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, **(node or {})}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": mode}]}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": len(V), "type": "VEC3"},
+            {"bufferView": 1, "componentType": 5125, "count": int(np.size(F)), "type": "SCALAR"},
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": len(pos)},
+            {"buffer": 0, "byteOffset": len(pos), "byteLength": len(idx)},
+        ],
+        "buffers": [{"byteLength": len(pos) + len(idx)}],
+    }
+    js = json.dumps(g).encode()
+    js += b" " * (-len(js) % 4)
+    blob = pos + idx
+    body = struct.pack("<II", len(js), 0x4E4F534A) + js + struct.pack("<II", len(blob), 0x004E4942) + blob
+    path.write_bytes(struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body)
+    return path
+
+
+def test_glb_node_transforms_and_strips(tmp_path):
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], float)
+    node = {
+        "translation": [1, 2, 3],
+        "rotation": [0, 0, np.sin(np.pi / 4), np.cos(np.pi / 4)],
+        "scale": [2, 2, 2],
+    }
+    env = geometry(mesh_env(write_glb(tmp_path / "t.glb", V, np.array([[0, 1, 2], [2, 1, 3]]), node)))
+    # scale 2, then 90° about z ((x, y) → (−y, x)), then moved by (1, 2, 3)
+    want = np.c_[-2 * V[:, 1], 2 * V[:, 0], 2 * V[:, 2]] + [1, 2, 3]
+    np.testing.assert_allclose(np.sort(env.mesh.vertices, 0), np.sort(want, 0), atol=1e-6)
+    strip = geometry(mesh_env(write_glb(tmp_path / "s.glb", V, np.array([0, 1, 2, 3]), mode=5)))
+    n = np.cross(*(strip.mesh.vertices[strip.mesh.faces][:, k] - strip.mesh.vertices[strip.mesh.faces][:, 0]
+                   for k in (1, 2)))  # fmt: skip
+    assert len(strip.mesh.faces) == 2 and (n[:, 2] > 0).all()  # a strip keeps one winding
+
+
+def test_a_glb_cornell_box_is_read_whole():
+    mesh = geometry({"type": "mitsuba", "builtin": "cornell_box"}).mesh
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        env = geometry(mesh_env(write_glb(Path(d) / "cornell.glb", mesh.vertices, mesh.faces)))
+    np.testing.assert_allclose(env.mesh.vertices[env.mesh.faces], mesh.vertices[mesh.faces], atol=1e-6)
+    assert env.summary.startswith(f"loaded cornell.glb: {len(mesh.faces)} triangles")
+
+
+def test_non_finite_ply_vertices_are_refused(tmp_path):
+    (tmp_path / "n.ply").write_text(
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n"
+    )
+    with pytest.raises(StudyError, match="vertex 1 is not finite"):
+        geometry(mesh_env(tmp_path / "n.ply"))
+
+
+def test_a_mitsuba_scene_without_emitters_gets_the_scaled_light():
+    env = {"type": "mitsuba", "scene": {"type": "scene", "room": {"type": "cube", "flip_normals": True}}}
+    scene = scene_from_dict({"environment": env})
+    assert scene.lamp() and geometry(env).summary.endswith("no emitter: the point light [light] lights it")
+    assert scene.light.intensity[0] == pytest.approx(6.0 * 12 / 41)  # (diagonal √12 / default √41)²
