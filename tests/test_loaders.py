@@ -321,3 +321,17 @@ def test_a_mitsuba_scene_without_emitters_gets_the_scaled_light():
     scene = scene_from_dict({"environment": env})
     assert scene.lamp() and geometry(env).summary.endswith("no emitter: the point light [light] lights it")
     assert scene.light.intensity[0] == pytest.approx(6.0 * 12 / 41)  # (diagonal √12 / default √41)²
+
+
+def test_an_xml_filename_given_by_a_default_parameter_is_in_the_key(assets):
+    main = assets / "xml" / "main.xml"
+    main.write_text(
+        main.read_text()
+        .replace(
+            '<scene version="3.0.0">', '<scene version="3.0.0">\n  <default name="sky" value="sky.exr"/>', 1
+        )
+        .replace('value="sky.exr"/><float', 'value="$sky"/><float')
+    )
+    before = key(main)
+    (assets / "xml" / "sky.exr").write_bytes((assets / "xml" / "sky.exr").read_bytes() + b"\n")
+    assert key(main) != before

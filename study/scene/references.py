@@ -9,7 +9,8 @@ file           references (each relative to the file that names it)
 ``.glb``       the same, read from the JSON chunk
 ``.obj``       ``mtllib`` libraries, and in them every ``map_*``, ``bump``, ``disp``, ``decal``, ``refl`` texture
 ``.xml``       every ``filename`` (an attribute, as ``<include filename>``, or ``<string name="filename">``) of
-               Mitsuba 3: meshes, textures, envmaps, included XML (whose references are followed in turn)
+               Mitsuba 3: meshes, textures, envmaps, included XML (whose references are followed in turn);
+               ``$name`` through its ``<default>``; also relative to the top scene file, as Mitsuba resolves
 =============  ===============================================================================================
 """
 
@@ -64,25 +65,33 @@ def _obj(path: Path) -> list[Path]:
     return out
 
 
-def _xml(path: Path, seen: set) -> list[Path]:
+def _xml(path: Path, seen: set, top: Path, defaults: dict) -> list[Path]:
+    """Files a Mitsuba XML names: relative to the naming file and, where that differs, to the top scene file's
+    folder (Mitsuba's file resolver), both hashed where both exist; ``$name`` takes its ``<default>`` value."""
     import xml.etree.ElementTree as ET
 
     try:
         root = ET.parse(path).getroot()
     except (ET.ParseError, OSError):
         return []
+    defaults = {**defaults, **{d.get("name"): d.get("value") for d in root.iter("default") if d.get("name")}}
     out = []
     for el in root.iter():
         names = [el.get("filename")]
         if el.get("name") == "filename":
             names.append(el.get("value"))
         for n in names:
-            if n and "$" not in n:
-                p = (path.parent / n).resolve()
+            if n and n.startswith("$"):
+                n = defaults.get(n[1:])
+            if not n:
+                continue
+            cands = list(dict.fromkeys([(path.parent / n).resolve(), (top / n).resolve()]))
+            found = [c for c in cands if c.is_file()] or cands[:1]
+            for p in found:
                 out.append(p)
                 if p.suffix.lower() == ".xml" and p.is_file() and p not in seen:
                     seen.add(p)
-                    out += _xml(p, seen)
+                    out += _xml(p, seen, top, defaults)
                 elif p.suffix.lower() in (".obj", ".gltf", ".glb") and p.is_file():
                     out += referenced(p)
     return out
@@ -98,5 +107,5 @@ def referenced(path: str | Path) -> list[Path]:
     if suffix == ".obj":
         return _obj(p)
     if suffix == ".xml":
-        return _xml(p, {p.resolve()})
+        return _xml(p, {p.resolve()}, p.resolve().parent, {})
     return []
