@@ -335,3 +335,15 @@ def test_an_xml_filename_given_by_a_default_parameter_is_in_the_key(assets):
     before = key(main)
     (assets / "xml" / "sky.exr").write_bytes((assets / "xml" / "sky.exr").read_bytes() + b"\n")
     assert key(main) != before
+
+
+def test_an_object_obj_with_negative_indices_is_the_same_object(tmp_path):
+    from study.scene.objects import object_mesh
+
+    tet = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n"
+    (tmp_path / "pos.obj").write_text(tet + "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+    (tmp_path / "neg.obj").write_text(tet + "f -4 -2 -3\nf -4 -3 -1\nf -4 -1 -2\nf -3 -2 -1\n")
+    a, b = (object_mesh(scene_from_dict({"object": {"file": str(tmp_path / n), "radius": 0.3}}).object)
+            for n in ("pos.obj", "neg.obj"))  # fmt: skip
+    np.testing.assert_allclose(a.vertices, b.vertices)
+    assert np.array_equal(a.faces, b.faces) and len(a.faces) == 4

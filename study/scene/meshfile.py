@@ -41,17 +41,11 @@ def _trimesh(path: Path, src: str, default_color: tuple) -> Loaded:
     return out
 
 
-def load(env) -> tuple[RoomMesh, tuple[Part, ...], list[dict], str]:
-    """(mesh, parts, lights, summary line) of a ``type = "mesh"`` environment."""
-    from trimesh.transformations import euler_matrix
-
+def _read(path: Path, src: str, color: tuple) -> Loaded:
     from study.scene.gltf import read_gltf
     from study.scene.obj import read_obj
 
-    src = "environment.file"
-    path = Path(env.file)
     suffix = path.suffix.lower()
-    color = tuple(env.color)
     try:
         if suffix == ".obj":
             loaded = read_obj(path, src, color)
@@ -61,7 +55,32 @@ def load(env) -> tuple[RoomMesh, tuple[Part, ...], list[dict], str]:
             loaded = _trimesh(path, src, color)
     except (ValueError, KeyError, IndexError, TypeError) as err:
         raise StudyError(f"cannot read {path.name} ({type(err).__name__}: {err})", key=src) from None
-    loaded = clean(loaded, src)
+    return clean(loaded, src)
+
+
+def triangles(path: str | Path, key: str) -> tuple[np.ndarray, np.ndarray]:
+    """(V, F) of every part of a mesh file joined, read as :func:`load` reads it (an object's mesh file); a
+    problem is a StudyError naming the file and ``key``."""
+    try:
+        loaded = _read(Path(path), key, (0.6, 0.6, 0.6))
+    except StudyError as err:
+        raise StudyError(err.detail, file=str(path), key=key) from None
+    V, F, n = [], [], 0
+    for p in loaded.pieces:
+        V.append(p.V)
+        F.append(p.F + n)
+        n += len(p.V)
+    return np.concatenate(V), np.concatenate(F)
+
+
+def load(env) -> tuple[RoomMesh, tuple[Part, ...], list[dict], str]:
+    """(mesh, parts, lights, summary line) of a ``type = "mesh"`` environment."""
+    from trimesh.transformations import euler_matrix
+
+    src = "environment.file"
+    path = Path(env.file)
+    color = tuple(env.color)
+    loaded = _read(path, src, color)
     M = euler_matrix(*np.radians(env.rotation), "sxyz")[:3, :3] * env.scale
     t = np.asarray(env.translate, float)
     V, F, UV, S, C, parts = [], [], [], [], [], []

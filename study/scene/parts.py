@@ -99,7 +99,13 @@ def clean(loaded: Loaded, src: str) -> Loaded:
         p.F = F
         keep.append(p)
     if not keep:
-        raise StudyError("the mesh file holds no triangles (no faces)", key=src)
+        n = loaded.dropped["degenerate triangle"]
+        raise StudyError(
+            f"the mesh file holds no faces of non-zero area ({n} degenerate)"
+            if n
+            else "the mesh file holds no faces",
+            key=src,
+        )
     loaded.pieces = keep
     return loaded
 
