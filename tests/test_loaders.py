@@ -347,3 +347,49 @@ def test_an_object_obj_with_negative_indices_is_the_same_object(tmp_path):
             for n in ("pos.obj", "neg.obj"))  # fmt: skip
     np.testing.assert_allclose(a.vertices, b.vertices)
     assert np.array_equal(a.faces, b.faces) and len(a.faces) == 4
+
+
+def test_a_gltf_camera_is_the_view_and_the_object_stands_before_the_first_occluder(tmp_path):
+    """The glTF's camera (node at z = 1.9 looking along −z, yfov 60°, aspect 1.5) is the suggested camera; a
+    panel (from a data: URI buffer) blocks its view axis at z = 0.5, so the object stands between the two."""
+    import base64
+    import json
+
+    from study.reference.embree import Tracer
+    from study.scene import placement
+
+    g = json.loads((ASSETS / "room.gltf").read_text())
+    panel = np.array([[-1, 0.5, 0.5], [1, 0.5, 0.5], [1, 2.5, 0.5], [-1, 2.5, 0.5]], np.float32)  # faces +z
+    idx = np.array([0, 1, 2, 0, 2, 3], np.uint16)
+    data = panel.tobytes() + idx.tobytes()
+    g["buffers"].append({"uri": "data:application/octet-stream;base64," + base64.b64encode(data).decode(),
+                         "byteLength": len(data)})  # fmt: skip
+    b = len(g["buffers"]) - 1
+    g["bufferViews"] += [{"buffer": b, "byteOffset": 0, "byteLength": 48},
+                         {"buffer": b, "byteOffset": 48, "byteLength": 12}]  # fmt: skip
+    nv = len(g["bufferViews"])
+    g["accessors"] += [{"bufferView": nv - 2, "componentType": 5126, "count": 4, "type": "VEC3"},
+                       {"bufferView": nv - 1, "componentType": 5123, "count": 6, "type": "SCALAR"}]  # fmt: skip
+    na = len(g["accessors"])
+    g["meshes"].append(
+        {"primitives": [{"attributes": {"POSITION": na - 2}, "indices": na - 1, "material": 0}]}
+    )
+    g["nodes"] += [{"mesh": len(g["meshes"]) - 1},
+                   {"camera": 0, "translation": [0.0, 1.5, 1.9]}]  # fmt: skip
+    g["scenes"][0]["nodes"] += [len(g["nodes"]) - 2, len(g["nodes"]) - 1]
+    g["cameras"] = [{"type": "perspective", "perspective": {"yfov": np.radians(60), "aspectRatio": 1.5,
+                                                             "znear": 0.01}}]  # fmt: skip
+    for n in ("room.bin", "wall.png"):
+        shutil.copy(ASSETS / n, tmp_path / n)
+    (tmp_path / "cam.gltf").write_text(json.dumps(g))
+    env = geometry(mesh_env(tmp_path / "cam.gltf"))
+    s = env.sensor
+    assert s["eye"] == pytest.approx([0, 1.5, 1.9]) and s["target"] == pytest.approx([0, 1.5, 0.9])
+    assert s["fov"] == pytest.approx(np.degrees(2 * np.arctan(np.tan(np.radians(30)) * 1.5)))
+    scene = scene_from_dict({"environment": mesh_env(tmp_path / "cam.gltf")})
+    assert scene.camera.eye == pytest.approx((0, 1.5, 1.9)) and scene.camera.fov == pytest.approx(s["fov"])
+    eye, c, r = np.asarray(scene.camera.eye), np.asarray(scene.object.center), scene.object.radius
+    assert 0.5 + r < c[2] < 1.9 - r  # before the panel, not behind it
+    assert placement.sees(scene.mesh(), eye, c, r) == 1.0
+    d = (c - eye) / np.linalg.norm(c - eye)
+    assert Tracer(scene.mesh()).distance(eye[None], d[None])[0] > np.linalg.norm(c - eye)

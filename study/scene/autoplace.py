@@ -4,11 +4,12 @@ left out, and only those (:data:`KEYS`), suggested by ray casting with Embree (:
 * ``reference.point``: the free, enclosed point of a 5³ grid inside the bounds farthest from every surface (the
   grid is ranked by the nearest hit of 128 rays from each point, then checked exactly);
 * ``object.radius``: a quarter of the reference point's clearance, at most 8 % of the bounds' diagonal;
-  ``object.center``: a little below the reference point (on the Mitsuba sensor's view axis where the scene has
-  a camera), moved to the nearest free spot where the sphere touches nothing;
-* the camera: the Mitsuba scene's own where it has one; else the eye, of 64 directions around the object at a
-  distance of 1.75 × the clearance, that sees the object unblocked (every sampled ray from the eye to the
-  object's near side arrives), preferring eyes level with the object on the reference point's side;
+  ``object.center``: a little below the reference point (on the camera's view axis, before the first surface
+  it meets, where the scene has a camera: a Mitsuba sensor or a glTF camera), moved to the nearest free spot
+  where the sphere touches nothing;
+* the camera: the scene's own where it has one (Mitsuba sensor, glTF camera); else the eye, of 64 directions
+  around the object at a distance of 1.75 × the clearance, that sees the object unblocked (every sampled ray
+  from the eye to the object's near side arrives), preferring eyes level with the object on the reference point's side;
 * the light, where ``[light]`` lights the environment: ``light.enabled`` is off when the file brings light of its
   own (emitters, emissive materials, punctual lights); else a point light at the centre of the bounds (0.6 ×
   the clearance above the reference point when the centre is not free, or is the reference point or the
@@ -146,7 +147,9 @@ def suggest(env, given: dict[str, Any] | None = None) -> dict[str, Any]:
         if s is not None and want("camera.eye"):  # onto the Mitsuba camera's view axis
             eye, target = np.array(s["eye"]), np.array(s["target"])
             axis = (target - eye) / np.linalg.norm(target - eye)
-            pts = eye + np.linspace(0, 2 * diag + np.linalg.norm(eye - (lo + hi) / 2), 200)[:, None] * axis
+            t_hit = placement.cast(mesh, eye[None], axis[None])[0][0]  # the camera sees up to there
+            far = min(2 * diag + np.linalg.norm(eye - (lo + hi) / 2), t_hit - 1.5 * radius)
+            pts = eye + np.linspace(0, max(far, 0.0), 200)[:, None] * axis
             inside = [p for p in pts if np.all(p > lo) and np.all(p < hi)]
             ok = [p for p in inside if placement.clearance(mesh, p) > 1.5 * radius]
             if ok:

@@ -34,7 +34,8 @@ class EnvGeometry:
     point_light : bool         whether the scene's ``[light]`` may light it (box and mesh environments, Mitsuba
                                scenes without an emitter); off where the file brings light and ``light.enabled``
                                says so (:mod:`study.reference.mitsuba`)
-    sensor : dict | None       the Mitsuba scene's own camera: eye, target, up, fov (horizontal, degrees), width, height
+    sensor : dict | None       the file's own camera (Mitsuba sensor, glTF camera): eye, target, up, fov
+                               (horizontal, degrees), width, height
     """
 
     mesh: RoomMesh
@@ -72,8 +73,8 @@ def _box(scene: Scene) -> EnvGeometry:
 def _mesh_file(env) -> EnvGeometry:
     from study.scene import meshfile
 
-    mesh, parts, lights, line = meshfile.load(env)
-    return EnvGeometry(mesh, parts, kind="mesh", lights=tuple(lights), summary=line)
+    mesh, parts, lights, line, sensor = meshfile.load(env)
+    return EnvGeometry(mesh, parts, kind="mesh", lights=tuple(lights), summary=line, sensor=sensor)
 
 
 def _mitsuba(env) -> EnvGeometry:

@@ -246,6 +246,24 @@ def _light(f: _File, i: int, M: np.ndarray, out: Loaded) -> None:
         out.ignored[f"light of type {kind!r}"] += 1
 
 
+def _camera(f: _File, i: int, M: np.ndarray, out: Loaded) -> dict | None:
+    """A perspective camera: at the node's origin, looking along its −z, up its +y; ``yfov`` (radians) and
+    ``aspectRatio`` (width / height, default 1) → horizontal field of view in degrees."""
+    cam = f.g["cameras"][i]
+    if cam.get("type") != "perspective":
+        out.ignored["orthographic camera"] += 1
+        return None
+    p = cam.get("perspective", {})
+    aspect = p.get("aspectRatio") or 1.0
+    fov = float(np.degrees(2 * np.arctan(np.tan(p["yfov"] / 2) * aspect)))
+    eye = M[:3, 3]
+    fwd, up = M[:3, :3] @ [0.0, 0.0, -1.0], M[:3, :3] @ [0.0, 1.0, 0.0]
+    fwd, up = fwd / np.linalg.norm(fwd), up / np.linalg.norm(up)
+    w = 512
+    return {"eye": eye.tolist(), "target": (eye + fwd).tolist(), "up": up.tolist(), "fov": min(fov, 179.0),
+            "width": w, "height": max(8, round(w / aspect))}  # fmt: skip
+
+
 def read_gltf(path: Path, src: str, default_color: tuple) -> Loaded:
     """The glTF at ``path`` as parts (one per material) in world space, with its punctual lights."""
     f = _File(path, src)
@@ -265,6 +283,10 @@ def read_gltf(path: Path, src: str, default_color: tuple) -> Loaded:
         node = f.g["nodes"][ni]
         M = parent @ _node_matrix(node)
         stack += [(c, M) for c in node.get("children", [])]
+        if (
+            "camera" in node and out.sensor is None
+        ):  # the first camera of the scene: where the user looks from
+            out.sensor = _camera(f, node["camera"], M, out)
         light = node.get("extensions", {}).get("KHR_lights_punctual", {}).get("light")
         if light is not None:
             _light(f, light, M, out)

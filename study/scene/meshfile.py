@@ -10,7 +10,16 @@ from pathlib import Path
 import numpy as np
 
 from study.errors import StudyError
-from study.scene.parts import Loaded, Part, Piece, clean, srgb_to_linear, summary, transform_lights
+from study.scene.parts import (
+    Loaded,
+    Part,
+    Piece,
+    clean,
+    srgb_to_linear,
+    summary,
+    transform_lights,
+    transform_sensor,
+)
 from study.scene.room import RoomMesh
 
 
@@ -73,8 +82,8 @@ def triangles(path: str | Path, key: str) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(V), np.concatenate(F)
 
 
-def load(env) -> tuple[RoomMesh, tuple[Part, ...], list[dict], str]:
-    """(mesh, parts, lights, summary line) of a ``type = "mesh"`` environment."""
+def load(env) -> tuple[RoomMesh, tuple[Part, ...], list[dict], str, dict | None]:
+    """(mesh, parts, lights, summary line, camera or None) of a ``type = "mesh"`` environment."""
     from trimesh.transformations import euler_matrix
 
     src = "environment.file"
@@ -114,4 +123,10 @@ def load(env) -> tuple[RoomMesh, tuple[Part, ...], list[dict], str]:
         tuple(p.name for p in parts),
         np.concatenate(C).astype(np.float32),
     )
-    return mesh, tuple(parts), transform_lights(loaded.lights, M, t), summary(path.name, loaded)
+    return (
+        mesh,
+        tuple(parts),
+        transform_lights(loaded.lights, M, t),
+        summary(path.name, loaded),
+        (transform_sensor(loaded.sensor, M, t)),
+    )

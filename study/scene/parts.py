@@ -53,6 +53,7 @@ class Loaded:
     textures: int = 0
     ignored: Counter = field(default_factory=Counter)  # what the file says that is not rendered, per kind
     dropped: Counter = field(default_factory=Counter)  # triangles and parts left out, per reason
+    sensor: dict | None = None  # the file's camera: eye, target, up, fov (horizontal degrees), width, height
 
 
 def srgb_to_linear(c) -> np.ndarray:
@@ -128,6 +129,19 @@ def summary(name: str, loaded: Loaded) -> str:
     if loaded.dropped:
         out += "; dropped: " + ", ".join(_n(n, k) for k, n in sorted(loaded.dropped.items()))
     return out
+
+
+def transform_sensor(sensor: dict | None, M: np.ndarray, t: np.ndarray) -> dict | None:
+    """A camera moved by x → M x + t (eye and target; up turned by M)."""
+    if sensor is None:
+        return None
+    up = M @ np.asarray(sensor["up"], float)
+    return {
+        **sensor,
+        "eye": (M @ np.asarray(sensor["eye"], float) + t).tolist(),
+        "target": (M @ np.asarray(sensor["target"], float) + t).tolist(),
+        "up": (up / np.linalg.norm(up)).tolist(),
+    }
 
 
 def transform_lights(lights: list[dict], M: np.ndarray, t: np.ndarray) -> list[dict]:
