@@ -34,11 +34,11 @@ def _trimesh(path: Path, src: str, default_color: tuple) -> Loaded:
     except Exception as err:  # noqa: BLE001 - any reader failure is bad input
         raise StudyError(f"cannot read the mesh file ({type(err).__name__}: {err})", key=src) from None
     out = Loaded([], ignored=Counter())
-    for i, g in enumerate(meshes):
+    for g in meshes:
         V, F = np.asarray(g.vertices, float), np.asarray(g.faces, np.int64).reshape(-1, 3)
         vis = g.visual
         kind = getattr(vis, "kind", None)
-        p = Piece(f"part{i}", V, F)
+        p = Piece("", V, F)
         if kind == "face":  # one colour per face: unshare the vertices
             p.V, p.F = V[F].reshape(-1, 3), np.arange(3 * len(F)).reshape(-1, 3)
             p.colors = srgb_to_linear(np.repeat(np.asarray(vis.face_colors)[:, :3], 3, axis=0) / 255)
@@ -95,7 +95,7 @@ def load(env) -> tuple[RoomMesh, tuple[Part, ...], list[dict], str, dict | None]
     V, F, UV, S, C, parts = [], [], [], [], [], []
     n = 0
     for i, p in enumerate(loaded.pieces):
-        name = f"part{i}" if p.name.startswith("part") else f"part{i}:{p.name}"
+        name = f"part{i}:{p.name}" if p.name else f"part{i}"
         part = Part(
             name,
             albedo=p.albedo if p.uv is not None else None,
