@@ -168,7 +168,7 @@ def suggest(env, given: dict[str, Any] | None = None) -> dict[str, Any]:
             out["camera.eye"] = _eye(env, centre, radius, best, gap, up / np.linalg.norm(up)).tolist()
     if want("camera.target"):
         out["camera.target"] = centre.tolist()
-    if want("camera.fov") and env.sensor is not None:
+    if want("camera.fov") and env.sensor is not None and want("camera.eye"):  # the file's view, whole
         out["camera.fov"] = env.sensor["fov"]
     if env.point_light:
         if want("light.enabled"):
