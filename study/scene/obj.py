@@ -5,7 +5,8 @@
 * Polygons are split into fans of triangles; ``l`` and ``p`` elements are ignored (counted).
 * One part per material (``usemtl``); MTL ``Kd`` is a linear albedo, ``map_Kd`` an sRGB texture (multiplied by
   ``Kd``, as the MTL spec says), ``Ke`` a linear emitted radiance (an area light). ``d`` < 1 / ``Tr`` > 0 (alpha),
-  transmission (``illum`` 4, 6, 7, ``Tf`` other than 1) and the other maps are not rendered: counted as ignored.
+  transmission (``illum`` 4, 6, 7, ``Tf`` other than 1), specular ``Ks`` > 0, ``map_Kd`` options and the other
+  maps are not rendered (two-sided diffuse): counted as ignored, once per material.
 """
 
 from __future__ import annotations
@@ -20,6 +21,14 @@ from study.errors import StudyError
 from study.scene.parts import Loaded, Piece, image_linear
 
 _OTHER_MAPS = ("map_ks", "map_ns", "map_d", "map_bump", "bump", "disp", "decal", "refl", "norm", "map_ke")
+
+
+def _num(x: str) -> float:
+    """A number of an MTL statement; a word (``spectral``, ``xyz``) counts as 1 (neutral)."""
+    try:
+        return float(x)
+    except ValueError:
+        return 1.0
 
 
 def read_mtl(path: Path, ignored: Counter) -> dict[str, dict]:
@@ -40,13 +49,17 @@ def read_mtl(path: Path, ignored: Counter) -> dict[str, dict]:
             cur[tok[0].capitalize()] = tuple(vals * 3 if len(vals) == 1 else vals)
         elif key == "map_kd" and len(tok) >= 2:
             cur["map_Kd"] = path.parent / tok[-1]
+            if len(tok) > 2:
+                cur["ignored"].add("texture option")  # -s, -o, -clamp, …: the texture is used plain
+        elif key == "ks" and len(tok) >= 2 and any(_num(x) > 0 for x in tok[1:4]):
+            cur["ignored"].add("specular (Ks)")
         elif key == "d" and len(tok) >= 2 and float(tok[-1]) < 1:
             cur["ignored"].add("alpha")
         elif key == "tr" and len(tok) >= 2 and float(tok[-1]) > 0:
             cur["ignored"].add("alpha")
         elif key == "illum" and len(tok) >= 2 and tok[1] in ("4", "6", "7"):
             cur["ignored"].add("transmission")
-        elif key == "tf" and len(tok) >= 2 and any(float(x) != 1 for x in tok[1:4] if x[0] in "0123456789.-"):
+        elif key == "tf" and len(tok) >= 2 and any(_num(x) != 1 for x in tok[1:4]):
             cur["ignored"].add("transmission")
         elif key in _OTHER_MAPS:
             cur["ignored"].add(tok[0])
