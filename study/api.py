@@ -10,8 +10,10 @@
 
 :func:`load_scene` reads a scene TOML, a mesh file (the environment: OBJ/PLY/GLB/STL/OFF), a Mitsuba XML file, a
 Mitsuba scene dict (``{"type": "scene", ...}``, e.g. ``mitsuba.cornell_box()``) or a study scene dict; for mesh
-and Mitsuba sources the reference point, object, light and camera are placed by
-:func:`study.scene.environment.suggest` (the Mitsuba scene's own camera where it has one). Overrides are dotted
+and Mitsuba sources the placement keys left out (reference point, object, light, camera) are placed by
+:mod:`study.scene.autoplace` (the Mitsuba scene's own camera where it has one), alike for a file and a TOML naming
+it. ``scene.load_summary()`` is the one line of what the environment's file held and what was ignored (``study
+run`` prints it to stderr). Overrides are dotted
 scene keys, as keyword arguments (``**{"object.radius": 0.3}``) or an ``overrides`` dict. Methods registered from
 outside the package (``@study.methods.register`` in a notebook cell, ``--plugin``, entry points) are part of
 ``methods="all"``. Errors are :class:`~study.errors.StudyError` (one line naming file and key).
@@ -67,21 +69,12 @@ def _set_dotted(data: dict, key: str, value: Any, *, source: str) -> None:
 
 
 def _environment_scene(env: dict, updates: dict, *, source: str) -> Scene:
-    """A scene in a mesh or Mitsuba environment: the environment's suggested placement, then ``updates``."""
-    from pydantic import TypeAdapter, ValidationError
+    """A scene in a mesh or Mitsuba environment: ``updates``, and the placement keys they leave out suggested
+    (:mod:`study.scene.autoplace`, as for a scene TOML naming the same environment)."""
+    from study.scene import scene_from_dict
 
-    from study.scene import environment, scene_from_dict, sources
-
-    try:
-        model = TypeAdapter(sources.Environment).validate_python(env)
-    except ValidationError as err:
-        raise StudyError(err.errors()[0]["msg"], file=source, key="environment") from None
-    try:
-        suggested = environment.suggest(model)
-    except StudyError as err:
-        raise StudyError(err.detail, file=err.file or source, key=err.key, code=err.code) from None
     data: dict = {"environment": env}
-    for k, v in {**suggested, **updates}.items():
+    for k, v in updates.items():
         _set_dotted(data, k, v, source=source)
     return scene_from_dict(data, source=source)
 

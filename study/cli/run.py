@@ -87,6 +87,8 @@ def run(
     overrides = parse_sets(set_)
     methods = method_list(method or "all", key="--method")
     sc = load_scene(scene, overrides)
+    if sc.load_summary():  # what the environment's file held, and what was ignored (stderr)
+        typer.echo(sc.load_summary(), err=True)
     out = out or Path("reports") / f"run-{scene.stem}"
     t0 = time.perf_counter()
     with console.status(f"{scene.name}: rendering and measuring…"):

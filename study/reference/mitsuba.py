@@ -25,11 +25,14 @@ def mi(variant: str | None = None):
     return runtime.mitsuba(variant)
 
 
-def triangle_mesh(m, name, V, F, UV, bsdf, colors=None):
+def triangle_mesh(m, name, V, F, UV, bsdf, colors=None, emission=None):
     """A Mitsuba mesh of triangles (V, F) with texture coordinates UV, a loaded BSDF and, optionally, per-vertex
-    ``colors`` (V, 3) as the attribute ``vertex_color``."""
+    ``colors`` (V, 3) as the attribute ``vertex_color`` and an ``area`` emitter of radiance ``emission`` (linear
+    RGB, W/(m² sr), emitted on the side the counter-clockwise winding faces)."""
     props = m.Properties()
     props["bsdf"] = bsdf
+    if emission is not None:
+        props["emitter"] = m.load_dict({"type": "area", "radiance": {"type": "rgb", "value": list(emission)}})
     mesh = m.Mesh(name, len(V), len(F), props=props, has_vertex_texcoords=True)
     if colors is not None:
         mesh.add_attribute("vertex_color", 3, np.ascontiguousarray(colors, np.float32).ravel())
@@ -50,6 +53,24 @@ def part_bsdf(m, part) -> object:
     else:
         refl = {"type": "rgb", "value": list(map(float, part.color))}
     return m.load_dict({"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": refl}})
+
+
+def punctual(m, li: dict) -> dict:
+    """A Mitsuba emitter dict of a mesh file's punctual light (:mod:`study.scene.parts`: radiometric, world)."""
+    rgb = lambda v: {"type": "rgb", "value": [float(x) for x in v]}  # noqa: E731
+    if li["type"] == "point":
+        return {"type": "point", "position": li["position"], "intensity": rgb(li["intensity"])}
+    if li["type"] == "directional":
+        return {"type": "directional", "direction": li["direction"], "irradiance": rgb(li["irradiance"])}
+    p, d = np.asarray(li["position"], float), np.asarray(li["direction"], float)
+    up = [0.0, 1.0, 0.0] if abs(d[1]) < 0.99 else [1.0, 0.0, 0.0]
+    return {
+        "type": "spot",
+        "to_world": m.ScalarTransform4f().look_at(origin=p.tolist(), target=(p + d).tolist(), up=up),
+        "intensity": rgb(li["intensity"]),
+        "cutoff_angle": li["cutoff_angle"],
+        "beam_width": min(li["beam_width"], li["cutoff_angle"]),
+    }
 
 
 def object_bsdf(scene: Scene) -> dict:
@@ -75,7 +96,7 @@ def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dic
     if with_object and scene.object.material.type == "dielectric":
         depth += 2  # entering and leaving the glass: the room behind gets max_depth as well
     d = {"type": "scene", "sensor": sensor, "integrator": integrator or {"type": "path", "max_depth": depth}}
-    if env.point_light:
+    if scene.lamp():
         d["light"] = {
             "type": "point",
             "position": list(scene.light.position),
@@ -85,6 +106,8 @@ def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dic
         env.emitters
     ):  # a Mitsuba scene's own emitters (area lights come with their shapes)
         d[f"emitter_{i}"] = e
+    for i, li in enumerate(env.lights):  # a mesh file's punctual lights
+        d[f"file_light_{i}"] = punctual(m, li)
     mesh = env.mesh
     for sid, part in enumerate(env.parts):
         if not np.any(mesh.surface == sid):
@@ -101,6 +124,7 @@ def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dic
             UV,
             part_bsdf(m, part),
             colors=mesh.part_colors(sid) if part.vertex_colors else None,
+            emission=part.emission,
         )
     if with_object and scene.object.shape == "sphere":
         d["object"] = {

@@ -16,22 +16,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from study.errors import StudyError
+from study.scene.parts import Part
 from study.scene.room import SURFACES, RoomMesh, room_mesh, texture
 from study.scene.sources import key_fields
 
 if TYPE_CHECKING:
     from study.scene.schema import Scene
-
-
-@dataclass(frozen=True)
-class Part:
-    """One surface of the environment (triangles ``mesh.surface == index``) and what it is made of."""
-
-    name: str
-    albedo: np.ndarray | None = None  # (H, W, 3) linear RGB texture over the part's uv, or None
-    color: tuple | None = None  # constant linear RGB albedo, or None
-    vertex_colors: bool = False  # albedo from the mesh's vertex colours (``mesh.part_colors(index)``)
-    native: Any = None  # a loaded Mitsuba shape (mitsuba environments): rendered as it is
 
 
 @dataclass(frozen=True)
@@ -41,8 +31,11 @@ class EnvGeometry:
     mesh : RoomMesh            triangles, uv, surface id per triangle (index into ``parts``)
     parts : tuple[Part, ...]   materials, one per surface id
     emitters : tuple           Mitsuba emitters that are not area lights (mitsuba environments; else empty)
-    point_light : bool         whether the scene's ``[light]`` lights it (box and mesh environments)
-    sensor : dict | None       the Mitsuba scene's own camera: eye, target, up, fov (horizontal, degrees), width, height
+    point_light : bool         whether the scene's ``[light]`` may light it (box and mesh environments, Mitsuba
+                               scenes without an emitter); off where the file brings light and ``light.enabled``
+                               says so (:mod:`study.reference.mitsuba`)
+    sensor : dict | None       the file's own camera (Mitsuba sensor, glTF camera): eye, target, up, fov
+                               (horizontal, degrees), width, height
     """
 
     mesh: RoomMesh
@@ -52,6 +45,15 @@ class EnvGeometry:
     sensor: dict | None = None
     kind: str = "box"
     bounds: tuple[np.ndarray, np.ndarray] = field(default=None)  # (min, max) of the triangles
+    lights: tuple[
+        dict, ...
+    ] = ()  # a mesh file's punctual lights (study.scene.parts: world space, radiometric)
+    summary: str = ""  # one line: what was loaded, ignored and dropped (mesh files and Mitsuba scenes)
+
+    @property
+    def lit(self) -> bool:
+        """Whether the environment brings light of its own (emitters, emissive parts, punctual lights)."""
+        return bool(self.emitters or self.lights or any(p.emission is not None for p in self.parts))
 
     def __post_init__(self):
         if self.bounds is None:
@@ -68,73 +70,11 @@ def _box(scene: Scene) -> EnvGeometry:
     )
 
 
-def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    c = np.asarray(c, float)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
 def _mesh_file(env) -> EnvGeometry:
-    import trimesh
-    from trimesh.transformations import euler_matrix
+    from study.scene import meshfile
 
-    src = f"environment.file ({env.file})"
-    try:
-        sc = trimesh.load(env.file, force="scene")
-        meshes = [g for g in sc.dump(concatenate=False) if isinstance(g, trimesh.Trimesh)]
-    except Exception as err:  # noqa: BLE001 - any reader failure is bad input
-        raise StudyError(f"cannot read the mesh file ({type(err).__name__}: {err})", key=src) from None
-    meshes = [g for g in meshes if len(g.faces)]
-    if not meshes:
-        raise StudyError("the mesh file holds no triangles (no faces)", key=src)
-    M = euler_matrix(*np.radians(env.rotation), "sxyz")[:3, :3] * env.scale
-    V, F, UV, S, C, parts = [], [], [], [], [], []
-    n = 0
-    for i, g in enumerate(meshes):
-        vis, uv, part = g.visual, None, None
-        kind = getattr(vis, "kind", None)
-        verts, faces = np.asarray(g.vertices, float), np.asarray(g.faces)
-        if kind == "texture":
-            mat = vis.material
-            img = getattr(mat, "image", None) or getattr(mat, "baseColorTexture", None)
-            if img is not None and vis.uv is not None and len(vis.uv) == len(verts):
-                tex = _srgb_to_linear(np.asarray(img.convert("RGB"), float) / 255)
-                uv = np.c_[vis.uv[:, 0], 1 - vis.uv[:, 1]]  # OBJ's v runs up, Mitsuba's down
-                part = Part(f"part{i}", albedo=tex.astype(np.float32))
-            else:
-                c = getattr(mat, "main_color", None)
-                part = Part(
-                    f"part{i}",
-                    color=tuple(_srgb_to_linear(np.asarray(c[:3]) / 255))
-                    if c is not None
-                    else tuple(env.color),
-                )
-        elif kind == "face":  # one colour per face: unshare the vertices
-            verts, faces = verts[faces].reshape(-1, 3), np.arange(3 * len(faces)).reshape(-1, 3)
-            col = _srgb_to_linear(np.repeat(np.asarray(vis.face_colors)[:, :3], 3, axis=0) / 255)
-            part = Part(f"part{i}", vertex_colors=True)
-        elif kind == "vertex":
-            col = _srgb_to_linear(np.asarray(vis.vertex_colors)[:, :3] / 255)
-            part = Part(f"part{i}", vertex_colors=True)
-        else:
-            part = Part(f"part{i}", color=tuple(env.color))
-        if not part.vertex_colors:
-            col = np.broadcast_to(np.asarray(part.color if part.color else env.color, float), (len(verts), 3))
-        C.append(col)
-        V.append(verts @ M.T + np.asarray(env.translate))
-        F.append(faces + n)
-        UV.append(uv if uv is not None else np.zeros((len(verts), 2)))
-        S.append(np.full(len(faces), i))
-        parts.append(part)
-        n += len(verts)
-    mesh = RoomMesh(
-        np.concatenate(V).astype(np.float32),
-        np.concatenate(F).astype(np.int32),
-        np.concatenate(UV).astype(np.float32),
-        np.concatenate(S).astype(np.int32),
-        tuple(p.name for p in parts),
-        np.concatenate(C).astype(np.float32),
-    )
-    return EnvGeometry(mesh, tuple(parts), kind="mesh")
+    mesh, parts, lights, line, sensor = meshfile.load(env)
+    return EnvGeometry(mesh, parts, kind="mesh", lights=tuple(lights), summary=line, sensor=sensor)
 
 
 def _mitsuba(env) -> EnvGeometry:
@@ -173,6 +113,12 @@ def _mitsuba(env) -> EnvGeometry:
     if not V or not sum(len(f) for f in F):
         raise StudyError("the Mitsuba scene holds no triangles", key="environment")
     emitters = tuple(e for e in sc.emitters() if not m.has_flag(e.flags(), m.EmitterFlags.Surface))
+    n_area = len(sc.emitters()) - len(emitters)
+    line = (
+        f"loaded {describe_source(env)}: {sum(len(f) for f in F):,} triangles, {len(parts)} shapes, "
+        f"{n_area} area light(s), {len(emitters)} other emitter(s)"
+        + ("" if sc.emitters() else "; no emitter: the point light [light] lights it")
+    )
     mesh = RoomMesh(
         np.concatenate(V).astype(np.float32),
         np.concatenate(F).astype(np.int32),
@@ -181,7 +127,13 @@ def _mitsuba(env) -> EnvGeometry:
         tuple(p.name for p in parts),
     )
     return EnvGeometry(
-        mesh, tuple(parts), emitters=emitters, point_light=False, sensor=_sensor(m, sc), kind="mitsuba"
+        mesh,
+        tuple(parts),
+        emitters=emitters,
+        point_light=not sc.emitters(),
+        sensor=_sensor(m, sc),
+        kind="mitsuba",
+        summary=line,
     )
 
 
@@ -252,75 +204,22 @@ def geometry(scene: Scene | Any) -> EnvGeometry:
 
 # ---------------------------------------------------------------------------------------------- placement
 # for new scenes
-def suggest(scene: Scene | Any) -> dict[str, Any]:
-    """Where to put things in an environment nobody placed them in: dotted overrides for ``reference.point``,
-    ``object.center``, ``object.radius``, ``light.position`` (mesh environments) and the camera.
+def suggest(scene: Scene | Any, given: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Where to put things in an environment nobody placed them in (:func:`study.scene.autoplace.suggest`): dotted
+    overrides for the placement keys missing from ``given`` (the user's dotted keys → values). ``scene`` is a
+    scene or an environment alone (a mesh or Mitsuba source, as :func:`geometry` takes)."""
+    from study.scene import autoplace
 
-    The reference point is the free, enclosed point of a 5³ grid inside the bounds that lies farthest from every
-    surface; the object (radius a quarter of that clearance, at most 8 % of the bounds' diagonal) a little below
-    it; the camera is the Mitsuba scene's own (its sensor) when it has one — the object then moves onto its view
-    axis, at the free point nearest the bounds' centre — else it stands back from the object towards the reference
-    point's far side and looks at it. Every suggestion passes the placement checks (:mod:`study.scene.placement`).
-    ``scene`` is a scene or an environment alone (a mesh or Mitsuba source, as :func:`geometry` takes).
-    """
-    from study.scene import placement
-    from study.validation import KeyedError
+    return autoplace.suggest(geometry(scene), given)
 
-    env = geometry(scene)
-    mesh, (lo, hi) = env.mesh, env.bounds
-    diag = float(np.linalg.norm(hi - lo))
-    g = np.linspace(0.15, 0.85, 5)
-    grid = lo + (hi - lo) * np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
-    best, gap = None, 0.0
-    for p in sorted(grid, key=lambda p: -placement.clearance(mesh, p)):
-        try:
-            placement.check_free(mesh, p, "reference.point", enclosed=True)
-        except KeyedError:
-            continue
-        best, gap = p, placement.clearance(mesh, p)
-        break
-    if best is None:
-        raise StudyError(
-            "found no free point enclosed by the environment for the reference point; give "
-            "reference.point, object.center and camera.eye yourself",
-            key="environment",
-        )
-    radius = min(0.25 * gap, 0.08 * diag)
-    out: dict[str, Any] = {"reference.point": best.tolist(), "object.radius": float(radius)}
-    centre = best - np.array([0.0, 0.45 * gap, 0.0])
-    if env.sensor is not None:
-        s = env.sensor
-        eye, target = np.array(s["eye"]), np.array(s["target"])
-        axis = (target - eye) / np.linalg.norm(target - eye)
-        ts = np.linspace(0, 2 * diag + np.linalg.norm(eye - (lo + hi) / 2), 200)
-        pts = eye + ts[:, None] * axis
-        free = [
-            p
-            for p in pts
-            if np.all(p > lo) and np.all(p < hi) and placement.clearance(mesh, p) > 1.5 * radius
-        ]
-        if free:
-            centre = min(free, key=lambda p: np.linalg.norm(p - (lo + hi) / 2))
-        out.update(
-            {
-                "camera.eye": s["eye"],
-                "camera.target": centre.tolist(),
-                "camera.up": s["up"],
-                "camera.fov": s["fov"],
-            }
-        )
-    else:
-        view = (
-            np.array([1.0, 0.0, 0.0]) if abs((hi - lo)[0]) >= abs((hi - lo)[2]) else np.array([0.0, 0.0, 1.0])
-        )
-        eye = best + view * 0.7 * gap + np.array([0.0, 0.1 * gap, 0.0])
-        out.update(
-            {"camera.eye": eye.tolist(), "camera.target": centre.tolist(), "camera.up": [0.0, 1.0, 0.0]}
-        )
-    out["object.center"] = np.asarray(centre, float).tolist()
-    if env.point_light:
-        out["light.position"] = (best + np.array([0.0, 0.6 * gap, 0.0])).tolist()
-    return out
+
+def describe_source(env) -> str:
+    """The source of a mesh or Mitsuba environment in a few words (its file name, builtin or "scene dict")."""
+    from pathlib import Path
+
+    if env.type == "mesh" or env.file:
+        return Path(env.file).name
+    return env.builtin or "scene dict"
 
 
 def describe(scene: Scene) -> str:

@@ -17,8 +17,9 @@ moved to ``center``):
 * ``torus``: major radius 0.7, minor 0.3 (bounding radius 1), axis along y before rotation;
 * ``knot``: a trefoil knot tube (radius 0.12 of the bounding radius), swept along the curve;
 * ``blob``: an icosphere subdivided ``detail + 1`` times and displaced radially by a smooth sum of sines;
-* ``mesh``: the triangles of ``object.file`` (OBJ/PLY/GLB/STL/OFF, ``trimesh.load(path, force="mesh")``: a file of
-  several parts is joined into one), welded (vertices that share a position become one, whatever their texture
+* ``mesh``: the triangles of ``object.file`` (OBJ and glTF/GLB by study's readers,
+  :func:`study.scene.meshfile.triangles`; PLY/STL/OFF by ``trimesh.load(path, force="mesh")``; a file of several
+  parts is joined into one), welded (vertices that share a position become one, whatever their texture
   coordinates or normals in the file, so that the normals are smooth across seams), degenerate faces dropped, wound
   consistently, centred on its bounding box like the built-in shapes. The file's own normals are not used: every
   mesh gets trimesh's area-weighted vertex normals. A file that trimesh cannot read, or that holds no faces, is a
@@ -116,8 +117,15 @@ def read_mesh_file(path: str):
 def _read_mesh(path: str, mtime_ns: int, size: int):
     import trimesh
 
+    if path.lower().endswith((".obj", ".gltf", ".glb")):  # study's readers: negative OBJ indices, refusals
+        from study.scene.meshfile import triangles
+
+        V, F = triangles(path, "object.file")
+        m = trimesh.Trimesh(V, F, process=False)
+    else:
+        m = None
     try:
-        m = trimesh.load(path, force="mesh")
+        m = m if m is not None else trimesh.load(path, force="mesh")
     except Exception as err:  # trimesh raises many kinds on a damaged file
         first = (str(err).strip().splitlines() or [type(err).__name__])[0][:160]
         raise StudyError(f"unreadable mesh file ({first})", file=path, key="object.file") from None

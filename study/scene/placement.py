@@ -7,8 +7,9 @@
   Cornell box's front is fine; a point outside the model is not);
 * the object (its bounding sphere) must not touch the environment: the nearest triangle is farther than its radius.
 
-The ray caster is numpy Möller–Trumbore, slow and obvious (placement casts a few hundred rays); the camera's view
-of the object is checked per case with Embree (:func:`study.optics.shading.object_rays`).
+Rays are cast by Embree (embreex, as in :mod:`study.reference.embree`), so that placement stays fast on meshes of
+hundreds of thousands of triangles; the camera's view of the object is checked per case as well
+(:func:`study.optics.shading.object_rays`).
 """
 
 from __future__ import annotations
@@ -31,42 +32,78 @@ def directions(n: int = N_DIRS) -> np.ndarray:
     return np.stack([r * np.cos(phi), z, r * np.sin(phi)], -1)
 
 
-def cast(mesh: RoomMesh, o: np.ndarray, d: np.ndarray, chunk: int = 1 << 20) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest hits of rays (o, d), (N, 3) each: ``t`` (N,) (inf on a miss) and ``front`` (N,) bool, True where the
-    ray meets the side the triangle's normal (counter-clockwise winding) points to."""
-    V = mesh.vertices.astype(np.float64)
-    A, B, C = (V[mesh.faces[:, k]] for k in range(3))
-    e1, e2 = B - A, C - A
-    n = np.cross(e1, e2)
-    o, d = np.broadcast_to(o, d.shape).astype(float), d.astype(float)
-    best, front = np.full(len(d), np.inf), np.zeros(len(d), bool)
-    per = max(1, chunk // max(1, len(A)))
-    for s in range(0, len(d), per):
-        oo, dd = o[s : s + per, None], d[s : s + per, None]
-        p = np.cross(dd, e2)
-        det = np.sum(e1 * p, -1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1 / det
-            tv = oo - A
-            u = np.sum(tv * p, -1) * inv
-            q = np.cross(tv, e1)
-            v = np.sum(dd * q, -1) * inv
-            t = np.sum(e2 * q, -1) * inv
-            ok = (np.abs(det) > 1e-12) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-6)
-        t = np.where(ok, t, np.inf)
-        k = np.argmin(t, axis=1)
-        best[s : s + per] = t[np.arange(len(k)), k]
-        front[s : s + per] = np.sum(n[k] * d[s : s + per], -1) < 0
-    return best, front
+class _Rays:
+    """An Embree scene of a mesh's triangles (embreex, as :mod:`study.reference.embree`; that layer sits above
+    this one) and the per-triangle data that placement asks about."""
+
+    def __init__(self, mesh: RoomMesh):
+        from embreex import rtcore_scene as rtcs
+        from embreex.mesh_construction import TriangleMesh
+
+        self.scene = rtcs.EmbreeScene()
+        V = np.ascontiguousarray(mesh.vertices, np.float32)
+        F = np.ascontiguousarray(mesh.faces, np.int32)
+        TriangleMesh(self.scene, V, F)
+        tri = V.astype(np.float64)[F]
+        self.tri = tri
+        self.normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        self.lo, self.hi = tri.min(1), tri.max(1)
+
+
+_RAYS: dict[int, tuple[RoomMesh, _Rays]] = {}
+
+
+def _rays(mesh: RoomMesh) -> _Rays:
+    hit = _RAYS.get(id(mesh))
+    if hit is None or hit[0] is not mesh:
+        if len(_RAYS) >= 4:
+            _RAYS.pop(next(iter(_RAYS)))
+        hit = _RAYS[id(mesh)] = (mesh, _Rays(mesh))
+    return hit[1]
+
+
+def cast(mesh: RoomMesh, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest hits of rays (o, d), (N, 3) each, by Embree: ``t`` (N,) (inf on a miss) and ``front`` (N,) bool,
+    True where the ray meets the side the triangle's normal (counter-clockwise winding) points to."""
+    r = _rays(mesh)
+    d = np.ascontiguousarray(d, np.float32).reshape(-1, 3)
+    o = np.ascontiguousarray(np.broadcast_to(np.asarray(o, np.float32).reshape(-1, 3), d.shape))
+    res = r.scene.run(o, d, output=1)
+    prim = np.asarray(res["primID"])
+    hit = (np.asarray(res["geomID"]) != -1) & (np.asarray(res["tfar"]) > 1e-6)  # a point on a surface: no hit
+    t = np.where(hit, res["tfar"], np.inf).astype(float)
+    front = hit & (np.sum(r.normal[np.where(hit, prim, 0)] * d, -1) < 0)
+    return t, front
 
 
 def clearance(mesh: RoomMesh, p) -> float:
-    """Distance from the point ``p`` to the nearest triangle of ``mesh``."""
+    """Distance from the point ``p`` to the nearest triangle of ``mesh``, exact: rays in 128 directions bound it
+    from above (Embree), then only the triangles whose bounding boxes lie within that bound are measured."""
     from trimesh.triangles import closest_point
 
-    tri = mesh.vertices[mesh.faces].astype(np.float64)
-    q = closest_point(tri, np.broadcast_to(np.asarray(p, float), (len(tri), 3)))
-    return float(np.min(np.linalg.norm(q - np.asarray(p, float), axis=-1)))
+    r = _rays(mesh)
+    p = np.asarray(p, float)
+    t, _ = cast(mesh, p[None], directions())
+    bound = float(t.min()) if np.isfinite(t).any() else np.inf
+    gap = np.linalg.norm(np.maximum(np.maximum(r.lo - p, 0), p - r.hi), axis=1)  # point to box
+    near = np.flatnonzero(gap <= bound * (1 + 1e-6) + 1e-9)
+    if not len(near):
+        return bound
+    q = closest_point(r.tri[near], np.broadcast_to(p, (len(near), 3)))
+    return float(np.min(np.linalg.norm(q - p, axis=-1)))
+
+
+def sees(mesh: RoomMesh, eye, center, radius: float, n: int = 24) -> float:
+    """Fraction of rays from ``eye`` towards ``center`` and points spread over the sphere (center, 0.8 radius)
+    that reach it unblocked: the camera's view of the object."""
+    eye, center = np.asarray(eye, float), np.asarray(center, float)
+    pts = np.vstack([center, center + 0.8 * radius * directions(n)])
+    d = pts - eye
+    dist = np.linalg.norm(d, axis=1)
+    t, _ = cast(mesh, np.broadcast_to(eye, d.shape), d / dist[:, None])
+    front = np.einsum("ij,ij->i", pts - center, -d) >= 0  # the points on the side facing the eye
+    front[0] = True
+    return float(np.mean(t[front] >= dist[front] - radius * 0.8))
 
 
 def check_free(mesh: RoomMesh, p, key: str, *, enclosed: bool = False) -> None:
@@ -114,12 +151,11 @@ def check_scene(scene) -> None:
     what = f"{obj.shape} (bounding radius {r})" if obj.shape != "sphere" else f"sphere (radius {r})"
     check_free(mesh, scene.reference.point, "reference.point", enclosed=True)
     check_object(mesh, obj.center, r, what)
-    if scene.environment.type == "mesh":  # the point light lights mesh environments
+    lamp = scene.lamp()  # the point light lights the environment
+    if lamp:
         check_free(mesh, scene.light.position, "light.position")
     for key, p in (("light.position", scene.light.position), ("camera.eye", scene.camera.eye)):
-        if (key == "camera.eye" or scene.environment.type == "mesh") and float(
-            np.linalg.norm(np.subtract(p, obj.center))
-        ) <= r:
+        if (key == "camera.eye" or lamp) and float(np.linalg.norm(np.subtract(p, obj.center))) <= r:
             raise KeyedError(key, "lies inside the object")
     if np.linalg.norm(np.cross(np.subtract(scene.camera.target, scene.camera.eye), scene.camera.up)) < 1e-9:
         raise KeyedError("camera.up", "must not be parallel to the viewing direction")

@@ -49,8 +49,10 @@ A scene is a TOML file (or dict) validated on load; y is up, units are metres. E
 The environment is the box ``[room]`` with its ``[[columns]]`` unless ``[environment]`` names another source
 (:mod:`study.scene.sources`): ``type = "mesh"`` with ``file = "rooms/l_room.ply"`` (any format trimesh reads; its
 colours and textures are used) or ``type = "mitsuba"`` with ``file = "scene.xml"`` or ``builtin = "cornell_box"``
-(its own shapes, BSDFs and emitters; ``[light]`` is then ignored). Placement in those is checked by ray casting
-(:mod:`study.scene.placement`); ``reference.box = [[x0, y0, z0], [x1, y1, z1]]`` gives the proxy methods a box
+(its own shapes, BSDFs and emitters; ``[light]`` lights it only where it has no emitter). There, the placement
+keys a scene leaves out are suggested (:mod:`study.scene.autoplace`) and every placement is checked by ray casting
+(:mod:`study.scene.placement`); ``light.enabled = false`` leaves the point light out;
+``reference.box = [[x0, y0, z0], [x1, y1, z1]]`` gives the proxy methods a box
 other than the environment's bounds.
 
 Meshes: ``object.shape = "torus" | "knot" | "blob"`` with ``rotation = [rx, ry, rz]`` (degrees) and ``detail``;
@@ -71,7 +73,9 @@ from pydantic import (
     BeforeValidator,
     ConfigDict,
     Field,
+    PrivateAttr,
     ValidationError,
+    ValidationInfo,
     field_validator,
     model_validator,
 )
@@ -144,6 +148,9 @@ class Column(_Strict):
 class Light(_Strict):
     position: Vec3 = (0.0, 2.6, 0.0)
     intensity: tuple[PosFloat, PosFloat, PosFloat] = (6.0, 6.0, 6.0)
+    enabled: bool = (
+        True  # the point light is rendered (automatic placement turns it off where the file has light)
+    )
 
 
 class Reference(_Strict):
@@ -262,14 +269,57 @@ class Scene(_Strict):
     object: Sphere = Sphere()
     camera: Camera = Camera()
     render: Render = Render()
+    _suggested: frozenset = PrivateAttr(default=frozenset())  # placement keys chosen by automatic placement
 
     @field_validator("columns", mode="before")
     @classmethod
     def _list(cls, v):
         return tuple(v) if isinstance(v, list) else v
 
+    @model_validator(mode="before")
+    @classmethod
+    def _fill_placement(cls, data, info: ValidationInfo):
+        """Mesh and Mitsuba environments: the placement keys the user left out, suggested
+        (:func:`study.scene.autoplace.suggest`); the keys suggested are remembered, so that a check that fails on
+        one of them blames the automatic placement, not a key the user never set."""
+        ctx = info.context if isinstance(info.context, dict) else None
+        env = data.get("environment") if isinstance(data, dict) else None
+        kind = env.get("type") if isinstance(env, dict) else getattr(env, "type", "box")
+        if kind not in ("mesh", "mitsuba"):
+            return data
+        from study.scene.autoplace import KEYS
+
+        given = {}
+        for k in KEYS:
+            table, key = k.split(".")
+            node = data.get(table)
+            node = node.model_dump() if isinstance(node, BaseModel) else node
+            if isinstance(node, dict) and key in node:
+                given[k] = node[key]
+        missing = [k for k in KEYS if k not in given]
+        if not missing:
+            return data
+        from pydantic import TypeAdapter
+
+        from study.scene.environment import suggest
+
+        try:
+            model = TypeAdapter(Environment).validate_python(env, context=ctx)
+        except ValidationError:
+            return data  # the field's own validation says what is wrong
+        out = {k: (dict(v.model_dump()) if isinstance(v, BaseModel) else v) for k, v in data.items()}
+        suggested = suggest(model, given)
+        for k, v in suggested.items():
+            table, key = k.split(".")
+            out[table] = {**(out.get(table) or {}), key: v}
+        if ctx is not None:
+            ctx["suggested"] = set(ctx.get("suggested") or ()) | set(suggested)
+        return out
+
     @model_validator(mode="after")
-    def _placement(self):
+    def _placement(self, info: ValidationInfo):
+        if isinstance(info.context, dict) and info.context.get("suggested"):
+            self._suggested = frozenset(info.context["suggested"])
         if self.environment.type != "box":
             return self._placement_any()
         lo, hi = np.array(self.room.min), np.array(self.room.max)
@@ -313,8 +363,20 @@ class Scene(_Strict):
     def _placement_any(self):
         from study.scene.placement import check_scene
 
-        check_scene(self)
+        try:
+            check_scene(self)
+        except KeyedError as err:
+            if err.key in self.suggested_keys():
+                raise KeyedError(
+                    "environment",
+                    f"automatic placement failed: the suggested {err.key} {err}; set {err.key} yourself",
+                ) from None
+            raise
         return self
+
+    def suggested_keys(self) -> frozenset[str]:
+        """The placement keys automatic placement chose (the user left them out)."""
+        return self._suggested
 
     # ------------------------------------------------------------------ derived geometry
     def with_updates(self, updates: dict[str, Any], *, source: str = "<override>") -> Scene:
@@ -331,7 +393,8 @@ class Scene(_Strict):
             if not isinstance(node, dict) or (parts[-1] not in node and parts[-1] != "material"):
                 raise StudyError("unknown scene key", file=source, key=key)
             node[parts[-1]] = value
-        return scene_from_dict(data, source=source)
+        keep = frozenset(k for k in self._suggested if k not in updates)
+        return scene_from_dict(data, source=source, suggested=keep)
 
     def mesh(self) -> RoomMesh:
         """The environment as triangles (:func:`study.scene.environment.geometry`): the box room and its columns,
@@ -339,6 +402,20 @@ class Scene(_Strict):
         from study.scene.environment import geometry
 
         return geometry(self).mesh
+
+    def lamp(self) -> bool:
+        """Whether the point light ``[light]`` is rendered: the environment takes it (the box, mesh files,
+        Mitsuba scenes without an emitter) and ``light.enabled``."""
+        from study.scene.environment import geometry
+
+        return bool(geometry(self).point_light and self.light.enabled)
+
+    def load_summary(self) -> str:
+        """One line: what the environment's file held (triangles, materials, textures, lights) and what was
+        ignored or dropped, with a count per kind; empty for the box room."""
+        from study.scene.environment import geometry
+
+        return geometry(self).summary
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(min, max) of the environment: the room box, or the bounding box of the environment's triangles."""
@@ -352,11 +429,16 @@ def _box_sphere_distance(lo, hi, p) -> float:
 
 
 # ---------------------------------------------------------------------------------------------- loading
-def scene_from_dict(data: dict, *, source: str = "<scene>", base: str | Path | None = None) -> Scene:
+def scene_from_dict(
+    data: dict, *, source: str = "<scene>", base: str | Path | None = None, suggested=frozenset()
+) -> Scene:
     """Validate a scene dict; the first problem is one StudyError naming ``source`` and the dotted key. Relative
-    ``file`` paths resolve against ``base`` (the scene file's directory; the working directory by default)."""
+    ``file`` paths resolve against ``base`` (the scene file's directory; the working directory by default).
+    In mesh and Mitsuba environments the placement keys ``data`` leaves out are suggested (automatic placement,
+    :mod:`study.scene.autoplace`); ``suggested``: keys of ``data`` that automatic placement chose earlier."""
     try:
-        return Scene.model_validate(data, context={"base": str(base) if base is not None else None})
+        ctx = {"base": str(base) if base is not None else None, "suggested": set(suggested)}
+        return Scene.model_validate(data, context=ctx)
     except ValidationError as err:
         key, msg = first_error(
             err, Scene, skip=("mirror", "conductor", "dielectric", "box", "mesh", "mitsuba")

@@ -6,9 +6,12 @@ table of a scene).
 =================  ============================================================================================
 ``"box"``          the axis-aligned ``[room]`` with its ``[[columns]]``, procedurally textured, lit by ``[light]``
                    (the default: the paper's scenes)
-``"mesh"``         the triangles of ``file`` (OBJ, PLY, GLB, STL, … through trimesh), moved by ``scale``,
-                   ``rotation`` (degrees about x, y, z) and ``translate``; each part keeps its texture, material
-                   colour or vertex colours where the file has them, else ``color``; lit by ``[light]``
+``"mesh"``         the triangles of ``file`` (OBJ and glTF/GLB by study's own readers, :mod:`study.scene.obj`,
+                   :mod:`study.scene.gltf`; PLY, STL, OFF through trimesh), moved by ``scale``, ``rotation``
+                   (degrees about x, y, z) and ``translate``; each part keeps its texture, material colour or
+                   vertex colours where the file has them, else ``color``; emissive materials are area lights
+                   and glTF punctual lights are lights; lit by ``[light]`` where the file has no light (or
+                   the scene gives ``[light]``); one summary line tells what was read and ignored
 ``"mitsuba"``      a Mitsuba 3 scene: ``file`` (XML), ``builtin = "cornell_box"`` (Mitsuba's own
                    ``mitsuba.cornell_box()``) or, from Python, ``scene`` (a scene dict); its meshes, BSDFs and
                    emitters (area lights included) are used as they are, ``[light]`` is ignored; shapes that are
@@ -16,8 +19,8 @@ table of a scene).
 =================  ============================================================================================
 
 A relative ``file`` is resolved against the directory of the scene file that names it (the validation context's
-``"base"``; the working directory otherwise) and stored absolute. Cache keys hash the file's bytes, not its path
-(:func:`key_fields`).
+``"base"``; the working directory otherwise) and stored absolute. Cache keys hash the file's bytes, not its path,
+and the bytes of every file it references (:func:`key_fields`, :mod:`study.scene.references`).
 """
 
 from __future__ import annotations
@@ -111,20 +114,16 @@ Environment = Annotated[BoxEnv | MeshEnv | MitsubaEnv, Field(discriminator="type
 
 # ---------------------------------------------------------------------------------------------- content keys
 def file_digest(path: str) -> str:
-    """sha256 of a file's bytes (and of an OBJ's material library and textures beside it: they change it too)."""
-    h = hashlib.sha256(Path(path).read_bytes())
+    """sha256 of a file's bytes and of every file it references (:func:`study.scene.references.referenced`: an
+    OBJ's materials and textures, a glTF's buffers and images, a Mitsuba XML's includes, meshes, textures and
+    envmaps): a change to any of them changes the key. A referenced file that is missing counts by its name."""
+    from study.scene.references import referenced
+
     p = Path(path)
-    if p.suffix.lower() == ".obj":  # materials and textures an OBJ names
-        for line in p.read_text(errors="replace").splitlines():
-            if line.startswith("mtllib "):
-                mtl = p.parent / line.split(None, 1)[1].strip()
-                if mtl.is_file():
-                    h.update(mtl.read_bytes())
-                    for ml in mtl.read_text(errors="replace").splitlines():
-                        if ml.strip().lower().startswith("map_kd "):
-                            tex = mtl.parent / ml.split(None, 1)[1].strip()
-                            if tex.is_file():
-                                h.update(tex.read_bytes())
+    h = hashlib.sha256(p.read_bytes())
+    for ref in referenced(p):
+        h.update(b"\0" + str(ref.name).encode() + b"\0")
+        h.update(ref.read_bytes() if ref.is_file() else b"<missing>")
     return "sha256:" + h.hexdigest()
 
 
@@ -140,14 +139,19 @@ def _canon(v: Any) -> Any:
 
 
 def key_fields(model: BaseModel | dict) -> dict:
-    """``model_dump`` of a scene (or part of one) for content keys: every field called ``file`` replaced by the
+    """``model_dump`` of a scene (or part of one) for content keys: every field called ``file`` (or ``filename``,
+    in a Mitsuba scene dict) replaced by the
     digest of the file's bytes, Python objects (Mitsuba transforms in a scene dict) by their repr."""
     data = model.model_dump(mode="python") if isinstance(model, BaseModel) else model
 
     def walk(v):
         if isinstance(v, dict):
             return {
-                k: (file_digest(x) if k == "file" and isinstance(x, str) and Path(x).is_file() else walk(x))
+                k: (
+                    file_digest(x)
+                    if k in ("file", "filename") and isinstance(x, str) and Path(x).is_file()
+                    else walk(x)
+                )
                 for k, x in v.items()
             }
         if isinstance(v, (list, tuple)):

@@ -1,0 +1,244 @@
+"""Wavefront OBJ and its MTL materials, read as the format defines them (not through trimesh).
+
+* Face indices start at 1; a negative index counts back from the end of the vertex (or texture-coordinate) list
+  read so far (−1 is the last one); index 0 or one past the end is refused, naming the line.
+* Polygons are split into fans of triangles; ``l`` and ``p`` elements are ignored (counted).
+* One part per material (``usemtl``); MTL ``Kd`` is a linear albedo, ``map_Kd`` an sRGB texture (multiplied by
+  ``Kd``, as the MTL spec says), ``Ke`` a linear emitted radiance (an area light). ``d`` < 1 / ``Tr`` > 0 (alpha),
+  transmission (``illum`` 4, 6, 7, ``Tf`` other than 1), specular ``Ks`` > 0, ``map_Kd`` options and the other
+  maps are not rendered (two-sided diffuse): counted as ignored, once per material.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from operator import methodcaller
+from pathlib import Path
+
+import numpy as np
+
+from study.errors import StudyError
+from study.scene.parts import Loaded, Piece, image_linear
+
+_OTHER_MAPS = ("map_ks", "map_ns", "map_d", "map_bump", "bump", "disp", "decal", "refl", "norm", "map_ke")
+
+
+def _num(x: str) -> float:
+    """A number of an MTL statement; a word (``spectral``, ``xyz``) counts as 1 (neutral)."""
+    try:
+        return float(x)
+    except ValueError:
+        return 1.0
+
+
+def read_mtl(path: Path, ignored: Counter) -> dict[str, dict]:
+    """Materials of an MTL file: name → {"Kd", "Ke", "map_Kd" (Path), "ignored" (kinds)}."""
+    mats: dict[str, dict] = {}
+    cur: dict | None = None
+    for line in path.read_text(errors="replace").splitlines():
+        tok = line.split()
+        if not tok or tok[0].startswith("#"):
+            continue
+        key = tok[0].lower()
+        if key == "newmtl":
+            cur = mats.setdefault(" ".join(tok[1:]), {"ignored": set()})
+        elif cur is None:
+            continue
+        elif key in ("kd", "ke") and len(tok) >= 2:
+            vals = [float(x) for x in tok[1:4]]
+            cur[tok[0].capitalize()] = tuple(vals * 3 if len(vals) == 1 else vals)
+        elif key == "map_kd" and len(tok) >= 2:
+            cur["map_Kd"] = path.parent / tok[-1]
+            if len(tok) > 2:
+                cur["ignored"].add("texture option")  # -s, -o, -clamp, …: the texture is used plain
+        elif key == "ks" and len(tok) >= 2 and any(_num(x) > 0 for x in tok[1:4]):
+            cur["ignored"].add("specular (Ks)")
+        elif key == "d" and len(tok) >= 2 and float(tok[-1]) < 1:
+            cur["ignored"].add("alpha")
+        elif key == "tr" and len(tok) >= 2 and float(tok[-1]) > 0:
+            cur["ignored"].add("alpha")
+        elif key == "illum" and len(tok) >= 2 and tok[1] in ("4", "6", "7"):
+            cur["ignored"].add("transmission")
+        elif key == "tf" and len(tok) >= 2 and any(_num(x) != 1 for x in tok[1:4]):
+            cur["ignored"].add("transmission")
+        elif key in _OTHER_MAPS:
+            cur["ignored"].add(tok[0])
+    return mats
+
+
+def _resolve(raw: np.ndarray, n_before: np.ndarray, lines: np.ndarray, what: str, src: str) -> np.ndarray:
+    """0-based indices of OBJ indices ``raw`` (1-based; negative: counted back from ``n_before``, the length of
+    the list when the face was read); index 0 or past the end: a StudyError naming the line."""
+    j = np.where(raw > 0, raw - 1, n_before + raw)
+    bad = (raw == 0) | (j < 0) | (j >= n_before)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        i, n = int(raw[k]), int(n_before[k])
+        why = (
+            "index 0 (OBJ indices start at 1; -1 is the last)"
+            if i == 0
+            else (f"index {i} refers past the end of the list ({n} defined so far)")
+        )
+        raise StudyError(f"line {int(lines[k])}: {what} {why}", key=src)
+    return j
+
+
+def _corners(tokens: list[str], line_of: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]:
+    """(vertex, texture coordinate) OBJ indices of face corners ``v``, ``v/t``, ``v//n`` or ``v/t/n`` (t = 0
+    where none is given)."""
+    k = tokens[0].count("/") if tokens else 0
+    if set(map(methodcaller("count", "/"), tokens)) <= {k}:  # one layout throughout: parsed at once
+        try:
+            text = " ".join(tokens).replace("//", "/0/").replace("/", " ")
+            a = np.fromiter(map(int, text.split()), np.int64).reshape(len(tokens), k + 1)
+            return a[:, 0], a[:, 1] if k >= 1 else np.zeros(len(tokens), np.int64)
+        except ValueError:
+            pass  # the loop below names the corner
+    v, t = np.zeros(len(tokens), np.int64), np.zeros(len(tokens), np.int64)
+    for i, tok in enumerate(tokens):
+        parts = tok.split("/")
+        try:
+            v[i] = int(parts[0])
+            t[i] = int(parts[1]) if len(parts) > 1 and parts[1] else 0
+        except ValueError:
+            raise StudyError(f"line {int(line_of[i])}: not a face corner: {tok!r}", key=src) from None
+    return v, t
+
+
+def read_obj(path: Path, src: str, default_color: tuple) -> Loaded:
+    """The OBJ at ``path`` as parts (one per material), with their MTL colours, textures and emission."""
+    mtllibs: list[Path] = []
+    ignored: Counter = Counter()
+    lines = path.read_text(errors="replace").replace("\\\n", " ").splitlines()
+    head = [ln[:2] for ln in lines]
+    is_v = np.fromiter((h == "v " for h in head), bool, len(lines))
+    is_vt = np.fromiter(
+        (h == "vt" and ln[2:3] in (" ", "\t") for h, ln in zip(head, lines)), bool, len(lines)
+    )
+    is_f = np.fromiter((h == "f " for h in head), bool, len(lines))
+    materials: list[str] = [""]
+    mat_at = [(0, 0)]  # (line index, material) from that line on
+    skip = np.fromiter((h in ("vn", "# ") for h in head), bool, len(lines))  # normals: not used
+    for i in np.flatnonzero(~(is_v | is_vt | is_f | skip)):
+        tok = lines[i].split()
+        if not tok or tok[0].startswith("#"):
+            continue
+        k = tok[0]
+        if k in ("v", "vt", "f"):  # separated by a tab: the slow path below is not needed, refuse plainly
+            raise StudyError(
+                f"line {i + 1}: {k} elements separated by tabs are not read; use spaces", key=src
+            )
+        if k == "usemtl":
+            name = " ".join(tok[1:])
+            if name not in materials:
+                materials.append(name)
+            mat_at.append((i, materials.index(name)))
+        elif k == "mtllib":
+            mtllibs += [path.parent / n for n in tok[1:]]
+        elif k in ("l", "p"):
+            ignored["line" if k == "l" else "point"] += 1
+    vlines = [lines[i][2:] for i in np.flatnonzero(is_v)]
+    vtok = " ".join(vlines).split()
+    try:
+        if len(vtok) == 3 * len(vlines):
+            Va = np.array(vtok, float).reshape(-1, 3)
+        else:  # w or vertex colours on some lines
+            rows = [ln.split() for ln in vlines]
+            if any(len(r) < 3 for r in rows):
+                i = next(j for j, r in enumerate(rows) if len(r) < 3)
+                raise StudyError(f"line {int(np.flatnonzero(is_v)[i]) + 1}: a vertex needs x y z", key=src)
+            ignored["vertex colour"] += sum(len(r) >= 6 for r in rows)
+            Va = np.array([r[:3] for r in rows], float).reshape(-1, 3)
+        VTa = np.array(
+            [(ln.split()[1:3] + ["0"])[:2] for ln in (lines[i] for i in np.flatnonzero(is_vt))], float
+        )
+        VTa = VTa.reshape(-1, 2)
+    except ValueError as err:
+        raise StudyError(f"a vertex is not a number ({err})", key=src) from None
+    fidx = np.flatnonzero(is_f)
+    fbody = [lines[i][2:].strip() for i in fidx]
+    tokens = " ".join(fbody).split()
+    counts = [b.count(" ") + 1 for b in fbody]  # single spaces (the usual): corners = spaces + 1
+    if sum(counts) != len(tokens):
+        counts = [len(b.split()) for b in fbody]
+    if counts and min(counts) < 3:
+        raise StudyError(
+            f"line {int(fidx[counts.index(min(counts))]) + 1}: a face needs at least 3 vertices", key=src
+        )
+    nv = np.cumsum(is_v)[fidx]  # vertices defined before each face
+    nvt = np.cumsum(is_vt)[fidx]
+    lines_no = fidx + 1
+    starts = np.array([m[0] for m in mat_at])
+    fmat = np.array([m[1] for m in mat_at])[np.searchsorted(starts, fidx, side="right") - 1]
+    counts_a = np.asarray(counts, np.int64)
+    per_corner = lambda a: np.repeat(np.asarray(a, np.int64), counts_a)  # noqa: E731
+    line_of = per_corner(lines_no)
+    rv, rt = _corners(tokens, line_of, src)
+    vi = _resolve(rv, per_corner(nv), line_of, "vertex", src)
+    has_t = rt != 0
+    ti = np.full(len(rt), -1, np.int64)
+    if has_t.any():
+        ti[has_t] = _resolve(rt[has_t], per_corner(nvt)[has_t], line_of[has_t], "texture coordinate", src)
+    start = np.concatenate([[0], np.cumsum(counts_a)[:-1]]).astype(np.int64)
+    faces: dict[str, list] = {}
+    tri_mat = []
+    tris = []
+    for c in np.unique(counts_a):  # fans: (0, a, a + 1) of every polygon of c corners
+        sel = np.flatnonzero(counts_a == c)
+        for a in range(1, int(c) - 1):
+            idx = np.stack([start[sel], start[sel] + a, start[sel] + a + 1], 1)
+            tris.append(idx)
+            tri_mat.append(np.asarray(fmat, np.int64)[sel])
+    if tris:
+        T, M = np.concatenate(tris), np.concatenate(tri_mat)
+        order = np.argsort(M, kind="stable")
+        T, M = T[order], M[order]
+        for m in np.unique(M):
+            t = T[M == m]
+            faces[materials[m]] = np.stack([vi[t], ti[t]], -1)  # (n, 3, 2)
+    mats: dict[str, dict] = {}
+    for lib in mtllibs:
+        if not lib.is_file():
+            ignored[f"missing material library {lib.name}"] += 1
+            continue
+        mats.update(read_mtl(lib, ignored))
+    out = Loaded([], ignored=ignored)
+    textures = set()
+    for name, c in faces.items():
+        m = mats.get(name)
+        if name and m is None:
+            ignored["undefined material"] += 1
+        m = m or {"ignored": set()}
+        for kind in m["ignored"]:
+            ignored[kind] += 1
+        tex = m.get("map_Kd")
+        albedo = None
+        if tex is not None and (c[..., 1] >= 0).all():
+            try:
+                from PIL import Image
+
+                albedo = image_linear(Image.open(tex)) * np.asarray(m.get("Kd", (1, 1, 1)), np.float32)
+                textures.add(tex)
+            except OSError:
+                ignored[f"unreadable texture {tex.name}"] += 1
+        elif tex is not None:
+            ignored["texture without uv"] += 1
+        if albedo is not None:  # unshare (vertex, uv) pairs: uv per vertex, v running down (Mitsuba's)
+            pairs, inv = np.unique(c.reshape(-1, 2), axis=0, return_inverse=True)
+            uv = VTa[pairs[:, 1]]
+            piece = Piece(
+                name or "default", Va[pairs[:, 0]], inv.reshape(-1, 3), uv=np.c_[uv[:, 0], 1 - uv[:, 1]]
+            )
+            piece.albedo = albedo.astype(np.float32)
+        else:
+            used, inv = np.unique(c[..., 0], return_inverse=True)
+            piece = Piece(
+                name or "default", Va[used], inv.reshape(-1, 3), color=tuple(m.get("Kd", default_color))
+            )
+        ke = m.get("Ke")
+        if ke is not None and max(ke) > 0:
+            piece.emission = tuple(float(x) for x in ke)
+        out.pieces.append(piece)
+    out.materials = len([n for n in faces if n in mats])
+    out.textures = len(textures)
+    return out
