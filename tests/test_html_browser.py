@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from test_report_html import small_report
 
-from study.io import read_exr
+from study.io import read_exr_layers
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -84,7 +84,7 @@ def test_report_in_chromium(page):
     assert res["viewers"] == 2 and not res["failed"] and res["layers"] == total >= 2 * 15, res
     i = next(k for k, la in enumerate(c["layers"]) if la["source"] == "classical" and la["layer"] == "image")
     y0, x0, h, w = c["crop"]
-    exr = read_exr(reports / c["layers"][i]["exr"])
+    exr = read_exr_layers(reports / c["layers"][i]["exr"])[c["layers"][i]["exr_layer"]]
     for x, y in ((w // 2, h // 2), (1, 1), (w - 2, h // 3)):
         got = np.array(pg.evaluate(f"window.studyViewers[0].valueAt({i}, {x}, {y})"))
         want = exr[y0 + y, x0 + x]

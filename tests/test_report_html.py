@@ -17,7 +17,7 @@ import pytest
 from typer.testing import CliRunner
 
 from study.cli import app
-from study.io import json_text, read_exr
+from study.io import file_stem, json_text, read_exr_layers
 from study.outputs import report, viewer
 from study.tables import read_csv, to_parquet, write_table
 
@@ -128,20 +128,21 @@ def test_exrs_hold_what_the_metrics_measured(reports):
     for r in rows:
         if r["method"] in ("oracle_map", "truth_at_hit"):
             continue
-        d = reports / "fig4" / "exr" / r["case"]
-        img, orc, mit = (
-            read_exr(d / f"{n}.exr") for n in (viewer.safe_name(r["label"]), "oracle_map", "mitsuba")
-        )
-        mask = read_exr(d / "mask.exr")[..., 0] > 0.5
+        layers = read_exr_layers(reports / "fig4" / "exr" / f"{r['case']}.exr")
+        img, orc, mit = (layers[n] for n in (file_stem(r["label"]), "oracle_map", "mitsuba"))
+        mask = layers["mask"][..., 0] > 0.5
         assert img.shape == (32, 32, 3) and mask.sum() >= 4
         for ref, col in ((orc, "rmse_oracle"), (mit, "rmse_mitsuba")):
             dd = (img.astype(float) - ref)[mask]
             assert math.sqrt(np.mean(dd * dd)) == pytest.approx(r[col], rel=1e-5, abs=1e-7), (r["label"], col)
         checked += 1
     assert checked == 6
-    a = read_exr(reports / "fig4" / "exr" / "fig4-p0" / "angle-classical.exr")
+    layers = read_exr_layers(reports / "fig4" / "exr" / "fig4-p0.exr")
+    assert "localized-iterations-10" in layers and "angle-localized-iterations-10" in layers
+    assert not [p for p in (reports / "fig4").rglob("*") if set(p.name) & set("()= ")], "shell-hostile names"
+    a = layers["angle-classical"]
     assert a.shape == (32, 32, 1) and np.nanmax(a) > 1  # classical is degrees off here
-    oc = read_exr(reports / "fig4" / "exr" / "fig4-p0" / "outcome-classical.exr")[..., 0]
+    oc = layers["outcome-classical"][..., 0]
     assert set(np.unique(oc[np.isfinite(oc)])) <= {0.0, 1.0, 2.0, 3.0}
 
 
@@ -159,7 +160,7 @@ def test_viewer_images_decode_to_the_exrs(reports):
     for la, url in zip(c["layers"], urls):
         b = np.asarray(Image.open(io.BytesIO(base64.b64decode(url.split(",", 1)[1]))))
         got = viewer.unrgbe(b if b.ndim == 3 else b[..., None])
-        want = read_exr(reports / "fig4" / la["exr"])[y0 : y0 + h, x0 : x0 + w]
+        want = read_exr_layers(reports / "fig4" / la["exr"])[la["exr_layer"]][y0 : y0 + h, x0 : x0 + w]
         assert got.shape == want.shape, la
         assert np.array_equal(np.isnan(got), np.isnan(want)), la
         ok = np.isfinite(want)

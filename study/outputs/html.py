@@ -84,7 +84,7 @@ def _figure_viewers(reports: Path, fig: str) -> dict | None:
     for c in m["cases"]:
         c["script"] = f"{fig}/{c['script']}"
         c["missing"] = not (reports / c["script"]).is_file()
-        c["mask_exr"] = f"{fig}/{c.get('mask_exr', '')}"
+        c["exr"] = f"{fig}/{c.get('exr', '')}"
         for la in c["layers"]:
             la["exr"] = f"{fig}/{la.get('exr', '')}"
             la["have"] = (reports / la["exr"]).is_file()
@@ -103,7 +103,7 @@ def viewer_note(reports: Path, fig: str) -> str:
     exr = (
         f"EXRs per case under [{fig}/exr/]({fig}/exr/)"
         if have
-        else f"EXRs per case (`{fig}/exr/<case>/`) are not in this copy: `bash scripts/reproduce.sh` makes them"
+        else f"EXRs per case (`{fig}/exr/<case>.exr`) are not in this copy: `bash scripts/reproduce.sh` makes them"
     )
     return f"Per-case image viewer ({len(m['cases'])} cases): [index.html](index.html#viewers-{fig}); {exr}."
 
