@@ -127,7 +127,7 @@ def image_grid(
     )
     fs = 8 if side >= 1.6 else 6.5
     for r, case in enumerate(cases):
-        sy, sx = _crop_box(case.mask | (case.occluded > 0))
+        sy, sx = _crop_box(case.mask | (case.occluded > 0) if case.occluded is not None else case.mask)
         col = 0
         if imgs:
             panels = [(lab, to_ldr(case.images[lab])) for lab in labels] + [

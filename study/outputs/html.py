@@ -12,35 +12,26 @@ the page, never an error.
 
 from __future__ import annotations
 
-import html as _html
 import json
 import math
 import re
 from pathlib import Path
+from urllib.parse import quote
 
 from study.outputs import viewer
+from study.outputs.markup import Md, code, esc, inline, link
 from study.tables import fmt_number
 
 _HERE = Path(__file__).resolve().parent
 
 
-def esc(s) -> str:
-    return _html.escape(str(s), quote=True)
-
-
-def inline(md: str) -> str:
-    """The inline Markdown the report writes (`code`, **strong**, *emphasis*, [text](link)) as HTML."""
-    out = []
-    for i, part in enumerate(str(md).split("`")):
-        if i % 2:
-            out.append(f"<code>{esc(part)}</code>")
-            continue
-        t = esc(part)
-        t = re.sub(r"\[([^\]]+)\]\(([^)\s]+)\)", lambda m: f'<a href="{m.group(2)}">{m.group(1)}</a>', t)
-        t = re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", t)
-        t = re.sub(r"(?<![\w*])\*([^*\s][^*]*?)\*(?![\w*])", r"<em>\1</em>", t)
-        out.append(t)
-    return "".join(out)
+#: Why the methods' images show no shadow of the object while Mitsuba's does (study/measure/case.py, truth.py).
+SHADOW_NOTE = (
+    "Why the methods' images show no shadow of the object and *mitsuba* does: a method replaces only the object's "
+    "own pixels, shaded by its secondary rays looked up in the impostor; everything around the object is "
+    "Mitsuba's render of the scene *without* the object, and the impostor is captured without it too. So neither "
+    "the methods nor *truth_at_hit* hold the object's shadow or interreflection; *mitsuba* is rendered with it."
+)
 
 
 def _sort_value(v) -> str | None:
@@ -65,7 +56,7 @@ def table(rows: list[dict], cols: list[str]) -> str:
             cells.append(
                 f'<td data-v="{sv}" class="num">{esc(fmt_number(v, 3))}</td>'
                 if sv is not None
-                else f"<td>{inline(v)}</td>"
+                else f"<td>{inline(v) if isinstance(v, Md) else esc(v)}</td>"
             )
         body.append("<tr>" + "".join(cells) + "</tr>")
     return (
@@ -75,19 +66,21 @@ def table(rows: list[dict], cols: list[str]) -> str:
 
 
 # ---------------------------------------------------------------------------------------------- viewers
-def _figure_viewers(reports: Path, fig: str) -> dict | None:
+def _figure_viewers(reports: Path, fig: str, made: dict | None = None) -> dict | None:
     """A figure's viewer manifest with what exists here marked: ``missing`` per case (its script), ``have`` per
-    layer (its EXR); None where the figure has no viewer images."""
-    m = viewer.read_manifest(reports / fig)
+    layer (its EXR); None where the figure has no viewer images. ``fig`` ``"."``: the page is in the figure's own
+    directory. ``made``: the manifest of files written together with the page (all there)."""
+    m = viewer.read_manifest(reports / fig) if made is None else json.loads(json.dumps(made))
     if m is None:
         return None
+    pre = "" if fig in ("", ".") else f"{fig}/"
     for c in m["cases"]:
-        c["script"] = f"{fig}/{c['script']}"
-        c["missing"] = not (reports / c["script"]).is_file()
-        c["exr"] = f"{fig}/{c.get('exr', '')}"
+        c["script"] = f"{pre}{c['script']}"
+        c["missing"] = made is None and not (reports / c["script"]).is_file()
+        c["exr"] = f"{pre}{c.get('exr', '')}"
         for la in c["layers"]:
-            la["exr"] = f"{fig}/{la.get('exr', '')}"
-            la["have"] = (reports / la["exr"]).is_file()
+            la["exr"] = f"{pre}{la.get('exr', '')}"
+            la["have"] = made is not None or (reports / la["exr"]).is_file()
     return m
 
 
@@ -96,20 +89,21 @@ def viewer_note(reports: Path, fig: str) -> str:
     m = _figure_viewers(reports, fig)
     if m is None:
         return (
-            f"No per-case images for {fig} here: `study figure {fig}` writes them (EXRs under `{fig}/exr/`, the "
-            f"viewer's images under `{fig}/viewer/`)."
+            f"No per-case images for {code(fig)} here: {code(f'study figure {fig}')} writes them (EXRs under "
+            f"{code(f'{fig}/exr/')}, the viewer's images under {code(f'{fig}/viewer/')})."
         )
     have = sum(la["have"] for c in m["cases"] for la in c["layers"])
     exr = (
-        f"EXRs per case under [{fig}/exr/]({fig}/exr/)"
+        f"EXRs per case under {link(f'{fig}/exr/', f'{fig}/exr/')}"
         if have
-        else f"EXRs per case (`{fig}/exr/<case>.exr`) are not in this copy: `bash scripts/reproduce.sh` makes them"
+        else f"EXRs per case ({code(f'{fig}/exr/<case>.exr')}) are not in this copy: `bash scripts/reproduce.sh` "
+        "makes them"
     )
-    return f"Per-case image viewer ({len(m['cases'])} cases): [index.html](index.html#viewers-{fig}); {exr}."
+    return f"Per-case image viewer ({len(m['cases'])} cases): {link('index.html', f'index.html#viewers-{fig}')}; {exr}."
 
 
-def _viewers_html(reports: Path, fig: str, manifests: dict) -> str:
-    m = _figure_viewers(reports, fig)
+def _viewers_html(reports: Path, fig: str, manifests: dict, made: dict | None = None) -> str:
+    m = _figure_viewers(reports, fig, made)
     if m is None:
         return (
             f'<p class="note" id="viewers-{esc(fig)}">No per-case images for {esc(fig)} in this copy: '
@@ -151,8 +145,9 @@ def _script_json(obj) -> str:
 
 
 # ---------------------------------------------------------------------------------------------- the page
-def page(blocks: list[tuple], reports: Path, *, title: str) -> str:
-    """The blocks as one HTML page (``index.html``)."""
+def page(blocks: list[tuple], reports: Path, *, title: str, made: dict | None = None) -> str:
+    """The blocks as one HTML page (``index.html``); ``made``: figure → viewer manifest of files written together
+    with the page (not yet on disk)."""
     body, toc, manifests = [], [], {}
     for b in blocks:
         kind = b[0]
@@ -168,20 +163,18 @@ def page(blocks: list[tuple], reports: Path, *, title: str) -> str:
         elif kind == "table":
             body.append(table(b[1], b[2]))
         elif kind == "img":
-            body.append(
-                f'<figure><a href="{esc(b[1])}"><img src="{esc(b[1])}" alt="{esc(b[2])}"></a></figure>'
-            )
+            src = esc(quote(b[1], safe="/"))
+            body.append(f'<figure><a href="{src}"><img src="{src}" alt="{esc(b[2])}"></a></figure>')
         elif kind == "media":
+            src = esc(quote(b[1], safe="/"))
             tag = (
-                f'<video src="{esc(b[1])}" controls loop muted></video>'
+                f'<video src="{src}" controls loop muted></video>'
                 if b[1].endswith((".mp4", ".webm"))
-                else f'<img src="{esc(b[1])}" alt="{esc(b[2])}">'
+                else f'<img src="{src}" alt="{esc(b[2])}">'
             )
-            body.append(
-                f'<figure>{tag}<figcaption><a href="{esc(b[1])}">{esc(b[1])}</a></figcaption></figure>'
-            )
+            body.append(f'<figure>{tag}<figcaption><a href="{src}">{esc(b[1])}</a></figcaption></figure>')
         elif kind == "viewer":
-            body.append(_viewers_html(reports, b[1], manifests))
+            body.append(_viewers_html(reports, b[1], manifests, (made or {}).get(b[1])))
     css = (_HERE / "html.css").read_text(encoding="utf-8")
     js = (_HERE / "viewer.js").read_text(encoding="utf-8")
     return "\n".join(
