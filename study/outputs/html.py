@@ -46,7 +46,7 @@ def _sort_value(v) -> str | None:
 def table(rows: list[dict], cols: list[str]) -> str:
     """A sortable HTML table of ``rows`` with the columns ``cols`` that some row has (numbers as in Markdown)."""
     cols = [c for c in cols if any(c in r for r in rows)]
-    head = "".join(f'<th title="sort by {esc(c)}">{esc(c)}</th>' for c in cols)
+    head = "".join(f'<th title="sort by {esc(c)}">{esc(c).replace("_", "_<wbr>")}</th>' for c in cols)
     body = []
     for r in rows:
         cells = []
@@ -60,7 +60,7 @@ def table(rows: list[dict], cols: list[str]) -> str:
             )
         body.append("<tr>" + "".join(cells) + "</tr>")
     return (
-        f'<div class="scroll"><table class="sortable"><thead><tr>{head}</tr></thead>'
+        f'<div class="tablebox"><table class="sortable"><thead><tr>{head}</tr></thead>'
         f"<tbody>{''.join(body)}</tbody></table></div>"
     )
 
@@ -123,9 +123,11 @@ def _viewers_html(reports: Path, fig: str, manifests: dict, made: dict | None = 
     )
     return (
         f'<h3 id="viewers-{esc(fig)}">{esc(fig)}: images per case</h3><p class="note">Click a viewer, then: '
-        "number keys or ←/→ pick the image, ↑/↓ the layer (image, angular error, outcome, …), wheel or +/− to "
-        "zoom (f: fit), drag to pan; the slider sets the exposure of the linear radiance (0 = as rendered, "
-        f'clipped at 1, sRGB).{note}</p><div class="viewers">{divs}</div>'
+        "number keys pick the image (the references first; digits typed quickly form one number, e.g. 1 2 for the "
+        "12th) or ←/→, ↑/↓ the layer (image, angular error, outcome, …); r flips to truth_at_hit and back (A/B), "
+        "d shows the difference from it; wheel or +/− to zoom (f: fit), drag to pan; the slider sets the exposure "
+        "of the linear radiance (0 = as rendered, clipped at 1, sRGB). The viewers of a figure share exposure "
+        f'and zoom.{note}</p><div class="viewers">{divs}</div>'
     )
 
 

@@ -134,14 +134,14 @@ def rgbe_png(a: np.ndarray) -> bytes:
 
 # ---------------------------------------------------------------------------------------------- one case
 def case_layers(case, labels: list[str]) -> list[tuple[str, str, np.ndarray]]:
-    """(source, layer, full-frame array) of every image of a case: the reference first, then each method's image
-    and the other references, then each method's maps (those the case has), then the hidden fraction.
+    """(source, layer, full-frame array) of every image of a case: the references first (truth_at_hit, oracle_map,
+    mitsuba), then each method's image, then each method's maps (those the case has), then the hidden fraction.
     ``labels``: the methods, in order."""
     out = [
         ("truth_at_hit", "image", case.truth),
-        *[(lab, "image", case.images[lab]) for lab in labels],
         ("oracle_map", "image", case.oracle),
         ("mitsuba", "image", case.mitsuba),
+        *[(lab, "image", case.images[lab]) for lab in labels],
     ]
     for layer, maps in (
         ("angle", case.angle_maps),
