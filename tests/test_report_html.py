@@ -4,6 +4,7 @@ Parquet beside every results table, strict JSON, the summary written from the nu
 gracefully where viewer images or EXRs are missing. The browser test is tests/test_html_browser.py."""
 
 import fcntl
+import io
 import json
 import math
 import os
@@ -311,3 +312,59 @@ def test_animation_and_fig8_images_are_linked(reports):
     assert '<img src="fig8/fig8.png"' in text
     md = (reports / "index.md").read_text()
     assert "(animation/motion.gif)" in md and "![fig8](fig8/fig8.png)" in md
+
+
+def _fake_case(labels, rng, binary_hidden=True):
+    from types import SimpleNamespace
+
+    H = W = 24
+    mask = np.zeros((H, W), bool)
+    mask[6:18, 6:18] = True
+    occ = (rng.random((H, W)) > 0.7).astype(np.float32) if binary_hidden else rng.random((H, W))
+    img = lambda: rng.random((H, W, 3)).astype(np.float32)  # noqa: E731
+    amap = lambda: np.where(mask, rng.random((H, W)) * 10, np.nan)  # noqa: E731
+    return SimpleNamespace(
+        scene=SimpleNamespace(object=SimpleNamespace(center=(0.0, 1.0, 0.0))),
+        images={lab: img() for lab in labels},
+        truth=img(),
+        oracle=img(),
+        mitsuba=img(),
+        angle_maps={lab: amap() for lab in labels},
+        outcome_maps={lab: np.where(mask, rng.integers(0, 4, (H, W)), np.nan) for lab in labels},
+        flip_maps={},
+        occluded=np.where(mask, occ, 0),
+        mask=mask,
+    )
+
+
+def test_wide_figures_split_into_image_and_error_grids_that_fit():
+    """A figure of 11 methods with outcome and hidden panels (once 4807 px wide, shown at 1397): an image grid
+    and an error grid, each at most MAX_WIDTH_PX wide; a narrow figure stays one PNG."""
+    from PIL import Image
+
+    from study.outputs import figures
+
+    rng = np.random.default_rng(0)
+    labels = [f"m{i}(k={i})" for i in range(11)]
+    cases = [_fake_case(labels, rng) for _ in range(2)]
+    kw = dict(title="wide", occlusion_panel=True, outcome_panel=True, row_labels=["a", "b"])
+    pngs = figures.image_grids("figW", cases, labels, **kw)
+    assert sorted(pngs) == ["figW-errors.png", "figW.png"]
+    for data in pngs.values():
+        w, h = Image.open(io.BytesIO(data)).size
+        assert w <= figures.MAX_WIDTH_PX, w
+    narrow = figures.image_grids(
+        "figN", [_fake_case(labels[:2], rng)], labels[:2], title="n", row_labels=["a"]
+    )
+    assert list(narrow) == ["figN.png"]
+
+
+def test_binary_hidden_map_is_two_classes():
+    rng = np.random.default_rng(1)
+    for binary, kind in ((True, "classes"), (False, "linear")):
+        case = _fake_case(["classical"], rng, binary_hidden=binary)
+        _, entry = viewer.case_files("f", "c", case, ["classical"])
+        hidden = next(la for la in entry["layers"] if la["layer"] == "hidden")
+        assert hidden["display"]["type"] == kind
+        if binary:
+            assert hidden["display"]["names"] == list(viewer.HIDDEN_NAMES)

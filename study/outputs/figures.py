@@ -80,6 +80,20 @@ def _hidden_legend(fig, ax, binary: bool, im) -> None:
         fig.colorbar(im, cax=cax, orientation="horizontal", label="fraction of rays hidden")
 
 
+def _template(labels: list[str], part: str, outcome_panel: bool, occlusion_panel: bool) -> list[list[tuple]]:
+    """The panels of one case, row by row, as (kind, label): ``all`` one row of everything; ``images`` the images;
+    ``errors`` the angular errors, and under them the outcome maps and the hidden fraction."""
+    imgs = [("image", lab) for lab in labels] + [("mitsuba", None)]
+    angle = [("angle", lab) for lab in labels]
+    more = [("outcome", lab) for lab in labels] if outcome_panel else []
+    more += [("hidden", None)] if occlusion_panel else []
+    if part == "images":
+        return [imgs]
+    if part == "errors":
+        return [angle, more] if more else [angle]
+    return [imgs + angle + more]
+
+
 def image_grid(
     cases: list[CaseOutput],
     labels: list[str],
@@ -96,25 +110,26 @@ def image_grid(
     heatmap (degrees, log scale 0.01°–30°), with ``outcome_panel`` each method's outcome-class map (per pixel the
     most frequent class of its rays: correct / wrong depth / wrong surface / no hit, :mod:`study.measure.outcomes`)
     and, with ``occlusion_panel``, the fraction of each pixel's rays whose exact hit is hidden from the reference
-    point (two classes with a legend where each pixel is one ray). ``part``: ``"images"`` or ``"errors"`` for only
-    those columns. Images are tone mapped by clipping at 1 and sRGB encoding. ``max_width_px``: panels shrink so
-    the PNG is at most this wide. With ``path`` None: the PNG's bytes."""
+    point (two classes with a legend where each pixel is one ray). ``part``: ``"images"`` or ``"errors"`` (the
+    angular errors, the outcome and hidden maps under them) for only those panels. Images are tone mapped by
+    clipping at 1 and sRGB encoding. ``max_width_px``: panels shrink so the PNG is at most this wide. With ``path``
+    None: the PNG's bytes."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
 
-    imgs, errs = part in ("all", "images"), part in ("all", "errors")
-    n_out = len(labels) if outcome_panel and errs else 0
-    occ_panel = occlusion_panel and errs
-    ncol = (len(labels) + 1 if imgs else 0) + (len(labels) + n_out + int(occ_panel) if errs else 0)
+    tpl = _template(labels, part, outcome_panel, occlusion_panel)
+    errs = part != "images"
+    ncol, nrow = max(len(r) for r in tpl), len(tpl) * len(cases)
     side = 2.3
     if max_width_px:
-        side = max(0.9, min(side, (max_width_px / _DPI - 1.2) / ncol))
-    legend_h = 0.5 if (n_out or occ_panel) else 0.0  # inches under the grid for the legends
-    height = side * len(cases) + 0.6 + legend_h
-    fig, axes = plt.subplots(len(cases), ncol, figsize=(side * ncol + 1.2 * errs, height), squeeze=False)
+        side = max(0.6, min(side, (max_width_px / _DPI - 1.2 * errs) / ncol))
+    kinds = {k for row in tpl for k, _ in row}
+    legend_h = 0.5 if kinds & {"outcome", "hidden"} else 0.0  # inches under the grid for the legends
+    height = side * nrow + 0.6 + legend_h
+    fig, axes = plt.subplots(nrow, ncol, figsize=(side * ncol + 1.2 * errs, height), squeeze=False)
     ocmap = ListedColormap(OUTCOME_COLORS).with_extremes(bad="white")
     onorm = BoundaryNorm(np.arange(-0.5, 4), ocmap.N)
     hcmap = ListedColormap(HIDDEN_COLORS).with_extremes(bad="white")
@@ -126,52 +141,53 @@ def image_grid(
         if c.occluded is not None
     )
     fs = 8 if side >= 1.6 else 6.5
+    titles = {
+        "image": lambda lab: _wrap(lab),
+        "mitsuba": lambda lab: "ray traced (Mitsuba)",
+        "angle": lambda lab: f"angle error: {_wrap(lab)}",
+        "outcome": lambda lab: f"outcome: {_wrap(lab)}",
+        "hidden": lambda lab: "hidden from\nreference point",
+    }
     for r, case in enumerate(cases):
         sy, sx = _crop_box(case.mask | (case.occluded > 0) if case.occluded is not None else case.mask)
-        col = 0
-        if imgs:
-            panels = [(lab, to_ldr(case.images[lab])) for lab in labels] + [
-                ("ray traced (Mitsuba)", to_ldr(case.mitsuba))
-            ]
-            for lab, img in panels:
-                axes[r, col].imshow(img[sy, sx], interpolation="nearest")
+        for t, row in enumerate(tpl):
+            axr = axes[r * len(tpl) + t]
+            for c, (kind, lab) in enumerate(row):
+                ax = axr[c]
+                if kind == "image":
+                    ax.imshow(to_ldr(case.images[lab])[sy, sx], interpolation="nearest")
+                elif kind == "mitsuba":
+                    ax.imshow(to_ldr(case.mitsuba)[sy, sx], interpolation="nearest")
+                elif kind == "angle":
+                    err = np.clip(case.angle_maps[lab][sy, sx], 0.01, None)
+                    hm = ax.imshow(err, norm=norm, cmap="magma", interpolation="nearest")
+                elif kind == "outcome":
+                    ax.imshow(case.outcome_maps[lab][sy, sx], cmap=ocmap, norm=onorm, interpolation="nearest")
+                elif kind == "hidden":
+                    occ = np.where(case.mask | (case.occluded > 0), case.occluded, np.nan)[sy, sx]
+                    occ_im = ax.imshow(
+                        occ, vmin=0, vmax=1, cmap=hcmap if binary else "viridis", interpolation="nearest"
+                    )
                 if r == 0:
-                    axes[r, col].set_title(_wrap(lab), fontsize=fs)
-                col += 1
-        if errs:
-            for lab in labels:
-                err = np.clip(case.angle_maps[lab][sy, sx], 0.01, None)
-                hm = axes[r, col].imshow(err, norm=norm, cmap="magma", interpolation="nearest")
-                if r == 0:
-                    axes[r, col].set_title(f"angle error: {_wrap(lab)}", fontsize=fs)
-                col += 1
-            first_out = col
-            for lab in labels[:n_out]:
-                axes[r, col].imshow(
-                    case.outcome_maps[lab][sy, sx], cmap=ocmap, norm=onorm, interpolation="nearest"
-                )
-                if r == 0:
-                    axes[r, col].set_title(f"outcome: {_wrap(lab)}", fontsize=fs)
-                col += 1
-            if occ_panel:
-                occ = np.where(case.mask | (case.occluded > 0), case.occluded, np.nan)[sy, sx]
-                occ_im = axes[r, col].imshow(
-                    occ, vmin=0, vmax=1, cmap=hcmap if binary else "viridis", interpolation="nearest"
-                )
-                if r == 0:
-                    axes[r, col].set_title("hidden from\nreference point", fontsize=fs)
+                    ax.set_title(titles[kind](lab), fontsize=fs)
+            for ax in axr[len(row) :]:
+                ax.axis("off")
+            for ax in axr[: len(row)]:
+                ax.set_xticks([])
+                ax.set_yticks([])
         cx, cy, cz = case.scene.object.center
-        axes[r, 0].set_ylabel(row_labels[r] if row_labels else f"({cx:g}, {cy:g}, {cz:g})", fontsize=fs)
-        for ax in axes[r]:
-            ax.set_xticks([])
-            ax.set_yticks([])
+        axes[r * len(tpl), 0].set_ylabel(
+            row_labels[r] if row_labels else f"({cx:g}, {cy:g}, {cz:g})", fontsize=fs
+        )
     fig.suptitle(title + ("" if part == "all" else f" ({part})"), fontsize=10 if side >= 1.6 else 8)
     w = fig.get_figwidth()  # the colour bar and its label: 1.1 in on the right, any width
     fig.tight_layout(rect=(0, legend_h / height, 1 - (1.1 / w if errs else 0), 1))
-    if n_out:
-        _outcome_legend(fig, axes[-1, first_out], axes[-1, first_out + n_out - 1])
-    if occ_panel and occ_im is not None:
-        _hidden_legend(fig, axes[-1, -1], binary, occ_im)
+    last = tpl[-1]
+    outs = [c for c, (k, _) in enumerate(last) if k == "outcome"]
+    if outs:
+        _outcome_legend(fig, axes[-1, outs[0]], axes[-1, outs[-1]])
+    if occ_im is not None and last[-1][0] == "hidden":
+        _hidden_legend(fig, axes[-1, len(last) - 1], binary, occ_im)
     if hm is not None:
         cax = fig.add_axes((1 - 0.95 / w, 0.15, 0.14 / w, 0.7))
         fig.colorbar(hm, cax=cax, label="angular error (deg)")
