@@ -3,11 +3,13 @@
 The page is self-contained apart from files under ``reports/`` it names by relative paths (figure PNGs, plots, each
 figure's viewer scripts ``<fig>/viewer/<case>.js`` and EXRs): no CDN, no server, opened as ``file://``. Its script and
 style (``viewer.js``, ``html.css`` beside this module) are inlined: tables sort by a click on a header (numbers by
-value, empty cells last), and each case of a figure gets an image viewer (sources by number keys, ←/→ or clicks;
-layers — image, angular error, outcome, FLIP, hidden — by ↑/↓ or clicks; zoom by the wheel or buttons, pixelated;
-drag to pan; an exposure slider for the linear radiance; the value under the cursor). Each viewer reads its images
-from its script when it scrolls into view. What a figure lacks (no viewer images, EXRs not made here) is said in
-the page, never an error.
+value, empty cells last) and their headers stick under the top bar, and each case of a figure gets an image viewer
+(sources by number keys, the references first, digits typed quickly forming one number, or ←/→ and clicks; layers —
+image, angular error, outcome, FLIP, hidden — by ↑/↓ or clicks; r flips to truth_at_hit and back, d shows the
+difference from it; zoom by the wheel or buttons, pixelated; drag to pan; an exposure slider for the linear
+radiance; exposure and zoom shared by the viewers of a figure; the value under the cursor). Each viewer reads its
+images from its script when it scrolls into view. What a figure lacks (no viewer images, EXRs not made here) is
+said in the page, never an error. Names are text (:mod:`study.outputs.markup`).
 """
 
 from __future__ import annotations

@@ -3,11 +3,13 @@ paper's claims, per-case image viewers, versions and commands.
 
 Nothing is computed here but summaries of the tables under ``reports/``: every figure directory with a
 ``metrics.csv`` (``reports/fig*/``, and its viewer images ``viewer/`` when the figure command wrote them), every
-sweep with a ``results.csv`` (``reports/sweep-*/``), and any Markdown report another command wrote (e.g.
-``reports/performance.md``). The report is a list of blocks (heading, paragraph, table, image, viewer, …) rendered
-twice from the same numbers: as Markdown here and as HTML by :mod:`study.outputs.html`. A malformed table is one
-error naming it (exit 2), and ``index.md`` / ``index.html`` are replaced only when both are complete
-(:func:`study.io.write_set`, the reports directory locked).
+sweep with a ``results.csv`` (``reports/sweep-*/``), every ``study run`` output (``reports/run-*/``, shown like a
+figure; :mod:`study.outputs.sections`), and any Markdown report another command wrote (e.g.
+``reports/performance.md``). Names in them are text, never markup (:mod:`study.outputs.markup`). The report is
+a list of blocks (heading, paragraph, table, image, viewer, …) rendered twice from the same numbers: as Markdown
+here and as HTML by :mod:`study.outputs.html`. A malformed table is one error naming it (exit 2), and
+``index.md`` / ``index.html`` are replaced only when both are complete (:func:`study.io.write_set`, the reports
+directory locked).
 """
 
 from __future__ import annotations
