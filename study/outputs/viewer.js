@@ -227,7 +227,7 @@
       this.links.innerHTML = "";
       this.readout.textContent = "";                        // the value under the cursor: of the image shown
       const a = document.createElement(L.have ? "a" : "span");
-      a.textContent = L.have ? "EXR: " + L.exr + " (layer " + L.exr_layer + ")"
+      a.textContent = L.have ? "EXR: " + L.exr + (L.exr_layer ? " (layer " + L.exr_layer + ")" : "")
                              : "EXR not in this copy (" + L.exr + "; bash scripts/reproduce.sh)";
       if (L.have) a.href = encodeURI(L.exr);
       this.links.appendChild(a);
