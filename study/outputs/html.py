@@ -48,17 +48,19 @@ def _sort_value(v) -> str | None:
 def table(rows: list[dict], cols: list[str]) -> str:
     """A sortable HTML table of ``rows`` with the columns ``cols`` that some row has (numbers as in Markdown)."""
     cols = [c for c in cols if any(c in r for r in rows)]
-    head = "".join(f'<th title="sort by {esc(c)}">{esc(c).replace("_", "_<wbr>")}</th>' for c in cols)
+    breaks = lambda c: re.sub(r"([_(,=])", r"\1<wbr>", esc(c))  # noqa: E731  (long headers: method labels)
+    head = "".join(f'<th title="sort by {esc(c)}">{breaks(c)}</th>' for c in cols)
     body = []
     for r in rows:
         cells = []
         for c in cols:
             v = r.get(c, "")
             sv = _sort_value(v)
+            wrap = ' class="wrap"' if len(str(v)) > 40 else ""  # long text wraps, the rest stays on one line
             cells.append(
                 f'<td data-v="{sv}" class="num">{esc(fmt_number(v, 3))}</td>'
                 if sv is not None
-                else f"<td>{inline(v) if isinstance(v, Md) else esc(v)}</td>"
+                else f"<td{wrap}>{inline(v) if isinstance(v, Md) else esc(v)}</td>"
             )
         body.append("<tr>" + "".join(cells) + "</tr>")
     return (
