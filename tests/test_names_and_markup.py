@@ -152,3 +152,17 @@ def test_cli_prints_markup_as_text_and_tables_whole_in_a_log(tmp_path):
     assert f"run: wrote {out}" in res.stdout and "Traceback" not in res.stderr
     assert "localized(iterations=10)" in res.stdout and "…" not in res.stdout, res.stdout
     assert (out / "table.csv").is_file()
+
+
+def test_figures_are_discovered_from_configs(tmp_path, monkeypatch):
+    """`study figure NAME` knows every configs/fig*.toml (here one in the working directory), no built-in list."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "configs").mkdir()
+    (tmp_path / "configs" / "fig_mine.toml").write_text(
+        'scene = "nowhere.toml"\npositions = [[0.0, 1.5, 0.0]]\n'
+    )
+    res = runner.invoke(app, ["figure", "fig_mine"])
+    assert res.exit_code == 2 and "nowhere.toml" in res.output and "scene file not found" in res.output
+    res = runner.invoke(app, ["figure", "fig_nope"])
+    assert res.exit_code == 2 and "unknown figure 'fig_nope'" in res.output and "fig_mine" in res.output
+    assert "fig4" in res.output  # the shipped ones too
