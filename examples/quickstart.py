@@ -63,5 +63,5 @@ flip = res.flip_maps["classical"]  # (H, W) FLIP against truth_at_hit; NaN off t
 print(f"classical: mean per-pixel error {err[res.mask].mean():.3f}, mean FLIP {flip[res.mask].mean():.3f}")
 
 out = sys.argv[1] if len(sys.argv) > 1 else "reports/quickstart"
-res.save(out)  # table.csv, table.parquet, images/*.exr, maps, index.json
+res.save(out)  # table.csv/.parquet, exr/run.exr (every image and map a layer), run.png, index.html
 print(f"saved to {out}")

@@ -6,7 +6,7 @@
     res.table                    # pandas DataFrame: one row per method, and the oracle_map / truth_at_hit rows
     res.images["classical"]      # (H, W, 3) linear RGB; also "oracle_map", "truth_at_hit", "mitsuba"
     res.error_maps["classical"]  # (H, W) per-pixel RMS radiance error against truth_at_hit (NaN off the object)
-    res.save("reports/my-run")   # table.csv + table.parquet + EXR images, written as one set
+    res.save("reports/my-run")   # table, one multi-layer EXR, image grid, viewer page: written as one set
 
 :func:`load_scene` reads a scene TOML, a mesh file (the environment: OBJ/PLY/GLB/STL/OFF), a Mitsuba XML file, a
 Mitsuba scene dict (``{"type": "scene", ...}``, e.g. ``mitsuba.cornell_box()``) or a study scene dict; for mesh
@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import base64
 import copy
+import html as _html
 import io as _io
-import json
 import os
 import re
 import tomllib
@@ -179,10 +179,6 @@ def _methods_of(s: Any, expand_methods) -> list:
 
 
 # ---------------------------------------------------------------------------------------------- results
-def _slug(label: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.=-]+", "_", label).strip("_") or "method"
-
-
 @dataclass(eq=False)
 class Result:
     """What :func:`evaluate` measured on one scene.
@@ -205,6 +201,7 @@ class Result:
     outcome_maps: dict[str, np.ndarray] = field(default_factory=dict)
     mask: np.ndarray | None = None
     backend: str = "numpy"
+    occluded: np.ndarray | None = None
 
     @property
     def labels(self) -> list[str]:
@@ -243,42 +240,62 @@ class Result:
                 thumbs.append(
                     f'<figure style="display:inline-block;margin:2px;text-align:center">'
                     f'<img src="data:image/png;base64,{src}" width="96" style="image-rendering:pixelated">'
-                    f'<figcaption style="font-size:75%">{label}</figcaption></figure>'
+                    f'<figcaption style="font-size:75%">{_html.escape(label)}</figcaption></figure>'
                 )
-        table = self.shown().to_html(index=False, float_format=lambda v: f"{v:.4g}", na_rep="–")
-        return f"<div><b>study result</b>: {self.summary()}{table}<div>{''.join(thumbs)}</div></div>"
+        table = self.shown().to_html(index=False, float_format=lambda v: f"{v:.4g}", na_rep="–", escape=True)
+        return f"<div><b>study result</b>: {_html.escape(self.summary())}{table}<div>{''.join(thumbs)}</div></div>"
 
     def save(self, out: str | Path) -> list[Path]:
-        """Write the table (``table.csv``, ``table.parquet``), the scene (``scene.json``), every image and map as
-        EXR (``images/``, ``error_maps/``, ``flip_maps/``, ``angle_maps/``, ``outcome_maps/``, ``mask.exr``) and
-        ``index.json`` (label → file name) into ``out``, as one output set (:func:`study.io.output_set`): an
-        error leaves what ``out`` held before. Returns the files written."""
-        from study.io import output_set, write_exr
+        """Write what ``study run`` writes, as a figure's outputs are named (:mod:`study.outputs.run_files`): the
+        table (``table.csv``, ``table.parquet``), the scene (``scene.json``), one multi-layer EXR ``exr/run.exr``
+        (every image and map as a named layer: ``classical``, ``angle-classical``, …, ``mask``; label → layer in
+        ``index.json``), the image grid ``run.png`` and a viewer page ``index.html``, as one output set
+        (:func:`study.io.write_set`, every byte made first): an error leaves what ``out`` held before. Returns the
+        files written."""
+        from study.io import json_text, write_set
+        from study.outputs.run_files import result_files
         from study.tables import to_csv
 
-        groups = {
-            "images": self.images,
-            "error_maps": self.error_maps,
-            "flip_maps": self.flip_maps,
-            "angle_maps": self.angle_maps,
-            "outcome_maps": self.outcome_maps,
-        }
-        index = {g: {label: f"{g}/{_slug(label)}.exr" for label in maps} for g, maps in groups.items()}
+        rows = self.table.to_dict("records")
         buf = _io.BytesIO()
         self.table.to_parquet(buf, index=False)
-        owns = ["table.csv", "table.parquet", "scene.json", "index.json", "mask.exr", *groups]
-        with output_set(out, owns) as tmp:
-            (tmp / "table.csv").write_text(to_csv(self.table.to_dict("records")))
-            (tmp / "table.parquet").write_bytes(buf.getvalue())
-            (tmp / "scene.json").write_text(self.scene.model_dump_json(indent=2))
-            (tmp / "index.json").write_text(json.dumps(index, indent=2))
-            if self.mask is not None:
-                write_exr(tmp / "mask.exr", self.mask.astype(np.float32)[..., None])
-            for g, maps in groups.items():
-                for label, a in maps.items():
-                    a = np.asarray(a, np.float32)
-                    write_exr(tmp / index[g][label], a if a.ndim == 3 else a[..., None])
-        return sorted(p for p in Path(out).rglob("*") if p.is_file() and not p.name.startswith("."))
+        labels = [lab for lab in self.labels if lab not in REFERENCES]
+        files, index = result_files(self._case(), rows, labels, title=self.summary())
+        files.update(
+            {
+                "table.csv": to_csv(rows),
+                "table.parquet": buf.getvalue(),
+                "scene.json": self.scene.model_dump_json(indent=2),
+                "index.json": json_text(index, indent=2),
+            }
+        )
+        old = [
+            "images",
+            "error_maps",
+            "flip_maps",
+            "angle_maps",
+            "outcome_maps",
+            "mask.exr",
+        ]  # earlier layout
+        return sorted(write_set(out, files, ["exr", "viewer", *old]))
+
+    def _case(self):
+        """The result as a case of a figure (the attributes :mod:`study.outputs.viewer` reads)."""
+        from types import SimpleNamespace
+
+        return SimpleNamespace(
+            scene=self.scene,
+            images=self.images,
+            truth=self.images.get("truth_at_hit"),
+            oracle=self.images.get("oracle_map"),
+            mitsuba=self.images.get("mitsuba"),
+            angle_maps=self.angle_maps,
+            outcome_maps=self.outcome_maps,
+            flip_maps=self.flip_maps,
+            error_maps=self.error_maps,
+            occluded=self.occluded,
+            mask=self.mask,
+        )
 
 
 def evaluate(
@@ -352,4 +369,5 @@ def evaluate(
         outcome_maps=dict(case.outcome_maps),
         mask=mask,
         backend=backend,
+        occluded=None if case.occluded is None else np.asarray(case.occluded, np.float32),
     )

@@ -7,7 +7,10 @@
   over it at the end, so a reader (or a killed run) never sees half a file, and no temporary file is left behind.
 * :func:`read_toml`: a TOML file, or a :class:`~study.errors.StudyError` naming the file.
 * :func:`json_text`: strict JSON (NaN and ±inf as null), the one way study writes JSON files.
-* :func:`write_exr` / :func:`read_exr`: float32 EXR through Mitsuba's ``Bitmap`` (:func:`study.runtime.mitsuba`).
+* :func:`write_exr` / :func:`read_exr`: float32 EXR through Mitsuba's ``Bitmap`` (:func:`study.runtime.mitsuba`);
+  :func:`exr_bytes` / :func:`layers_exr_bytes` the same in memory (for :func:`write_set`), one file of named
+  layers read back by :func:`read_exr_layers`.
+* :func:`file_stem` / :func:`file_stems`: the one way a label becomes a file or layer name (no shell syntax).
 """
 
 from __future__ import annotations
@@ -126,6 +129,78 @@ def write_exr(path: str | Path, array: np.ndarray) -> None:
     mi = runtime.mitsuba()
     with _temp_beside(Path(path), ".exr") as tmp:
         mi.Bitmap(np.ascontiguousarray(array, np.float32)).write(tmp)
+
+
+def exr_bytes(array: np.ndarray, channels: list[str] | None = None) -> bytes:
+    """An (H, W, C) float32 array as the bytes of an EXR file (made in memory: an output set then only writes
+    them). ``channels``: the channels' names (``["classical.R", "classical.G", …, "mask.Y"]``: layers as
+    name prefixes, as tev and OpenEXR's tools group them); without it, Y / RGB / RGBA by C."""
+    mi = runtime.mitsuba()
+    a = np.ascontiguousarray(array, np.float32)
+    if channels is None:
+        bmp = mi.Bitmap(a)
+    else:
+        if len(channels) != a.shape[-1]:
+            raise ValueError(f"{len(channels)} channel names for {a.shape[-1]} channels")
+        bmp = mi.Bitmap(a, pixel_format=mi.Bitmap.PixelFormat.MultiChannel, channel_names=list(channels))
+    s = mi.MemoryStream()
+    bmp.write(s, mi.Bitmap.FileFormat.OpenEXR)
+    s.seek(0)
+    return bytes(s.read(s.size()))
+
+
+def layers_exr_bytes(layers: dict[str, np.ndarray]) -> bytes:
+    """One multi-layer EXR of named images (layer name → (H, W) or (H, W, 1 | 3) array): channels
+    ``<layer>.Y`` or ``<layer>.R/.G/.B``; :func:`read_exr_layers` reads it back."""
+    arrays, names = [], []
+    for name, a in layers.items():
+        a = np.asarray(a, np.float32)
+        a = a[..., None] if a.ndim == 2 else a
+        if a.shape[-1] not in (1, 3):
+            raise ValueError(f"layer {name!r} has {a.shape[-1]} channels; 1 or 3 allowed")
+        arrays.append(a)
+        names += [f"{name}.Y"] if a.shape[-1] == 1 else [f"{name}.{c}" for c in "RGB"]
+    return exr_bytes(np.concatenate(arrays, axis=-1), names)
+
+
+def read_exr_layers(path: str | Path) -> dict[str, np.ndarray]:
+    """The layers of a multi-layer EXR (:func:`layers_exr_bytes`) as name → (H, W, C) float32; a missing or
+    damaged file is a StudyError."""
+    mi = runtime.mitsuba()
+    if not Path(path).is_file():
+        raise StudyError("EXR file not found", file=str(path))
+    try:
+        out = {}
+        for name, bmp in mi.Bitmap(str(path)).split():
+            a = np.array(bmp, dtype=np.float32)
+            out[name] = a if a.ndim == 3 else a[..., None]
+        return out
+    except Exception as err:
+        raise StudyError(f"unreadable EXR ({str(err).splitlines()[0][:120]})", file=str(path)) from None
+
+
+def file_stem(label: str) -> str:
+    """The one file (and EXR layer) name study gives a method label or case: letters, digits and ``.``, ``_``,
+    ``-`` kept, every other run of characters one ``-`` (``localized(iterations=10)`` →
+    ``localized-iterations-10``): nothing a shell would read as syntax."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "-", str(label)).strip("-.") or "_"
+
+
+def file_stems(labels: Iterable[str]) -> dict[str, str]:
+    """:func:`file_stem` of each distinct label, made distinct where two labels give one stem (``a b`` and
+    ``a-b``: the later one gets ``-2``, ``-3``, …), compared without case (case-insensitive file systems)."""
+    out: dict[str, str] = {}
+    taken: set[str] = set()
+    for lab in labels:
+        if lab in out:
+            continue
+        stem, k = file_stem(lab), 2
+        name = stem
+        while name.lower() in taken:
+            name, k = f"{stem}-{k}", k + 1
+        out[lab] = name
+        taken.add(name.lower())
+    return out
 
 
 def read_exr(path: str | Path) -> np.ndarray:
@@ -271,8 +346,8 @@ def write_set(
     swap: bool = True,
 ) -> list[Path]:
     """:func:`output_set` of outputs made beforehand (relative path → content): the temporary directory then
-    lives only while they are written and swapped in (about a millisecond), so even a SIGKILL almost never
-    leaves it behind (and the next command on ``out`` removes it). Returns the paths written."""
+    lives only while they are written and swapped in (milliseconds), so even a SIGKILL almost never leaves it
+    behind, and the next command on ``out`` removes one it left. Returns the paths written."""
     with output_set(out, [*owns, *files], keeps=keeps, lock=lock, swap=swap) as tmp:
         for rel, data in files.items():
             (tmp / rel).parent.mkdir(parents=True, exist_ok=True)

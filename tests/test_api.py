@@ -78,31 +78,46 @@ def test_save_round_trip_and_failure_keeps_previous(result, tmp_path, monkeypatc
     import pandas as pd
 
     from study import io
-    from study.io import read_exr
+    from study.io import read_exr_layers
     from study.tables import read_csv
 
     out = tmp_path / "run"
     files = result.save(out)
-    assert {"table.csv", "table.parquet", "scene.json", "index.json", "mask.exr"} <= {f.name for f in files}
+    names = {f.relative_to(out).as_posix() for f in files}
+    assert {
+        "table.csv",
+        "table.parquet",
+        "scene.json",
+        "index.json",
+        "exr/run.exr",
+        "run.png",
+        "index.html",
+    } <= names
+    assert not [n for n in names if set(n) & set("()= ")], (
+        names
+    )  # one naming convention, as the CLI's figures
     rows = read_csv(out / "table.csv")
     assert [r["label"] for r in rows] == list(result.table["label"])
     assert rows[2]["rmse_truth"] == pytest.approx(result.table["rmse_truth"][2])
     pd.testing.assert_frame_equal(pd.read_parquet(out / "table.parquet"), result.table)
     index = json.loads((out / "index.json").read_text())
-    img = read_exr(out / index["images"]["localized(iterations=3)"])
+    layers = read_exr_layers(out / index["exr"])
+    img = layers[index["layers"]["image"]["localized(iterations=3)"]]
+    assert index["layers"]["image"]["localized(iterations=3)"] == "localized-iterations-3"
     assert np.array_equal(img, result.images["localized(iterations=3)"].astype(np.float32))
-    fm = read_exr(out / index["flip_maps"]["classical"])[..., 0]
+    fm = layers[index["layers"]["flip"]["classical"]][..., 0]
     assert np.array_equal(np.isnan(fm), ~result.mask)
+    assert np.array_equal(layers["mask"][..., 0] > 0.5, result.mask)
     assert study.load_scene(json.loads((out / "scene.json").read_text())) == result.scene
-    before = (out / "table.csv").read_bytes()
+    before = {p: p.read_bytes() for p in files}
 
-    def broken(path, array):  # the disk fills up half-way through the images
-        raise OSError(28, "No space left on device", str(path))
+    def broken(array, channels=None):  # the EXR cannot be made
+        raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(io, "write_exr", broken)
+    monkeypatch.setattr(io, "exr_bytes", broken)
     with pytest.raises(OSError):
         result.save(out)
-    assert (out / "table.csv").read_bytes() == before and (out / index["images"]["classical"]).is_file()
+    assert {p: p.read_bytes() for p in files} == before
 
 
 def test_load_scene_sources_and_overrides(tmp_path, monkeypatch):

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from test_report_html import small_report
 
-from study.io import read_exr
+from study.io import read_exr_layers
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -84,7 +84,7 @@ def test_report_in_chromium(page):
     assert res["viewers"] == 2 and not res["failed"] and res["layers"] == total >= 2 * 15, res
     i = next(k for k, la in enumerate(c["layers"]) if la["source"] == "classical" and la["layer"] == "image")
     y0, x0, h, w = c["crop"]
-    exr = read_exr(reports / c["layers"][i]["exr"])
+    exr = read_exr_layers(reports / c["layers"][i]["exr"])[c["layers"][i]["exr_layer"]]
     for x, y in ((w // 2, h // 2), (1, 1), (w - 2, h // 3)):
         got = np.array(pg.evaluate(f"window.studyViewers[0].valueAt({i}, {x}, {y})"))
         want = exr[y0 + y, x0 + x]
@@ -108,7 +108,7 @@ def test_report_in_chromium(page):
                            s.dispatchEvent(new Event('input')); }""")
     pg.wait_for_timeout(150)
     assert _pixels(pg) != truth, "the exposure slider did not change the pixels"
-    pg.keyboard.press("2")
+    pg.keyboard.press("4")  # the references first: 1 truth_at_hit, 2 oracle_map, 3 mitsuba, 4 classical
     pg.keyboard.press("ArrowDown")  # the angular-error layer of classical
     _settle(pg)
     assert "angular error" in pg.locator(".viewer .shown").first.inner_text()
@@ -162,4 +162,157 @@ def test_missing_viewer_images_are_said_not_errors(browser, tmp_path_factory):
     res = pg.evaluate("window.studyCheckViewers()")
     assert res["layers"] == len(pg.evaluate("window.studyViewers[0].c.layers")) and len(res["failed"]) > 0
     assert not errors, errors
+    pg.close()
+
+
+# ---------------------------------------------------------------------------------------------- issue 26 (8)
+def _shown(pg, i=0) -> str:
+    return pg.locator(".viewer .shown").nth(i).inner_text()
+
+
+def test_table_headers_stick_under_the_top_bar(page):
+    """A table scrolled past the top keeps its header row visible just under the 30 px bar (no overflow box
+    holds it), and a header click there still sorts."""
+    pg, _, errors = page
+    table = pg.locator("table.sortable").filter(has_text="rmse_truth_debiased").last
+    box = table.bounding_box()
+    assert box["height"] > 150, box
+    bar = pg.evaluate("document.querySelector('nav.toc').getBoundingClientRect().bottom")
+    assert 28 <= bar <= 32, bar
+    pg.evaluate(
+        "document.body.appendChild(Object.assign(document.createElement('div'), {style: 'height:3000px'}))"
+    )
+    pg.evaluate(f"window.scrollTo(0, {box['y'] - bar + 90})")  # the table's top 90 px above the bar's bottom
+    pg.wait_for_timeout(100)
+    th = pg.evaluate(
+        """(t) => { const h = t.tHead.rows[0].cells[0].getBoundingClientRect();
+        const hit = document.elementFromPoint(h.left + 3, h.top + h.height / 2);
+        return {top: h.top, isHeader: !!hit && !!hit.closest('thead')}; }""",
+        table.element_handle(),
+    )
+    assert abs(th["top"] - bar) <= 1.5 and th["isHeader"], (th, bar)
+    # a viewer title scrolled to is not under the bar
+    pg.locator(".viewer").first.focus()
+    pg.evaluate("document.querySelector('.viewers').scrollIntoView()")
+    pg.wait_for_timeout(100)
+    top = pg.evaluate("document.querySelector('.viewer .title').getBoundingClientRect().top")
+    assert top >= bar, (top, bar)
+    assert not errors, errors
+
+
+def test_number_keys_reach_every_image_reference_first(page):
+    pg, _, errors = page
+    pg.locator(".viewer").first.scroll_into_view_if_needed()
+    _settle(pg)
+    sources = pg.evaluate("window.studyViewers[0].sources")
+    assert sources[:3] == ["truth_at_hit", "oracle_map", "mitsuba"] and "classical" in sources
+    buttons = pg.locator(".viewer").first.locator(".row.sources button").all_inner_texts()
+    assert buttons == [f"{i + 1} {s}" for i, s in enumerate(sources)]
+    pg.locator(".viewer canvas.view").first.click()
+    for k, s in enumerate(sources):
+        pg.keyboard.press(str(k + 1))
+        _settle(pg)
+        assert _shown(pg).startswith(s + " —"), (k, _shown(pg))
+    # more than nine: two digits typed quickly are one number (1, 4 → the 14th)
+    got = pg.evaluate("""() => { const v = window.studyViewers[0], saved = v.sources;
+        v.sources = Array.from({length: 14}, (_, i) => 's' + i); v.lastDigit = 0;
+        v.pickDigit('1'); const one = v.src; v.pickDigit('4'); const fourteen = v.src;
+        v.lastDigit = 0; v.pickDigit('0'); const ten = v.src; v.sources = saved; return [one, fourteen, ten]; }""")
+    assert got == [0, 13, 9], got
+    assert not errors, errors
+
+
+def test_viewers_of_a_figure_share_exposure_and_zoom(page):
+    pg, _, errors = page
+    pg.locator(".viewer").first.scroll_into_view_if_needed()
+    _settle(pg)
+    before = _pixels(pg, 1)
+    pg.evaluate("""() => { const s = document.querySelector('.viewer input.exposure'); s.value = '3';
+                           s.dispatchEvent(new Event('input')); }""")
+    pg.wait_for_timeout(150)
+    assert pg.evaluate("window.studyViewers.map(v => v.exposure)") == [3, 3]
+    assert pg.locator(".viewer input.exposure").nth(1).input_value() == "3"
+    assert _pixels(pg, 1) != before, "the second viewer did not take the exposure"
+    pg.locator(".viewer canvas.view").first.click()
+    pg.keyboard.press("+")
+    pg.wait_for_timeout(100)
+    mags = pg.evaluate("window.studyViewers.map(v => v.view().mag)")
+    assert mags[0] == pytest.approx(1.5) and mags[1] == pytest.approx(1.5), mags
+    assert not errors, errors
+
+
+def test_ab_flip_and_difference_against_the_reference(page):
+    pg, reports, errors = page
+    pg.locator(".viewer").first.scroll_into_view_if_needed()
+    _settle(pg)
+    pg.locator(".viewer canvas.view").first.click()
+    pg.keyboard.press("1")
+    _settle(pg)
+    truth = _pixels(pg)
+    pg.keyboard.press("4")
+    _settle(pg)
+    assert _shown(pg).startswith("classical —")
+    method = _pixels(pg)
+    assert method != truth
+    pg.keyboard.press("r")  # A/B: the reference in place of classical
+    _settle(pg)
+    assert _shown(pg).startswith("truth_at_hit —") and "a/b against classical" in _shown(pg)
+    assert _pixels(pg) == truth
+    pg.keyboard.press("r")
+    _settle(pg)
+    assert _pixels(pg) == method and _shown(pg).startswith("classical —")
+    pg.keyboard.press("d")  # |classical − truth_at_hit|
+    _settle(pg)
+    assert "difference" in _shown(pg) and _pixels(pg) not in (truth, method)
+    c = pg.evaluate("window.studyViewers[0].c")
+    i = next(k for k, la in enumerate(c["layers"]) if la["source"] == "classical" and la["layer"] == "image")
+    t = next(
+        k for k, la in enumerate(c["layers"]) if la["source"] == "truth_at_hit" and la["layer"] == "image"
+    )
+    y0, x0, h, w = c["crop"]
+    x, y = w // 2, h // 2
+    a = np.array(pg.evaluate(f"window.studyViewers[0].valueAt({i}, {x}, {y})"))
+    b = np.array(pg.evaluate(f"window.studyViewers[0].valueAt({t}, {x}, {y})"))
+    d = np.array(
+        pg.evaluate(
+            f"(() => {{ const v = window.studyViewers[0]; const k = ({y} * v.img.w + {x}) * 3;"
+            " return Array.from(v.img.data.slice(k, k + 3)); })()"
+        )
+    )
+    assert np.allclose(d, np.abs(a - b), rtol=1e-5, atol=1e-7), (d, a, b)
+    assert "|difference|" in pg.locator(".viewer .legend").first.inner_text()
+    pg.keyboard.press("d")
+    _settle(pg)
+    assert _pixels(pg) == method
+    shots = Path(os.environ.get("STUDY_ARTIFACTS", ROOT / "tests" / "artifacts"))
+    shots.mkdir(parents=True, exist_ok=True)
+    pg.screenshot(path=str(shots / "report-page.png"))
+    assert not errors, errors
+
+
+def test_no_script_from_a_name_runs(browser, tmp_path):
+    """Case, method and file names with HTML, Markdown links to javascript: and Rich markup: the page shows them
+    as text, runs none of them, and its viewers still work."""
+    from test_names_and_markup import evil_report
+
+    reports = evil_report(tmp_path)
+    pg = browser.new_page(viewport={"width": 1300, "height": 950})
+    errors, dialogs = [], []
+    pg.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    pg.on("dialog", lambda d: (dialogs.append(d.message), d.dismiss()))
+    pg.goto((reports / "index.html").as_uri())
+    pg.wait_for_load_state("load")
+    hrefs = pg.evaluate("Array.from(document.querySelectorAll('[href],[src]')).map(e => e.href || e.src)")
+    assert not [h for h in hrefs if h.lower().startswith("javascript:")], hrefs
+    for a in pg.locator("a").all()[:60]:
+        href = a.get_attribute("href") or ""
+        if not href.startswith("#"):
+            continue
+        a.click()
+    res = pg.evaluate("window.studyCheckViewers()")
+    assert res["viewers"] == 5 and not res["failed"], res
+    assert "<img src=x onerror=alert(1)>[/x]" in pg.locator("body").inner_text()
+    pg.wait_for_timeout(300)
+    assert not dialogs and not errors, (dialogs, errors)
     pg.close()

@@ -4,6 +4,7 @@ Parquet beside every results table, strict JSON, the summary written from the nu
 gracefully where viewer images or EXRs are missing. The browser test is tests/test_html_browser.py."""
 
 import fcntl
+import io
 import json
 import math
 import os
@@ -17,7 +18,7 @@ import pytest
 from typer.testing import CliRunner
 
 from study.cli import app
-from study.io import json_text, read_exr
+from study.io import file_stem, json_text, read_exr_layers
 from study.outputs import report, viewer
 from study.tables import read_csv, to_parquet, write_table
 
@@ -128,20 +129,21 @@ def test_exrs_hold_what_the_metrics_measured(reports):
     for r in rows:
         if r["method"] in ("oracle_map", "truth_at_hit"):
             continue
-        d = reports / "fig4" / "exr" / r["case"]
-        img, orc, mit = (
-            read_exr(d / f"{n}.exr") for n in (viewer.safe_name(r["label"]), "oracle_map", "mitsuba")
-        )
-        mask = read_exr(d / "mask.exr")[..., 0] > 0.5
+        layers = read_exr_layers(reports / "fig4" / "exr" / f"{r['case']}.exr")
+        img, orc, mit = (layers[n] for n in (file_stem(r["label"]), "oracle_map", "mitsuba"))
+        mask = layers["mask"][..., 0] > 0.5
         assert img.shape == (32, 32, 3) and mask.sum() >= 4
         for ref, col in ((orc, "rmse_oracle"), (mit, "rmse_mitsuba")):
             dd = (img.astype(float) - ref)[mask]
             assert math.sqrt(np.mean(dd * dd)) == pytest.approx(r[col], rel=1e-5, abs=1e-7), (r["label"], col)
         checked += 1
     assert checked == 6
-    a = read_exr(reports / "fig4" / "exr" / "fig4-p0" / "angle-classical.exr")
+    layers = read_exr_layers(reports / "fig4" / "exr" / "fig4-p0.exr")
+    assert "localized-iterations-10" in layers and "angle-localized-iterations-10" in layers
+    assert not [p for p in (reports / "fig4").rglob("*") if set(p.name) & set("()= ")], "shell-hostile names"
+    a = layers["angle-classical"]
     assert a.shape == (32, 32, 1) and np.nanmax(a) > 1  # classical is degrees off here
-    oc = read_exr(reports / "fig4" / "exr" / "fig4-p0" / "outcome-classical.exr")[..., 0]
+    oc = layers["outcome-classical"][..., 0]
     assert set(np.unique(oc[np.isfinite(oc)])) <= {0.0, 1.0, 2.0, 3.0}
 
 
@@ -159,7 +161,7 @@ def test_viewer_images_decode_to_the_exrs(reports):
     for la, url in zip(c["layers"], urls):
         b = np.asarray(Image.open(io.BytesIO(base64.b64decode(url.split(",", 1)[1]))))
         got = viewer.unrgbe(b if b.ndim == 3 else b[..., None])
-        want = read_exr(reports / "fig4" / la["exr"])[y0 : y0 + h, x0 : x0 + w]
+        want = read_exr_layers(reports / "fig4" / la["exr"])[la["exr_layer"]][y0 : y0 + h, x0 : x0 + w]
         assert got.shape == want.shape, la
         assert np.array_equal(np.isnan(got), np.isnan(want)), la
         ok = np.isfinite(want)
@@ -310,3 +312,59 @@ def test_animation_and_fig8_images_are_linked(reports):
     assert '<img src="fig8/fig8.png"' in text
     md = (reports / "index.md").read_text()
     assert "(animation/motion.gif)" in md and "![fig8](fig8/fig8.png)" in md
+
+
+def _fake_case(labels, rng, binary_hidden=True):
+    from types import SimpleNamespace
+
+    H = W = 24
+    mask = np.zeros((H, W), bool)
+    mask[6:18, 6:18] = True
+    occ = (rng.random((H, W)) > 0.7).astype(np.float32) if binary_hidden else rng.random((H, W))
+    img = lambda: rng.random((H, W, 3)).astype(np.float32)  # noqa: E731
+    amap = lambda: np.where(mask, rng.random((H, W)) * 10, np.nan)  # noqa: E731
+    return SimpleNamespace(
+        scene=SimpleNamespace(object=SimpleNamespace(center=(0.0, 1.0, 0.0))),
+        images={lab: img() for lab in labels},
+        truth=img(),
+        oracle=img(),
+        mitsuba=img(),
+        angle_maps={lab: amap() for lab in labels},
+        outcome_maps={lab: np.where(mask, rng.integers(0, 4, (H, W)), np.nan) for lab in labels},
+        flip_maps={},
+        occluded=np.where(mask, occ, 0),
+        mask=mask,
+    )
+
+
+def test_wide_figures_split_into_image_and_error_grids_that_fit():
+    """A figure of 11 methods with outcome and hidden panels (once 4807 px wide, shown at 1397): an image grid
+    and an error grid, each at most MAX_WIDTH_PX wide; a narrow figure stays one PNG."""
+    from PIL import Image
+
+    from study.outputs import figures
+
+    rng = np.random.default_rng(0)
+    labels = [f"m{i}(k={i})" for i in range(11)]
+    cases = [_fake_case(labels, rng) for _ in range(2)]
+    kw = dict(title="wide", occlusion_panel=True, outcome_panel=True, row_labels=["a", "b"])
+    pngs = figures.image_grids("figW", cases, labels, **kw)
+    assert sorted(pngs) == ["figW-errors.png", "figW.png"]
+    for data in pngs.values():
+        w, h = Image.open(io.BytesIO(data)).size
+        assert w <= figures.MAX_WIDTH_PX, w
+    narrow = figures.image_grids(
+        "figN", [_fake_case(labels[:2], rng)], labels[:2], title="n", row_labels=["a"]
+    )
+    assert list(narrow) == ["figN.png"]
+
+
+def test_binary_hidden_map_is_two_classes():
+    rng = np.random.default_rng(1)
+    for binary, kind in ((True, "classes"), (False, "linear")):
+        case = _fake_case(["classical"], rng, binary_hidden=binary)
+        _, entry = viewer.case_files("f", "c", case, ["classical"])
+        hidden = next(la for la in entry["layers"] if la["layer"] == "hidden")
+        assert hidden["display"]["type"] == kind
+        if binary:
+            assert hidden["display"]["names"] == list(viewer.HIDDEN_NAMES)

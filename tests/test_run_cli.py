@@ -1,6 +1,7 @@
 """``study run`` (one scene, no config file) and shipped configs found from any working directory, through Typer's
 CliRunner: exit codes and one-line messages; the written table holds the numbers the API computes."""
 
+import json
 from pathlib import Path
 
 import pytest
@@ -10,6 +11,7 @@ from study import __version__
 from study.cli import app
 from study.cli.run import parse_sets
 from study.errors import StudyError
+from study.io import read_exr_layers
 from study.tables import read_csv
 from tests.conftest import scene_toml, small_scene_dict
 
@@ -54,7 +56,27 @@ def test_run_prints_and_writes_the_table(tmp_path, monkeypatch):
     by = {r["label"]: r for r in rows}
     assert list(by) == ["oracle_map", "truth_at_hit", "classical", "localized(iterations=3)"]
     assert by["classical"]["angle_median_deg"] > 1 > by["localized(iterations=3)"]["angle_median_deg"] * 100
-    assert (tmp_path / "reports" / "run-tiny" / "images").is_dir()
+    d = tmp_path / "reports" / "run-tiny"
+    layers = read_exr_layers(d / "exr" / "run.exr")  # one multi-layer EXR, named as a figure's
+    assert {
+        "classical",
+        "localized-iterations-3",
+        "truth_at_hit",
+        "mitsuba",
+        "angle-classical",
+        "mask",
+    } <= set(layers)
+    index = json.loads((d / "index.json").read_text())
+    assert index["layers"]["image"]["localized(iterations=3)"] == "localized-iterations-3"
+    assert (d / "run.png").read_bytes()[:4] == b"\x89PNG" and (d / "viewer" / "run.js").is_file()
+    page = (d / "index.html").read_text()
+    assert 'class="viewer"' in page and '<img src="run.png"' in page
+    assert not [p for p in d.rglob("*") if set(p.name) & set("()= ")]
+    # study report shows the run as a section, with its viewer
+    res = run(app, ["report", "--reports", str(tmp_path / "reports")])
+    assert res.exit_code == 0, res.output
+    text = (tmp_path / "reports" / "index.html").read_text()
+    assert 'id="run-tiny"' in text and 'data-fig="run-tiny"' in text and '<img src="run-tiny/run.png"' in text
     assert (tmp_path / "reports" / "run-tiny" / "scene.json").read_text().count('"cube_res": 16') == 1
 
 

@@ -189,7 +189,9 @@ def consistent_new(out: Path) -> bool:
 
 def test_figure_killed_at_random_moments_is_all_old_or_all_new(fig, tmp_path):
     """SIGKILL `study figure` after random delays (seeded, spread over a whole run): each time its files are all
-    the earlier ones byte for byte or all new and consistent, and no temporary file is left."""
+    the earlier ones byte for byte or all new and consistent. A kill can land in the milliseconds while the
+    output set is written (every byte is made before it opens, study.io.write_set): the temporary directory it
+    leaves is allowed, and the next run on the same output removes it (run and checked)."""
     d, seconds = fig
     out = tmp_path / "out"
     rng = np.random.default_rng(12)
@@ -210,8 +212,12 @@ def test_figure_killed_at_random_moments_is_all_old_or_all_new(fig, tmp_path):
         else:
             assert all(got[k] != OLD[k] for k in OLD) and consistent_new(out), "old and new files mixed"
             seen["new"] += 1
-        assert not temp_files(tmp_path), temp_files(tmp_path)
-    print("kills that found the old / the new files:", seen)
+        if left := temp_files(tmp_path):
+            seen["left"] = seen.get("left", 0) + 1
+            res = subprocess.run(study(d, out), cwd=ROOT, capture_output=True, text=True, timeout=300)
+            assert res.returncode == 0 and consistent_new(out), res.stderr
+            assert not temp_files(tmp_path), (left, temp_files(tmp_path))
+    print("kills that found the old / the new files (left a temporary one):", seen)
 
 
 def test_sigterm_leaves_the_old_files_and_no_lock(fig, tmp_path):

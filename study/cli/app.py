@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import signal
 import sys
+from pathlib import Path
 
 import typer
 from rich.console import Console
@@ -28,8 +29,17 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     help="Measure how close GPU-friendly approximations of ray tracing come to ray tracing.",
 )
-err_console = Console(stderr=True)
-console = Console()
+#: Markup off: names, labels and paths are printed as they are (a ``[/x]`` in a case name is text, not a style).
+err_console = Console(stderr=True, markup=False)
+console = Console(markup=False)
+#: Where the output is no terminal (a log, a pipe), lines and tables are never cut to fit 80 columns.
+LOG_WIDTH = 100_000
+
+
+def _wide_when_logged() -> None:
+    for c in (console, err_console):
+        if not c.is_terminal:
+            c.width = LOG_WIDTH
 
 
 def _version(value: bool) -> None:
@@ -69,6 +79,7 @@ def _options(
 ):
     """Measure how close GPU-friendly approximations of ray tracing come to ray tracing."""
     DEBUG["on"] = debug
+    _wide_when_logged()
     try:
         budget.configure(max_memory, max_minutes)
         methods.load_plugins(plugin)
@@ -76,27 +87,13 @@ def _options(
         _fail(err)
 
 
-class _Shipped(dict):
-    """name → config path, looked up with :func:`study.harness.config.shipped`: the shipped config is found from
-    any working directory (and stays the relative path it is written as when run from the repository)."""
+def figures() -> dict[str, str]:
+    """The figures ``study figure NAME`` makes: every ``configs/fig*.toml`` (name: the file's stem), shipped with
+    study or in ``configs/`` under the working directory (that one wins, :func:`shipped`) → its config path."""
+    from study.harness.config import ROOT
 
-    def __getitem__(self, name):
-        return str(shipped(super().__getitem__(name)))
-
-
-#: The figures ``study figure`` makes and their default configs.
-FIGURES = _Shipped(
-    {
-        "fig4": "configs/fig4.toml",
-        "fig5": "configs/fig5.toml",
-        "fig6": "configs/fig6.toml",
-        "fig8": "configs/fig8.toml",
-        "fig_cornell": "configs/fig_cornell.toml",
-        "fig_lroom": "configs/fig_lroom.toml",
-        "fig_atrium": "configs/fig_atrium.toml",
-        "fig_probes": "configs/fig_probes.toml",
-    }
-)
+    names = {p.stem for d in (ROOT / "configs", Path("configs")) for p in d.glob("fig*.toml")}
+    return {n: str(shipped(Path("configs") / f"{n}.toml")) for n in sorted(names)}
 
 
 def _line(text: str) -> str:

@@ -12,11 +12,11 @@ from study import methods
 from study.bench.output import bench_table, write_scaling, write_table
 from study.bench.run import BenchOptions, check_options, run_bench
 from study.caustics.figure import fig8
-from study.cli.app import FIGURES, app, console, err_console, guarded
+from study.cli.app import app, console, err_console, figures, guarded
 from study.errors import StudyError
 from study.harness.config import load_figure_config, shipped
 from study.harness.runner import prepare_sweep, run_sweep
-from study.io import locked
+from study.io import file_stem, locked, read_toml
 from study.outputs.check import run_check
 from study.outputs.figures import figure_positions
 from study.outputs.plots import sweep_plots
@@ -26,33 +26,37 @@ from study.outputs.report import build_report
 @app.command()
 @guarded(llvm=True)
 def figure(
-    name: str = typer.Argument(..., help="figure to make: " + ", ".join(FIGURES)),
-    config: Path | None = typer.Option(None, help="figure config (default configs/<name>.toml)"),
+    name: str | None = typer.Argument(
+        None, help="figure to make: one of configs/fig*.toml (" + ", ".join(figures()) + ")"
+    ),
+    config: Path | None = typer.Option(
+        None, help="figure config (default configs/<name>.toml); without NAME the outputs are named after it"
+    ),
     out: Path | None = typer.Option(None, help="output directory (default reports/<name>)"),
     backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
 ):
-    """Reproduce one of the paper's figures: image grid + metrics CSV under reports/<name>/."""
-    if name not in FIGURES:
-        raise StudyError(f"unknown figure {name!r}; allowed: {', '.join(FIGURES)}", key="name")
+    """Reproduce one of the paper's figures, or your own (--config ANY.toml): image grid, metrics, per-case EXRs
+    and viewer images under reports/<name>/."""
+    known = figures()
+    if name is None and config is None:
+        raise StudyError(f"name a figure or give --config; figures: {', '.join(known)}", key="name")
+    if config is None and name not in known:
+        raise StudyError(f"unknown figure {name!r}; allowed: {', '.join(known)}", key="name")
+    config = Path(known[name]) if config is None else shipped(config)
+    name = name or file_stem(config.stem)
+    out = out or Path("reports") / name
     t0 = time.perf_counter()
-    if name == "fig8":  # caustics: study/caustics/figure.py
-        return _caustics(config or FIGURES[name], out or Path("reports") / name, backend, cache, sweep=False)
+    if "caustic" in read_toml(config):  # caustics (fig8): study/caustics/figure.py
+        return _caustics(config, out, backend, cache, sweep=False)
     with console.status(f"{name}: rendering and measuring…") as status:
 
         def progress(i, n):
             status.update(f"{name}: {i}/{n} rows done ({time.perf_counter() - t0:.0f} s)")
 
-        rows = figure_positions(
-            config or FIGURES[name],
-            out or Path("reports") / name,
-            name=name,
-            backend=backend,
-            cache=cache,
-            progress=progress,
-        )
+        rows = figure_positions(config, out, name=name, backend=backend, cache=cache, progress=progress)
     _print_table(rows)
-    console.print(f"{name}: wrote {out or Path('reports') / name} in {time.perf_counter() - t0:.1f} s")
+    console.print(f"{name}: wrote {out} in {time.perf_counter() - t0:.1f} s", highlight=False)
 
 
 def _print_table(rows: list[dict]) -> None:
@@ -70,7 +74,7 @@ def _print_table(rows: list[dict]) -> None:
         "occluded_fraction",
     ]
     for c in cols:
-        t.add_column(c, justify="right" if c not in ("case", "label") else "left")
+        t.add_column(c, justify="right" if c not in ("case", "label") else "left", overflow="fold")
     for r in rows:
         t.add_row(*(f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in cols))
     console.print(t)
@@ -93,6 +97,7 @@ def sweep(
     plots: bool = typer.Option(True, help="write the error curves next to the table"),
 ):
     """Run (or resume) a sweep: one row per case × method in <out>/results.csv, curves beside it."""
+    from rich.markup import escape
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -108,7 +113,7 @@ def sweep(
     out = out or Path("reports") / f"sweep-{config.stem}"
     prepare_sweep(config, backend=backend, jobs=jobs)  # every case checked before the progress bar appears
     with Progress(
-        TextColumn("[bold]{task.description}"),
+        TextColumn("[bold]{task.description}"),  # the description is escaped: a name is text
         BarColumn(),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
@@ -117,7 +122,7 @@ def sweep(
         console=err_console,
         transient=False,
     ) as bar:
-        task = bar.add_task(f"sweep {config.stem}", total=None)
+        task = bar.add_task(escape(f"sweep {config.stem}"), total=None)
 
         def progress(done, total, case_id):
             if bar.tasks[task].total is None:
@@ -125,7 +130,7 @@ def sweep(
                 bar.tasks[task].start_time = None
                 bar.start_task(task)
             else:
-                bar.update(task, completed=done, description=f"sweep {config.stem} ({case_id})")
+                bar.update(task, completed=done, description=escape(f"sweep {config.stem} ({case_id})"))
 
         rows, stats = run_sweep(
             config,
@@ -260,7 +265,7 @@ def _caustics(config, out, backend, cache, *, sweep: bool):
             ),
             highlight=False,
         )
-    console.print(f"wrote {out} in {time.perf_counter() - t0:.1f} s")
+    console.print(f"wrote {out} in {time.perf_counter() - t0:.1f} s", highlight=False)
 
 
 @app.command("caustics-sweep")

@@ -6,7 +6,8 @@
 SCENE is a scene TOML, a mesh file (the environment: OBJ/PLY/GLB/STL/OFF) or a Mitsuba XML file
 (:func:`study.api.load_scene`). ``--set KEY=VALUE`` overrides a dotted scene key; VALUE is a TOML value (a bare
 word is taken as a string: ``--set object.shape=torus``). The table is printed and written with the images to
-``--out`` (default ``reports/run-<scene stem>``) by :meth:`study.api.Result.save`.
+``--out`` (default ``reports/run-<scene stem>``) by :meth:`study.api.Result.save`: the table, one multi-layer EXR,
+the image grid PNG and a viewer page (``index.html``), as a figure's; ``study report`` shows it as a section.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import typer
 
 from study.cli.app import app, console, guarded
 from study.errors import StudyError
+from study.io import file_stem
 
 #: short headers for the printed table (the files keep the column names)
 HEADERS = {
@@ -89,16 +91,16 @@ def run(
     sc = load_scene(scene, overrides)
     if sc.load_summary():  # what the environment's file held, and what was ignored (stderr)
         typer.echo(sc.load_summary(), err=True)
-    out = out or Path("reports") / f"run-{scene.stem}"
+    out = out or Path("reports") / f"run-{file_stem(scene.stem)}"
     t0 = time.perf_counter()
     with console.status(f"{scene.name}: rendering and measuring…"):
         res = evaluate(sc, methods, backend=backend, cache=cache, source=str(scene))
     shown = res.shown()
     t = Table(title=res.summary())
     for c in shown.columns:
-        t.add_column(HEADERS.get(c, c), justify="left" if c == "label" else "right", no_wrap=c == "label")
+        t.add_column(HEADERS.get(c, c), justify="left" if c == "label" else "right", overflow="fold")
     for row in shown.itertuples(index=False):
         t.add_row(*(f"{v:.3g}" if isinstance(v, float) else str(v) for v in row))
-    Console(width=max(console.width, 150), highlight=False).print(t)  # wide: no column cut to "…"
+    Console(width=max(console.width, 150), highlight=False, markup=False).print(t)  # wide: no cell cut to "…"
     res.save(out)
-    console.print(f"run: wrote {out} in {time.perf_counter() - t0:.1f} s")
+    console.print(f"run: wrote {out} in {time.perf_counter() - t0:.1f} s", highlight=False)

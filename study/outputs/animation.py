@@ -12,8 +12,8 @@ Config (``configs/motion.toml``)::
 Each frame is one case run through the harness (:func:`study.measure.case.run_case`, with the cache): top row
 the methods' images and Mitsuba's render (the truth), bottom row each method's image with its per-pixel outcome
 blended over it (:mod:`study.measure.outcomes`: wrong depth orange, wrong surface red, no hit grey; correct
-pixels left as they are) and its wrong-hit fraction. Outputs, one set (:func:`study.io.output_set`, swapped in
-when all are written): ``motion.gif`` and/or ``motion.mp4``, ``frames.csv`` (the cases' rows: one per frame ×
+pixels left as they are) and its wrong-hit fraction. Outputs, one set (:func:`study.io.write_set`: made first, then
+written and swapped in together): ``motion.gif`` and/or ``motion.mp4``, ``frames.csv`` (the cases' rows: one per frame ×
 method, with ``frame`` and ``path_m``, the distance travelled), ``motion.png`` (wrong-hit fraction per method
 along the path) and ``metadata.json``.
 """
@@ -21,6 +21,7 @@ along the path) and ``metadata.json``.
 from __future__ import annotations
 
 import json
+import tempfile
 import time
 from pathlib import Path
 from typing import Any, Literal
@@ -33,7 +34,7 @@ from study.errors import StudyError
 from study.harness import budget
 from study.harness.config import MethodSpecs, configured_scene, expand_methods
 from study.harness.runner import metadata
-from study.io import atomic_savefig, output_set
+from study.io import atomic_savefig, locked, write_set
 from study.measure.case import CaseOutput
 from study.measure.metrics import to_ldr
 from study.measure.outcomes import NAMES as OUTCOME_NAMES
@@ -202,7 +203,8 @@ def animate(
     budget.check(scenes, methods, source=str(config))
     store, rows, frames, cases = Cache(cache), [], [], []
     t0 = time.perf_counter()
-    with output_set(out, ["motion.gif", "motion.mp4", "motion.png", "frames.csv", "metadata.json"]) as tmp:
+    owns = ["motion.gif", "motion.mp4", "motion.png", "frames.csv", "metadata.json"]
+    with locked(out):  # one command at a time here; the files are made first, then written together
         for i, (case_id, sc) in enumerate(scenes):
             case = run_config_case(
                 sc, methods, backend=backend, cache=store, case_id=case_id, where=f"{config} path (frame {i})"
@@ -226,12 +228,16 @@ def animate(
                 )
             )
         stack = np.stack(frames)
-        if "gif" in cfg.formats:
-            iio.imwrite(tmp / "motion.gif", stack, extension=".gif", duration=1000 / cfg.fps, loop=0)
-        if "mp4" in cfg.formats:
-            _mp4(tmp / "motion.mp4", stack, cfg.fps)
-        (tmp / "frames.csv").write_text(to_csv(rows))
-        plot(rows, labels, tmp / "motion.png")
+        files: dict[str, bytes | str] = {}
+        with tempfile.TemporaryDirectory(prefix="study-animation-") as scratch:  # encoders want a file name
+            d = Path(scratch)
+            if "gif" in cfg.formats:
+                iio.imwrite(d / "motion.gif", stack, extension=".gif", duration=1000 / cfg.fps, loop=0)
+            if "mp4" in cfg.formats:
+                _mp4(d / "motion.mp4", stack, cfg.fps)
+            plot(rows, labels, d / "motion.png")
+            files.update({p.name: p.read_bytes() for p in d.iterdir() if p.name in owns})
+        files["frames.csv"] = to_csv(rows)
         meta = metadata(
             config,
             backend=backend,
@@ -241,7 +247,8 @@ def animate(
             kind="animation",
             seconds=round(time.perf_counter() - t0, 1),
         )
-        (tmp / "metadata.json").write_text(json.dumps(meta, indent=2))
+        files["metadata.json"] = json.dumps(meta, indent=2)
+        write_set(out, files, owns, lock=False)
     return rows
 
 

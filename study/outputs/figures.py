@@ -1,9 +1,11 @@
 """Figures like the paper's: image grids with error heatmaps, and the metrics table behind them.
 
-A figure's files (``<name>.png``, ``metrics.csv`` and ``metrics.parquet``, ``metadata.json``, and per case its EXRs
-under ``exr/<case>/`` and the report viewer's images under ``viewer/``, :mod:`study.outputs.viewer`) are one output
-set (:func:`study.io.output_set`): written when every case is done and swapped in together, so a failed or killed
-run leaves the previous figure as it was. Every case is checked (:mod:`study.harness.budget`) before any runs.
+A figure's files (``<name>.png``, and ``<name>-errors.png`` where one grid would be too wide for a page,
+``metrics.csv`` and ``metrics.parquet``, ``metadata.json``, and per case its multi-layer EXR ``exr/<case>.exr`` and
+the report viewer's images under ``viewer/``, :mod:`study.outputs.viewer`) are one output set
+(:func:`study.io.write_set`): made in memory when every case is done, then written and swapped in together, so a
+failed or killed run leaves the previous figure as it was. Every case is checked (:mod:`study.harness.budget`)
+before any runs.
 """
 
 from __future__ import annotations
@@ -18,12 +20,12 @@ from study.errors import StudyError
 from study.harness import budget
 from study.harness.config import load_figure_config
 from study.harness.runner import metadata
-from study.io import atomic_savefig, json_text, locked, output_set, png_bytes
+from study.io import atomic_savefig, file_stems, json_text, locked, png_bytes, write_set
 from study.measure.case import CaseOutput, run_case
 from study.measure.metrics import to_ldr
 from study.measure.outcomes import NAMES as OUTCOME_NAMES
 from study.outputs import viewer
-from study.outputs.viewer import OUTCOME_COLORS
+from study.outputs.viewer import HIDDEN_COLORS, HIDDEN_NAMES, OUTCOME_COLORS
 from study.outputs.viewer import crop_box as _crop_box
 from study.scene.environment import describe
 from study.tables import table_files
@@ -52,6 +54,46 @@ def _outcome_legend(fig, first, last) -> None:
     )
 
 
+#: The widest grid PNG (pixels at 110 dpi) a page shows at full size; a wider figure is split (images, errors)
+#: and its panels shrunk to fit.
+MAX_WIDTH_PX = 1500
+_DPI = 110
+
+
+def _hidden_legend(fig, ax, binary: bool, im) -> None:
+    """The hidden panel's own legend under it: two classes where each pixel is one ray (yes or no), else a small
+    colour bar of the fraction — never the angular error's colour bar."""
+    from matplotlib.patches import Patch
+
+    p = ax.get_position()
+    if binary:
+        handles = [Patch(facecolor=c, edgecolor="0.4", label=n) for c, n in zip(HIDDEN_COLORS, HIDDEN_NAMES)]
+        fig.legend(
+            handles=handles,
+            loc="upper center",
+            fontsize=7,
+            frameon=False,
+            bbox_to_anchor=((p.x0 + p.x1) / 2, p.y0 - 0.01),
+        )
+    else:
+        cax = fig.add_axes((p.x0, p.y0 - 0.05, p.width, 0.015))
+        fig.colorbar(im, cax=cax, orientation="horizontal", label="fraction of rays hidden")
+
+
+def _template(labels: list[str], part: str, outcome_panel: bool, occlusion_panel: bool) -> list[list[tuple]]:
+    """The panels of one case, row by row, as (kind, label): ``all`` one row of everything; ``images`` the images;
+    ``errors`` the angular errors, and under them the outcome maps and the hidden fraction."""
+    imgs = [("image", lab) for lab in labels] + [("mitsuba", None)]
+    angle = [("angle", lab) for lab in labels]
+    more = [("outcome", lab) for lab in labels] if outcome_panel else []
+    more += [("hidden", None)] if occlusion_panel else []
+    if part == "images":
+        return [imgs]
+    if part == "errors":
+        return [angle, more] if more else [angle]
+    return [imgs + angle + more]
+
+
 def image_grid(
     cases: list[CaseOutput],
     labels: list[str],
@@ -61,70 +103,115 @@ def image_grid(
     occlusion_panel: bool = False,
     outcome_panel: bool = False,
     row_labels: list[str] | None = None,
+    part: str = "all",
+    max_width_px: int | None = None,
 ) -> bytes | None:
     """Rows: cases; columns: each method's image, the ray-traced (Mitsuba) image, each method's angular-error
     heatmap (degrees, log scale 0.01°–30°), with ``outcome_panel`` each method's outcome-class map (per pixel the
     most frequent class of its rays: correct / wrong depth / wrong surface / no hit, :mod:`study.measure.outcomes`)
     and, with ``occlusion_panel``, the fraction of each pixel's rays whose exact hit is hidden from the reference
-    point. Images are tone mapped by clipping at 1 and sRGB encoding. With ``path`` None: the PNG's bytes."""
+    point (two classes with a legend where each pixel is one ray). ``part``: ``"images"`` or ``"errors"`` (the
+    angular errors, the outcome and hidden maps under them) for only those panels. Images are tone mapped by
+    clipping at 1 and sRGB encoding. ``max_width_px``: panels shrink so the PNG is at most this wide. With ``path``
+    None: the PNG's bytes."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
 
-    n_out = len(labels) if outcome_panel else 0
-    ncol = 2 * len(labels) + 1 + n_out + int(occlusion_panel)
-    legend_h = 0.5 if outcome_panel else 0.0  # inches under the grid for the outcome legend
-    height = 2.3 * len(cases) + 0.6 + legend_h
-    fig, axes = plt.subplots(len(cases), ncol, figsize=(2.3 * ncol, height), squeeze=False)
+    tpl = _template(labels, part, outcome_panel, occlusion_panel)
+    errs = part != "images"
+    ncol, nrow = max(len(r) for r in tpl), len(tpl) * len(cases)
+    side = 2.3
+    if max_width_px:
+        side = max(0.6, min(side, (max_width_px / _DPI - 1.2 * errs) / ncol))
+    kinds = {k for row in tpl for k, _ in row}
+    legend_h = 0.5 if kinds & {"outcome", "hidden"} else 0.0  # inches under the grid for the legends
+    height = side * nrow + 0.6 + legend_h
+    fig, axes = plt.subplots(nrow, ncol, figsize=(side * ncol + 1.2 * errs, height), squeeze=False)
     ocmap = ListedColormap(OUTCOME_COLORS).with_extremes(bad="white")
     onorm = BoundaryNorm(np.arange(-0.5, 4), ocmap.N)
+    hcmap = ListedColormap(HIDDEN_COLORS).with_extremes(bad="white")
     norm = LogNorm(vmin=0.01, vmax=30)
-    hm = None
+    hm = occ_im = None
+    binary = all(
+        np.isin(c.occluded[np.isfinite(c.occluded)], (0.0, 1.0)).all()
+        for c in cases
+        if c.occluded is not None
+    )
+    fs = 8 if side >= 1.6 else 6.5
+    titles = {
+        "image": lambda lab: _wrap(lab),
+        "mitsuba": lambda lab: "ray traced (Mitsuba)",
+        "angle": lambda lab: f"angle error: {_wrap(lab)}",
+        "outcome": lambda lab: f"outcome: {_wrap(lab)}",
+        "hidden": lambda lab: "hidden from\nreference point",
+    }
     for r, case in enumerate(cases):
-        sy, sx = _crop_box(case.mask | (case.occluded > 0))
-        panels = [(lab, to_ldr(case.images[lab])) for lab in labels] + [
-            ("ray traced (Mitsuba)", to_ldr(case.mitsuba))
-        ]
-        for c, (lab, img) in enumerate(panels):
-            axes[r, c].imshow(img[sy, sx], interpolation="nearest")
-            if r == 0:
-                axes[r, c].set_title(_wrap(lab), fontsize=8)
-        for k, lab in enumerate(labels):
-            ax = axes[r, len(labels) + 1 + k]
-            err = np.clip(case.angle_maps[lab][sy, sx], 0.01, None)
-            hm = ax.imshow(err, norm=norm, cmap="magma", interpolation="nearest")
-            if r == 0:
-                ax.set_title(f"angle error: {_wrap(lab)}", fontsize=8)
-        for k, lab in enumerate(labels[:n_out]):
-            ax = axes[r, 2 * len(labels) + 1 + k]
-            ax.imshow(case.outcome_maps[lab][sy, sx], cmap=ocmap, norm=onorm, interpolation="nearest")
-            if r == 0:
-                ax.set_title(f"outcome: {_wrap(lab)}", fontsize=8)
-        if occlusion_panel:
-            ax = axes[r, -1]
-            occ = np.where(case.mask | (case.occluded > 0), case.occluded, np.nan)[sy, sx]
-            ax.imshow(occ, vmin=0, vmax=1, cmap="viridis", interpolation="nearest")
-            if r == 0:
-                ax.set_title("hidden from\nreference point", fontsize=8)
+        sy, sx = _crop_box(case.mask | (case.occluded > 0) if case.occluded is not None else case.mask)
+        for t, row in enumerate(tpl):
+            axr = axes[r * len(tpl) + t]
+            for c, (kind, lab) in enumerate(row):
+                ax = axr[c]
+                if kind == "image":
+                    ax.imshow(to_ldr(case.images[lab])[sy, sx], interpolation="nearest")
+                elif kind == "mitsuba":
+                    ax.imshow(to_ldr(case.mitsuba)[sy, sx], interpolation="nearest")
+                elif kind == "angle":
+                    err = np.clip(case.angle_maps[lab][sy, sx], 0.01, None)
+                    hm = ax.imshow(err, norm=norm, cmap="magma", interpolation="nearest")
+                elif kind == "outcome":
+                    ax.imshow(case.outcome_maps[lab][sy, sx], cmap=ocmap, norm=onorm, interpolation="nearest")
+                elif kind == "hidden":
+                    occ = np.where(case.mask | (case.occluded > 0), case.occluded, np.nan)[sy, sx]
+                    occ_im = ax.imshow(
+                        occ, vmin=0, vmax=1, cmap=hcmap if binary else "viridis", interpolation="nearest"
+                    )
+                if r == 0:
+                    ax.set_title(titles[kind](lab), fontsize=fs)
+            for ax in axr[len(row) :]:
+                ax.axis("off")
+            for ax in axr[: len(row)]:
+                ax.set_xticks([])
+                ax.set_yticks([])
         cx, cy, cz = case.scene.object.center
-        axes[r, 0].set_ylabel(row_labels[r] if row_labels else f"({cx:g}, {cy:g}, {cz:g})", fontsize=8)
-        for ax in axes[r]:
-            ax.set_xticks([])
-            ax.set_yticks([])
-    fig.suptitle(title, fontsize=10)
+        axes[r * len(tpl), 0].set_ylabel(
+            row_labels[r] if row_labels else f"({cx:g}, {cy:g}, {cz:g})", fontsize=fs
+        )
+    fig.suptitle(title + ("" if part == "all" else f" ({part})"), fontsize=10 if side >= 1.6 else 8)
     w = fig.get_figwidth()  # the colour bar and its label: 1.1 in on the right, any width
-    fig.tight_layout(rect=(0, legend_h / height, 1 - 1.1 / w, 1))
-    if outcome_panel:
-        _outcome_legend(fig, axes[-1, 2 * len(labels) + 1], axes[-1, 2 * len(labels) + n_out])
+    fig.tight_layout(rect=(0, legend_h / height, 1 - (1.1 / w if errs else 0), 1))
+    last = tpl[-1]
+    outs = [c for c, (k, _) in enumerate(last) if k == "outcome"]
+    if outs:
+        _outcome_legend(fig, axes[-1, outs[0]], axes[-1, outs[-1]])
+    if occ_im is not None and last[-1][0] == "hidden":
+        _hidden_legend(fig, axes[-1, len(last) - 1], binary, occ_im)
     if hm is not None:
         cax = fig.add_axes((1 - 0.95 / w, 0.15, 0.14 / w, 0.7))
         fig.colorbar(hm, cax=cax, label="angular error (deg)")
     if path is None:
-        return png_bytes(fig, dpi=110)
-    atomic_savefig(fig, path, dpi=110)
+        return png_bytes(fig, dpi=_DPI)
+    atomic_savefig(fig, path, dpi=_DPI)
     return None
+
+
+def image_grids(name: str, cases, labels, **kw) -> dict[str, bytes]:
+    """The figure's grid PNGs: ``<name>.png`` whole where it is at most :data:`MAX_WIDTH_PX` wide, else the images
+    in ``<name>.png`` and the error maps in ``<name>-errors.png``, each shrunk to fit a page."""
+    ncol = (
+        2 * len(labels)
+        + 1
+        + (len(labels) if kw.get("outcome_panel") else 0)
+        + int(kw.get("occlusion_panel", 0))
+    )
+    if (2.3 * ncol + 1.2) * _DPI <= MAX_WIDTH_PX:
+        return {f"{name}.png": image_grid(cases, labels, None, **kw)}
+    return {
+        f"{name}.png": image_grid(cases, labels, None, part="images", max_width_px=MAX_WIDTH_PX, **kw),
+        f"{name}-errors.png": image_grid(cases, labels, None, part="errors", max_width_px=MAX_WIDTH_PX, **kw),
+    }
 
 
 def run_config_case(scene, methods, *, backend: str, cache, case_id: str, where: str):
@@ -191,10 +278,10 @@ def figure_positions(
             cases=len(todo),
             figure=name,
         )
-        png = image_grid(
+        pngs = image_grids(
+            name,
             cases,
             labels,
-            None,
             title=f"{name}: {describe(scene)}, "
             f"reference point {list(scene.reference.point)}, cube {scene.render.cube_res}², "
             f"backend {backend}",
@@ -205,19 +292,17 @@ def figure_positions(
         files = {
             **table_files(rows, "metrics"),
             "metadata.json": json_text(meta, indent=2),
-            f"{name}.png": png,
+            **pngs,
         }
         every = [m.label for m in methods]
         titles = [None] * len(todo) if cfg.positions is not None else [lab for _, lab, _ in todo]
-        with output_set(out, [*files, "exr", "viewer"], lock=False) as tmp:
-            for rel, data in files.items():
-                (tmp / rel).write_bytes(data.encode() if isinstance(data, str) else data)
-            viewer.write_manifest(
-                tmp,
-                name,
-                [
-                    viewer.write_case(tmp, name, cid, case, every, title=t or "")
-                    for (cid, _), case, t in zip(scenes, cases, titles)
-                ],
-            )
+        stems = file_stems(cid for cid, _ in scenes)
+        entries = []
+        for (cid, _), case, t in zip(scenes, cases, titles):
+            more, entry = viewer.case_files(name, stems[cid], case, every, title=t or "", case_id=cid)
+            files.update(more)
+            entries.append(entry)
+        files[viewer.MANIFEST] = viewer.manifest_text(name, entries)
+        # every byte is made: the output set lives only while they are written (study.io.write_set)
+        write_set(out, files, [f"{name}.png", f"{name}-errors.png", "exr", "viewer"], lock=False)
     return rows

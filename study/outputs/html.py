@@ -3,44 +3,37 @@
 The page is self-contained apart from files under ``reports/`` it names by relative paths (figure PNGs, plots, each
 figure's viewer scripts ``<fig>/viewer/<case>.js`` and EXRs): no CDN, no server, opened as ``file://``. Its script and
 style (``viewer.js``, ``html.css`` beside this module) are inlined: tables sort by a click on a header (numbers by
-value, empty cells last), and each case of a figure gets an image viewer (sources by number keys, ←/→ or clicks;
-layers — image, angular error, outcome, FLIP, hidden — by ↑/↓ or clicks; zoom by the wheel or buttons, pixelated;
-drag to pan; an exposure slider for the linear radiance; the value under the cursor). Each viewer reads its images
-from its script when it scrolls into view. What a figure lacks (no viewer images, EXRs not made here) is said in
-the page, never an error.
+value, empty cells last) and their headers stick under the top bar, and each case of a figure gets an image viewer
+(sources by number keys, the references first, digits typed quickly forming one number, or ←/→ and clicks; layers —
+image, angular error, outcome, FLIP, hidden — by ↑/↓ or clicks; r flips to truth_at_hit and back, d shows the
+difference from it; zoom by the wheel or buttons, pixelated; drag to pan; an exposure slider for the linear
+radiance; exposure and zoom shared by the viewers of a figure; the value under the cursor). Each viewer reads its
+images from its script when it scrolls into view. What a figure lacks (no viewer images, EXRs not made here) is
+said in the page, never an error. Names are text (:mod:`study.outputs.markup`).
 """
 
 from __future__ import annotations
 
-import html as _html
 import json
 import math
 import re
 from pathlib import Path
+from urllib.parse import quote
 
 from study.outputs import viewer
+from study.outputs.markup import Md, code, esc, inline, link
 from study.tables import fmt_number
 
 _HERE = Path(__file__).resolve().parent
 
 
-def esc(s) -> str:
-    return _html.escape(str(s), quote=True)
-
-
-def inline(md: str) -> str:
-    """The inline Markdown the report writes (`code`, **strong**, *emphasis*, [text](link)) as HTML."""
-    out = []
-    for i, part in enumerate(str(md).split("`")):
-        if i % 2:
-            out.append(f"<code>{esc(part)}</code>")
-            continue
-        t = esc(part)
-        t = re.sub(r"\[([^\]]+)\]\(([^)\s]+)\)", lambda m: f'<a href="{m.group(2)}">{m.group(1)}</a>', t)
-        t = re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", t)
-        t = re.sub(r"(?<![\w*])\*([^*\s][^*]*?)\*(?![\w*])", r"<em>\1</em>", t)
-        out.append(t)
-    return "".join(out)
+#: Why the methods' images show no shadow of the object while Mitsuba's does (study/measure/case.py, truth.py).
+SHADOW_NOTE = (
+    "Why the methods' images show no shadow of the object and *mitsuba* does: a method replaces only the object's "
+    "own pixels, shaded by its secondary rays looked up in the impostor; everything around the object is "
+    "Mitsuba's render of the scene *without* the object, and the impostor is captured without it too. So neither "
+    "the methods nor *truth_at_hit* hold the object's shadow or interreflection; *mitsuba* is rendered with it."
+)
 
 
 def _sort_value(v) -> str | None:
@@ -55,39 +48,43 @@ def _sort_value(v) -> str | None:
 def table(rows: list[dict], cols: list[str]) -> str:
     """A sortable HTML table of ``rows`` with the columns ``cols`` that some row has (numbers as in Markdown)."""
     cols = [c for c in cols if any(c in r for r in rows)]
-    head = "".join(f'<th title="sort by {esc(c)}">{esc(c)}</th>' for c in cols)
+    breaks = lambda c: re.sub(r"([_(,=])", r"\1<wbr>", esc(c))  # noqa: E731  (long headers: method labels)
+    head = "".join(f'<th title="sort by {esc(c)}">{breaks(c)}</th>' for c in cols)
     body = []
     for r in rows:
         cells = []
         for c in cols:
             v = r.get(c, "")
             sv = _sort_value(v)
+            wrap = ' class="wrap"' if len(str(v)) > 40 else ""  # long text wraps, the rest stays on one line
             cells.append(
                 f'<td data-v="{sv}" class="num">{esc(fmt_number(v, 3))}</td>'
                 if sv is not None
-                else f"<td>{inline(v)}</td>"
+                else f"<td{wrap}>{inline(v) if isinstance(v, Md) else esc(v)}</td>"
             )
         body.append("<tr>" + "".join(cells) + "</tr>")
     return (
-        f'<div class="scroll"><table class="sortable"><thead><tr>{head}</tr></thead>'
+        f'<div class="tablebox"><table class="sortable"><thead><tr>{head}</tr></thead>'
         f"<tbody>{''.join(body)}</tbody></table></div>"
     )
 
 
 # ---------------------------------------------------------------------------------------------- viewers
-def _figure_viewers(reports: Path, fig: str) -> dict | None:
+def _figure_viewers(reports: Path, fig: str, made: dict | None = None) -> dict | None:
     """A figure's viewer manifest with what exists here marked: ``missing`` per case (its script), ``have`` per
-    layer (its EXR); None where the figure has no viewer images."""
-    m = viewer.read_manifest(reports / fig)
+    layer (its EXR); None where the figure has no viewer images. ``fig`` ``"."``: the page is in the figure's own
+    directory. ``made``: the manifest of files written together with the page (all there)."""
+    m = viewer.read_manifest(reports / fig) if made is None else json.loads(json.dumps(made))
     if m is None:
         return None
+    pre = "" if fig in ("", ".") else f"{fig}/"
     for c in m["cases"]:
-        c["script"] = f"{fig}/{c['script']}"
-        c["missing"] = not (reports / c["script"]).is_file()
-        c["mask_exr"] = f"{fig}/{c.get('mask_exr', '')}"
+        c["script"] = f"{pre}{c['script']}"
+        c["missing"] = made is None and not (reports / c["script"]).is_file()
+        c["exr"] = f"{pre}{c.get('exr', '')}"
         for la in c["layers"]:
-            la["exr"] = f"{fig}/{la.get('exr', '')}"
-            la["have"] = (reports / la["exr"]).is_file()
+            la["exr"] = f"{pre}{la.get('exr', '')}"
+            la["have"] = made is not None or (reports / la["exr"]).is_file()
     return m
 
 
@@ -96,20 +93,21 @@ def viewer_note(reports: Path, fig: str) -> str:
     m = _figure_viewers(reports, fig)
     if m is None:
         return (
-            f"No per-case images for {fig} here: `study figure {fig}` writes them (EXRs under `{fig}/exr/`, the "
-            f"viewer's images under `{fig}/viewer/`)."
+            f"No per-case images for {code(fig)} here: {code(f'study figure {fig}')} writes them (EXRs under "
+            f"{code(f'{fig}/exr/')}, the viewer's images under {code(f'{fig}/viewer/')})."
         )
     have = sum(la["have"] for c in m["cases"] for la in c["layers"])
     exr = (
-        f"EXRs per case under [{fig}/exr/]({fig}/exr/)"
+        f"EXRs per case under {link(f'{fig}/exr/', f'{fig}/exr/')}"
         if have
-        else f"EXRs per case (`{fig}/exr/<case>/`) are not in this copy: `bash scripts/reproduce.sh` makes them"
+        else f"EXRs per case ({code(f'{fig}/exr/<case>.exr')}) are not in this copy: `bash scripts/reproduce.sh` "
+        "makes them"
     )
-    return f"Per-case image viewer ({len(m['cases'])} cases): [index.html](index.html#viewers-{fig}); {exr}."
+    return f"Per-case image viewer ({len(m['cases'])} cases): {link('index.html', f'index.html#viewers-{fig}')}; {exr}."
 
 
-def _viewers_html(reports: Path, fig: str, manifests: dict) -> str:
-    m = _figure_viewers(reports, fig)
+def _viewers_html(reports: Path, fig: str, manifests: dict, made: dict | None = None) -> str:
+    m = _figure_viewers(reports, fig, made)
     if m is None:
         return (
             f'<p class="note" id="viewers-{esc(fig)}">No per-case images for {esc(fig)} in this copy: '
@@ -129,9 +127,11 @@ def _viewers_html(reports: Path, fig: str, manifests: dict) -> str:
     )
     return (
         f'<h3 id="viewers-{esc(fig)}">{esc(fig)}: images per case</h3><p class="note">Click a viewer, then: '
-        "number keys or ←/→ pick the image, ↑/↓ the layer (image, angular error, outcome, …), wheel or +/− to "
-        "zoom (f: fit), drag to pan; the slider sets the exposure of the linear radiance (0 = as rendered, "
-        f'clipped at 1, sRGB).{note}</p><div class="viewers">{divs}</div>'
+        "number keys pick the image (the references first; digits typed quickly form one number, e.g. 1 2 for the "
+        "12th) or ←/→, ↑/↓ the layer (image, angular error, outcome, …); r flips to truth_at_hit and back (A/B), "
+        "d shows the difference from it; wheel or +/− to zoom (f: fit), drag to pan; the slider sets the exposure "
+        "of the linear radiance (0 = as rendered, clipped at 1, sRGB). The viewers of a figure share exposure "
+        f'and zoom.{note}</p><div class="viewers">{divs}</div>'
     )
 
 
@@ -151,8 +151,9 @@ def _script_json(obj) -> str:
 
 
 # ---------------------------------------------------------------------------------------------- the page
-def page(blocks: list[tuple], reports: Path, *, title: str) -> str:
-    """The blocks as one HTML page (``index.html``)."""
+def page(blocks: list[tuple], reports: Path, *, title: str, made: dict | None = None) -> str:
+    """The blocks as one HTML page (``index.html``); ``made``: figure → viewer manifest of files written together
+    with the page (not yet on disk)."""
     body, toc, manifests = [], [], {}
     for b in blocks:
         kind = b[0]
@@ -168,20 +169,18 @@ def page(blocks: list[tuple], reports: Path, *, title: str) -> str:
         elif kind == "table":
             body.append(table(b[1], b[2]))
         elif kind == "img":
-            body.append(
-                f'<figure><a href="{esc(b[1])}"><img src="{esc(b[1])}" alt="{esc(b[2])}"></a></figure>'
-            )
+            src = esc(quote(b[1], safe="/"))
+            body.append(f'<figure><a href="{src}"><img src="{src}" alt="{esc(b[2])}"></a></figure>')
         elif kind == "media":
+            src = esc(quote(b[1], safe="/"))
             tag = (
-                f'<video src="{esc(b[1])}" controls loop muted></video>'
+                f'<video src="{src}" controls loop muted></video>'
                 if b[1].endswith((".mp4", ".webm"))
-                else f'<img src="{esc(b[1])}" alt="{esc(b[2])}">'
+                else f'<img src="{src}" alt="{esc(b[2])}">'
             )
-            body.append(
-                f'<figure>{tag}<figcaption><a href="{esc(b[1])}">{esc(b[1])}</a></figcaption></figure>'
-            )
+            body.append(f'<figure>{tag}<figcaption><a href="{src}">{esc(b[1])}</a></figcaption></figure>')
         elif kind == "viewer":
-            body.append(_viewers_html(reports, b[1], manifests))
+            body.append(_viewers_html(reports, b[1], manifests, (made or {}).get(b[1])))
     css = (_HERE / "html.css").read_text(encoding="utf-8")
     js = (_HERE / "viewer.js").read_text(encoding="utf-8")
     return "\n".join(

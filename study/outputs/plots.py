@@ -21,6 +21,8 @@ METRICS = {
     "angle_median_deg": ("median angular error (deg)", 1e-6),
     "angle_p95_deg": ("p95 angular error (deg)", 1e-6),
 }
+#: 20 distinct colours (tab10, then a darker or stronger one of each hue and a few more); beyond them evenly spaced
+#: hues at alternating lightness: every series of a plot its own colour.
 _COLOURS = [
     "#1f77b4",
     "#ff7f0e",
@@ -32,14 +34,36 @@ _COLOURS = [
     "#7f7f7f",
     "#bcbd22",
     "#17becf",
+    "#0b3d91",
+    "#a65628",
+    "#00a087",
+    "#6a3d9a",
+    "#f0b400",
+    "#e7298a",
+    "#000000",
+    "#66a61e",
+    "#4dbbd5",
+    "#b15928",
 ]
 _MARKERS = ["o", "s", "^", "D", "P", "X", "*"]
 _LINES = ["-", "--", ":", "-."]
 
 
+def colour(i: int) -> str:
+    """The colour of series ``i``: distinct for every ``i`` (the 20 of :data:`_COLOURS`, then golden-angle hues)."""
+    if i < len(_COLOURS):
+        return _COLOURS[i]
+    import colorsys
+
+    h = (0.618033988749895 * i) % 1.0
+    r, g, b = colorsys.hls_to_rgb(h, 0.35 if i % 2 else 0.55, 0.75 + 0.2 * ((i // 2) % 2))
+    return "#{:02x}{:02x}{:02x}".format(*(round(255 * x) for x in (r, g, b)))
+
+
 def style(i: int) -> dict:
-    """Colour, marker and line style of series ``i``: no two of the first 40 series share all three."""
-    return {"color": _COLOURS[i % 10], "marker": _MARKERS[i % 7], "linestyle": _LINES[(i // 10) % 4]}
+    """Colour, marker and line style of series ``i``: every series its own colour, and marker and line style
+    vary too (for print in grey)."""
+    return {"color": colour(i), "marker": _MARKERS[i % 7], "linestyle": _LINES[(i // 10) % 4]}
 
 
 def pareto_front(points: list[tuple[float, float]]) -> list[int]:

@@ -3,16 +3,17 @@ paper's claims, per-case image viewers, versions and commands.
 
 Nothing is computed here but summaries of the tables under ``reports/``: every figure directory with a
 ``metrics.csv`` (``reports/fig*/``, and its viewer images ``viewer/`` when the figure command wrote them), every
-sweep with a ``results.csv`` (``reports/sweep-*/``), and any Markdown report another command wrote (e.g.
-``reports/performance.md``). The report is a list of blocks (heading, paragraph, table, image, viewer, …) rendered
-twice from the same numbers: as Markdown here and as HTML by :mod:`study.outputs.html`. A malformed table is one
-error naming it (exit 2), and ``index.md`` / ``index.html`` are replaced only when both are complete
-(:func:`study.io.write_set`, the reports directory locked).
+sweep with a ``results.csv`` (``reports/sweep-*/``), every ``study run`` output (``reports/run-*/``, shown like a
+figure; :mod:`study.outputs.sections`), and any Markdown report another command wrote (e.g.
+``reports/performance.md``). Names in them are text, never markup (:mod:`study.outputs.markup`). The report is
+a list of blocks (heading, paragraph, table, image, viewer, …) rendered twice from the same numbers: as Markdown
+here and as HTML by :mod:`study.outputs.html`. A malformed table is one error naming it (exit 2), and
+``index.md`` / ``index.html`` are replaced only when both are complete (:func:`study.io.write_set`, the reports
+directory locked).
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -20,8 +21,9 @@ import numpy as np
 from study.errors import StudyError
 from study.io import locked, write_set
 from study.outputs import claims as claim_registry
-from study.outputs import html, summary
+from study.outputs import html, sections, summary
 from study.outputs.check import read_table
+from study.outputs.markup import Md, link, md_esc
 from study.tables import REFERENCE_ROWS, fmt_number
 
 #: Outcome classes first (study.measure.outcomes): the angle alone is blind to a wrong depth on the same ray.
@@ -64,31 +66,6 @@ COMPARISON = [
     "valid_fraction",
     "lookups_per_ray",
 ]
-CAUSTIC_COLS = [
-    "caustic_res",
-    "label",
-    "photons",
-    "lm_rmse",
-    "lm_relmse",
-    "img_rmse_mitsuba",
-    "img_sum_ratio_mitsuba",
-    "mitsuba_noise_rmse",
-    "photon_angle_p95_deg",
-    "seconds_per_map",
-]
-
-
-def _meta(d: Path) -> dict:
-    try:
-        meta = json.loads((d / "metadata.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return {}
-    return meta if isinstance(meta, dict) else {}
-
-
-def _shown(paths) -> list[Path]:
-    """The files a report links, sorted: never a hidden or temporary one (what a killed writer may leave)."""
-    return sorted(p for p in paths if not p.name.startswith(".") and ".tmp" not in p.name)
 
 
 def _medians(tables: dict[str, list[dict]], cols: list[str]) -> list[dict]:
@@ -266,114 +243,6 @@ def _comparison_section(tables: dict[str, list[dict]]) -> list[tuple]:
     ]
 
 
-def _figure_section(reports: Path, d: Path, rows: list[dict]) -> list[tuple]:
-    meta = _meta(d)
-    out = [
-        ("h", 2, d.name),
-        (
-            "p",
-            f"Config `{meta.get('config', '?')}`, backend {meta.get('backend', '?')}; table: "
-            f"[{d.name}/metrics.csv]({d.name}/metrics.csv)"
-            + (f" ([Parquet]({d.name}/metrics.parquet))" if (d / "metrics.parquet").is_file() else "")
-            + ".",
-        ),
-    ]
-    out += [("img", f"{d.name}/{png.name}", d.name) for png in _shown(d.glob("*.png"))]
-    out.append(("viewer", d.name))
-    return out + [("table", rows, ["case", "label", *SUMMARY])]
-
-
-def _sweep_section(d: Path, rows: list[dict]) -> list[tuple]:
-    meta = _meta(d)
-    rel = d.name
-    parquet = f" ([Parquet]({rel}/results.parquet))" if (d / "results.parquet").is_file() else ""
-    out = [
-        ("h", 2, f"Sweep `{meta.get('config', d.name)}`"),
-        (
-            "p",
-            f"{meta.get('cases', '?')} cases × {len(meta.get('methods', []))} methods "
-            f"({', '.join(meta.get('methods', []))}); table: [{rel}/results.csv]({rel}/results.csv){parquet}.",
-        ),
-    ]
-    out += [("img", f"{rel}/plots/{png.name}", png.stem) for png in _shown((d / "plots").glob("*.png"))]
-    # one compact table: per axis combination at the largest cube resolution, median angular error per method
-    axes = [k for k in rows[0] if k.startswith("axis:") and k != "axis:render.cube_res"] if rows else []
-    top = max((r["cube_res"] for r in rows), default=None)
-    sel = [r for r in rows if r["cube_res"] == top and r["method"] not in REFERENCE_ROWS]
-    labels = list(dict.fromkeys(r["label"] for r in sel))
-    groups: dict[tuple, dict] = {}
-    for r in sel:
-        g = groups.setdefault(tuple(r[a] for a in axes), {a.removeprefix("axis:"): r[a] for a in axes})
-        g[r["label"]] = r["angle_median_deg"]
-        g["occluded"] = r["occluded_fraction"]
-    if groups:
-        out += [
-            ("p", f"Median angular error (degrees) at cube resolution {top:g}:"),
-            ("table", list(groups.values()), [a.removeprefix("axis:") for a in axes] + ["occluded"] + labels),
-        ]
-    return out
-
-
-def _caustics_section(reports: Path) -> list[tuple]:
-    """Figure 8 (``study caustics-sweep`` → reports/fig8/): light-map error against exact photon tracing (a),
-    image error against Mitsuba's ptracer (b), time per caustic map."""
-    d = reports / "fig8"
-    pngs = _shown(d.glob("*.png"))
-    if not (d / "sweep" / "results.csv").is_file():
-        return (
-            [("h", 2, "fig8: caustics"), *[("img", f"fig8/{p.name}", "fig8") for p in pngs]] if pngs else []
-        )
-    rows = read_table(d / "sweep" / "results.csv", required=("label",), numeric=["caustic_res"])
-    out = [
-        ("h", 2, "fig8: caustics"),
-        (
-            "p",
-            "Glass sphere (n = 1.3) focusing the point light; caustic map from the light, photon hits localized "
-            "in the distance impostor, splatted into light maps (study/caustics.py, study/lightmap.py). "
-            "lm_* = light-map error against exact photon tracing (a), W/m²; img_* = caustic-only image against "
-            "Mitsuba ptracer (b); mitsuba_noise_rmse = Mitsuba's own noise (two seeds). "
-            "Table: [fig8/sweep/results.csv](fig8/sweep/results.csv).",
-        ),
-    ]
-    out += [("img", f"fig8/{p.name}", "fig8") for p in pngs]
-    return out + [("table", rows, CAUSTIC_COLS)]
-
-
-def _media_section(reports: Path) -> list[tuple]:
-    """Animations another command wrote (``reports/animation/*.gif|*.mp4``, ``study animate``), and its plots."""
-    d = reports / "animation"
-    files = _shown(p for p in d.glob("*") if p.suffix.lower() in (".gif", ".mp4", ".webm"))
-    if not files:
-        return []
-    return [
-        ("h", 2, "Animations"),
-        *[("media", f"animation/{p.name}", p.stem) for p in files],
-        *[("img", f"animation/{p.name}", p.stem) for p in _shown(d.glob("*.png"))],
-    ]
-
-
-def _versions_section(dirs: list[Path]) -> list[tuple]:
-    rows = []
-    for d in dirs:
-        m = _meta(d)
-        rows.append(
-            {
-                "table": d.name,
-                "command": f"`{m.get('command') or '?'}`",
-                "config sha256": str(m.get("config_sha256", "?")),
-                "seed": str(m.get("seed", "?")),
-                "backend": str(m.get("backend", "?")),
-                "git commit": str(m.get("git_commit", "?"))[:10],
-                "versions": ", ".join(f"{k} {v}" for k, v in m.get("versions", {}).items() if v),
-            }
-        )
-    return [
-        ("h", 2, "Versions and commands"),
-        ("table", rows, ["table", "command", "config sha256", "seed", "backend", "git commit", "versions"]),
-        ("p", "Regenerate everything: `bash scripts/reproduce.sh` (figures, the main sweep, this report)."),
-    ]
-
-
 # ---------------------------------------------------------------------------------------------- the report
 INTRO = (
     "Outcome per ray (study/measure/outcomes.py): *correct* when the shown point is within ε = max(1 cm, "
@@ -393,6 +262,7 @@ def blocks(reports: Path) -> list[tuple]:
     """The report as blocks (see :func:`markdown_text` and :func:`study.outputs.html.page`)."""
     figs = sorted(d for d in reports.glob("fig*") if (d / "metrics.csv").is_file())
     sweeps = sorted(d for d in reports.glob("sweep-*") if (d / "results.csv").is_file())
+    runs = sorted(d for d in reports.glob("run-*") if (d / "table.csv").is_file())
     numeric = ["cube_res", *SUMMARY]
     tables = {d.name: read_table(d / "metrics.csv", numeric=numeric) for d in figs}
     tables.update({d.name: read_table(d / "results.csv", numeric=numeric) for d in sweeps})
@@ -409,24 +279,30 @@ def blocks(reports: Path) -> list[tuple]:
     ]
     out += _claims_section(tables) + _comparison_section(tables) + _decomposition_section(tables)
     for d in figs:
-        out += _figure_section(reports, d, tables[d.name])
+        out += sections.figure_section(reports, d, tables[d.name], SUMMARY)
+    for d in runs:  # study run: one scene each, not among the tables the claims are checked on
+        out += sections.run_section(reports, d, read_table(d / "table.csv", numeric=numeric), SUMMARY)
     for d in sweeps:
-        out += _sweep_section(d, tables[d.name])
-    out += _caustics_section(reports) + _media_section(reports)
-    others = _shown(p for p in reports.glob("*.md") if p.name != "index.md")
-    others += _shown(
+        out += sections.sweep_section(d, tables[d.name])
+    out += sections.caustics_section(reports) + sections.media_section(reports)
+    others = sections.shown(p for p in reports.glob("*.md") if p.name != "index.md")
+    others += sections.shown(
         p for p in reports.glob("*/*.md") if p.parent.name not in {d.name for d in figs + sweeps}
     )
     if others:
         out += [
             ("h", 2, "Other reports"),
-            ("list", [f"[{p.relative_to(reports)}]({p.relative_to(reports)})" for p in others]),
+            ("list", [link(p.relative_to(reports), p.relative_to(reports).as_posix()) for p in others]),
         ]
-    return out + _versions_section(figs + sweeps)
+    return out + sections.versions_section(figs + sweeps)
+
+
+def _md_cell(v):
+    return v if isinstance(v, Md) or not isinstance(v, str) else md_esc(v)
 
 
 def markdown_text(blocks_: list[tuple], reports: Path) -> str:
-    """The blocks as Markdown (``index.md``)."""
+    """The blocks as Markdown (``index.md``): table cells and image names from data escaped (:mod:`.markup`)."""
     from study.tables import markdown
 
     lines = []
@@ -439,9 +315,12 @@ def markdown_text(blocks_: list[tuple], reports: Path) -> str:
         elif kind == "list":
             lines += [f"- {t}" for t in b[1]] + [""]
         elif kind == "table":
-            lines += [markdown(b[1], b[2], digits=3), ""]
-        elif kind in ("img", "media"):
-            lines += [f"![{b[2]}]({b[1]})" if kind == "img" else f"- [{b[1]}]({b[1]})", ""]
+            rows = [{md_esc(k): _md_cell(v) for k, v in r.items()} for r in b[1]]
+            lines += [markdown(rows, [md_esc(c) for c in b[2]], digits=3), ""]
+        elif kind == "img":
+            lines += ["!" + link(b[2], b[1]), ""]
+        elif kind == "media":
+            lines += [f"- {link(b[1], b[1])}", ""]
         elif kind == "viewer":
             lines += [html.viewer_note(reports, b[1]), ""]
     return "\n".join(lines)

@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from study.measure import stats
+from study.outputs.markup import code, md_esc
 from study.tables import REFERENCE_ROWS, fmt_number
 
 WRONG = "wrong_fraction"
@@ -201,21 +202,21 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
     n = best["n"]
     rank = ranking(tab, WRONG)
     parts = [
-        f"fewest wrong hits: `{best['label']}`, median {_pct(best['median'])} (95 % CI over cases "
-        f"{_pct(best['lo'])}–{_pct(best['hi'])}; worst case {_pct(best['max'])}, {best['worst']})"
+        f"fewest wrong hits: {code(best['label'])}, median {_pct(best['median'])} (95 % CI over cases "
+        f"{_pct(best['lo'])}–{_pct(best['hi'])}; worst case {_pct(best['max'])}, {md_esc(best['worst'])})"
     ]
     if len(rank) > 1:
         ru = rank[1]
         cmp = versus(tab, best["label"], ru["label"], WRONG)
         below, _, nc = separated(tab, best["label"], ru["label"])
         parts.append(
-            f"vs the runner-up `{ru['label']}` ({_pct(ru['median'])}): fewer in {cmp['a_better']} of "
+            f"vs the runner-up {code(ru['label'])} ({_pct(ru['median'])}): fewer in {cmp['a_better']} of "
             f"{cmp['n']} cases ({cmp['ties']} tied), {_verdict(cmp)}; per case, the rays' 95 % intervals "
             f"separate the two in {below} of {nc}"
         )
     if use is not best:
         parts.append(
-            f"as good and cheaper: `{use['label']}` at {_per_ray(use['cost'])} (vs {_cost(best['cost'])}),"
+            f"as good and cheaper: {code(use['label'])} at {_per_ray(use['cost'])} (vs {_cost(best['cost'])}),"
             f" median {_pct(use['median'])}, worst {_pct(use['max'])}"
         )
     else:
@@ -223,7 +224,7 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
         if cheap["label"] != best["label"]:
             _, above, nc = separated(tab, cheap["label"], best["label"])
             parts.append(
-                f"no cheaper method is as good: the cheapest, `{cheap['label']}` ({_per_ray(cheap['cost'])}), "
+                f"no cheaper method is as good: the cheapest, {code(cheap['label'])} ({_per_ray(cheap['cost'])}), "
                 f"has median {_pct(cheap['median'])} and more wrong hits beyond its rays' "
                 f"uncertainty in {above} of {nc} cases"
             )
@@ -231,35 +232,35 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
     if best["label"] in fixed:  # tables written with the fixed-tolerance columns
         f = fixed[best["label"]]
         parts.append(
-            f"at a fixed 1 cm tolerance `{best['label']}` is wrong on {_pct(f['median'])} (median; worst "
+            f"at a fixed 1 cm tolerance {code(best['label'])} is wrong on {_pct(f['median'])} (median; worst "
             f"{_pct(f['max'])})"
-            + (f", `{use['label']}` on {_pct(fixed[use['label']]['median'])}" if use is not best else "")
+            + (f", {code(use['label'])} on {_pct(fixed[use['label']]['median'])}" if use is not best else "")
         )
     front = cost_front(rank)
     if len(front) > 1:
         parts.append(
             "cost → wrong hits (medians), each step buying fewer: "
-            + " → ".join(f"`{r['label']}` {_cost(r['cost'])}: {_pct(r['median'])}" for r in front)
+            + " → ".join(f"{code(r['label'])} {_cost(r['cost'])}: {_pct(r['median'])}" for r in front)
         )
     img = ranking(tab, IMAGE)
     if len(img) > 1:
         a, b = img[0], img[1]
         cmp = versus(tab, a["label"], b["label"], IMAGE)
         text = (
-            f"lowest image error (RMSE vs truth, noise-debiased): `{a['label']}` {fmt_number(a['median'])} vs "
-            f"`{b['label']}` {fmt_number(b['median'])}, lower in {cmp['a_better']} of {cmp['n']} cases, "
+            f"lowest image error (RMSE vs truth, noise-debiased): {code(a['label'])} {fmt_number(a['median'])} vs "
+            f"{code(b['label'])} {fmt_number(b['median'])}, lower in {cmp['a_better']} of {cmp['n']} cases, "
             f"{_verdict(cmp)}"
         )
         trim = ranking(tab, f"{IMAGE}_trim")
         if trim and trim[0]["label"] != a["label"]:
-            text += f"; **without the worst 0.1 % of pixels the winner is `{trim[0]['label']}`**"
+            text += f"; **without the worst 0.1 % of pixels the winner is {code(trim[0]['label'])}**"
         swaps, pairs = swapped_pairs(img, trim)
         if swaps:
             text += f"; without them {swaps} of {pairs} pairs of methods swap places"
         parts.append(text)
     hid = _hidden(tab)
     where = "nothing hidden from the reference point" if hid == 0 else f"median hidden rays {_pct(hid)}"
-    return f"**{name}** ({n} case{'s' if n != 1 else ''}, {where}): " + "; ".join(parts) + "."
+    return f"**{md_esc(name)}** ({n} case{'s' if n != 1 else ''}, {where}): " + "; ".join(parts) + "."
 
 
 def headline(tables: dict[str, list[dict]]) -> str | None:
@@ -272,7 +273,7 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
     for name, (_, use) in recs.items():
         groups.setdefault(use["label"], []).append(name)
     uses = "; ".join(
-        f"`{lab}` ({_per_ray(*[recs[n][1]['cost'] for n in names])}) in {', '.join(names)}"
+        f"{code(lab)} ({_per_ray(*[recs[n][1]['cost'] for n in names])}) in {', '.join(md_esc(n) for n in names)}"
         for lab, names in sorted(groups.items(), key=lambda g: recs[g[1][0]][1]["cost"])
     )
     sig, few = 0, 0

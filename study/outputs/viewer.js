@@ -69,14 +69,22 @@
     return {w: W, h: H, channels: channels, data: out};
   }
 
+  const REFS = ["truth_at_hit", "oracle_map", "mitsuba"];
+  const REF = "truth_at_hit";                       // what A/B and the difference compare against
+  const DIGIT_MS = 900;                             // digits typed within this time form one number (1, 4 → 14)
+  const byFig = {};                                 // figure → its viewers: they share exposure and view
+
   class Viewer {
     constructor(el, fig, c) {
       this.el = el; this.fig = fig; this.c = c;
       this.sources = [...new Set(c.layers.map(l => l.source))];
       this.layerIds = [...new Set(c.layers.map(l => l.layer))];
-      this.src = Math.min(1, this.sources.length - 1);     // the first method (0 is the truth)
-      this.want = "image"; this.exposure = 0; this.zoom = null; this.pan = [0, 0];
+      const first = this.sources.findIndex(s => !REFS.includes(s));
+      this.src = first < 0 ? 0 : first;             // the first method (the references come first)
+      this.want = "image"; this.mode = "normal"; this.exposure = 0; this.zoom = null; this.pan = [0, 0];
+      this.digits = ""; this.lastDigit = 0;
       this.decoded = new Map();
+      (byFig[fig] = byFig[fig] || []).push(this);
       this.build();
     }
     build() {
@@ -85,10 +93,11 @@
       const add = (tag, cls, parent) => { const e = document.createElement(tag); if (cls) e.className = cls;
                                          (parent || el).appendChild(e); return e; };
       add("div", "title").textContent = c.title + (c.title !== c.id ? "  (" + c.id + ")" : "");
-      const srow = add("div", "row");
+      const srow = add("div", "row sources");
       this.srcButtons = this.sources.map((s, i) => {
         const b = add("button", "", srow);
-        b.textContent = (i < 10 ? ((i + 1) % 10) + " " : "") + s;
+        b.textContent = (i + 1) + " " + s;
+        b.title = "key " + (i + 1) + (i >= 9 ? " (digits typed quickly form one number)" : "");
         b.addEventListener("click", () => { this.src = i; this.show(); });
         return b;
       });
@@ -99,6 +108,11 @@
         b.addEventListener("click", () => { this.want = l; this.show(); });
         return b;
       });
+      const mrow = add("div", "row");
+      const mb = (t, title, mode) => { const b = add("button", "mode", mrow); b.textContent = t; b.title = title;
+        b.dataset.mode = mode; b.addEventListener("click", () => this.setMode(mode)); return b; };
+      this.modeButtons = [mb("a/b ref (r)", "flip to " + REF + " and back (key r)", "flip"),
+                          mb("difference (d)", "|image − " + REF + "| (key d)", "diff")];
       const trow = add("div", "row");
       const zb = (t, f) => { const b = add("button", "", trow); b.textContent = t; b.addEventListener("click", f); };
       zb("−", () => this.zoomBy(1 / 1.5)); zb("+", () => this.zoomBy(1.5)); zb("fit", () => this.fit());
@@ -106,7 +120,7 @@
       this.slider = add("input", "exposure", trow);
       Object.assign(this.slider, {type: "range", min: -8, max: 8, step: 0.25, value: 0});
       this.expLabel = add("span", "", trow);
-      this.slider.addEventListener("input", () => { this.exposure = parseFloat(this.slider.value); this.render(); });
+      this.slider.addEventListener("input", () => this.setExposure(parseFloat(this.slider.value)));
       this.shownLabel = add("div", "shown");
       this.canvas = add("canvas", "view");
       this.canvas.width = SIZE; this.canvas.height = SIZE;
@@ -118,6 +132,12 @@
       this.bindInput();
       this.updateButtons();
     }
+    siblings() { return (byFig[this.fig] || []).filter(o => o !== this); }
+    setExposure(x, share = true) {                // one exposure for every viewer of the figure
+      this.exposure = x; this.slider.value = String(x); this.render();
+      if (share) this.siblings().forEach(o => o.setExposure(x, false));
+    }
+    setMode(m) { this.mode = this.mode === m ? "normal" : m; this.show(); }
     bindInput() {
       const cv = this.canvas;
       this.el.addEventListener("keydown", e => this.key(e));
@@ -132,17 +152,31 @@
       window.addEventListener("mouseup", () => { drag = null; });
       cv.addEventListener("mousemove", e => {
         const r = cv.getBoundingClientRect(), s = SIZE / r.width;
-        if (drag) { this.pan = [drag[2] + (e.clientX - drag[0]) * s, drag[3] + (e.clientY - drag[1]) * s]; this.draw(); }
+        if (drag) {
+          this.pan = [drag[2] + (e.clientX - drag[0]) * s, drag[3] + (e.clientY - drag[1]) * s];
+          this.draw(); this.shareView();
+        }
         this.read((e.clientX - r.left) * s, (e.clientY - r.top) * s);
       });
     }
+    pickDigit(d) {                                // 1…9, or two digits typed quickly (10…99); 0 alone: the 10th
+      const n = this.sources.length, now = performance.now();
+      let s = (now - this.lastDigit < DIGIT_MS ? this.digits : "") + d;
+      if (!(parseInt(s, 10) >= 1 && parseInt(s, 10) <= n)) s = d;
+      this.digits = s; this.lastDigit = now;
+      const k = s === "0" ? 10 : parseInt(s, 10);
+      if (k >= 1 && k <= n) this.src = k - 1;
+    }
     key(e) {
       const n = this.sources.length, L = this.layerIds.length, li = this.layerIds.indexOf(this.want);
-      if (/^[0-9]$/.test(e.key)) { const i = (parseInt(e.key, 10) + 9) % 10; if (i < n) this.src = i; }
+      if (e.ctrlKey || e.metaKey || e.altKey) return;
+      if (/^[0-9]$/.test(e.key)) this.pickDigit(e.key);
       else if (e.key === "ArrowRight") this.src = (this.src + 1) % n;
       else if (e.key === "ArrowLeft") this.src = (this.src + n - 1) % n;
       else if (e.key === "ArrowDown") this.want = this.layerIds[(li + 1) % L];
       else if (e.key === "ArrowUp") this.want = this.layerIds[(li + L - 1) % L];
+      else if (e.key === "r") { this.setMode("flip"); e.preventDefault(); return; }
+      else if (e.key === "d") { this.setMode("diff"); e.preventDefault(); return; }
       else if (e.key === "+" || e.key === "=") { this.zoomBy(1.5); e.preventDefault(); return; }
       else if (e.key === "-") { this.zoomBy(1 / 1.5); e.preventDefault(); return; }
       else if (e.key === "f") { this.fit(); return; }
@@ -150,10 +184,11 @@
       e.preventDefault();
       this.show();
     }
+    find(source, layer) { return this.c.layers.findIndex(l => l.source === source && l.layer === layer); }
     current() {                                   // the wanted layer of this source, else its image
-      const s = this.sources[this.src], ls = this.c.layers;
-      let i = ls.findIndex(l => l.source === s && l.layer === this.want);
-      if (i < 0) i = ls.findIndex(l => l.source === s && l.layer === "image");
+      const s = this.mode === "flip" ? REF : this.sources[this.src], ls = this.c.layers;
+      let i = this.find(s, this.mode === "diff" ? "image" : this.want);
+      if (i < 0) i = this.find(s, "image");
       return i < 0 ? ls.findIndex(l => l.source === s) : i;
     }
     async urls() {
@@ -178,23 +213,34 @@
         b.classList.toggle("on", l === this.want);
         b.disabled = !this.c.layers.some(x => x.source === s && x.layer === l) && l !== "image";
       });
+      this.modeButtons.forEach(b => b.classList.toggle("on", b.dataset.mode === this.mode));
       this.expLabel.textContent = (this.exposure >= 0 ? "+" : "") + this.exposure.toFixed(2) + " EV";
     }
     async show() {
       this.updateButtons();
-      const i = this.current(), L = this.c.layers[i];
-      this.shownLabel.textContent = L.source + " — " + (L.display.title || LAYER_NAMES[L.layer] || L.layer) +
-        (L.layer !== this.want ? "  (no " + (LAYER_NAMES[this.want] || this.want) + " for it)" : "");
+      const i = this.current(), L = this.c.layers[i], src = this.sources[this.src];
+      const what = L.display.title || LAYER_NAMES[L.layer] || L.layer;
+      this.shownLabel.textContent =
+        this.mode === "diff" ? src + " − " + REF + " — |difference| of the linear radiance" :
+        this.mode === "flip" ? REF + " — " + what + "  (a/b against " + src + ": r flips back)" :
+        L.source + " — " + what + (L.layer !== this.want ? "  (no " + (LAYER_NAMES[this.want] || this.want) + " for it)" : "");
       this.links.innerHTML = "";
       this.readout.textContent = "";                        // the value under the cursor: of the image shown
       const a = document.createElement(L.have ? "a" : "span");
-      a.textContent = L.have ? "EXR: " + L.exr : "EXR not in this copy (" + L.exr + "; bash scripts/reproduce.sh)";
+      a.textContent = L.have ? "EXR: " + L.exr + (L.exr_layer ? " (layer " + L.exr_layer + ")" : "")
+                             : "EXR not in this copy (" + L.exr + "; bash scripts/reproduce.sh)";
       if (L.have) a.href = encodeURI(L.exr);
       this.links.appendChild(a);
+      const want = [this.mode, i].join();
       try {
-        const d = await this.decode(i);
-        if (this.current() !== i) return;                   // switched again meanwhile
-        this.shownIndex = i; this.img = d;
+        let d = await this.decode(i), disp = L.display;
+        if (this.mode === "diff") {
+          const r = this.find(REF, "image"), ref = await this.decode(r);
+          d = difference(d, ref);
+          disp = {type: "hdr", title: "|" + src + " − " + REF + "|"};
+        }
+        if ([this.mode, this.current()].join() !== want) return;   // switched again meanwhile
+        this.shownIndex = i; this.img = d; this.disp = disp;
         if (this.zoom === null) this.fit(false);
         this.render();
       } catch (err) {
@@ -205,7 +251,7 @@
       const d = this.img;
       if (!d) return;
       this.updateButtons();
-      const disp = this.c.layers[this.shownIndex].display, n = d.w * d.h;
+      const disp = this.disp, n = d.w * d.h;
       const px = new Uint8ClampedArray(n * 4), k = Math.pow(2, this.exposure);
       const lut = LUTS[disp.cmap];
       const lo = disp.type === "log" ? Math.log10(disp.lo) : disp.lo, hi = disp.type === "log" ? Math.log10(disp.hi) : disp.hi;
@@ -233,7 +279,11 @@
     legendFor(disp) {
       const g = this.legend;
       g.innerHTML = "";
-      if (disp.type === "hdr") { g.textContent = "linear radiance × 2^" + this.exposure + ", clipped at 1, sRGB"; return; }
+      if (disp.type === "hdr") {
+        g.textContent = (this.mode === "diff" ? "|difference|" : "linear radiance") + " × 2^" + this.exposure +
+                        ", clipped at 1, sRGB";
+        return;
+      }
       if (disp.type === "classes") {
         disp.names.forEach((nm, i) => { const s = document.createElement("span"); s.innerHTML = '<span class="sw"></span>';
           s.firstChild.style.background = disp.colors[i]; s.appendChild(document.createTextNode(nm)); g.appendChild(s); });
@@ -248,19 +298,32 @@
       g.append(t(String(disp.lo)), bar, t(String(Number(disp.hi.toPrecision(3))) + " " + (disp.unit || "") +
                (disp.type === "log" ? " (log)" : "")));
     }
+    fitZoom() { const [, , h, w] = this.c.crop; return Math.min(SIZE / w, SIZE / h); }
     fit(redraw = true) {
       const [, , h, w] = this.c.crop;
-      this.zoom = Math.min(SIZE / w, SIZE / h);
+      this.zoom = this.fitZoom();
       this.pan = [(SIZE - w * this.zoom) / 2, (SIZE - h * this.zoom) / 2];
-      if (redraw) this.draw();
+      if (redraw) { this.draw(); this.shareView(); }
     }
     zoomBy(f, cx = SIZE / 2, cy = SIZE / 2) {
       if (this.zoom === null) this.fit(false);
       const z = Math.max(0.25, Math.min(64, this.zoom * f)), r = z / this.zoom;
       this.pan = [cx - (cx - this.pan[0]) * r, cy - (cy - this.pan[1]) * r];
       this.zoom = z;
+      this.draw(); this.shareView();
+    }
+    view() {                                      // zoom relative to fit, and the crop point at the canvas centre
+      const [, , h, w] = this.c.crop;
+      return {mag: this.zoom / this.fitZoom(), u: (SIZE / 2 - this.pan[0]) / this.zoom / w,
+              v: (SIZE / 2 - this.pan[1]) / this.zoom / h};
+    }
+    setView(s) {
+      const [, , h, w] = this.c.crop;
+      this.zoom = this.fitZoom() * s.mag;
+      this.pan = [SIZE / 2 - s.u * w * this.zoom, SIZE / 2 - s.v * h * this.zoom];
       this.draw();
     }
+    shareView() { const s = this.view(); this.siblings().forEach(o => o.setView(s)); }
     draw() {
       const g = this.canvas.getContext("2d");
       g.setTransform(1, 0, 0, 1, 0, 0);
@@ -275,7 +338,7 @@
       const x = Math.floor((cx - this.pan[0]) / this.zoom), y = Math.floor((cy - this.pan[1]) / this.zoom);
       if (x < 0 || y < 0 || x >= d.w || y >= d.h) { this.readout.textContent = ""; return; }
       const v = Array.from(d.data.slice((y * d.w + x) * d.channels, (y * d.w + x + 1) * d.channels));
-      const disp = this.c.layers[this.shownIndex].display;
+      const disp = this.disp;
       const txt = Number.isNaN(v[0]) ? "–" : disp.type === "classes" ? disp.names[Math.round(v[0])] :
         v.map(a => a.toPrecision(4)).join(" ") + (disp.unit ? " " + disp.unit : "");
       this.readout.textContent = "pixel (" + (x + this.c.crop[1]) + ", " + (y + this.c.crop[0]) + "): " + txt;
@@ -283,6 +346,17 @@
     valueAt(i, x, y) {                            // for tests: decoded value of layer i at crop pixel (x, y)
       return this.decode(i).then(d => Array.from(d.data.slice((y * d.w + x) * d.channels, (y * d.w + x + 1) * d.channels)));
     }
+  }
+
+  function difference(a, b) {                     // |a − b| per channel (NaN where either is)
+    const out = new Float32Array(a.w * a.h * 3);
+    for (let p = 0; p < a.w * a.h; p++) {
+      for (let c = 0; c < 3; c++) {
+        out[p * 3 + c] = Math.abs(a.data[p * a.channels + Math.min(c, a.channels - 1)] -
+                                  b.data[p * b.channels + Math.min(c, b.channels - 1)]);
+      }
+    }
+    return {w: a.w, h: a.h, channels: 3, data: out};
   }
 
   const viewers = [];

@@ -2,13 +2,15 @@
 
 For every case of a figure (:class:`~study.measure.case.CaseOutput`) the figure command writes, in its output set:
 
-* ``exr/<case>/<name>.exr`` (full frame, float32, through :func:`study.io.write_exr`): ``truth_at_hit``,
-  ``oracle_map``, ``mitsuba`` and one per method label (linear RGB radiance); ``angle-<label>`` (degrees),
-  ``outcome-<label>`` (codes 0 correct, 1 wrong depth, 2 wrong surface, 3 no hit; NaN off the object),
-  ``flip-<label>`` / ``error-<label>`` where the case has them, ``hidden`` (fraction of each pixel's rays whose exact
-  hit the reference point cannot see) and ``mask`` (1 on the object's pixels). Openable in tev or with
-  :func:`study.io.read_exr`. They are large, so not committed (``.gitignore``); ``bash scripts/reproduce.sh``
-  makes them.
+* ``exr/<case>.exr``: one multi-layer EXR (full frame, float32, :func:`study.io.layers_exr_bytes`) whose layers
+  are named for what they hold (channels ``<layer>.R/.G/.B`` or ``<layer>.Y``): ``truth_at_hit``,
+  ``oracle_map``, ``mitsuba`` and one per method (linear RGB radiance; method labels as file names,
+  :func:`study.io.file_stem`: ``localized-iterations-10``); ``angle-<method>`` (degrees), ``outcome-<method>``
+  (codes 0 correct, 1 wrong depth, 2 wrong surface, 3 no hit; NaN off the object), ``flip-<method>`` /
+  ``error-<method>`` where the case has them, ``hidden`` (fraction of each pixel's rays whose exact hit the
+  reference point cannot see) and ``mask`` (1 on the object's pixels). Openable in tev (one layer per entry) or
+  with :func:`study.io.read_exr_layers`. They are large, so not committed (``.gitignore``);
+  ``bash scripts/reproduce.sh`` makes them.
 * ``viewer/<case>.js``: the same images cropped to the object (:func:`crop_box`) as RGBE-coded PNGs
   (:func:`rgbe_png`: mantissas on the left half, the shared exponent on the right, no alpha, so the browser hands
   the bytes over unchanged) embedded as data URLs in a script, which the report's viewer loads on demand (a script
@@ -22,12 +24,11 @@ from __future__ import annotations
 import base64
 import io
 import json
-import re
 from pathlib import Path
 
 import numpy as np
 
-from study.io import json_text, write_exr
+from study.io import file_stems, json_text, layers_exr_bytes
 from study.measure.outcomes import NAMES as OUTCOME_NAMES
 
 #: Colours of the outcome classes (study.measure.outcomes codes 0..3): correct, wrong depth, wrong surface, no hit.
@@ -68,12 +69,9 @@ DISPLAY = {
     },
 }
 MANIFEST = "viewer/index.json"
-
-
-def safe_name(label: str) -> str:
-    """A file name a person can read for a method label: ``localized(iterations=10)`` stays as it is; anything
-    but letters, digits and ``._=(),+-`` becomes ``_``."""
-    return re.sub(r"[^A-Za-z0-9._=(),+-]", "_", label) or "_"
+#: A hidden map of one ray per pixel is yes or no: shown as two classes, not a colour bar.
+HIDDEN_COLORS = ("#d9e8f5", "#8a2be2")
+HIDDEN_NAMES = ("visible from the reference point", "hidden from the reference point")
 
 
 def crop_box(mask: np.ndarray, margin: float = 0.35) -> tuple[slice, slice]:
@@ -136,13 +134,14 @@ def rgbe_png(a: np.ndarray) -> bytes:
 
 # ---------------------------------------------------------------------------------------------- one case
 def case_layers(case, labels: list[str]) -> list[tuple[str, str, np.ndarray]]:
-    """(source, layer, full-frame array) of every image of a case: the references and each method's image, then
-    each method's maps (those the case has), then the hidden fraction. ``labels``: the methods, in order."""
+    """(source, layer, full-frame array) of every image of a case: the references first (truth_at_hit, oracle_map,
+    mitsuba), then each method's image, then each method's maps (those the case has), then the hidden fraction.
+    ``labels``: the methods, in order."""
     out = [
         ("truth_at_hit", "image", case.truth),
-        *[(lab, "image", case.images[lab]) for lab in labels],
         ("oracle_map", "image", case.oracle),
         ("mitsuba", "image", case.mitsuba),
+        *[(lab, "image", case.images[lab]) for lab in labels],
     ]
     for layer, maps in (
         ("angle", case.angle_maps),
@@ -151,44 +150,60 @@ def case_layers(case, labels: list[str]) -> list[tuple[str, str, np.ndarray]]:
         ("error", getattr(case, "error_maps", None) or {}),
     ):
         out += [(lab, layer, maps[lab]) for lab in labels if maps.get(lab) is not None]
-    if case.occluded is not None:
-        out.append(
-            ("truth_at_hit", "hidden", np.where(case.mask | (case.occluded > 0), case.occluded, np.nan))
-        )
+    occ = getattr(case, "occluded", None)
+    if occ is not None and case.mask is not None:
+        out.append(("truth_at_hit", "hidden", np.where(case.mask | (occ > 0), occ, np.nan)))
     return [(s, la, np.asarray(a, np.float32)) for s, la, a in out if a is not None]
 
 
-def exr_name(source: str, layer: str) -> str:
-    return (
-        f"{safe_name(source)}.exr"
-        if layer == "image"
-        else f"{layer}.exr"
-        if layer == "hidden"
-        else f"{layer}-{safe_name(source)}.exr"
-    )
+def source_stems(labels: list[str]) -> dict[str, str]:
+    """Layer names of a case's sources: the references keep theirs, methods get :func:`study.io.file_stem`."""
+    return file_stems(["truth_at_hit", "oracle_map", "mitsuba", *labels])
+
+
+def exr_layer(source: str, layer: str, stems: dict[str, str]) -> str:
+    """The layer of a case's EXR that holds ``layer`` of ``source``: ``classical``, ``angle-classical``,
+    ``hidden``, ``mask`` (channels ``<layer>.R/.G/.B`` or ``<layer>.Y``)."""
+    if layer == "image":
+        return stems[source]
+    return layer if layer in ("hidden", "mask") else f"{layer}-{stems[source]}"
 
 
 def _display(layer: str, a: np.ndarray) -> dict:
     d = dict(DISPLAY[layer])
     if layer == "error" and a.ndim == 3 and a.shape[-1] == 3:
         d = {"type": "hdr", "title": "error image"}
+    elif layer == "hidden" and np.isin(a[np.isfinite(a)], (0.0, 1.0)).all():  # one ray per pixel: yes or no
+        d = {
+            "type": "classes",
+            "colors": list(HIDDEN_COLORS),
+            "names": list(HIDDEN_NAMES),
+            "title": d["title"],
+        }
     elif d.get("hi", 0) is None:  # a map without a fixed range: its 99th percentile
         fin = a[np.isfinite(a)]
         d["hi"] = float(max(np.percentile(fin, 99), 1e-6)) if fin.size else 1.0
     return d
 
 
-def write_case(tmp: Path, name: str, case_id: str, case, labels: list[str], title: str = "") -> dict:
-    """Write one case's EXRs and viewer script under ``tmp`` (a figure's output set); return its manifest entry."""
+def case_files(
+    name: str, stem: str, case, labels: list[str], *, title: str = "", case_id: str = ""
+) -> tuple[dict[str, bytes | str], dict]:
+    """One case's files, made in memory (relative path → bytes, for :func:`study.io.write_set`): its multi-layer
+    EXR ``exr/<stem>.exr`` and its viewer script ``viewer/<stem>.js``; and its manifest entry. ``stem``: the
+    case's file name (distinct among the figure's cases, :func:`study.io.file_stems`)."""
     layers = case_layers(case, labels)
+    occ = getattr(case, "occluded", None)
     sy, sx = (
-        crop_box(case.mask | (case.occluded > 0)) if case.mask is not None else (slice(None), slice(None))
+        crop_box(case.mask | (occ > 0) if occ is not None else case.mask)
+        if case.mask is not None
+        else (slice(None), slice(None))
     )
-    ex = Path("exr") / safe_name(case_id)
-    for source, layer, a in layers:
-        write_exr(tmp / ex / exr_name(source, layer), a if a.ndim == 3 else a[..., None])
+    stems = source_stems(labels)
+    exr = f"exr/{stem}.exr"
+    named = {exr_layer(s, la, stems): a for s, la, a in layers}
     if case.mask is not None:
-        write_exr(tmp / ex / "mask.exr", case.mask.astype(np.float32)[..., None])
+        named["mask"] = case.mask.astype(np.float32)
     entries, urls = [], []
     for source, layer, a in layers:
         crop = a[sy, sx]
@@ -199,37 +214,37 @@ def write_case(tmp: Path, name: str, case_id: str, case, labels: list[str], titl
                 "layer": layer,
                 "channels": 1 if crop.ndim == 2 else crop.shape[-1],
                 "display": _display(layer, a),
-                "exr": (ex / exr_name(source, layer)).as_posix(),
+                "exr": exr,
+                "exr_layer": exr_layer(source, layer, stems),
             }
         )
     H, W = layers[0][2].shape[:2]
     y0, x0 = sy.start or 0, sx.start or 0
-    script = f"viewer/{safe_name(case_id)}.js"
-    key = f"{name}/{case_id}"
-    (tmp / script).parent.mkdir(parents=True, exist_ok=True)
-    (tmp / script).write_text(
+    script = f"viewer/{stem}.js"
+    key = f"{name}/{stem}"
+    text = (
         "(window.STUDY_VIEWER_DATA = window.STUDY_VIEWER_DATA || {})["
         + json.dumps(key)
         + "] = "
         + json.dumps(urls)
         + ";\n"
     )
-    return {
-        "id": case_id,
+    entry = {
+        "id": case_id or stem,
         "key": key,
-        "title": title or case_id,
+        "title": title or case_id or stem,
         "size": [H, W],
         "crop": [y0, x0, (sy.stop or H) - y0, (sx.stop or W) - x0],
         "script": script,
-        "mask_exr": (ex / "mask.exr").as_posix(),
+        "exr": exr,
         "layers": entries,
     }
+    return {exr: layers_exr_bytes(named), script: text}, entry
 
 
-def write_manifest(tmp: Path, name: str, cases: list[dict]) -> None:
-    """``viewer/index.json`` of a figure: its cases as :func:`write_case` returned them."""
-    (tmp / MANIFEST).parent.mkdir(parents=True, exist_ok=True)
-    (tmp / MANIFEST).write_text(json_text({"figure": name, "cases": cases}, indent=1))
+def manifest_text(name: str, cases: list[dict]) -> str:
+    """``viewer/index.json`` of a figure: its cases as :func:`case_files` returned them."""
+    return json_text({"figure": name, "cases": cases}, indent=1)
 
 
 def read_manifest(fig_dir: Path) -> dict | None:

@@ -1,0 +1,52 @@
+"""What ``study run`` and :meth:`study.api.Result.save` write for one scene, like a figure's outputs: the image grid
+PNG, one multi-layer EXR, the viewer's images, and a page that shows them (``index.html``, offline, the report's
+viewer). Made in memory (relative path → bytes) for :func:`study.io.write_set`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from study.outputs import figures, html, viewer
+
+#: The one case of a run: its file names (exr/run.exr, viewer/run.js, run.png).
+CASE = "run"
+
+
+def result_files(
+    res, rows: list[dict], labels: list[str], *, title: str
+) -> tuple[dict[str, bytes | str], dict]:
+    """``res``: a case's images and maps (attributes as :class:`~study.measure.case.CaseOutput`); ``rows``: its
+    table; ``labels``: the methods. Returns the files and the viewer manifest entry's layer names
+    (``{"exr": …, "layers": {group: {label: layer}}}``) for ``index.json``."""
+    files: dict[str, bytes | str] = dict(
+        figures.image_grids(
+            CASE,
+            [res],
+            labels,
+            title=title,
+            occlusion_panel=getattr(res, "occluded", None) is not None,
+            outcome_panel=bool(res.outcome_maps),
+            row_labels=[CASE],
+        )
+    )
+    more, entry = viewer.case_files(CASE, CASE, res, labels, title=title, case_id=CASE)
+    files.update(more)
+    manifest = {"figure": CASE, "cases": [entry]}
+    files[viewer.MANIFEST] = viewer.manifest_text(CASE, [entry])
+    blocks = [
+        ("h", 1, f"study run: {title}"),
+        (
+            "p",
+            f"The image grid ([{CASE}.png]({CASE}.png)), one multi-layer EXR ([{entry['exr']}]({entry['exr']})) "
+            "and the table ([table.csv](table.csv)) of one scene; `study report` shows it beside the figures.",
+        ),
+        *[("img", p, p) for p in files if p.endswith(".png")],
+        ("p", html.SHADOW_NOTE),
+        ("viewer", "."),
+        ("table", rows, list(dict.fromkeys(k for r in rows for k in r))),
+    ]
+    files["index.html"] = html.page(blocks, Path("."), title=f"study run: {title}", made={".": manifest})
+    index = {"exr": entry["exr"], "layers": {}}
+    for la in entry["layers"]:
+        index["layers"].setdefault(la["layer"], {})[la["source"]] = la["exr_layer"]
+    return files, index

@@ -1,0 +1,171 @@
+"""The report's sections for what commands wrote under ``reports/``: each figure, sweep, ``study run`` output,
+fig8's caustics, animations, and the versions table. Names from files and metadata are text (escaped,
+:mod:`study.outputs.markup`); links go to the report's own files only."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from study.outputs import html
+from study.outputs.check import read_table
+from study.outputs.markup import Md, code, link, md_esc
+from study.tables import REFERENCE_ROWS
+
+CAUSTIC_COLS = [
+    "caustic_res",
+    "label",
+    "photons",
+    "lm_rmse",
+    "lm_relmse",
+    "img_rmse_mitsuba",
+    "img_sum_ratio_mitsuba",
+    "mitsuba_noise_rmse",
+    "photon_angle_p95_deg",
+    "seconds_per_map",
+]
+
+
+def meta(d: Path) -> dict:
+    try:
+        m = json.loads((d / "metadata.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return m if isinstance(m, dict) else {}
+
+
+def shown(paths) -> list[Path]:
+    """The files a report links, sorted: never a hidden or temporary one (what a killed writer may leave)."""
+    return sorted(p for p in paths if not p.name.startswith(".") and ".tmp" not in p.name)
+
+
+def _images(d: Path, rel: str) -> list[tuple]:
+    """A directory's PNGs (the grid first, then e.g. its error grid) as image blocks."""
+    return [("img", f"{rel}/{png.name}", png.stem) for png in shown(d.glob("*.png"))]
+
+
+def figure_section(reports: Path, d: Path, rows: list[dict], cols: list[str]) -> list[tuple]:
+    m = meta(d)
+    parquet = (
+        f" ({link('Parquet', f'{d.name}/metrics.parquet')})" if (d / "metrics.parquet").is_file() else ""
+    )
+    out = [
+        ("h", 2, md_esc(d.name)),
+        (
+            "p",
+            f"Config {code(m.get('config', '?'))}, backend {md_esc(m.get('backend', '?'))}; table: "
+            f"{link(f'{d.name}/metrics.csv', f'{d.name}/metrics.csv')}{parquet}.",
+        ),
+        *_images(d, d.name),
+        ("p", html.SHADOW_NOTE),
+        ("viewer", d.name),
+    ]
+    return out + [("table", rows, ["case", "label", *cols])]
+
+
+def run_section(reports: Path, d: Path, rows: list[dict], cols: list[str]) -> list[tuple]:
+    """What ``study run`` wrote (``reports/run-*/``): its grid, viewer and table, like a figure's."""
+    page = (
+        f" Its own page: {link(f'{d.name}/index.html', f'{d.name}/index.html')}."
+        if (d / "index.html").is_file()
+        else ""
+    )
+    return [
+        ("h", 2, md_esc(d.name)),
+        ("p", f"One scene, `study run`; table: {link(f'{d.name}/table.csv', f'{d.name}/table.csv')}.{page}"),
+        *_images(d, d.name),
+        ("viewer", d.name),
+        ("table", rows, ["label", *cols]),
+    ]
+
+
+def sweep_section(d: Path, rows: list[dict]) -> list[tuple]:
+    m = meta(d)
+    rel = d.name
+    parquet = f" ({link('Parquet', f'{rel}/results.parquet')})" if (d / "results.parquet").is_file() else ""
+    methods = [str(x) for x in m.get("methods", [])]
+    out = [
+        ("h", 2, f"Sweep {code(m.get('config', d.name))}"),
+        (
+            "p",
+            f"{md_esc(m.get('cases', '?'))} cases × {len(methods)} methods "
+            f"({md_esc(', '.join(methods))}); table: {link(f'{rel}/results.csv', f'{rel}/results.csv')}{parquet}.",
+        ),
+    ]
+    out += [("img", f"{rel}/plots/{png.name}", png.stem) for png in shown((d / "plots").glob("*.png"))]
+    # one compact table: per axis combination at the largest cube resolution, median angular error per method
+    axes = [k for k in rows[0] if k.startswith("axis:") and k != "axis:render.cube_res"] if rows else []
+    top = max((r["cube_res"] for r in rows), default=None)
+    sel = [r for r in rows if r["cube_res"] == top and r["method"] not in REFERENCE_ROWS]
+    labels = list(dict.fromkeys(r["label"] for r in sel))
+    groups: dict[tuple, dict] = {}
+    for r in sel:
+        g = groups.setdefault(tuple(r[a] for a in axes), {a.removeprefix("axis:"): r[a] for a in axes})
+        g[r["label"]] = r["angle_median_deg"]
+        g["occluded"] = r["occluded_fraction"]
+    if groups:
+        out += [
+            ("p", f"Median angular error (degrees) at cube resolution {top:g}:"),
+            ("table", list(groups.values()), [a.removeprefix("axis:") for a in axes] + ["occluded"] + labels),
+        ]
+    return out
+
+
+def caustics_section(reports: Path) -> list[tuple]:
+    """Figure 8 (``study caustics-sweep`` → reports/fig8/): light-map error against exact photon tracing (a),
+    image error against Mitsuba's ptracer (b), time per caustic map."""
+    d = reports / "fig8"
+    pngs = shown(d.glob("*.png"))
+    if not (d / "sweep" / "results.csv").is_file():
+        return (
+            [("h", 2, "fig8: caustics"), *[("img", f"fig8/{p.name}", "fig8") for p in pngs]] if pngs else []
+        )
+    rows = read_table(d / "sweep" / "results.csv", required=("label",), numeric=["caustic_res"])
+    out = [
+        ("h", 2, "fig8: caustics"),
+        (
+            "p",
+            "Glass sphere (n = 1.3) focusing the point light; caustic map from the light, photon hits localized "
+            "in the distance impostor, splatted into light maps (study/caustics.py, study/lightmap.py). "
+            "lm_* = light-map error against exact photon tracing (a), W/m²; img_* = caustic-only image against "
+            "Mitsuba ptracer (b); mitsuba_noise_rmse = Mitsuba's own noise (two seeds). "
+            "Table: [fig8/sweep/results.csv](fig8/sweep/results.csv).",
+        ),
+    ]
+    out += [("img", f"fig8/{p.name}", "fig8") for p in pngs]
+    return out + [("table", rows, CAUSTIC_COLS)]
+
+
+def media_section(reports: Path) -> list[tuple]:
+    """Animations another command wrote (``reports/animation/*.gif|*.mp4``, ``study animate``), and its plots."""
+    d = reports / "animation"
+    files = shown(p for p in d.glob("*") if p.suffix.lower() in (".gif", ".mp4", ".webm"))
+    if not files:
+        return []
+    return [
+        ("h", 2, "Animations"),
+        *[("media", f"animation/{p.name}", p.stem) for p in files],
+        *[("img", f"animation/{p.name}", p.stem) for p in shown(d.glob("*.png"))],
+    ]
+
+
+def versions_section(dirs: list[Path]) -> list[tuple]:
+    rows = []
+    for d in dirs:
+        m = meta(d)
+        rows.append(
+            {
+                "table": d.name,
+                "command": Md(code(m.get("command") or "?")),
+                "config sha256": str(m.get("config_sha256", "?")),
+                "seed": str(m.get("seed", "?")),
+                "backend": str(m.get("backend", "?")),
+                "git commit": str(m.get("git_commit", "?"))[:10],
+                "versions": ", ".join(f"{k} {v}" for k, v in m.get("versions", {}).items() if v),
+            }
+        )
+    return [
+        ("h", 2, "Versions and commands"),
+        ("table", rows, ["table", "command", "config sha256", "seed", "backend", "git commit", "versions"]),
+        ("p", "Regenerate everything: `bash scripts/reproduce.sh` (figures, the main sweep, this report)."),
+    ]
