@@ -67,10 +67,11 @@ def user_error(err: BaseException) -> StudyError:
     if isinstance(err, OSError):
         return os_problem(err, "cannot read or write a file")
     if isinstance(err, UnicodeError):  # a file or directory name (or a file) that is not UTF-8
-        bad = getattr(err, "object", b"")
-        where = os.fsdecode(bad) if isinstance(bad, bytes) else str(bad)
+        bad, a, b = getattr(err, "object", b""), getattr(err, "start", 0), getattr(err, "end", 0)
+        near = bad[max(a - 30, 0) : b + 30]  # the name around the offending character
+        where = near.decode("utf-8", "backslashreplace") if isinstance(near, bytes) else near
         return EnvironmentProblem(
-            f"a file or directory name is not valid UTF-8 ({where[:80]!r}); rename it or choose another --out"
+            f"a file or directory name is not valid UTF-8 (…{where!r}…); rename it or choose another --out"
         )
     if isinstance(err, ModuleNotFoundError):
         return EnvironmentProblem(

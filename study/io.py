@@ -55,11 +55,17 @@ def _temp_beside(path: Path, suffix: str):
             os.unlink(tmp)
 
 
+def text_bytes(data: bytes | str) -> bytes:
+    """``data`` as bytes: text as UTF-8, where a file name that is not UTF-8 (Python's surrogate escapes) shows
+    as ``\\udcff`` instead of making the file unwritable."""
+    return data.encode("utf-8", "backslashreplace") if isinstance(data, str) else data
+
+
 def atomic_write(path: str | Path, data: bytes | str) -> None:
     """Write ``data`` to ``path`` atomically (temporary file + rename)."""
     path = Path(path)
     with _temp_beside(path, ".tmp") as tmp:
-        Path(tmp).write_bytes(data.encode() if isinstance(data, str) else data)
+        Path(tmp).write_bytes(text_bytes(data))
 
 
 def atomic_savefig(fig, path: str | Path, *, dpi: int = 110) -> None:
@@ -351,7 +357,7 @@ def write_set(
     with output_set(out, [*owns, *files], keeps=keeps, lock=lock, swap=swap) as tmp:
         for rel, data in files.items():
             (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-            (tmp / rel).write_bytes(data.encode() if isinstance(data, str) else data)
+            (tmp / rel).write_bytes(text_bytes(data))
     return [Path(out) / rel for rel in files]
 
 
