@@ -36,7 +36,7 @@ from study.cache import Cache
 from study.harness.config import load_figure_config
 from study.impostor.envmap import EnvMap
 from study.impostor.layers import layered_impostor
-from study.measure.case import env_info, impostor
+from study.measure.case import capture_views, impostor
 from study.optics import shading
 from study.reference.embree import Tracer
 
@@ -58,11 +58,9 @@ def measure(scene, ms, *, backend, cache):
     seen = tracer.distance(np.broadcast_to(o, to_hit.shape), to_hit / hit_dist[:, None])
     hidden = seen < hit_dist * (1 - 1e-4) - 1e-5
     eps = np.maximum(0.01, hit_dist * 2 / scene.render.cube_res)
-    env = EnvMap(imp.texels(), B, info=env_info(scene))
     n_layers = max(m.layers_needed() for m in ms)
     tex = layered_impostor(scene, cache, n_layers, imp.radiance, tracer) if n_layers > 1 else None
-    if tex is not None:
-        env.info["layers"] = [EnvMap(t, B) for t in tex]
+    env = capture_views(scene, ms, imp, B, cache=cache, tracer=tracer)
     held = np.zeros(len(exact), bool)  # some layer holds the exact hit (within eps)
     for t in tex if tex is not None else [imp.texels()]:
         d = np.asarray(EnvMap(t, nb).distance(nb.vec(to_hit)), float)
@@ -92,7 +90,7 @@ def measure(scene, ms, *, backend, cache):
                 "label": m.label,
                 "wrong_hidden": wrong[hidden].mean() if hidden.any() else np.nan,
                 "wrong_visible": wrong[~hidden].mean(),
-                "lookups": m.lookups_per_ray(),
+                "lookups": float(np.mean(B.numpy(tr.lookups))),
                 "seconds": sec,
                 "wrong_hidden_held": wrong[hidden & held].mean() if (hidden & held).any() else np.nan,
             }
