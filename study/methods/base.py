@@ -189,8 +189,12 @@ class Method(ABC):
         this (its :class:`Found` carries the point, the radiance and the lookups it spent)."""
         loc = self.localize(B, views, x, R)
         self._check_answer(B, loc, x, Localization)
-        valid = loc.valid & (B.length(loc.l) > 0.0)  # a zero lookup vector points nowhere: no hit
-        r, g, b, dist = views.lookup(loc.l)
+        valid = loc.valid & ~(B.length(loc.l) == 0.0)  # a zero lookup vector points nowhere: no hit
+        finite = B.isfinite(B.length(loc.l))  # no lookup at a NaN or inf (its shown point stays NaN)
+        l, Rs = loc.l, R
+        r, g, b, dist = views.lookup(
+            V3(*(B.select(finite, c, d) for c, d in zip((l.x, l.y, l.z), (Rs.x, Rs.y, Rs.z))))
+        )
         lhat = B.normalize(loc.l)
         spent = loc.lookups if loc.lookups is not None else x.x * 0.0 + (self.lookup_bound(views.res) - 1)
         return Found(

@@ -28,7 +28,8 @@ Vec3 = tuple[float, float, float]
 class Params(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
     box_min: Vec3 | None = Field(
-        None, description="lower corner of the proxy box, world coordinates (default: the room, see above)"
+        None,
+        description="lower corner of the proxy box, world coordinates (default: the room, else fitted to the impostor)",
     )
     box_max: Vec3 | None = Field(None, description="upper corner of the proxy box, world coordinates")
 
