@@ -1,4 +1,4 @@
-"""Figure 5 check (issue 17): how often ``layered``, ``localized`` and ``linear_secant`` show a wrong point.
+"""Figure 5 check: how often ``layered``, ``localized`` and ``linear_secant`` show a wrong point.
 
 Runs the real pipeline's pieces (study.measure.case: the cached impostor and layered impostor, the object's
 secondary rays, Embree exact hits, ``method.trace``) on the cases of a figure config (default configs/fig5.toml)
@@ -8,14 +8,15 @@ and prints, per case and method:
   study.measure.case) whose shown point is not *correct*, |shown − exact| > eps with
   eps = max(0.01 m, |exact − o| · 2 / cube_res); an invalid ray (NaN) counts as wrong;
 - wrong_visible: the same share over the rays whose exact hit o sees;
-- lookups per ray (the method's report) and seconds of ``method.trace`` (backend included, no capture);
+- lookups per ray (the mean of what the rays spent, ``Trace.lookups``) and seconds of ``method.trace`` (backend
+  included, no capture);
 - per case, ``no layer``: the share of hidden-hit rays for which no layer of the layered impostor holds the exact
   hit (|layer_k distance towards the hit − |exact − o|| > eps for every k, bilinear lookup as the search sees it).
 
     python scripts/compare_layered.py [--config configs/fig5.toml] [--cases p0 p1 p2] [--backend numpy]
         [--layered KEY=VALUE ...] [--linear KEY=VALUE ...] [--cache .cache]
 
-Goal (issue 17): layered's wrong_hidden ≤ 5 % on fig5 p0 (exit status 1 otherwise).
+Goal: layered's wrong_hidden ≤ 5 % on fig5 p0 (exit status 1 otherwise).
 """
 
 from __future__ import annotations

@@ -45,7 +45,7 @@ class ProbeSpec:
     """Where the probes of a :class:`~study.impostor.probes.ProbeSet` stand (besides probe 0, the reference point).
 
     ``points`` (world coordinates, metres) when given; otherwise the centres of a ``grid`` = (nx, ny, nz) of equal
-    cells filling the environment's bounds (``env.info["room"]``), less those inside geometry or closer than
+    cells filling the environment's bounds (``Captured.room``), less those inside geometry or closer than
     ``clearance`` metres to a surface (:func:`study.impostor.probes.probe_points`)."""
 
     grid: tuple[int, int, int] = (2, 2, 2)

@@ -21,8 +21,8 @@ a proxy; the default, as engines ship it, so the plain name is the hybrid) or ``
 the fallback.
 
 Shown point of a hit: the ray point at depth clamp(z_b, range) of the hit step (perspective-correct parameter
-along the segment), so a hit lies on the ray; its radiance is the colour buffer at the hit pixel (``trace`` is
-overridden for that). Cost per ray (``Trace.lookups``): one depth fetch per step actually taken (the loop stops at
+along the segment), so a hit lies on the ray; its radiance is the colour buffer at the hit pixel
+(:meth:`SSR.search`). Cost per ray (``Trace.lookups``): one depth fetch per step actually taken (the loop stops at
 the hit or the exit), one colour fetch, plus the fallback's lookups on the rays it traces;
 :meth:`SSR.lookups_per_ray` bounds it with every step taken and the fallback's bound.
 """
