@@ -120,3 +120,18 @@ def test_a_view_that_was_not_captured_is_one_line_naming_it():
     with np.errstate(all="ignore"):
         tr = methods.make("layered", layers=1).trace(B, env, B.vec(x), B.vec(d))  # the impostor is layer 0
     assert B.numpy(tr.valid).all()
+
+
+def test_every_parameter_is_described_and_study_methods_prints_it():
+    """Params fields carry Field(description=...); ``study methods`` prints each one under its method."""
+    from typer.testing import CliRunner
+
+    from study.cli import app
+
+    for name in methods.names():
+        for key, f in methods.REGISTRY[name].Params.model_fields.items():
+            assert f.description, f"{name}.{key} has no description"
+    res = CliRunner().invoke(app, ["methods"])
+    assert res.exit_code == 0, res.output
+    assert "  iterations: false-position steps (the listing's NITER)" in res.output
+    assert "  fallback: method for the rays without a screen hit" in res.output
