@@ -26,16 +26,13 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
 from study.errors import StudyError
-
-if TYPE_CHECKING:
-    from study.impostor.envmap import EnvMap
-    from study.impostor.probes import ProbeSet
-    from study.impostor.screen import ScreenView
+from study.impostor.envmap import EnvMap
+from study.impostor.screen import ScreenView
 
 Vec3 = tuple[float, float, float]
 
@@ -97,7 +94,7 @@ class Captured:
 
     impostor: EnvMap
     layers: tuple[EnvMap, ...] = ()
-    probes: Mapping[ProbeSpec, ProbeSet] = field(default_factory=dict)
+    probes: Mapping[ProbeSpec, Any] = field(default_factory=dict)  # ProbeSet (probes.py imports this module)
     screen: ScreenView | None = None
     reference: tuple[float, float, float] | None = None
     room: tuple[Vec3, Vec3] | None = None
