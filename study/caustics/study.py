@@ -183,7 +183,8 @@ def mitsuba_renders(scene: Scene, mp: MitsubaParams, cache: Cache) -> dict[str, 
             out[f"pt_{'black' if black else 'glass'}_{seed}"] = cache.get(
                 "caustic_mitsuba",
                 key,
-                lambda: render(black, "ptracer", seed),  # noqa: B023 (called at once), code=render
+                lambda: render(black, "ptracer", seed),  # noqa: B023 (called at once)
+                code=render,
             ).reshape(c.height, c.width, 3)
     key = content_key(*base, False, "path", mp.seeds[0])
     out["path"] = cache.get(
