@@ -1,4 +1,4 @@
-"""Figure 5 check (issue 17): how often ``layered``, ``localized`` and ``linear_secant`` show a wrong point.
+"""Figure 5 check: how often ``layered``, ``localized`` and ``linear_secant`` show a wrong point.
 
 Runs the real pipeline's pieces (study.measure.case: the cached impostor and layered impostor, the object's
 secondary rays, Embree exact hits, ``method.trace``) on the cases of a figure config (default configs/fig5.toml)
@@ -8,14 +8,15 @@ and prints, per case and method:
   study.measure.case) whose shown point is not *correct*, |shown − exact| > eps with
   eps = max(0.01 m, |exact − o| · 2 / cube_res); an invalid ray (NaN) counts as wrong;
 - wrong_visible: the same share over the rays whose exact hit o sees;
-- lookups per ray (the method's report) and seconds of ``method.trace`` (backend included, no capture);
+- lookups per ray (the mean of what the rays spent, ``Trace.lookups``) and seconds of ``method.trace`` (backend
+  included, no capture);
 - per case, ``no layer``: the share of hidden-hit rays for which no layer of the layered impostor holds the exact
   hit (|layer_k distance towards the hit − |exact − o|| > eps for every k, bilinear lookup as the search sees it).
 
     python scripts/compare_layered.py [--config configs/fig5.toml] [--cases p0 p1 p2] [--backend numpy]
         [--layered KEY=VALUE ...] [--linear KEY=VALUE ...] [--cache .cache]
 
-Goal (issue 17): layered's wrong_hidden ≤ 5 % on fig5 p0 (exit status 1 otherwise).
+Goal: layered's wrong_hidden ≤ 5 % on fig5 p0 (exit status 1 otherwise).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from study.cache import Cache
 from study.harness.config import load_figure_config
 from study.impostor.envmap import EnvMap
 from study.impostor.layers import layered_impostor
-from study.measure.case import env_info, impostor
+from study.measure.case import capture_views, impostor
 from study.optics import shading
 from study.reference.embree import Tracer
 
@@ -58,11 +59,9 @@ def measure(scene, ms, *, backend, cache):
     seen = tracer.distance(np.broadcast_to(o, to_hit.shape), to_hit / hit_dist[:, None])
     hidden = seen < hit_dist * (1 - 1e-4) - 1e-5
     eps = np.maximum(0.01, hit_dist * 2 / scene.render.cube_res)
-    env = EnvMap(imp.texels(), B, info=env_info(scene))
     n_layers = max(m.layers_needed() for m in ms)
     tex = layered_impostor(scene, cache, n_layers, imp.radiance, tracer) if n_layers > 1 else None
-    if tex is not None:
-        env.info["layers"] = [EnvMap(t, B) for t in tex]
+    env = capture_views(scene, ms, imp, B, cache=cache, tracer=tracer)
     held = np.zeros(len(exact), bool)  # some layer holds the exact hit (within eps)
     for t in tex if tex is not None else [imp.texels()]:
         d = np.asarray(EnvMap(t, nb).distance(nb.vec(to_hit)), float)
@@ -92,7 +91,7 @@ def measure(scene, ms, *, backend, cache):
                 "label": m.label,
                 "wrong_hidden": wrong[hidden].mean() if hidden.any() else np.nan,
                 "wrong_visible": wrong[~hidden].mean(),
-                "lookups": m.lookups_per_ray(),
+                "lookups": float(np.mean(B.numpy(tr.lookups))),
                 "seconds": sec,
                 "wrong_hidden_held": wrong[hidden & held].mean() if (hidden & held).any() else np.nan,
             }

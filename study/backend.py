@@ -71,6 +71,8 @@ class Backend:
     def loop(self, n: int, state: tuple, body, *, index: bool = False) -> tuple: ...
     def freeze(self, fn): ...
     def sync(self) -> None: ...
+    def shape_of(self, a) -> tuple[str, int] | None:
+        """("bool" / "float" / another kind, length) of a 1-D array of this backend; None for anything else."""
 
     # -------------------------------------------------------------- shared helpers built on the above
     def vec(self, a: np.ndarray) -> V3:
@@ -96,6 +98,11 @@ class NumpyBackend(Backend):
 
     def numpy(self, a):
         return np.asarray(a)
+
+    def shape_of(self, a):
+        if not isinstance(a, np.ndarray) or a.ndim != 1:
+            return None
+        return ("bool" if a.dtype == bool else "float" if a.dtype.kind == "f" else str(a.dtype)), len(a)
 
     def select(self, c, a, b):
         return np.where(c, a, b).astype(np.float32, copy=False)
@@ -184,6 +191,13 @@ class DrJitBackend(Backend):
 
     def numpy(self, a):
         return np.asarray(a)
+
+    def shape_of(self, a):
+        dr = self.dr
+        if not dr.is_array_v(a) or dr.depth_v(a) != 1:
+            return None
+        kind = "bool" if dr.is_mask_v(a) else "float" if dr.is_float_v(a) else type(a).__name__
+        return kind, dr.width(a)
 
     def select(self, c, a, b):
         return self.dr.select(c, a, b)

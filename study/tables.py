@@ -58,6 +58,7 @@ COLUMNS = [
     "valid_fraction",
     "ratio_residual_median",
     "lookups_per_ray",
+    "lookups_bound",
     "rays",
     "backend",
     "seconds",

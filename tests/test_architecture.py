@@ -2,6 +2,7 @@
 module over 460 lines (ruff-formatted), the map of the house in docs/architecture.md up to date, and a README short
 enough to read."""
 
+import ast
 import textwrap
 from pathlib import Path
 
@@ -35,6 +36,96 @@ def test_layer_contract_catches_an_upward_import(tmp_path, monkeypatch):
     )
     monkeypatch.syspath_prepend(str(tmp_path))
     assert lint_imports(config_filename=str(tmp_path / "toy.toml"), no_cache=True) == 1
+
+
+def _type_checking_nodes(tree: ast.AST) -> set[int]:
+    """ids of the nodes inside ``if TYPE_CHECKING:`` blocks (imports for annotations only)."""
+    skip = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If):
+            t = node.test
+            if getattr(t, "id", None) == "TYPE_CHECKING" or getattr(t, "attr", None) == "TYPE_CHECKING":
+                skip |= {id(n) for stmt in node.body for n in ast.walk(stmt)}
+    return skip
+
+
+def import_graph(root: Path, package: str) -> dict[str, set[str]]:
+    """module → the modules of ``package`` it imports, from every import statement (at the top, in functions, in
+    classes), except inside ``if TYPE_CHECKING:``. ``from pkg import name`` is an edge to the module ``pkg.name``
+    where there is one, else to ``pkg``; an import of a module does not count as one of its parent packages."""
+    mods = {}
+    for p in sorted((root / package).rglob("*.py")):
+        parts = list(p.relative_to(root).with_suffix("").parts)
+        mods[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = p
+    graph = {}
+    for name, path in mods.items():
+        tree = ast.parse(path.read_text())
+        skip = _type_checking_nodes(tree)
+        here = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+        targets = set()
+        for node in ast.walk(tree):
+            if id(node) in skip:
+                continue
+            if isinstance(node, ast.Import):
+                targets |= {a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                base = ".".join(here[: len(here) - node.level + 1] + [node.module or ""]).strip(".")
+                mod = base if node.level else node.module
+                targets |= {f"{mod}.{a.name}" if f"{mod}.{a.name}" in mods else mod for a in node.names}
+        graph[name] = set()
+        for t in targets:
+            while t and t not in mods:
+                t = t.rpartition(".")[0]
+            if t and t != name:
+                graph[name].add(t)
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One import cycle of ``graph`` (its modules in order, the first repeated at the end), or None."""
+    state, stack = {}, []
+
+    def visit(v):
+        state[v] = "open"
+        stack.append(v)
+        for w in sorted(graph[v]):
+            if state.get(w) == "open":
+                return stack[stack.index(w) :] + [w]
+            if w not in state and (found := visit(w)):
+                return found
+        state[v] = "done"
+        stack.pop()
+        return None
+
+    for v in sorted(graph):
+        if v not in state and (found := visit(v)):
+            return found
+    return None
+
+
+def test_study_import_graph_is_acyclic():
+    """No import cycle among study's modules, counting imports inside functions (TYPE_CHECKING blocks aside):
+    import-linter's contracts see only the packages' siblings and the top-level graph."""
+    graph = import_graph(ROOT, "study")
+    assert len(graph) > 80 and "study.methods.base" in graph["study.methods.classical"]
+    assert find_cycle(graph) is None, " → ".join(find_cycle(graph))
+
+
+def test_a_planted_cycle_is_found(tmp_path):
+    """The same check on a toy package: a cycle through a function-level import is found; one through an
+    ``if TYPE_CHECKING:`` import is not."""
+    pkg = tmp_path / "toy"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "sub" / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from toy.sub import b\n")
+    (pkg / "sub" / "b.py").write_text("def f():\n    from .. import c\n")
+    (pkg / "c.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import toy.a\n")
+    graph = import_graph(tmp_path, "toy")
+    assert graph["toy.a"] == {"toy.sub.b"} and graph["toy.sub.b"] == {"toy.c"} and graph["toy.c"] == set()
+    assert find_cycle(graph) is None
+    (pkg / "c.py").write_text("def g():\n    import toy.a\n")
+    assert find_cycle(import_graph(tmp_path, "toy")) == ["toy.a", "toy.sub.b", "toy.c", "toy.a"]
 
 
 def test_no_module_is_over_460_lines():

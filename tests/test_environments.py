@@ -171,6 +171,7 @@ def test_open_environment_methods_on_a_half_open_box():
     from study import backend as backends
     from study.impostor import analytic
     from study.impostor.envmap import EnvMap
+    from study.impostor.views import Captured
     from study.measure import outcomes
 
     lo, hi = np.array([-1.0, -1.0, -1.0]), np.array([1.0, 1.0, 1.0])
@@ -180,7 +181,7 @@ def test_open_environment_methods_on_a_half_open_box():
         dirs[..., 2] > np.abs(dirs[..., :2]).max(-1), cubemap.FAR, imp[..., 3]
     )  # face +z open
     B = backends.get("numpy")
-    env = EnvMap(imp.astype(np.float32), B, info={"open": True})
+    env = Captured(impostor=EnvMap(imp.astype(np.float32), B), open=True, fallback=True)
     rng = np.random.default_rng(2)
     x = rng.uniform(-0.2, 0.2, (3000, 3))
     R = rng.normal(size=(3000, 3))

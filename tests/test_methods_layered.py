@@ -8,6 +8,7 @@ from study import backend as backends
 from study import methods
 from study.impostor import cubemap, layers
 from study.impostor.envmap import EnvMap
+from study.impostor.views import Captured
 from study.methods.linear_secant import march_steps
 from study.reference.embree import Tracer
 from study.scene import scene_from_dict
@@ -67,7 +68,7 @@ def test_layered_recovers_a_column_top_hidden_from_the_reference_point(column_la
         B, EnvMap(tex[0][..., [0, 1, 2, 4]], B), B.vec(x), B.vec(d)
     )
     assert np.mean(np.linalg.norm(B.to_numpy(loc.shown) - exact, axis=1) > 0.1) >= 0.9
-    env = EnvMap(tex[0], B, info={"reference": o, "layers": [EnvMap(t, B) for t in tex]})
+    env = Captured(impostor=EnvMap(tex[0], B), reference=o, layers=tuple(EnvMap(t, B) for t in tex))
     for n_layers in (1, 2):
         lay = methods.make("layered", layers=n_layers, iterations=10).trace(B, env, B.vec(x), B.vec(d))
         err = np.linalg.norm(B.to_numpy(lay.shown) - exact, axis=1)
@@ -83,7 +84,7 @@ def test_layered_finds_top_hits_near_the_edge_that_uniform_steps_step_over(colum
     """Rays descending at 20–40° onto the column top 2–5 cm inside its edge nearest to o: on the layer that holds
     the top (seen from below) the ray is behind it only from the top's silhouette to the hit, a few texels of arc,
     and then in front of it again. The texel march (a sample at least every texel) shows a point within 2 cm of
-    the exact hit on every ray; the uniform 30-step search in t of the method before issue 17 did on 21 %."""
+    the exact hit on every ray; a uniform 30-step search in t did on 21 %."""
     s, o, tracer, tex, _ = column_layers
     rng = np.random.default_rng(3)
     n = 300
@@ -94,7 +95,7 @@ def test_layered_finds_top_hits_near_the_edge_that_uniform_steps_step_over(colum
     org = tgt - d * rng.uniform(0.3, 0.6, n)[:, None]
     h = tracer.intersect(org, d)
     assert np.all(np.linalg.norm(h["point"] - tgt, axis=1) < 1e-3)  # the first hit is the target on the top
-    env = EnvMap(tex[0], B, info={"reference": o, "layers": [EnvMap(t, B) for t in tex]})
+    env = Captured(impostor=EnvMap(tex[0], B), reference=o, layers=tuple(EnvMap(t, B) for t in tex))
     lay = methods.make("layered").trace(B, env, B.vec(org - o), B.vec(d))
     err = np.linalg.norm(B.to_numpy(lay.shown) + o - tgt, axis=1)
     assert np.all(err < 0.02)
@@ -131,14 +132,14 @@ def test_deeper_layers_are_shaded_from_their_free_side():
 
 @pytest.mark.parametrize("name", ["layered", "linear_secant"])
 def test_the_march_spends_the_lookups_it_reports(name, monkeypatch):
-    """Every distance fetched from a texture (the final lookup's colour comes with its distance) is counted by
-    lookups_per_ray(): g(0), the n = ⌈π 16⌉ = 51 steps of the march on every ray, the secant steps, the final
-    lookup — for layered on each of its 3 layers."""
+    """Every distance fetched from a texture (the final lookup's colour comes with its distance) is counted in
+    Trace.lookups, on every ray, and that is the bound lookups_per_ray(16): g(0), the n = ⌈π 16⌉ = 51 steps of the
+    march on every ray, the secant steps, the final lookup — for layered on each of its 3 layers."""
     from study.impostor import analytic
 
     B = backends.get("numpy")
     tex = analytic.box_impostor(16, [-2, -1.5, -2], [2, 1.5, 2])
-    env = EnvMap(tex, B, info={"layers": [EnvMap(tex, B) for _ in range(3)]})
+    env = Captured(impostor=EnvMap(tex, B), layers=tuple(EnvMap(tex, B) for _ in range(3)))
     fetched = []
     sample = type(B).sample
     monkeypatch.setattr(
@@ -146,10 +147,11 @@ def test_the_march_spends_the_lookups_it_reports(name, monkeypatch):
     )
     x, d = analytic.random_rays(100, extent=0.8, seed=0)
     m = methods.make(name)
-    m.trace(B, env, B.vec(x), B.vec(d), check_origin=False)
+    tr = m.trace(B, env, B.vec(x), B.vec(d), check_origin=False)
     n = march_steps(16, m.params)
     spent = 1 + n + 4 + 1 if name == "linear_secant" else 3 * (1 + n + 10 + 1)
-    assert fetched.count(1) == m.lookups_per_ray() == spent
+    assert fetched.count(1) == m.lookups_per_ray(16) == spent
+    np.testing.assert_array_equal(B.numpy(tr.lookups), spent)
 
 
 def test_layer_cache_key_includes_the_layer_count():

@@ -9,6 +9,7 @@ from study import backend as backends
 from study import methods
 from study.impostor import analytic
 from study.impostor.envmap import EnvMap
+from study.impostor.views import Captured
 from study.methods.proxy_sphere import fibonacci_directions
 
 O = np.array([0.0, 1.5, 0.0])  # the reference point, world
@@ -20,7 +21,7 @@ def box_tex():
 
 
 def _trace(m, B, tex, x, d, info=None):
-    tr = m.trace(B, EnvMap(tex, B, info=info), B.vec(x), B.vec(d))
+    tr = m.trace(B, Captured(impostor=EnvMap(tex, B), **(info or {})), B.vec(x), B.vec(d))
     return B.to_numpy(tr.l).astype(float), B.to_numpy(tr.shown).astype(float), B.numpy(tr.valid).astype(bool)
 
 
@@ -30,7 +31,7 @@ def _trace(m, B, tex, x, d, info=None):
     ids=["fitted-to-impostor", "room-from-info"],
 )
 def test_proxy_box_is_exact_when_the_proxy_is_the_room(box_tex, info, B):
-    """Proxy = the room (from env.info, or fitted to the impostor's axis distances): the lookup direction is the
+    """Proxy = the room (from Captured.room, or fitted to the impostor's axis distances): the lookup direction is the
     exact hit's direction to float32 precision (≤ 1e-3°), and the shown point is off only by the bilinear
     interpolation of distance (texel precision: p99 < 0.02°), for origins anywhere up to 1.2 m from o."""
     x, d = analytic.random_rays(20_000, extent=1.2, seed=10)
@@ -83,7 +84,7 @@ def test_proxy_sphere_fit_is_the_mean_room_distance(box_tex):
 
     B = backends.get("numpy")
     a = fitted_radius(B, EnvMap(box_tex, B))
-    b = fitted_radius(B, EnvMap(box_tex, B, info={"reference": O, "room": (O + BOX_LO, O + BOX_HI)}))
+    b = fitted_radius(B, Captured(impostor=EnvMap(box_tex, B), reference=O, room=(O + BOX_LO, O + BOX_HI)))
     assert abs(a - b) / b < 0.005 and 1.5 < b < 3.2
     w = fibonacci_directions(1000)
     np.testing.assert_allclose(np.linalg.norm(w, axis=1), 1.0)

@@ -1,5 +1,7 @@
 """ssr: screen-space ray tracing through the camera's depth buffer (Embree) of the small room, against Embree."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from conftest import small_scene_dict
@@ -9,6 +11,7 @@ from study import methods
 from study.impostor import analytic
 from study.impostor.envmap import EnvMap
 from study.impostor.screen import ScreenView, depth_buffer
+from study.impostor.views import Captured
 from study.measure import outcomes
 from study.reference.embree import Tracer
 from study.scene import scene_from_dict
@@ -42,14 +45,11 @@ def _rays(s, tracer, o, n=3000, seed=3):
 
 def _env(B, s, tracer, o, colour):
     lo, hi = np.asarray(s.room.min) - o, np.asarray(s.room.max) - o
-    return EnvMap(
-        analytic.box_impostor(32, lo, hi),
-        B,
-        info={
-            "reference": o,
-            "room": (s.room.min, s.room.max),
-            "screen": ScreenView.of_scene(s, colour, tracer, B),
-        },
+    return Captured(
+        impostor=EnvMap(analytic.box_impostor(32, lo, hi), B),
+        reference=o,
+        room=(s.room.min, s.room.max),
+        screen=ScreenView.of_scene(s, colour, tracer, B),
     )
 
 
@@ -58,7 +58,7 @@ def _trace(B, env, x, d, **kw):
     with np.errstate(all="ignore"):
         tr = m.trace(B, env, B.vec(x), B.vec(d))
     return (
-        m,
+        float(np.mean(B.numpy(tr.lookups))),  # lookups the rays spent, on average
         B.to_numpy(tr.shown).astype(float),
         B.to_numpy(tr.radiance).astype(float),
         B.numpy(tr.valid).astype(bool),
@@ -88,8 +88,8 @@ def test_ssr_finds_the_exact_hit_on_screen_and_says_no_hit_off_screen(room, B):
     env = _env(B, s, tracer, o, colour)
     off = outcomes.off_screen(s.camera, exact + o)
     assert 0.3 < off.mean() < 0.8  # both kinds are well represented
-    m, shown, rad, valid = _trace(B, env, x, d, fallback="none")  # screen-space alone
-    z = (exact + o - np.asarray(s.camera.eye)) @ env.info["screen"].forward
+    spent, shown, rad, valid = _trace(B, env, x, d, fallback="none")  # screen-space alone
+    z = (exact + o - np.asarray(s.camera.eye)) @ env.screen.forward
     foot = z * 2 * np.tan(np.radians(s.camera.fov) / 2) / W  # one pixel at the hit's depth
     err = np.linalg.norm(shown - exact, axis=1)
     assert np.mean(err[~off] <= 1.5 * foot[~off]) >= 0.96
@@ -98,7 +98,7 @@ def test_ssr_finds_the_exact_hit_on_screen_and_says_no_hit_off_screen(room, B):
         np.isnan(shown[off & ~valid]).all() and valid[off].mean() <= 0.005
     )  # no hit, except at the very edge:
     assert np.all(err[off & valid] <= foot[off & valid])  # there within a pixel of the hit
-    assert 1 < m.lookups_per_ray() < 2 * W  # steps actually taken, not the budget
+    assert 1 < spent < 2 * W < methods.make("ssr").lookups_per_ray()  # steps actually taken, not the budget
     _, shown_fb, _, valid_fb = _trace(B, env, x, d)  # the default: proxy_box fallback
     err = np.linalg.norm(shown_fb - exact, axis=1)
     assert valid_fb.all() and np.mean((err <= 1.5 * np.abs(foot)) | (err < 3e-3)) >= 0.97  # float32: mm
@@ -112,15 +112,15 @@ def test_ssr_misses_what_the_camera_cannot_see_and_a_small_budget_shows(room, B)
     x, d, exact = _rays(s, tracer, o, n=800)
     off = outcomes.off_screen(s.camera, exact + o)
     env = _env(B, s, tracer, o, colour)
-    scr = env.info["screen"]
+    scr = env.screen
     shifted = ScreenView(depth_buffer(s, tracer) + 0.5, colour, s.camera, o, B)
-    bad = EnvMap(
-        analytic.box_impostor(8, [-2, -1.5, -2], [2, 1.5, 2]), B, info={**env.info, "screen": shifted}
+    bad = dataclasses.replace(
+        env, impostor=EnvMap(analytic.box_impostor(8, [-2, -1.5, -2], [2, 1.5, 2]), B), screen=shifted
     )
     _, shown, _, _ = _trace(B, bad, x, d, fallback="none")
     assert np.mean(np.linalg.norm(shown - exact, axis=1)[~off] < 0.1) < 0.5
-    m, shown, _, valid = _trace(B, env, x, d, max_steps=2, fallback="none")
-    assert valid[~off].mean() < 0.5 and m.lookups_per_ray() <= 3
+    spent, shown, _, valid = _trace(B, env, x, d, max_steps=2, fallback="none")
+    assert valid[~off].mean() < 0.5 and spent <= 3
     assert scr.width == W
 
 
@@ -132,8 +132,8 @@ def test_numpy_and_llvm_agree(room):
     out = []
     for name in ("numpy", "llvm"):
         B = backends.get(name)
-        m, shown, rad, valid = _trace(B, _env(B, s, tracer, o, colour), x, d, fallback="localized")
-        out.append((shown, rad, valid, m.lookups_per_ray()))
+        spent, shown, rad, valid = _trace(B, _env(B, s, tracer, o, colour), x, d, fallback="localized")
+        out.append((shown, rad, valid, spent))
     (s0, _, v0, c0), (s1, _, v1, c1) = out
     assert np.mean(v0 == v1) >= 0.998 and abs(c0 - c1) < 0.5
     both = v0 & v1

@@ -13,10 +13,11 @@ Bandwidth
     bytes read + written per second by ``y = x + 1`` over ``copy_floats`` float32s (one read, one write each).
 Floor of a method (:func:`method_floor`)
     f₁ · (1-channel fetch cost) + f₄ · (4-channel fetch cost) + bytes per ray / bandwidth, per ray, with
-    f₁ = ``lookups_per_ray()`` + 1 (every counted lookup reads the distance texture, plus the origin check of
-    ``Method.trace``), f₄ = 1 (the colour at the shown point; a 3-channel texture is stored as 4 on CUDA) and
-    :data:`BYTES_PER_RAY` (origin and direction read, the bench's outputs written). The pattern's fetch cost
-    is taken for the batch: coherent for the scene's rays, random for synthetic ones.
+    f₁ = ``lookups_per_ray(res)`` + 1 (the method's bound at the bench's cube resolution: every counted lookup
+    reads the distance texture, plus the origin check of ``Method.trace``), f₄ = 1 (the colour at the shown
+    point; a 3-channel texture is stored as 4 on CUDA) and :data:`BYTES_PER_RAY` (origin and direction read, the
+    bench's outputs written). The pattern's fetch cost is taken for the batch: coherent for the scene's rays,
+    random for synthetic ones.
 """
 
 from __future__ import annotations
@@ -111,10 +112,10 @@ def measure(
     return out
 
 
-def method_floor(method, floors: dict, pattern: str, rays: int) -> float:
-    """The floor (seconds) of ``method`` on ``rays`` rays: fetches × fetch cost + bytes / bandwidth (see the
-    module docstring); ``pattern`` is ``"coherent"`` or ``"random"``."""
-    f1 = method.lookups_per_ray() + 1
+def method_floor(method, floors: dict, pattern: str, rays: int, res: int | None = None) -> float:
+    """The floor (seconds) of ``method`` on ``rays`` rays at cube resolution ``res``: fetches × fetch cost + bytes /
+    bandwidth (see the module docstring); ``pattern`` is ``"coherent"`` or ``"random"``."""
+    f1 = method.lookup_bound(res) + 1
     per_ray = (
         f1 / floors[f"fetch_1ch_{pattern}"]
         + 1 / floors[f"fetch_4ch_{pattern}"]

@@ -255,5 +255,5 @@ def with_floor(row: dict, m: Method, floors: dict | None, b: Batch) -> dict:
     method's time over its floor; 1 = at the floor); empty where no floor was measured (numpy)."""
     if not floors:
         return {**row, "floor_ms_per_frame": "", "x_floor": ""}
-    fl = floor_model.method_floor(m, floors, batch_pattern(b), FRAME) * 1e3
+    fl = floor_model.method_floor(m, floors, batch_pattern(b), FRAME, int(row["cube_res"])) * 1e3
     return {**row, "floor_ms_per_frame": fl, "x_floor": row["ms_per_frame"] / fl}

@@ -12,7 +12,6 @@ numpy is timed on at most ``numpy_max_rays`` rays (and skipped beyond 4× that i
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 from study import backend as backends
 from study import methods as registry
@@ -20,11 +19,11 @@ from study.bench.batches import closeup_rays, distance_texels, room_triangles, s
 from study.bench.timing import Exact, mitsuba_variant, rate_row, time_method
 from study.measure.case import env_info
 
-if TYPE_CHECKING:
-    from study.bench.run import BenchOptions
+#: ``opt`` below: the bench's options, a :class:`study.bench.run.BenchOptions` (not imported: ``run`` imports this
+#: module, and study's import graph has no cycle, not even through a type annotation).
 
 
-def knob_values(opt: BenchOptions) -> list:
+def knob_values(opt) -> list:
     """Values of the knob study: the focus method's ladder and ``opt.knob_extra``, sorted; each one checked
     (an invalid value is a StudyError). Empty for a method without a knob."""
     m = registry.make(opt.focus)
@@ -36,7 +35,7 @@ def knob_values(opt: BenchOptions) -> list:
     return values
 
 
-def scaling_rows(scene, opt: BenchOptions, names, o, tex, exact: Exact, log) -> list[dict]:
+def scaling_rows(scene, opt, names, o, tex, exact: Exact, log) -> list[dict]:
     """Cost (ms per call) vs rays, knob value, cube resolution, triangles; numpy only up to numpy_max_rays."""
     rows = []
     fast = [n for n in names if n != "numpy"]

@@ -19,6 +19,7 @@ import time
 import numpy as np
 
 from study.impostor.envmap import EnvMap
+from study.impostor.views import Captured
 from study.reference import mitsuba as mitsuba_ref
 from study.reference.embree import Tracer
 
@@ -62,15 +63,16 @@ def rate_row(base: dict, seconds: float, rays: int) -> dict:
 def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None):
     """(call, finish) for one method on one backend: call() traces (or replays) and returns the outputs.
 
-    ``info`` is the scene knowledge methods may use (room, reference point). A method that searches several
-    layers gets a copy of the impostor as each layer (the bench times lookups; texel values do not change their
-    cost), so its textures still come in through the frozen function's arguments. The copy is a second EnvMap,
-    not ``env`` itself: ``env.info["layers"] = [env]`` would be a reference cycle, and Dr.Jit textures freed by
-    the garbage collector during a later recording abort the process."""
-    env = EnvMap(tex_np, B, info=info)
+    The method gets a :class:`~study.impostor.views.Captured` with ``info``, the scene knowledge (``reference``,
+    ``room``), and with ``fallback`` set: a method that searches several layers gets a copy of the impostor as each
+    layer (the bench times lookups; texel values do not change their cost), so its textures still come in through
+    the frozen function's arguments; probe sets and the camera's buffer are not captured, so ``multi_probe`` and
+    ``ssr`` are timed on their fallbacks (the impostor as the only probe; every ray to the fallback method)."""
+    env = EnvMap(tex_np, B)
     layer = EnvMap(tex_np, B) if m.layers_needed() > 1 else None
-    if layer is not None:
-        env.info["layers"] = [layer] * m.layers_needed()
+    views = Captured(
+        impostor=env, layers=(layer,) * m.layers_needed() if layer else (), fallback=True, **(info or {})
+    )
     X, RR = B.vec(x), B.vec(R)
     B.eval(X.x, X.y, X.z, RR.x, RR.y, RR.z)
 
@@ -78,7 +80,7 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
         env.tex, env.dist = tex, dist
         if layer is not None:
             layer.tex, layer.dist = tex, dist
-        t = m.trace(B, env, X, RR)
+        t = m.trace(B, views, X, RR)
         return t.shown, t.radiance, t.ratio, t.valid
 
     fn = B.freeze(trace) if frozen else trace

@@ -41,7 +41,12 @@ def _setup(config: str, backend: str, cache: str | None):
     key = (str(config), backend, cache)
     if key not in _SETUPS:
         cfg, scene, methods = load_caustic_config(config)
-        _SETUPS[key] = (cfg, scene, methods, CausticSetup(cfg, scene, backend=backend, cache=Cache(cache)))
+        _SETUPS[key] = (
+            cfg,
+            scene,
+            methods,
+            CausticSetup(cfg, scene, backend=backend, cache=Cache(cache), methods=methods),
+        )
     return _SETUPS[key]
 
 

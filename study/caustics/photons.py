@@ -30,6 +30,7 @@ from study import backend as backends
 from study.caustics.lightmap import UVMap
 from study.errors import StudyError
 from study.impostor.envmap import EnvMap
+from study.impostor.views import Captured
 from study.methods import Method
 from study.optics import interfaces as optics
 from study.reference.embree import Tracer
@@ -117,10 +118,12 @@ def _photons(scene: Scene, res: int):
 
 # ---------------------------------------------------------------------------------------------- caustic map
 def build_caustic_map(
-    scene: Scene, method: Method, env: EnvMap, uvmap: UVMap, *, res: int = 64
+    scene: Scene, method: Method, env: Captured | EnvMap, uvmap: UVMap, *, res: int = 64
 ) -> CausticMap:
-    """The caustic map of ``scene``'s sphere lit by its point light, photon hits localized by ``method`` on the
-    backend of ``env`` (which must be the backend of ``uvmap`` too). ``seconds`` holds the phase times."""
+    """The caustic map of ``scene``'s sphere lit by its point light, photon hits localized by ``method`` in the
+    views ``env`` (:class:`~study.impostor.views.Captured`, as :func:`study.measure.case.capture_views` makes them;
+    a bare impostor: the methods' fallbacks) on their backend (which must be the backend of ``uvmap`` too).
+    ``seconds`` holds the phase times."""
     if scene.object.material.type != "dielectric":
         raise StudyError("caustic maps need a dielectric object", key="object.material")
     B = env.B
@@ -193,7 +196,7 @@ def exact_caustic_map(scene: Scene, tracer: Tracer, *, res: int = 64) -> Caustic
 
 
 def time_caustic_map(
-    scene: Scene, method: Method, env: EnvMap, uvmap: UVMap, *, res: int, repeats: int = 5
+    scene: Scene, method: Method, env: Captured | EnvMap, uvmap: UVMap, *, res: int, repeats: int = 5
 ) -> float:
     """Median seconds to build one caustic map (after one warm-up build, which also traces Dr.Jit kernels)."""
     build_caustic_map(scene, method, env, uvmap, res=res)

@@ -32,8 +32,7 @@ from study.caustics import photons as caustics
 from study.errors import StudyError
 from study.harness.config import MethodSpecs, configured_scene, expand_methods
 from study.impostor.analytic import angle_deg
-from study.impostor.envmap import EnvMap
-from study.measure.case import impostor, knob_columns
+from study.measure.case import capture_views, impostor, knob_columns
 from study.methods import Method
 from study.optics import interfaces as optics
 from study.reference.embree import Tracer
@@ -281,7 +280,16 @@ def caustic_image_errors(
 class CausticSetup:
     """Everything shared by the rows of a sweep: impostor, uv map, receivers, albedo, Mitsuba references."""
 
-    def __init__(self, cfg: CausticConfig, scene: Scene, *, backend: str, cache: Cache, mitsuba: bool = True):
+    def __init__(
+        self,
+        cfg: CausticConfig,
+        scene: Scene,
+        *,
+        backend: str,
+        cache: Cache,
+        mitsuba: bool = True,
+        methods: list[Method] = (),
+    ):
         self.cfg, self.scene = cfg, scene
         if scene.environment.type != "box":  # light maps are laid out on the box room's six walls and columns
             raise StudyError(
@@ -293,7 +301,8 @@ class CausticSetup:
         self.tracer = make_tracer(scene.mesh())
         self.B = backends.get(backend)
         self.imp = impostor(sc, cache, self.tracer)
-        self.env = EnvMap(self.imp.texels(), self.B)
+        # what the methods search, as a case captures it (scene knowledge, layers, probes, the camera's buffer)
+        self.env = capture_views(sc, list(methods), self.imp, self.B, cache=cache, tracer=self.tracer)
         self.uvmap = lightmap.UVMap(lightmap.uv_map_texels(scene, cp.cube_res, self.tracer), self.B)
         self.frames = lightmap.SurfaceFrames.of(scene.mesh())
         self.area = self.frames.size_u * self.frames.size_v / cp.lightmap_res**2

@@ -283,13 +283,15 @@ def caustics_sweep(
 @app.command("methods")
 @guarded()
 def list_methods():
-    """List the registered localization methods and their parameters."""
+    """List the registered localization methods, their parameters (with what each one means) and knobs."""
     for name in methods.names():
         cls = methods.REGISTRY[name]
-        params = ", ".join(f"{k}={f.default!r}" for k, f in cls.Params.model_fields.items())
+        fields = cls.Params.model_fields
+        params = ", ".join(f"{k}={f.default!r}" for k, f in fields.items())
         knob = (
             f"  knob: {cls.knob.param} ∈ {{{', '.join(map(str, cls.knob.ladder))}}}"
             if cls.knob
             else "  knob: none"
         )
-        console.print(f"{name}({params})\n{knob}", highlight=False, soft_wrap=True)
+        lines = [f"  {k}: {f.description}" for k, f in fields.items() if f.description]
+        console.print("\n".join([f"{name}({params})", *lines, knob]), highlight=False, soft_wrap=True)

@@ -107,7 +107,7 @@ def estimate(scene: Scene, methods: list[Method], *, impostor: bool = True) -> E
     rate = MITSUBA_SAMPLES_PER_S * 4 / max(r.max_depth + 2 * (glass - 1), 4)
     texels = 6 * r.cube_res**2
     layers = max((m.layers_needed() for m in methods), default=1)
-    lookups = sum(float(m.lookups_per_ray()) for m in methods)
+    lookups = sum(m.lookup_bound(r.cube_res) for m in methods)  # bounds: no method spends more
     sub_key = "render.supersample" if r.supersample > 1 else "camera.width"
     mem = {
         sub_key: sub * BYTES_PER_SUBPIXEL + rays * BYTES_PER_OBJECT_RAY,

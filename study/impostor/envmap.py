@@ -14,13 +14,12 @@ class EnvMap:
     The channels of a distance impostor are (R, G, B, distance). The last channel (distance) is kept in a texture
     of its own, ``dist``: the search reads only distances, so each of its lookups fetches one float per texel
     instead of four (a quarter of the texture traffic); ``tex`` holds the other channels. Every channel is
-    filtered on its own, so the values are the same as from one texture. ``info`` is a small record of scene
-    knowledge that some methods use (keys documented in :mod:`study.methods.base`); empty when nothing is known.
+    filtered on its own, so the values are the same as from one texture. What methods know besides the impostor
+    (other views, the scene) comes with it in a :class:`study.impostor.views.Captured`.
     """
 
-    def __init__(self, texels: np.ndarray, B: Backend, info: dict | None = None):
+    def __init__(self, texels: np.ndarray, B: Backend):
         self.B, self.res, self.channels = B, texels.shape[1], texels.shape[-1]
-        self.info = dict(info or {})
         self.tex = B.texture(texels[..., :-1]) if self.channels > 1 else None  # colour channels
         self.dist = B.texture(texels[..., -1:])  # distance |v'|
 

@@ -16,14 +16,23 @@ view                            depth, radiance, projection
 ==============================  =====================================================================================
 
 A method says which views it searches with :meth:`study.methods.base.Method.views_needed`, a :class:`Views`
-request; the caller (:func:`study.measure.case.run_case`) merges the requests of every method of a case
-(:meth:`Views.merge`), captures what was asked, and puts it into ``env.info`` (keys in :mod:`study.methods.base`):
-``"layers"`` (list of EnvMap), ``"probes"`` ({:class:`ProbeSpec`: ProbeSet}) and ``"screen"`` (ScreenView).
+request; the caller merges the requests of every method (:meth:`Views.merge`), captures what was asked and hands
+the methods one :class:`Captured`: the impostor, the views captured besides it and the scene knowledge (reference
+point, room box, open environment). Callers: :func:`study.measure.case.capture_views` (cases and caustic maps) and
+:func:`study.bench.timing.method_runner` (the bench: copies of the impostor as layers, nothing else).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from study.errors import StudyError
+from study.impostor.envmap import EnvMap
+from study.impostor.screen import ScreenView
 
 Vec3 = tuple[float, float, float]
 
@@ -33,7 +42,7 @@ class ProbeSpec:
     """Where the probes of a :class:`~study.impostor.probes.ProbeSet` stand (besides probe 0, the reference point).
 
     ``points`` (world coordinates, metres) when given; otherwise the centres of a ``grid`` = (nx, ny, nz) of equal
-    cells filling the environment's bounds (``env.info["room"]``), less those inside geometry or closer than
+    cells filling the environment's bounds (``Captured.room``), less those inside geometry or closer than
     ``clearance`` metres to a surface (:func:`study.impostor.probes.probe_points`)."""
 
     grid: tuple[int, int, int] = (2, 2, 2)
@@ -59,3 +68,97 @@ class Views:
             probes=probes,
             screen=any(r.screen for r in requests),
         )
+
+
+@dataclass(frozen=True, eq=False)
+class Captured:
+    """What a method is given to search: the impostor, the other views captured for it, and scene knowledge.
+
+    impostor   the distance impostor from the reference point o (:class:`~study.impostor.envmap.EnvMap`); a
+               Captured answers ``lookup``, ``distance``, ``res``, ``B``, ``tex`` and ``dist`` as the impostor
+               does, so a method's search reads it like an EnvMap
+    layers     depth layers from o, nearest first (:mod:`study.impostor.layers`); () when none were captured
+    probes     {:class:`ProbeSpec`: ProbeSet} cube maps at several points, probe 0 the impostor
+               (:mod:`study.impostor.probes`)
+    screen     the camera's depth and colour buffer (:class:`~study.impostor.screen.ScreenView`), or None
+    reference  o in world coordinates (None: unknown; methods then take the origin)
+    room       the room box (min, max), world coordinates: ``reference.box`` where given, else the environment's
+               bounds (None: unknown; proxies then fit a box or sphere to the impostor's own distances)
+    open       some texels of the impostor see no surface (distance ``cubemap.FAR``): the escape rule of
+               :meth:`study.methods.base.Method.trace` applies
+    fallback   what to do when a method asks for a view that is missing: False (cases, caustic maps) → a
+               StudyError naming the view; True (a bare impostor, as in the analytic tests, and the bench, which
+               times lookups) → the method's documented fallback (the impostor as the only layer or probe, no
+               screen buffer)
+    """
+
+    impostor: EnvMap
+    layers: tuple[EnvMap, ...] = ()
+    probes: Mapping[ProbeSpec, Any] = field(default_factory=dict)  # ProbeSet (probes.py imports this module)
+    screen: ScreenView | None = None
+    reference: tuple[float, float, float] | None = None
+    room: tuple[Vec3, Vec3] | None = None
+    open: bool = False
+    fallback: bool = False
+
+    @staticmethod
+    def of(env) -> Captured:
+        """``env`` itself when it is a Captured; a bare impostor (an EnvMap) wrapped with ``fallback=True``."""
+        return env if isinstance(env, Captured) else Captured(impostor=env, fallback=True)
+
+    # ------------------------------------------------------------------ the impostor's interface
+    @property
+    def B(self):
+        return self.impostor.B
+
+    @property
+    def res(self) -> int:
+        return getattr(self.impostor, "res", 0)
+
+    @property
+    def tex(self):
+        return self.impostor.tex
+
+    @property
+    def dist(self):
+        return self.impostor.dist
+
+    def lookup(self, v) -> list:
+        return self.impostor.lookup(v)
+
+    def distance(self, v):
+        return self.impostor.distance(v)
+
+    # ------------------------------------------------------------------ scene knowledge and views, checked
+    def origin(self) -> np.ndarray:
+        """o in world coordinates (the origin when unknown)."""
+        return np.asarray(self.reference if self.reference is not None else (0.0, 0.0, 0.0), float)
+
+    def _missing(self, method: str, what: str) -> StudyError:
+        return StudyError(
+            f"method {method!r} needs {what}, which its caller did not capture (views_needed() asks for it)",
+            key="method",
+        )
+
+    def need_layers(self, method: str, n: int) -> list:
+        """The first ``n`` depth layers; without layers, the impostor alone where one layer is asked for or the
+        Captured falls back."""
+        if len(self.layers) >= n or (self.layers and self.fallback):
+            return list(self.layers[:n])
+        if self.fallback or (n <= 1 and not self.layers):
+            return [self.impostor]
+        raise self._missing(method, f"{n} depth layers (Captured.layers has {len(self.layers)})")
+
+    def need_probes(self, method: str, spec: ProbeSpec):
+        """The probe set ``spec``; None on a fallback Captured without it (the impostor as the only probe)."""
+        if spec in self.probes:
+            return self.probes[spec]
+        if self.fallback:
+            return None
+        raise self._missing(method, f"the probe set {spec} (Captured.probes)")
+
+    def need_screen(self, method: str):
+        """The camera's buffer; None on a fallback Captured without one."""
+        if self.screen is not None or self.fallback:
+            return self.screen
+        raise self._missing(method, "the camera's screen buffer (Captured.screen)")

@@ -15,12 +15,13 @@ import numpy as np
 
 from study import backend as backends
 from study.cache import Cache, content_key
+from study.errors import StudyError
 from study.impostor import probes, screen
 from study.impostor.capture import Impostor, capture_distance, impostor_key, render_cube
 from study.impostor.cubemap import FAR, FAR_MIN
 from study.impostor.envmap import EnvMap
 from study.impostor.layers import layered_impostor
-from study.impostor.views import Views
+from study.impostor.views import Captured, Views
 from study.measure import metrics, outcomes, stats, truth
 from study.methods import Method
 from study.optics import shading
@@ -92,15 +93,66 @@ def camera_render(scene: Scene, cache: Cache, *, with_object: bool) -> np.ndarra
 
 
 def env_info(scene: Scene) -> dict:
-    """The scene knowledge methods may use (``env.info``, keys in study.methods.base): reference point, room (the
-    proxy box: ``reference.box`` where given, else the environment's bounds)."""
+    """The scene knowledge methods may use (fields of :class:`~study.impostor.views.Captured`): reference point,
+    room (the proxy box: ``reference.box`` where given, else the environment's bounds)."""
     box = scene.reference.box or tuple(tuple(map(float, b)) for b in scene.bounds())
-    return {"reference": np.asarray(scene.reference.point, float), "room": box}
+    return {"reference": tuple(map(float, scene.reference.point)), "room": box}
+
+
+def capture_views(
+    scene: Scene,
+    methods: list[Method],
+    imp: Impostor,
+    B,
+    *,
+    cache: Cache,
+    tracer: Tracer,
+    background: np.ndarray | None = None,
+) -> Captured:
+    """What ``methods`` search, captured for ``scene``: the impostor ``imp`` on backend ``B``, the views their
+    :meth:`~study.methods.base.Method.views_needed` ask for (depth layers, probe sets, the camera's buffer, whose
+    colour is ``background``: the camera's render without the object, rendered here when not given) and the scene
+    knowledge; a method asking for a view that is missing is then an error, not a fallback."""
+    o = np.asarray(scene.reference.point, float)
+    views = Views.merge(*(m.views_needed() for m in methods))
+    layers, probe_sets, scr = (), {}, None
+    if views.layers > 1:  # depth layers for the methods that search them
+        tex = layered_impostor(scene, cache, views.layers, imp.radiance, tracer)
+        layers = tuple(EnvMap(t, B) for t in tex)
+    for spec in views.probes:  # cube maps at several points (probe 0: the impostor)
+        texels, centres = probes.capture_probes(scene, spec, cache, imp.texels(), tracer)
+        probe_sets[spec] = probes.ProbeSet.around(texels, centres, o, B)
+    if views.screen:  # the camera's depth + colour (no object)
+        if background is None:
+            background = camera_render(scene, cache, with_object=False)
+        scr = screen.ScreenView.of_scene(scene, background, tracer, B)
+    return Captured(
+        impostor=EnvMap(imp.texels(), B),
+        layers=layers,
+        probes=probe_sets,
+        screen=scr,
+        open=open_environment(imp),
+        **env_info(scene),
+    )
 
 
 def open_environment(imp: Impostor) -> bool:
     """Whether some texels of the impostor see no surface (distance FAR: an open environment)."""
     return bool(np.any(imp.distance >= FAR_MIN))
+
+
+def checked_lookups(m: Method, spent: np.ndarray, res: int) -> tuple[float, float]:
+    """(mean, bound) of the lookups the rays of one trace spent; a ray over ``m.lookups_per_ray(res)`` is an
+    error of the method (its bound is what budgets and floors count)."""
+    bound = m.lookup_bound(res)
+    spent = np.asarray(spent, np.float64)
+    if spent.size and not spent.max() <= bound * (1 + 1e-6):
+        raise StudyError(
+            f"method {m.name!r} spent {spent.max():g} lookups on a ray, over its lookups_per_ray({res}) = "
+            f"{bound:g}",
+            key="method",
+        )
+    return (float(spent.mean()) if spent.size else 0.0), bound
 
 
 def knob_columns(m: Method) -> dict:
@@ -123,8 +175,6 @@ def run_case(
     case_id: str = "",
     keep_images: bool = True,
 ) -> CaseOutput:
-    from study.errors import StudyError
-
     cache = cache or Cache(None)
     B = backends.get(backend)
     tracer = make_tracer(scene.mesh())
@@ -243,26 +293,13 @@ def run_case(
                 "valid_fraction": 1.0,
                 "ratio_residual_median": 0.0,
                 "lookups_per_ray": 1 if name == "oracle_map" else 0,
+                "lookups_bound": 1 if name == "oracle_map" else 0,
                 "seconds": 0.0,
             }
         )
 
     # ------------------------------------------------------------------ every method on the same rays
-    env = EnvMap(imp.texels(), B, info={**env_info(scene), "open": open_environment(imp)})
-    views = Views.merge(*(m.views_needed() for m in methods))  # what the methods search besides env
-    if views.layers > 1:  # depth layers for the methods that search them
-        env.info["layers"] = [
-            EnvMap(t, B) for t in layered_impostor(scene, cache, views.layers, imp.radiance, tracer)
-        ]
-    if views.probes:  # cube maps at several points (probe 0: env)
-        env.info["probes"] = {
-            spec: probes.ProbeSet.around(
-                *probes.capture_probes(scene, spec, cache, imp.texels(), tracer), o, B
-            )
-            for spec in views.probes
-        }
-    if views.screen:  # the camera's depth + colour (no object)
-        env.info["screen"] = screen.ScreenView.of_scene(scene, background, tracer, B)
+    env = capture_views(scene, methods, imp, B, cache=cache, tracer=tracer, background=background)
     offscreen = outcomes.off_screen(scene.camera, exact)  # exact hits the camera's frame does not show
     x, R = B.vec(rays.x - o), B.vec(rays.R)
     for m in methods:
@@ -278,11 +315,19 @@ def run_case(
             tr.radiance.z,
             tr.ratio,
             tr.valid,
+            tr.lookups,
         )  # one kernel for all outputs, not one per numpy copy
         shown = B.to_numpy(tr.shown).astype(np.float64) + o
         rad = B.to_numpy(tr.radiance).astype(np.float64)
         ratio, valid = B.numpy(tr.ratio), B.numpy(tr.valid).astype(bool)
         seconds = time.perf_counter() - t0
+        lookups, bound = checked_lookups(m, B.numpy(tr.lookups), scene.render.cube_res)
+        if not np.isfinite(shown[valid]).all():
+            raise StudyError(
+                f"method {m.name!r} returned {int((~np.isfinite(shown[valid])).any(-1).sum())} non-finite "
+                "point(s) on rays it marked valid (NaN or inf)",
+                key="method",
+            )
         img = shading.composite(rays, np.nan_to_num(rad) * F, background)
         ang = metrics.angular_error(rays.x, shown, exact)
         oc = classify(shown)
@@ -300,7 +345,8 @@ def run_case(
             **image_columns(img, fmap=fmap),
             "valid_fraction": float(valid.mean()),
             "ratio_residual_median": float(np.nanmedian(np.abs(ratio - 1))),
-            "lookups_per_ray": m.lookups_per_ray(),
+            "lookups_per_ray": lookups,
+            "lookups_bound": bound,
             "seconds": seconds,
         }
         out.rows.append(row)

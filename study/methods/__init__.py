@@ -14,7 +14,17 @@ import os
 import pkgutil
 
 from study.errors import StudyError
-from study.methods.base import REGISTRY, Knob, Localization, Method, Trace, TracingMethod, register
+from study.methods.base import (
+    REGISTRY,
+    RESERVED,
+    Found,
+    Knob,
+    Localization,
+    Method,
+    Trace,
+    TracingMethod,
+    register,
+)
 
 for _m in pkgutil.iter_modules(__path__):
     if _m.name != "base":
@@ -30,15 +40,35 @@ def load_plugins(modules: list[str] | tuple[str, ...] = ()) -> list[str]:
     names = [m for m in os.environ.get(PLUGIN_ENV, "").split(",") if m.strip()] + list(modules)
     names = list(dict.fromkeys(n.strip() for n in names))
     for n in names:
-        try:
-            importlib.import_module(n)
-        except ImportError as err:
-            raise StudyError(f"cannot import the plugin module ({err})", key=n) from None
+        _import_plugin(n, lambda n=n: importlib.import_module(n))
     if names:
         os.environ[PLUGIN_ENV] = ",".join(names)
     for ep in importlib.metadata.entry_points(group="study.methods"):
-        ep.load()
+        _import_plugin(ep.value, ep.load)
     return names
+
+
+def _import_plugin(name: str, load) -> None:
+    """``load()`` a plug-in module; whatever goes wrong (it cannot be found, has a syntax error, raises or exits
+    while imported, registers a taken or reserved name) is one StudyError line naming the module."""
+    try:
+        load()
+    except StudyError as err:
+        raise StudyError(err.detail, key=name) from None
+    except SyntaxError as err:
+        where = f"{err.filename}, line {err.lineno}" if err.filename else f"line {err.lineno}"
+        raise StudyError(f"syntax error in the plugin module ({where}: {err.msg})", key=name) from None
+    except ImportError as err:
+        raise StudyError(f"cannot import the plugin module ({err})", key=name) from None
+    except SystemExit as err:
+        raise StudyError(
+            f"the plugin module called sys.exit({err.code!r}) while imported", key=name
+        ) from None
+    except Exception as err:
+        first = (str(err).strip().splitlines() or [""])[0][:160]
+        raise StudyError(
+            f"the plugin module raised {type(err).__name__} while imported: {first}", key=name
+        ) from None
 
 
 def names() -> list[str]:
@@ -58,6 +88,8 @@ def all_methods() -> list[Method]:
 
 
 __all__ = [
+    "Found",
+    "RESERVED",
     "Knob",
     "Localization",
     "Method",

@@ -18,5 +18,5 @@ class Classical(Method):
     def localize(self, B, env, x, R):
         return Localization(l=R, valid=B.abs(R.x) >= 0.0)  # always a hit: the environment in direction R
 
-    def lookups_per_ray(self) -> int:
-        return 1
+    def lookups_per_ray(self, res: int | None = None) -> float:
+        return 1  # the shown point

@@ -1,9 +1,9 @@
 """Layered distance maps (GPU Gems 3 ch. 17; Hakura and Snyder 2001): all depth layers marched together, texel by
 texel, and the first entry into a solid kept.
 
-Layers come from ``env.info["layers"]`` (:mod:`study.impostor.layers`: layer k holds the (k+1)-th surface seen from the
+Layers come from ``Captured.layers`` (:mod:`study.impostor.layers`: layer k holds the (k+1)-th surface seen from the
 reference point o, channels R, G, B, jump, distance); on a bare impostor without layers, the impostor itself is
-the only layer.
+the only layer (a caller that captures views and lacks them is a StudyError).
 
 Search: the linear search of :mod:`study.methods.linear_secant` (the t = d/(d + a) parameterization, samples in equal
 angles along the arc, no farther apart than 1/``steps_per_texel`` texels, n = ⌈π res ``steps_per_texel``⌉ for a half
@@ -20,25 +20,25 @@ side). An entry is dropped when the ray leaves to the far side within ``hold`` t
 inside that long, or when it comes back out in front (it clipped an edge) and then nothing changes for ``hold``
 texels (the skin is a saddle that a ray can cut twice within a texel). The kept entry's layer is refined by
 ``iterations`` Illinois secant steps (search core :func:`~study.methods.search.refine`); one lookup at the refined
-point reads the shown point's distance and radiance on that layer (``trace`` is overridden for that). valid: an
-entry was found.
+point reads the shown point's distance and radiance on that layer (:meth:`Layered.search`). valid: an entry was
+found.
 
 Why not the paper's false position on each layer: on the layer that holds a column top (seen from below), a ray
 coming down onto the top first crosses the skin along the top's silhouette edge and then the top itself; false
 position converges on the skin (the first root of its first bracket) and never reaches the top (see
 tests/test_methods_layered.py). Why not the first two sign changes of each layer, each tested against the jump
-channel, nearest clean one kept (this method until issue 17): a uniform 30-step search in t steps over the thin
+channel, nearest clean one kept: a uniform 30-step search in t steps over the thin
 crossing near the column's top edge on 45 % of the rays whose hit o does not see (fig5 p0); with 2000 steps 14 %
 stay wrong, as the jump test rejects true top hits within a texel of the edge and a third crossing goes unrecorded;
 the entry rule leaves 2.4 % (scripts/compare_layered.py).
 
 Cost: every layer is looked up at every sample (a vectorized loop of n steps on every ray) and, since the kept
-layer differs between rays, at every secant step and at the final lookup: layers × (1 + n + iterations + 1) per
-ray; n depends on the cube resolution, so :meth:`Layered.lookups_per_ray` reports what the last search spent
-(before any search: the most it can spend, n = ``max_steps``).
+layer differs between rays, at every secant step and at the final lookup: layers × (1 + n + iterations + 1) on
+every ray, which is also :meth:`Layered.lookups_per_ray` (n from the cube resolution; ``max_steps`` when it is
+not given).
 
 Open environments: no-surface texels hold FAR in every layer, so such rays find no entry into a solid and
-escape through :meth:`Method.trace`, as for ``linear_secant``.
+escape in the finishing step of :meth:`Method.trace`, as for ``linear_secant``.
 """
 
 from __future__ import annotations
@@ -51,15 +51,18 @@ from pydantic import Field
 from study.backend import V3
 from study.impostor import cubemap
 from study.impostor.envmap import EnvMap
-from study.methods.base import Knob, Localization, Method, Trace, register
+from study.methods.base import Found, Knob, TracingMethod, register
 from study.methods.linear_secant import TexelMarchParams, march_steps
 from study.methods.search import arc_samples, first_entry, refine, secant_point
 
 
 class Params(TexelMarchParams):  # + steps_per_texel, max_steps
-    layers: Annotated[int, Field(ge=1, le=16)] = 3  # depth layers searched
-    iterations: Annotated[int, Field(ge=0, le=1000)] = 10  # secant steps on the kept entry
-    hold: Annotated[float, Field(ge=0, le=64)] = 4.0  # texels of arc that decide an entry (see above)
+    layers: Annotated[int, Field(ge=1, le=16, description="depth layers searched")] = 3
+    iterations: Annotated[int, Field(ge=0, le=1000, description="secant steps on the kept entry")] = 10
+    hold: Annotated[
+        float,
+        Field(ge=0, le=64, description="texels of arc that decide whether an entry into a solid is kept"),
+    ] = 4.0
 
 
 def _pick(B, e, values):
@@ -71,7 +74,7 @@ def _pick(B, e, values):
 
 
 @register
-class Layered(Method):
+class Layered(TracingMethod):
     name = "layered"
     Params = Params
     knob = Knob("steps_per_texel", (0.25, 0.5, 1.0, 2.0))  # below 1, thin crossings can fall between samples
@@ -79,10 +82,10 @@ class Layered(Method):
     def layers_needed(self) -> int:
         return self.params.layers
 
-    def _search(self, B, env, x, R):
-        """Returns (l, valid, [r, g, b], distance) of the kept hit."""
+    def search(self, B, env, x, R) -> Found:
+        """The kept entry's point, read on its layer (distance and radiance)."""
         p = self.params
-        maps = list(env.info.get("layers") or [env])[: p.layers]
+        maps = env.need_layers(self.name, p.layers)
         # ------------------------------------------------------------- parameterization and samples
         xl = B.length(x)
         a = B.maximum(xl, 1e-6)  # a = |x|
@@ -91,7 +94,6 @@ class Layered(Method):
         n = march_steps(res, p)
         per_texel = n / (math.pi * res) if res else p.steps_per_texel  # samples per texel after the cap
         hold = round(p.hold * per_texel)  # in samples
-        self._spent = len(maps) * (1 + n + p.iterations + 1)
         zero = xl * 0.0
 
         def point(t):  # p(t) = (1 − t) x + t a R
@@ -126,26 +128,13 @@ class Layered(Method):
         l = point(t) / B.maximum(1.0 - t, 1e-7)  # x + R d(t)
         chs = [m.lookup(l) for m in maps]
         ch = [_pick(B, e, [c[i] for c in chs]) for i in range(len(chs[0]))]
-        return l, br.found & B.isfinite(t), ch[:3], ch[-1]
+        dist, lhat = ch[-1], B.normalize(l)
+        spent = zero + float(len(maps) * (1 + n + p.iterations + 1))
+        shown = V3(lhat.x * dist, lhat.y * dist, lhat.z * dist)
+        return Found(l, shown, V3(*ch[:3]), B.length(l) / dist, br.found & B.isfinite(t), spent)
 
-    def localize(self, B, env, x, R):
-        l, valid, _, _ = self._search(B, env, x, R)
-        return Localization(l=l, valid=valid)
-
-    def trace(self, B, env, x, R, *, check_origin: bool = True):
-        """As :meth:`Method.trace` (same origin check), reading the kept layer's distance and radiance."""
-        l, valid, rgb, dist = self._search(B, env, x, R)
-        valid = valid & B.isfinite(B.length(R))
-        if check_origin:
-            valid = valid & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)  # x is an undershoot
-        lhat = B.normalize(l)
-        nan = float("nan")
-        shown = V3(*(B.select(valid, c * dist, nan) for c in (lhat.x, lhat.y, lhat.z)))
-        rad = V3(*(B.select(valid, c, nan) for c in rgb))
-        return Trace(l, shown, rad, B.length(l) / dist, valid)
-
-    def lookups_per_ray(self) -> int:
+    def lookups_per_ray(self, res: int | None = None) -> float:
         # per layer: g(0), the n steps (all of them on every ray), the secant steps and the final lookup (every
-        # layer, as the kept layer differs between rays); n from the last search, max_steps before any
+        # layer, as the kept layer differs between rays)
         p = self.params
-        return getattr(self, "_spent", p.layers * (1 + p.max_steps + p.iterations + 1))
+        return p.layers * (1 + march_steps(res, p) + p.iterations + 1)

@@ -25,8 +25,9 @@ at t = 1; both vanish at the same points. Invalid (NaN shown point) where no cro
 environment surface and the ray never comes out in front of it).
 
 Cost: the vectorized loop runs all n steps on every ray (a ray whose arc ends earlier repeats t = 1; a per-ray
-loop on a GPU would stop there); n depends on the cube resolution, so :meth:`LinearSecant.lookups_per_ray` reports
-what the last search spent (before any search: the most it can spend, with n = ``max_steps``).
+loop on a GPU would stop there): g(0), n steps, ``secant_steps`` and the shown point, 1 + n + secant_steps + 1 on
+every ray, which is also :meth:`LinearSecant.lookups_per_ray` (n from the cube resolution; ``max_steps`` when it is
+not given).
 
 Open environments: samples whose texel holds FAR (no surface) are undershoots, so a ray that leaves the scene
 finds no crossing; :meth:`Method.trace` then lets it escape when its direction R sees no surface from o.
@@ -47,23 +48,23 @@ class TexelMarchParams(BaseModel):
     """The linear search's sampling (shared with ``layered``)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
-    steps_per_texel: Annotated[float, Field(gt=0, le=16)] = (
-        1.0  # samples per texel of arc (≥ 1: none stepped over)
-    )
-    max_steps: Annotated[int, Field(ge=1, le=65536)] = 4096  # cap on the steps for a half turn
+    steps_per_texel: Annotated[
+        float, Field(gt=0, le=16, description="samples per texel of arc (≥ 1: no crossing stepped over)")
+    ] = 1.0
+    max_steps: Annotated[int, Field(ge=1, le=65536, description="cap on the steps of a half-turn arc")] = 4096
 
 
 def march_steps(res: int, p: TexelMarchParams) -> int:
     """Steps for a half-turn arc at cube resolution ``res``: ⌈π res steps_per_texel⌉, at most ``max_steps``
     (``max_steps`` where the map has no texels, as an analytic environment)."""
-    if not res:
+    if not res:  # (also None: the resolution is not known)
         return p.max_steps
     return max(1, min(p.max_steps, math.ceil(math.pi * res * p.steps_per_texel)))
 
 
 class Params(TexelMarchParams):
-    secant_steps: Annotated[int, Field(ge=0, le=100)] = 4  # secant lookups after the linear search
-    illinois: bool = True  # Illinois rule against one-sided stagnation
+    secant_steps: Annotated[int, Field(ge=0, le=100, description="secant steps after the linear search")] = 4
+    illinois: bool = Field(True, description="Illinois rule against one-sided stagnation of the secant steps")
 
 
 @register
@@ -78,8 +79,7 @@ class LinearSecant(Method):
         xl = B.length(x)  # |x|
         a = B.maximum(xl, 1e-6)  # a = |x| (kept > 0: rays from o walk along R itself)
         cos = x.dot(R) / a  # x̂·R
-        n = march_steps(getattr(env, "res", 0), p)
-        self._steps = n
+        n = march_steps(env.res, p)
 
         def g(t):
             pt = x * (1.0 - t) + R * (a * t)  # p(t)
@@ -99,8 +99,6 @@ class LinearSecant(Method):
         l = (x * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)  # x + R d(t)
         return Localization(l=l, valid=br.found & B.isfinite(t))
 
-    def lookups_per_ray(self) -> int:
-        # g(0), the n linear steps (the vectorized loop spends all n on every ray), the secant steps, the shown
-        # point; n from the last search (it depends on the cube resolution), max_steps before any
-        n = getattr(self, "_steps", self.params.max_steps)
-        return 1 + n + self.params.secant_steps + 1
+    def lookups_per_ray(self, res: int | None = None) -> float:
+        # g(0), the n linear steps (the vectorized loop spends all n on every ray), the secant steps, the shown point
+        return 1 + march_steps(res, self.params) + self.params.secant_steps + 1

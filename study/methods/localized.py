@@ -21,9 +21,18 @@ from study.methods.base import Knob, Localization, Method, register
 
 class Params(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-    iterations: Annotated[int, Field(ge=0, le=1000)] = 10  # NITER
-    band_lo: Annotated[float, Field(gt=0, le=1)] = 0.999  # |l|/|l'| below: undershooting
-    band_hi: Annotated[float, Field(ge=1)] = 1.001  # |l|/|l'| above: overshooting
+    iterations: Annotated[
+        int, Field(ge=0, le=1000, description="false-position steps (the listing's NITER)")
+    ] = 10
+    band_lo: Annotated[
+        float,
+        Field(
+            gt=0, le=1, description="|l|/|l'| below this: the guess undershoots (is in front of the surface)"
+        ),
+    ] = 0.999
+    band_hi: Annotated[
+        float, Field(ge=1, description="|l|/|l'| above this: the guess overshoots (lies behind the surface)")
+    ] = 1.001
 
 
 @register
@@ -64,5 +73,5 @@ class Localized(Method):
         l = x + R * dl  # ray equation
         return Localization(l=l, valid=B.isfinite(dl))
 
-    def lookups_per_ray(self) -> int:
+    def lookups_per_ray(self, res: int | None = None) -> float:
         return 3 + self.params.iterations  # |r|, |x'|, one per iteration, the shown point

@@ -2,12 +2,13 @@
 Light Field Probes", I3D 2017, with cube maps of radiance and radial distance): segment by segment, each in a probe
 that sees it, switching probe where the segment passes behind a surface that probe sees.
 
-Probes come from ``env.info["probes"][spec]`` (:class:`study.impostor.probes.ProbeSet`, N cube maps, probe 0 the
+Probes come from ``Captured.probes[spec]`` (:class:`study.impostor.probes.ProbeSet`, N cube maps, probe 0 the
 impostor at o; ``spec`` = :class:`~study.impostor.views.ProbeSpec` of ``grid`` / ``points`` / ``clearance``); on a
-bare impostor without probes, the impostor is the only probe.
+bare impostor without probes, the impostor is the only probe (a caller that captures views and lacks the set is a
+StudyError).
 
 Per ray x + R d (relative to o), starting at d₀ = 0 in the *nearest probe that sees the start point*
-(|p − c_k| ≤ |p − c_k|', an undershoot; every probe is tested, N lookups):
+(|p − c_k| ≤ |p − c_k|', an undershoot; every probe is tested, N lookups; probe 0 where none does):
 
 1. **march** the segment from x + R d₀ on probe k as ``linear_secant`` does on the impostor (the t = d/(d + a)
    parameterization about the probe's centre c_k, samples in equal angles no farther apart than
@@ -31,11 +32,12 @@ In a config, ``grid`` and ``points`` are lists and so must be wrapped once more 
 ``{ name = "multi_probe", grid = [[3, 2, 3]] }``, ``points = [[[-0.9, 2.3, -0.9], [1.0, 2.3, 1.0]]]``.
 
 Shown point of a hit: the point probe k holds in the crossing's direction, c_k + l̂·|l|'_k; its radiance is probe
-k's (``trace`` is overridden for that). Rays whose origin no probe sees are invalid (the origin check of
-:meth:`~study.methods.base.Method.trace`, generalized). Cost, counted per ray for the rounds it takes (a GPU thread
-stops when its ray is resolved; the vectorized march spends all n steps per round): N (choice of the first probe)
-+ per round 1 + n + ``secant_steps`` + 3 (g(0), march, secant, the three nearest texels) + N per switch + 1 (the
-shown point); :meth:`MultiProbe.lookups_per_ray` reports the mean of the last trace (before any: N rounds).
+k's (:meth:`MultiProbe.search`). The origin check of :meth:`~study.methods.base.Method.trace` is generalized
+(:meth:`MultiProbe.sees_origin`): with it, rays whose origin no probe sees are invalid. Cost, counted per ray for
+the rounds it takes (``Trace.lookups``; a GPU thread stops when its ray is resolved; the vectorized march spends all
+n steps per round): N (choice of the first probe) + per round 1 + n + ``secant_steps`` + 3 (g(0), march, secant, the
+three nearest texels) + N per switch + 1 (the shown point); :meth:`MultiProbe.lookups_per_ray` bounds it with N
+rounds, N the grid's cells (or points) and probe 0.
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ from pydantic import Field
 from study.backend import V3
 from study.impostor import cubemap
 from study.impostor.views import ProbeSpec, Views
-from study.methods.base import Knob, Trace, TracingMethod, register
+from study.methods.base import Found, Knob, TracingMethod, register
 from study.methods.linear_secant import TexelMarchParams, march_steps
 from study.methods.search import arc_samples, first_crossing, refine, secant_point
 
@@ -60,16 +62,21 @@ class Params(TexelMarchParams):  # + steps_per_texel, max_steps
         Annotated[int, Field(ge=1, le=8)],
         Annotated[int, Field(ge=1, le=8)],
         Annotated[int, Field(ge=1, le=8)],
-    ] = (2, 2, 2)  # probes on a grid in the environment's bounds
-    points: tuple[Vec3, ...] | None = None  # or at these world points (besides o)
-    clearance: Annotated[float, Field(ge=0, le=10)] = 0.1  # grid probes at least this far from surfaces, m
-    secant_steps: Annotated[int, Field(ge=0, le=100)] = 4  # Illinois steps on each crossing
-    thickness: Annotated[float, Field(ge=0, le=10)] = 0.05  # HIT tolerance, m …
-    slack: Annotated[float, Field(ge=0, le=64)] = 4.0  # … + r·slack/res (texels of arc)
+    ] = Field((2, 2, 2), description="probes at the centres of a grid of cells in the environment's bounds")
+    points: tuple[Vec3, ...] | None = Field(None, description="or probes at these world points (besides o)")
+    clearance: Annotated[
+        float, Field(ge=0, le=10, description="grid probes at least this far from surfaces, metres")
+    ] = 0.1
+    secant_steps: Annotated[int, Field(ge=0, le=100, description="Illinois steps on each crossing")] = 4
+    thickness: Annotated[float, Field(ge=0, le=10, description="HIT tolerance, metres (+ the slack)")] = 0.05
+    slack: Annotated[
+        float,
+        Field(ge=0, le=64, description="HIT tolerance added per metre of range: r·slack/res (texels of arc)"),
+    ] = 4.0
 
 
 class _Single:
-    """The impostor as the only probe (a bare impostor without ``env.info["probes"]``)."""
+    """The impostor as the only probe (a bare impostor without ``Captured.probes``)."""
 
     def __init__(self, env):
         self.env, self.B, self.n, self.res = env, env.B, 1, getattr(env, "res", 0)
@@ -107,6 +114,7 @@ def _sel(B, m, a: V3, b: V3) -> V3:
 class MultiProbe(TracingMethod):
     name = "multi_probe"
     Params = Params
+    ratio_where_valid = True
     knob = Knob("steps_per_texel", (0.25, 0.5, 1.0, 2.0))
 
     def spec(self) -> ProbeSpec:
@@ -128,18 +136,29 @@ class MultiProbe(TracingMethod):
             best, best_d = B.select(ok, k, best), B.select(ok, dist, best_d)
         return best
 
-    def trace(self, B, env, x, R, *, check_origin: bool = True) -> Trace:
+    def _probes(self, env):
+        return env.need_probes(self.name, self.spec()) or _Single(env)
+
+    def sees_origin(self, B, env, x):
+        """Rays whose origin some probe sees (N more lookups, not counted)."""
+        P = self._probes(env)
+        never = B.isfinite(x.x) & ~B.isfinite(x.x)
+        return self._choose(B, P, _finite(B, x), [~never] * P.n) >= 0.0
+
+    def search(self, B, env, x, R) -> Found:
         p = self.params
-        P = (getattr(env, "info", {}).get("probes") or {}).get(self.spec()) or _Single(env)
+        P = self._probes(env)
         N, res = P.n, P.res
         n = march_steps(res, p)
         zero = x.x * 0.0
         never = B.isfinite(zero) & ~B.isfinite(zero)  # all False
-        nan = float("nan")
         # ------------------------------------------------------------- the first probe: nearest that sees x
         untried = [~never for _ in range(N)]
         k = self._choose(B, P, x, untried)
-        active = (k >= 0.0) & B.isfinite(B.length(R))
+        k = B.select(
+            k >= 0.0, k, zero
+        )  # no probe sees x: probe 0 (the origin check of trace may drop the ray)
+        active = B.isfinite(B.length(R)) & B.isfinite(B.length(x))
         R, x = _finite(B, R), _finite(B, x)  # dropped rays (NaN) stay inactive; lookups see no NaN
         untried = [u & (k != float(i)) for i, u in enumerate(untried)]
         spent = zero + float(N)
@@ -212,15 +231,10 @@ class MultiProbe(TracingMethod):
         v = _sel(B, valid, v, R)  # finite everywhere (numpy gathers every ray)
         ch = P.lookup(kf, v)
         shown = P.centre(kf) + B.normalize(v) * ch[-1]
-        self._spent = float(np.mean(B.numpy(spent))) + 1.0 if B.numpy(spent).size else 1.0
-        shown = V3(*(B.select(valid, s, nan) for s in (shown.x, shown.y, shown.z)))
-        rad = V3(*(B.select(valid, s, nan) for s in ch[:3]))
-        return Trace(shown, shown, rad, B.select(valid, B.length(v) / ch[-1], nan), valid)
+        return Found(shown, shown, V3(*ch[:3]), B.length(v) / ch[-1], valid, spent + 1.0)
 
-    def lookups_per_ray(self) -> float:
-        # the mean over rays of the last trace (module docstring); before any: N rounds of n = max_steps
-        if hasattr(self, "_spent"):
-            return self._spent
+    def lookups_per_ray(self, res: int | None = None) -> float:
+        # N rounds (module docstring), N = probe 0 + the grid's cells or the points (probes inside geometry dropped)
         p = self.params
         N = 1 + (len(p.points) if p.points is not None else int(np.prod(p.grid)))
-        return N + N * (p.max_steps + p.secant_steps + 4 + N) + 1
+        return N + N * (march_steps(res, p) + p.secant_steps + 4 + N) + 1

@@ -4,7 +4,7 @@ The ray x + R d is intersected analytically with an axis-aligned box [bmin, bmax
 point o): for each axis i, t_i = ((R_i > 0 ? bmax_i : bmin_i) − x_i) / R_i, t* = min_i t_i, and the lookup vector
 is l = x + R t*. Exact when the room is the proxy; wrong wherever the scene departs from it (columns).
 
-The proxy: ``box_min``/``box_max`` (world coordinates) when given; otherwise the room (``env.info["room"]``);
+The proxy: ``box_min``/``box_max`` (world coordinates) when given; otherwise the room (``Captured.room``);
 on a bare impostor without scene information, the box through the six walls seen along ±x, ±y, ±z (the room
 itself when nothing stands on those axes). Invalid (NaN shown point) where x lies outside the box.
 
@@ -16,9 +16,10 @@ in the outcome classes; right only where the background is uniform, as the Corne
 from __future__ import annotations
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
 from study.errors import StudyError
+from study.impostor.views import Captured
 from study.methods.base import Localization, Method, register
 
 Vec3 = tuple[float, float, float]
@@ -26,20 +27,19 @@ Vec3 = tuple[float, float, float]
 
 class Params(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-    box_min: Vec3 | None = None  # proxy corner, world coordinates (default: fitted, see module docstring)
-    box_max: Vec3 | None = None
+    box_min: Vec3 | None = Field(
+        None,
+        description="lower corner of the proxy box, world coordinates (default: the room, else fitted to the impostor)",
+    )
+    box_max: Vec3 | None = Field(None, description="upper corner of the proxy box, world coordinates")
 
 
-def reference_point(env) -> np.ndarray:
-    """o in world coordinates from ``env.info`` (the origin when unknown)."""
-    return np.asarray(env.info.get("reference", (0.0, 0.0, 0.0)), float)
-
-
-def room_box(B, env) -> tuple[np.ndarray, np.ndarray]:
-    """The room as (lo, hi) relative to o: ``env.info["room"]``, or fitted to the impostor's six axis distances."""
-    o = reference_point(env)
-    if "room" in env.info:
-        lo, hi = (np.asarray(c, float) for c in env.info["room"])
+def room_box(B, env: Captured) -> tuple[np.ndarray, np.ndarray]:
+    """The room as (lo, hi) relative to o: ``env.room``, or fitted to the impostor's six axis distances."""
+    env = Captured.of(env)
+    o = env.origin()
+    if env.room is not None:
+        lo, hi = (np.asarray(c, float) for c in env.room)
         return lo - o, hi - o
     # through a texel centre next to each axis (face coordinates ±1/R), so the stored distance is exact there;
     # its component along the axis is the distance to the plane of a wall perpendicular to that axis
@@ -66,7 +66,7 @@ class ProxyBox(Method):
         if p.box_min is None:
             lo, hi = room_box(B, env)
         else:
-            o = reference_point(env)
+            o = env.origin()
             lo, hi = np.asarray(p.box_min, float) - o, np.asarray(p.box_max, float) - o
         # ------------------------------------------------------------- slab exit distance t*
         t = None
@@ -85,5 +85,5 @@ class ProxyBox(Method):
         l = x + R * t  # hit on the proxy
         return Localization(l=l, valid=inside & B.isfinite(t))
 
-    def lookups_per_ray(self) -> int:
+    def lookups_per_ray(self, res: int | None = None) -> float:
         return 1  # the shown point (the proxy hit is analytic)

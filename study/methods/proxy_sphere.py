@@ -7,7 +7,7 @@ sphere.
 
 The proxy: ``center`` (world; default o) and ``radius`` when given; otherwise the sphere around o that best fits
 the room in the least-squares sense over directions: ρ = the mean distance from o to the room over the unit sphere
-(the minimiser of ∫ (ρ − dist(ω))² dω), the room taken from ``env.info["room"]`` or, on a bare impostor, the
+(the minimiser of ∫ (ρ − dist(ω))² dω), the room taken from ``Captured.room`` or, on a bare impostor, the
 impostor's own stored distances. Invalid (NaN shown point) where the ray misses the sphere (x outside it, pointing
 away).
 
@@ -24,16 +24,20 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from study.backend import V3
 from study.impostor import analytic
+from study.impostor.views import Captured
 from study.methods.base import Localization, Method, register
-from study.methods.proxy_box import reference_point
 
 Vec3 = tuple[float, float, float]
 
 
 class Params(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-    center: Vec3 | None = None  # world coordinates (default: o)
-    radius: Annotated[float, Field(gt=0)] | None = None  # metres (default: fitted to the room)
+    center: Vec3 | None = Field(
+        None, description="centre of the proxy sphere, world coordinates (default: o)"
+    )
+    radius: Annotated[float, Field(gt=0)] | None = Field(
+        None, description="radius of the proxy sphere, metres (default: fitted to the room)"
+    )
 
 
 def fibonacci_directions(n: int) -> np.ndarray:
@@ -48,9 +52,10 @@ def fibonacci_directions(n: int) -> np.ndarray:
 def fitted_radius(B, env, n: int = 4096) -> float:
     """ρ = mean over directions of the room's distance from o (least-squares sphere around o)."""
     w = fibonacci_directions(n)
-    if "room" in env.info:
-        o = reference_point(env)
-        lo, hi = (np.asarray(c, float) - o for c in env.info["room"])
+    env = Captured.of(env)
+    if env.room is not None:
+        o = env.origin()
+        lo, hi = (np.asarray(c, float) - o for c in env.room)
         d = analytic.box_hit_t(np.zeros_like(w), w, lo, hi)
     else:
         d = B.numpy(env.distance(B.vec(w))).astype(float)
@@ -64,7 +69,7 @@ class ProxySphere(Method):
 
     def localize(self, B, env, x, R):
         p = self.params
-        c = np.zeros(3) if p.center is None else np.asarray(p.center, float) - reference_point(env)
+        c = np.zeros(3) if p.center is None else np.asarray(p.center, float) - env.origin()
         rho = p.radius if p.radius is not None else fitted_radius(B, env)
         # ------------------------------------------------------------- far root of |L + R t| = ρ
         L = V3(x.x - float(c[0]), x.y - float(c[1]), x.z - float(c[2]))  # x − c
@@ -74,5 +79,5 @@ class ProxySphere(Method):
         l = x + R * t  # hit on the proxy
         return Localization(l=l, valid=(disc >= 0.0) & (t > 0.0))
 
-    def lookups_per_ray(self) -> int:
+    def lookups_per_ray(self, res: int | None = None) -> float:
         return 1  # the shown point (the proxy hit is analytic)

@@ -1,9 +1,9 @@
 """Screen-space ray tracing (McGuire and Mara, "Efficient GPU Screen-Space Ray Tracing", JCGT 3(4) 2014): a
 perspective-correct DDA through the camera's own depth buffer, with the fallbacks engines ship.
 
-The view searched is the camera's buffer (``env.info["screen"]``, :class:`study.impostor.screen.ScreenView`: z-depth
+The view searched is the camera's buffer (``Captured.screen``, :class:`study.impostor.screen.ScreenView`: z-depth
 and colour of the environment without the object, per pixel). The ray x + R d (relative to the reference point o) is
-clipped to d ≤ ``max_distance`` (default: the diagonal of ``env.info["room"]``, else 100 m) and to the near plane
+clipped to d ≤ ``max_distance`` (default: the diagonal of ``Captured.room``, else 100 m) and to the near plane
 z ≥ 0.01 m (a ray turning towards the camera ends there); both ends are projected to pixel coordinates P0, P1 with
 k = 1/z at each. 1/z and the pixel position are affine along the projected segment, so the DDA steps ``stride``
 pixels along its major axis (n = |P1 − P0|∞ / stride steps, step s = 0 … n, P0 + s·ΔP) and knows the ray's exact
@@ -21,10 +21,10 @@ a proxy; the default, as engines ship it, so the plain name is the hybrid) or ``
 the fallback.
 
 Shown point of a hit: the ray point at depth clamp(z_b, range) of the hit step (perspective-correct parameter
-along the segment), so a hit lies on the ray; its radiance is the colour buffer at the hit pixel (``trace`` is
-overridden for that). Cost: one depth fetch per step actually taken (the loop stops at the hit or the exit; the
-mean over rays is reported), one colour fetch, plus the fallback's lookups on the rays it traces
-(:meth:`SSR.lookups_per_ray` reports what the last trace spent; before any trace, the most it can spend).
+along the segment), so a hit lies on the ray; its radiance is the colour buffer at the hit pixel
+(:meth:`SSR.search`). Cost per ray (``Trace.lookups``): one depth fetch per step actually taken (the loop stops at
+the hit or the exit), one colour fetch, plus the fallback's lookups on the rays it traces;
+:meth:`SSR.lookups_per_ray` bounds it with every step taken and the fallback's bound.
 """
 
 from __future__ import annotations
@@ -36,24 +36,31 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from study.backend import V3
 from study.impostor.views import Views
-from study.methods.base import REGISTRY, Knob, Method, Trace, TracingMethod, register
+from study.methods.base import REGISTRY, Found, Knob, Method, TracingMethod, register
 
 NEAR = 0.01  # near plane of the clipped ray, metres
 
 
 class Params(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-    max_steps: Annotated[int, Field(ge=1, le=16384)] = 512  # DDA step budget
-    stride: Annotated[float, Field(ge=1, le=64)] = 1.0  # pixels per step
-    thickness: Annotated[float, Field(gt=0, le=100)] = 0.25  # assumed surface thickness behind its depth, m
-    max_distance: Annotated[float, Field(gt=0)] | None = None  # ray length, m (default: room diagonal)
-    fallback: Literal["none", "proxy_box", "localized"] = "proxy_box"  # for the rays without a screen hit
+    max_steps: Annotated[int, Field(ge=1, le=16384, description="DDA step budget (pixels)")] = 512
+    stride: Annotated[float, Field(ge=1, le=64, description="pixels per DDA step")] = 1.0
+    thickness: Annotated[
+        float, Field(gt=0, le=100, description="assumed thickness of a surface behind its depth, metres")
+    ] = 0.25
+    max_distance: Annotated[float, Field(gt=0)] | None = Field(
+        None, description="ray length, metres (default: the room's diagonal)"
+    )
+    fallback: Literal["none", "proxy_box", "localized"] = Field(
+        "proxy_box", description="method for the rays without a screen hit (none: no hit)"
+    )
 
 
 @register
 class SSR(TracingMethod):
     name = "ssr"
     Params = Params
+    ratio_where_valid = True
     knob = Knob("max_steps", (16, 32, 64, 128, 256, 512))
 
     def _fallback(self) -> Method | None:
@@ -114,60 +121,42 @@ class SSR(TracingMethod):
         rgbz = scr.fetch(hj, hi)
         return found & B.isfinite(beta), d_end * beta, rgbz[:3], spent
 
-    def trace(self, B, env, x, R, *, check_origin: bool = True) -> Trace:
-        """The DDA's hit where there is one (shown point on the ray, colour buffer radiance), the fallback's trace
-        elsewhere; the origin check of :meth:`Method.trace`."""
+    def search(self, B, env, x, R) -> Found:
+        """The DDA's hit where there is one (shown point on the ray, colour buffer radiance), the fallback's
+        elsewhere."""
         p = self.params
-        info = getattr(env, "info", {})
-        scr = info.get("screen")
+        scr = env.need_screen(self.name)
         nan = float("nan")
-        n = B.numpy(x.x).shape[0]
+        zero = x.x * 0.0
         if scr is not None:
             if p.max_distance is not None:
                 d_max = p.max_distance
-            elif "room" in info:
-                d_max = float(np.linalg.norm(np.subtract(info["room"][1], info["room"][0])))
+            elif env.room is not None:
+                d_max = float(np.linalg.norm(np.subtract(env.room[1], env.room[0])))
             else:
                 d_max = 100.0
             found, d, rgb, spent = self._march(B, scr, x, R, d_max)
-            self._spent = float(np.mean(B.numpy(spent))) + 1.0 if n else 1.0
+            spent = spent + 1.0  # the colour fetch
         else:  # no camera buffer: nothing on screen
-            found, d, rgb = B.isfinite(x.x) & ~B.isfinite(x.x), x.x * nan, [x.x * nan] * 3
-            self._spent = 0.0
-        found = found & B.isfinite(B.length(R))
-        if check_origin:
-            found = found & (B.length(x) <= env.distance(x) * 1.0001 + 1e-6)  # x is an undershoot
+            found, d, rgb, spent = B.isfinite(x.x) & ~B.isfinite(x.x), x.x * nan, [x.x * nan] * 3, zero
         shown = x + R * d
-        shown = V3(*(B.select(found, c, nan) for c in (shown.x, shown.y, shown.z)))
-        rad = V3(*(B.select(found, c, nan) for c in rgb))
+        rad = V3(*rgb)
         valid, l = found, shown
         fb = self._fallback()
         if fb is not None:  # engines: a reflection probe where the screen has nothing
-            tr = fb.trace(B, env, x, R, check_origin=check_origin)
-            shown = V3(
-                *(
-                    B.select(found, a, b)
-                    for a, b in zip((shown.x, shown.y, shown.z), (tr.shown.x, tr.shown.y, tr.shown.z))
-                )
-            )
-            rad = V3(
-                *(
-                    B.select(found, a, b)
-                    for a, b in zip((rad.x, rad.y, rad.z), (tr.radiance.x, tr.radiance.y, tr.radiance.z))
-                )
-            )
-            l = V3(*(B.select(found, a, b) for a, b in zip((l.x, l.y, l.z), (tr.l.x, tr.l.y, tr.l.z))))
-            rest = float(np.mean(~B.numpy(found).astype(bool))) if n else 0.0
-            self._spent += rest * fb.lookups_per_ray()
+
+            def sel(a: V3, b: V3) -> V3:
+                return V3(*(B.select(found, p, q) for p, q in zip((a.x, a.y, a.z), (b.x, b.y, b.z))))
+
+            tr = fb.trace(B, env, x, R, check_origin=False)
+            shown, rad, l = sel(shown, tr.shown), sel(rad, tr.radiance), sel(l, tr.l)
+            spent = spent + B.select(found, zero, tr.lookups)
             valid = found | tr.valid
         safe = V3(*(B.select(valid, a, b) for a, b in zip((shown.x, shown.y, shown.z), (R.x, R.y, R.z))))
-        ratio = B.select(valid, B.length(safe) / env.distance(safe), nan)  # diagnostic: 1 on the impostor
-        return Trace(l, shown, rad, ratio, valid)
+        ratio = B.length(safe) / env.distance(safe)  # diagnostic: 1 on the impostor
+        return Found(l, shown, rad, ratio, valid, spent)
 
-    def lookups_per_ray(self) -> float:
-        # depth fetches of the steps taken (mean over rays) + the colour fetch + the fallback's on its rays; before
-        # any trace: every step, and the fallback on every ray
-        if hasattr(self, "_spent"):
-            return self._spent
+    def lookups_per_ray(self, res: int | None = None) -> float:
+        # every step's depth fetch, the colour fetch, and the fallback's lookups
         fb = self._fallback()
-        return self.params.max_steps + 1 + (fb.lookups_per_ray() if fb else 0)
+        return self.params.max_steps + 1 + (fb.lookup_bound(res) if fb else 0)
