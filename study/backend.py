@@ -247,19 +247,7 @@ class DrJitBackend(Backend):
 
         The garbage collector is paused while the frozen function runs: a Dr.Jit object freed from cyclic garbage
         during a recording is a host call that cannot be recorded, and Dr.Jit aborts the process."""
-        frozen = self.dr.freeze(fn)
-
-        @functools.wraps(fn)
-        def call(*args, **kwargs):
-            paused = gc.isenabled()
-            gc.disable()
-            try:
-                return frozen(*args, **kwargs)
-            finally:
-                if paused:
-                    gc.enable()
-
-        return call
+        return _NoCollection(self.dr.freeze(fn))
 
     def texture(self, texels):
         six, R, _, C = texels.shape
@@ -289,3 +277,24 @@ def get(name: str = "numpy") -> Backend:
     if name not in _cache:
         _cache[name] = NumpyBackend() if name == "numpy" else DrJitBackend(name)
     return _cache[name]
+
+
+class _NoCollection:
+    """A frozen function called with the garbage collector paused; its attributes (``n_recordings``, …) are the
+    frozen function's."""
+
+    def __init__(self, frozen):
+        self._frozen = frozen
+        functools.update_wrapper(self, frozen, updated=())
+
+    def __call__(self, *args, **kwargs):
+        paused = gc.isenabled()
+        gc.disable()
+        try:
+            return self._frozen(*args, **kwargs)
+        finally:
+            if paused:
+                gc.enable()
+
+    def __getattr__(self, name):
+        return getattr(self._frozen, name)

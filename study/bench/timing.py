@@ -12,6 +12,7 @@ times each batch once and shares the numbers between tables.
 
 from __future__ import annotations
 
+import copy
 import gc
 import math
 import time
@@ -69,7 +70,9 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
     the frozen function's arguments; probe sets and the camera's buffer are not captured, so ``multi_probe`` and
     ``ssr`` are timed on their fallbacks (the impostor as the only probe; every ray to the fallback method)."""
     env = EnvMap(tex_np, B)
-    layer = EnvMap(tex_np, B) if m.layers_needed() > 1 else None
+    # the layer shares env's textures (a shallow copy): a texture of its own, replaced inside the recording below,
+    # would be freed there — an unrecordable host call that aborts the process
+    layer = copy.copy(env) if m.layers_needed() > 1 else None
     views = Captured(
         impostor=env, layers=(layer,) * m.layers_needed() if layer else (), fallback=True, **(info or {})
     )
