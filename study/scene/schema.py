@@ -31,6 +31,8 @@ A scene is a TOML file (or dict) validated on load; y is up, units are metres. E
     fov = 70.0                           # horizontal, degrees
     width = 256
     height = 256
+    frame_object = false                 # true: target = the object's centre, fov such that its bounding
+    frame_fill = 0.8                     # sphere spans this share of the frame (follows the object; eye kept)
 
     [render]
     cube_res = 256                       # impostor face resolution
@@ -62,6 +64,7 @@ Numbers are strict: a boolean or a string is not a number (``radius = true`` is 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -71,6 +74,7 @@ from pydantic import (
     BeforeValidator,
     ConfigDict,
     Field,
+    StrictBool,
     ValidationError,
     field_validator,
     model_validator,
@@ -224,12 +228,38 @@ Object = Sphere
 
 
 class Camera(_Strict):
+    """A pinhole camera. ``frame_object = true`` frames the object from where the camera stands: ``target``
+    becomes the object's centre and ``fov`` the angle at which the object's bounding sphere spans ``frame_fill``
+    of the frame's smaller side (both set on validation, so they follow the object when a sweep moves it; what
+    the config gives for them is replaced). The eye stays, so the rays the object sends out are the same rays,
+    sampled densely: the object's pixels grow as (frame_fill · side)² · π/4 whatever its distance."""
+
     eye: Vec3 = (0.0, 1.5, -1.9)
     target: Vec3 = (0.6, 1.0, 0.5)
     up: Vec3 = (0.0, 1.0, 0.0)
     fov: Annotated[Float, Field(gt=0, lt=180)] = 70.0
     width: Annotated[Int, Field(ge=8, le=4096)] = 256
     height: Annotated[Int, Field(ge=8, le=4096)] = 256
+    frame_object: StrictBool = False  # aim at the object and zoom until it spans frame_fill of the frame
+    frame_fill: Annotated[Float, Field(gt=0, le=1)] = 0.8  # share of the frame's smaller side, frame_object
+
+    def framed(self, center, radius: float) -> Camera:
+        """This camera aimed at a bounding sphere (``center``, ``radius``) with the field of view at which the
+        sphere's image (a disc of radius tan α, sin α = radius / distance, on the unit image plane) spans
+        ``frame_fill`` of the frame's smaller side; itself without ``frame_object``."""
+        if not self.frame_object:
+            return self
+        d = float(np.linalg.norm(np.subtract(center, self.eye)))
+        if d <= radius:
+            raise KeyedError(
+                "camera.eye", "lies inside the object's bounding sphere: frame_object cannot frame it"
+            )
+        tan_alpha = radius / math.sqrt(d * d - radius * radius)
+        tan_x = tan_alpha / (self.frame_fill * min(1.0, self.height / self.width))
+        fov = math.degrees(2 * math.atan(tan_x))
+        if fov >= 180:
+            raise KeyedError("camera.frame_fill", f"the object is too close to frame (fov {fov:.0f}°)")
+        return self.model_copy(update={"target": tuple(float(v) for v in center), "fov": fov})
 
 
 class Render(_Strict):
@@ -267,6 +297,13 @@ class Scene(_Strict):
     @classmethod
     def _list(cls, v):
         return tuple(v) if isinstance(v, list) else v
+
+    @model_validator(mode="after")
+    def _frame(self):  # camera.frame_object: target and fov from the object (Camera.framed)
+        cam = self.camera.framed(self.object.center, self.object.radius)
+        if cam is not self.camera:
+            object.__setattr__(self, "camera", cam)
+        return self
 
     @model_validator(mode="after")
     def _placement(self):

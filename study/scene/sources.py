@@ -139,9 +139,15 @@ def _canon(v: Any) -> Any:
     return repr(v)
 
 
+#: Camera keys that only set others (``target``, ``fov``) on validation: content keys leave them out, so a framed
+#: camera and the same camera given by hand share their results, and older keys stay valid.
+FRAMING_KEYS = ("frame_object", "frame_fill")
+
+
 def key_fields(model: BaseModel | dict) -> dict:
     """``model_dump`` of a scene (or part of one) for content keys: every field called ``file`` replaced by the
-    digest of the file's bytes, Python objects (Mitsuba transforms in a scene dict) by their repr."""
+    digest of the file's bytes, Python objects (Mitsuba transforms in a scene dict) by their repr; the framing
+    keys (:data:`FRAMING_KEYS`) left out."""
     data = model.model_dump(mode="python") if isinstance(model, BaseModel) else model
 
     def walk(v):
@@ -149,6 +155,7 @@ def key_fields(model: BaseModel | dict) -> dict:
             return {
                 k: (file_digest(x) if k == "file" and isinstance(x, str) and Path(x).is_file() else walk(x))
                 for k, x in v.items()
+                if k not in FRAMING_KEYS
             }
         if isinstance(v, (list, tuple)):
             return [walk(x) for x in v]
