@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from study.measure import stats
+from study.outputs import power
 from study.tables import REFERENCE_ROWS, fmt_number
 
 WRONG = "wrong_fraction"
@@ -302,151 +303,6 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
     )
 
 
-POWER = 0.8
-#: Fewest hidden rays per case for a claim about hidden hits (wrong_fraction_hidden) to rest on (issue 24).
-MIN_HIDDEN = 200
-
-
-def detectable_fraction(n: float, p0: float, alpha: float = ALPHA, power: float = POWER) -> float:
-    """The smallest rise δ of a fraction from ``p0`` that a two-sided test comparing two fractions over ``n`` rays
-    each detects at level ``alpha`` with ``power``: Cohen's arcsine effect size h = 2 asin√p₁ − 2 asin√p₀ needs
-    n = 2 ((z₁₋α/₂ + z_power) / h)² per group, so h = (z₁₋α/₂ + z_power) √(2/n) and δ = sin²(asin√p₀ + h/2) − p₀
-    (NaN for n < 1). The rays of two methods in one case are the same rays (paired), for which this is
-    conservative."""
-    if not (n >= 1 and 0 <= p0 <= 1):
-        return math.nan
-    from scipy.stats import norm
-
-    h = (norm.ppf(1 - alpha / 2) + norm.ppf(power)) * math.sqrt(2 / n)
-    a = math.asin(math.sqrt(p0)) + h / 2
-    return (1.0 if a >= math.pi / 2 else math.sin(a) ** 2) - p0
-
-
-def detectable_shift(n: int, alpha: float = ALPHA, power: float = POWER) -> float:
-    """The smallest shift of paired per-case differences, in their standard deviations, that a two-sided Wilcoxon
-    signed-rank test over ``n`` cases detects at ``alpha`` with ``power`` (normal approximation, Wilcoxon's
-    efficiency 3/π against the paired t-test: (z₁₋α/₂ + z_power) / √(3n/π)); ``inf`` where no p-value it can give
-    reaches ``alpha`` (2/2ⁿ ≥ alpha: fewer than 6 cases at 5 %)."""
-    if n < 1 or stats.min_p(n) >= alpha:
-        return math.inf
-    from scipy.stats import norm
-
-    return float((norm.ppf(1 - alpha / 2) + norm.ppf(power)) / math.sqrt(3 * n / math.pi))
-
-
-def _count(row: dict, col: str) -> float:
-    v = row.get(col, math.nan)
-    return float(v) if isinstance(v, (int, float)) and math.isfinite(v) else math.nan
-
-
-#: The columns of :func:`detectable_rows`.
-DETECTABLE_COLUMNS = [
-    "table",
-    "cases",
-    "rays_min",
-    "rays_median",
-    "hidden_min",
-    "hidden_max",
-    "hidden_cases",
-    "best_wrong",
-    "mdd_rays",
-    "mdd_hidden",
-    "mdd_cases_sd",
-    "mdd_cases",
-]
-
-
-def detectable_rows(tables: dict[str, list[dict]]) -> list[dict]:
-    """Per table, the sample sizes behind it and the smallest differences in wrong fraction it could detect (5 %,
-    two-sided, 80 % power): ``cases``; object rays per case (``rays_min``, ``rays_median``: ``n_rays`` or ``rays``)
-    and hidden rays per case (``hidden_min``/``_max``: ``n_hidden``, or rays × ``hidden_fraction``), with
-    ``hidden_cases`` the cases with ≥ :data:`MIN_HIDDEN` of them (those a claim about hidden hits may rest on);
-    ``mdd_rays``: the smallest rise above the best method's median wrong fraction (``best_wrong``) one case
-    detects over its fewest rays (:func:`detectable_fraction`); ``mdd_hidden`` the same over the fewest hidden rays
-    of the cases with ≥ :data:`MIN_HIDDEN`, at the best's hidden wrong fraction; ``mdd_cases_sd``: over the cases
-    (:func:`detectable_shift`, in standard deviations of the per-case differences, ``inf``: too few cases ever to
-    reach 5 %) and ``mdd_cases`` in wrong fraction, with the standard deviation of the differences between the
-    best method and the runner-up."""
-    out = []
-    for name, tab in tables.items():
-        rank = ranking(tab, WRONG)
-        if not rank:
-            continue
-        cases = list(dict.fromkeys(r["case"] for r in tab))
-        first = {}
-        for r in tab:
-            if r["label"] not in REFERENCE_ROWS:
-                first.setdefault(r["case"], r)
-        rays = np.array([_n_for(first[c], WRONG) if c in first else math.nan for c in cases], float)
-        hidden = np.array(
-            [
-                _count(first[c], "n_hidden")
-                if math.isfinite(_count(first[c], "n_hidden"))
-                else _n_for(first[c], "wrong_fraction_hidden")
-                for c in cases
-                if c in first
-            ],
-            float,
-        )
-        best = rank[0]
-        many = hidden[hidden >= MIN_HIDDEN] if np.isfinite(hidden).any() else hidden[:0]
-        hw = _values(tab, best["label"], f"{WRONG}_hidden", cases)
-        hid_wrong = float(np.nanmedian(hw)) if np.isfinite(hw).any() else math.nan
-        sd = math.nan
-        if len(rank) > 1:
-            d = _values(tab, best["label"], WRONG, cases) - _values(tab, rank[1]["label"], WRONG, cases)
-            d = d[np.isfinite(d)]
-            sd = float(np.std(d, ddof=1)) if d.size > 1 else math.nan
-        shift = detectable_shift(best["n"])
-        fin = lambda v, f: float(f(v)) if np.isfinite(v).any() else math.nan  # noqa: E731
-        out.append(
-            {
-                "table": name,
-                "cases": best["n"],
-                "rays_min": fin(rays, np.nanmin),
-                "rays_median": fin(rays, np.nanmedian),
-                "hidden_min": fin(hidden, np.nanmin),
-                "hidden_max": fin(hidden, np.nanmax),
-                "hidden_cases": int(many.size),
-                "best_wrong": best["median"],
-                "mdd_rays": detectable_fraction(fin(rays, np.nanmin), best["median"]),
-                "mdd_hidden": detectable_fraction(float(many.min()), hid_wrong)
-                if many.size and math.isfinite(hid_wrong)
-                else math.nan,
-                "mdd_cases_sd": shift,
-                "mdd_cases": shift * sd if math.isfinite(shift) else math.inf,
-            }
-        )
-    return out
-
-
-def detectable_sentence(row: dict) -> str:
-    """One table's sample sizes and detectable differences in words (a row of :func:`detectable_rows`)."""
-    n = row["cases"]
-    text = (
-        f"**{row['table']}**: {n} case{'s' if n != 1 else ''}, {row['rays_min']:.0f}–"
-        f"{row['rays_median']:.0f} object rays (fewest–median); within one case a wrong fraction "
-        f"{_pct(row['mdd_rays'])} above the best's {_pct(row['best_wrong'])} is detectable"
-    )
-    if row["hidden_cases"]:
-        text += (
-            f"; {row['hidden_cases']} case(s) with ≥ {MIN_HIDDEN} hidden rays, there a difference of "
-            f"{_pct(row['mdd_hidden'])} in wrong hidden hits"
-        )
-    elif math.isfinite(row["hidden_max"]) and row["hidden_max"] > 0:
-        text += (
-            f"; at most {row['hidden_max']:.0f} hidden rays per case, too few for claims about hidden hits"
-        )
-    if math.isinf(row["mdd_cases_sd"]):
-        text += f"; {n} cases are too few for any difference over cases to reach {100 * ALPHA:g} % (2/2ⁿ)"
-    else:
-        text += (
-            f"; over the cases a shift of {row['mdd_cases_sd']:.2g} standard deviations of the per-case "
-            f"differences" + (f" (≈ {_pct(row['mdd_cases'])})" if math.isfinite(row["mdd_cases"]) else "")
-        )
-    return text + "."
-
-
 #: The columns of :func:`interval_rows`.
 INTERVAL_COLUMNS = [
     "table",
@@ -521,19 +377,9 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
             "against the best over the same cases.",
         ),
         ("table", interval_rows(tables), INTERVAL_COLUMNS),
-        ("h", 3, "Sample sizes and the smallest detectable differences"),
-        (
-            "p",
-            f"Per table: the cases, the object rays and hidden rays per case, and the smallest difference in wrong "
-            f"fraction the table could detect (two-sided {100 * ALPHA:g} %, {100 * POWER:g} % power): within one "
-            "case over its "
-            "fewest rays (two fractions, arcsine effect size, from the best method's median), over the hidden rays "
-            f"of the cases with ≥ {MIN_HIDDEN} of them, and over the cases (Wilcoxon signed-rank: in standard "
-            "deviations of the per-case differences, and in wrong fraction with those of the best method and the "
-            "runner-up; with n cases its smallest p is 2/2ⁿ).",
+        *power.blocks(
+            [power.row(name, tab, rank) for name, tab in tables.items() if (rank := ranking(tab, WRONG))]
         ),
-        ("list", [detectable_sentence(r) for r in detectable_rows(tables)]),
-        ("table", detectable_rows(tables), DETECTABLE_COLUMNS),
     ]
 
 
