@@ -155,3 +155,17 @@ def test_detectable_rows_state_n_and_hidden_cases():
     assert (
         blocks[-1][0] == "table" and blocks[-1][2] == power.COLUMNS and blocks[-1][1][0]["hidden_cases"] == 3
     )
+
+
+def test_hidden_hit_claims_rest_on_cases_with_200_hidden_rays():
+    """A case with 20 hidden rays (its wrong fraction on them 0.5: noise at that n) neither fails nor supports the
+    claim; the case with 2000 decides it, and the evidence says one case was left out."""
+    lab = claims._default("localized")
+    rows = [
+        {"case": c, "label": lab, "n_rays": 12_000.0, "n_hidden": h, "wrong_fraction_hidden": w}
+        | {"wrong_fraction_visible": 0.01}
+        for c, h, w in (("few", 20.0, 0.5), ("many", 2000.0, 0.97))
+    ]
+    v = claims.hidden_wrong(rows)
+    assert v.ok and "1 cases with ≥ 200 hidden rays" in v.number and "1 more with 1–199" in v.number
+    assert claims.hidden_wrong(rows[:1]) is None

@@ -51,7 +51,7 @@ def _values(tab: list[dict], label: str, col: str, cases: list[str]) -> np.ndarr
     return np.array([float(by.get(c, math.nan)) for c in cases], float)
 
 
-def _counts(row: dict) -> tuple[float, float]:
+def counts(row: dict) -> tuple[float, float]:
     """(object rays, hidden rays) of one row: ``n_rays``/``n_hidden``, or ``rays`` × ``hidden_fraction`` (or
     ``occluded_fraction``) in tables written before those columns."""
     n = _num(row, "n_rays")
@@ -81,7 +81,7 @@ def row(name: str, tab: list[dict], rank: list[dict]) -> dict:
     for r in tab:
         if r["label"] not in REFERENCE_ROWS:
             first.setdefault(r["case"], r)
-    rays, hidden = np.array([_counts(first[c]) for c in cases if c in first], float).reshape(-1, 2).T
+    rays, hidden = np.array([counts(first[c]) for c in cases if c in first], float).reshape(-1, 2).T
     best = rank[0]
     many = hidden[np.isfinite(hidden) & (hidden >= MIN_HIDDEN)]
     hid_wrong = _finite(_values(tab, best["label"], f"{WRONG}_hidden", cases), np.nanmedian)
