@@ -16,6 +16,7 @@ from study.harness import budget
 from study.harness.config import load_figure_config
 from study.harness.sweep import load_sweep
 from study.impostor.capture import impostor_key
+from study.impostor.cubemap import FAR
 from study.optics import shading
 from study.outputs.animation import load_motion_config
 from study.reference.tracer import make_tracer
@@ -90,8 +91,11 @@ def _object_rays(scene) -> tuple[int, int]:
     tracer = make_tracer(scene.mesh())
     rays = shading.object_rays(scene, occluder=tracer.distance)
     o = np.asarray(scene.reference.point, float)
-    hit = tracer.intersect(*rays.exact_rays())["point"]
-    hit = hit[np.all(np.isfinite(hit), axis=-1)] - o
+    ex_o, ex_d = rays.exact_rays()
+    hit = tracer.intersect(ex_o, ex_d)["point"]
+    escapes = ~np.all(np.isfinite(hit), axis=-1)  # open environments: "no surface", at infinity
+    hit[escapes] = ex_o[escapes] + ex_d[escapes] * FAR
+    hit = hit - o
     dist = np.linalg.norm(hit, axis=-1)
     seen = tracer.distance(np.broadcast_to(o, hit.shape), hit / dist[:, None])
     return len(rays.x), int((seen < dist * (1 - 1e-4) - 1e-5).sum())
