@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from study.outputs import claims, summary
+from study.measure import stats
+from study.outputs import claims, power, summary
 
 
 def _table(n_cases, methods, rays=2000, seed=0):
@@ -116,3 +117,55 @@ def test_claim_evidence_carries_the_rays_interval():
     }
     v = claims.hidden_wrong([row])
     assert not v.ok and "0.06 [0." in v.number and "within the rays' uncertainty of the bound" in v.number
+
+
+def test_detectable_fraction_matches_cohens_table():
+    """Cohen's power tables: effect size h = 0.2 needs 392.4 rays per group at 5 % two-sided and 80 % power, so
+    from p₀ = 0.5 the smallest detectable rise is sin²(π/4 + 0.1) − 0.5 = sin(0.2)/2; 10⁴ rays at p₀ = 0 detect
+    sin²(h/2), h = 2.8016·√(2·10⁻⁴)."""
+    assert np.isclose(stats.detectable_fraction(392.4, 0.5), np.sin(0.2) / 2, rtol=1e-3)
+    h = (1.959964 + 0.841621) * np.sqrt(2e-4)
+    assert np.isclose(stats.detectable_fraction(10_000, 0.0), np.sin(h / 2) ** 2, rtol=1e-5)
+    assert stats.detectable_fraction(10_000, 0.0) < 5e-4 < stats.detectable_fraction(500, 0.0)
+    assert np.isnan(stats.detectable_fraction(0, 0.1))
+
+
+def test_detectable_shift_over_cases_and_too_few_cases():
+    """Below 6 cases Wilcoxon's smallest two-sided p (2/2ⁿ) is ≥ 5 %: nothing is detectable; at 48 cases the
+    normal approximation with efficiency 3/π gives 2.8016/√(48·3/π)."""
+    assert stats.detectable_shift(5) == np.inf and np.isfinite(stats.detectable_shift(6))
+    assert np.isclose(stats.detectable_shift(48), 2.801585 / np.sqrt(48 * 3 / np.pi), rtol=1e-5)
+
+
+def test_detectable_rows_state_n_and_hidden_cases():
+    """Per table: cases, rays, hidden rays (n_hidden), the cases with ≥ 200 hidden rays and the differences; the
+    sentence says when the cases are too few."""
+    tab = _table(4, [("best", 13, lambda i, r: 0.01, 0.0), ("other", 1, lambda i, r: 0.03, 0.0)], rays=12_000)
+    for r in tab:
+        r["n_hidden"] = [50, 250, 400, 900][int(r["case"][1:])]
+        r["wrong_fraction_hidden"] = 0.9
+    row = power.row("t", tab, summary.ranking(tab, "wrong_fraction"))
+    assert row["cases"] == 4 and row["rays_min"] == 12_000 and row["hidden_min"] == 50
+    assert row["hidden_cases"] == 3 and row["mdd_cases_sd"] == np.inf
+    assert np.isclose(row["mdd_rays"], stats.detectable_fraction(12_000, 0.01))
+    assert np.isclose(row["mdd_hidden"], stats.detectable_fraction(250, 0.9))
+    text = power.sentence(row)
+    assert "4 cases are too few" in text and "3 case(s) with ≥ 200 hidden rays" in text
+    blocks = summary.headline_blocks({"t": tab})
+    assert (
+        blocks[-1][0] == "table" and blocks[-1][2] == power.COLUMNS and blocks[-1][1][0]["hidden_cases"] == 3
+    )
+
+
+def test_hidden_hit_claims_rest_on_cases_with_200_hidden_rays():
+    """A case with 20 hidden rays (its wrong fraction on them 0.5: noise at that n) neither fails nor supports the
+    claim; the case with 2000 decides it, and the evidence says one case was left out."""
+    lab = claims._default("localized")
+    rows = [
+        {"case": c, "label": lab, "n_rays": 12_000.0, "n_hidden": h, "wrong_fraction_hidden": w}
+        | {"wrong_fraction_visible": 0.01}
+        for c, h, w in (("few", 20.0, 0.5), ("many", 2000.0, 0.97))
+    ]
+    v = claims.hidden_wrong(rows)
+    assert v.ok and "1 cases with ≥ 200 hidden rays" in v.number and "1 more with 1–199" in v.number
+    assert claims.hidden_wrong(rows[:1]) is None

@@ -97,9 +97,13 @@ def object_pixels(scene: Scene) -> float:
     return float(min(c.width * c.height, math.pi * radius_px**2))
 
 
-def estimate(scene: Scene, methods: list[Method], *, impostor: bool = True) -> Estimate:
+def estimate(
+    scene: Scene, methods: list[Method], *, impostor: bool = True, lookups: float | None = None
+) -> Estimate:
     """Memory and time of one case (:func:`study.measure.case.run_case`) with ``methods``; ``impostor``: count
-    capturing its impostor (False when another case of the same command captures the same one)."""
+    capturing its impostor (False when another case of the same command captures the same one); ``lookups``:
+    the methods' cube-map lookups per ray together, where known (measured: a results table's
+    ``lookups_per_ray``), instead of their bound before any run (every step on every ray)."""
     c, r = scene.camera, scene.render
     sub = c.width * c.height * r.supersample**2
     glass = 2 if scene.object.material.type == "dielectric" else 1
@@ -107,7 +111,8 @@ def estimate(scene: Scene, methods: list[Method], *, impostor: bool = True) -> E
     rate = MITSUBA_SAMPLES_PER_S * 4 / max(r.max_depth + 2 * (glass - 1), 4)
     texels = 6 * r.cube_res**2
     layers = max((m.layers_needed() for m in methods), default=1)
-    lookups = sum(m.lookup_bound(r.cube_res) for m in methods)  # bounds: no method spends more
+    if lookups is None:
+        lookups = sum(m.lookup_bound(r.cube_res) for m in methods)  # bounds: no method spends more
     sub_key = "render.supersample" if r.supersample > 1 else "camera.width"
     mem = {
         sub_key: sub * BYTES_PER_SUBPIXEL + rays * BYTES_PER_OBJECT_RAY,

@@ -307,3 +307,27 @@ def significance(p: float, alpha: float = 1 - LEVEL) -> str:
     if p < alpha:
         return f"significant at {alpha:.0%} (p = {p:.2g})"
     return f"no significant difference (p = {p:.2g})"
+
+
+# ---------------------------------------------------------------------------------------------- power
+def detectable_fraction(n: float, p0: float, alpha: float = 1 - LEVEL, power: float = 0.8) -> float:
+    """The smallest rise δ of a fraction from ``p0`` that a two-sided test comparing two fractions over ``n`` rays
+    each detects at level ``alpha`` with ``power``: Cohen's arcsine effect size h = 2 asin√p₁ − 2 asin√p₀ needs
+    n = 2 ((z₁₋α/₂ + z_power) / h)² per group, so h = (z₁₋α/₂ + z_power) √(2/n) and δ = sin²(asin√p₀ + h/2) − p₀
+    (NaN for n < 1). The rays of two methods in one case are the same rays (paired), for which this is
+    conservative."""
+    if not (n >= 1 and 0 <= p0 <= 1):
+        return math.nan
+    h = (sps.norm.ppf(1 - alpha / 2) + sps.norm.ppf(power)) * math.sqrt(2 / n)
+    a = math.asin(math.sqrt(p0)) + h / 2
+    return (1.0 if a >= math.pi / 2 else math.sin(a) ** 2) - p0
+
+
+def detectable_shift(n: int, alpha: float = 1 - LEVEL, power: float = 0.8) -> float:
+    """The smallest shift of paired per-case differences, in their standard deviations, that a two-sided Wilcoxon
+    signed-rank test over ``n`` cases detects at ``alpha`` with ``power`` (normal approximation, Wilcoxon's
+    efficiency 3/π against the paired t-test: (z₁₋α/₂ + z_power) / √(3n/π)); ``inf`` where no p-value it can give
+    reaches ``alpha`` (:func:`min_p` = 2/2ⁿ ≥ alpha: fewer than 6 cases at 5 %)."""
+    if n < 1 or min_p(n) >= alpha:
+        return math.inf
+    return float((sps.norm.ppf(1 - alpha / 2) + sps.norm.ppf(power)) / math.sqrt(3 * n / math.pi))

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from study import methods as registry
+from study.outputs.power import MIN_HIDDEN, counts
 from study.outputs.summary import fraction_bounds
 
 
@@ -181,15 +182,28 @@ def _finite(v) -> bool:
     return v is not None and np.isfinite(v)
 
 
+def _hidden_rays(rows, case, label) -> float:
+    """The rays of a case whose exact hit is hidden from the reference point (``n_hidden``, or from fractions)."""
+    hit = [r for r in rows if r["case"] == case and r["label"] == label]
+    return counts(hit[0])[1] if hit else np.nan
+
+
+def _few(rows, label) -> str:
+    """', k more with 1–199 hidden rays left out' (the cases too small for a claim about hidden hits)."""
+    k = sum(0 < _hidden_rays(rows, c, label) < MIN_HIDDEN for c in _cases(rows))
+    return f"; {k} more with 1–{MIN_HIDDEN - 1} hidden rays left out" if k else ""
+
+
 def hidden_wrong(rows):
     """The outcome classes of Fig. 5: localized(10) is wrong (not within ε = max(1 cm, one texel) of the exact
     hit) on almost every ray whose exact hit is hidden from the reference point (wrong_fraction_hidden ≥ 0.9) and
-    on almost no ray whose hit is visible (wrong_fraction_visible ≤ 0.05), in every case where hidden rays exist."""
+    on almost no ray whose hit is visible (wrong_fraction_visible ≤ 0.05), in every case with at least
+    :data:`~study.outputs.power.MIN_HIDDEN` hidden rays (fewer cannot tell 90 % from much less)."""
     found = []
     for c in _cases(rows):
         hid = _get(rows, c, _default("localized"), "wrong_fraction_hidden")
         vis = _get(rows, c, _default("localized"), "wrong_fraction_visible")
-        if _finite(hid) and _finite(vis):
+        if _finite(hid) and _finite(vis) and _hidden_rays(rows, c, _default("localized")) >= MIN_HIDDEN:
             found.append((c, hid, vis))
     if not found:
         return None
@@ -210,8 +224,8 @@ def hidden_wrong(rows):
     )
     return Verdict(
         low >= 0.9 and high <= 0.05,
-        f"{len(found)} cases with hidden rays; lowest wrong fraction on hidden hits {low:.3g}{ci_h} ({c_h}), "
-        f"highest on visible hits {high:.3g}{ci_v} ({c_v}){sure}",
+        f"{len(found)} cases with ≥ {MIN_HIDDEN} hidden rays; lowest wrong fraction on hidden hits {low:.3g}{ci_h} "
+        f"({c_h}), highest on visible hits {high:.3g}{ci_v} ({c_v}){sure}{_few(rows, lab)}",
     )
 
 
@@ -248,13 +262,15 @@ def iterations_never_raise_wrong(rows):
 
 def layered_fixes_occlusion(rows):
     """Beyond the paper: where localized(iterations=10) is wrong on the hidden hits (wrong_fraction_hidden ≥ 0.5,
-    > 2 % hidden rays), searching several depth layers (``layered``) is wrong on at most 5 % of them."""
+    > 2 % and ≥ :data:`~study.outputs.power.MIN_HIDDEN` hidden rays), searching several depth layers (``layered``)
+    is wrong on at most 5 % of them."""
     pairs = []
     for c in _cases(rows):
         a = _get(rows, c, _default("localized"), "wrong_fraction_hidden")
         b = _get(rows, c, _default("layered"), "wrong_fraction_hidden")
         f = _get(rows, c, _default("layered"), "occluded_fraction")
-        if _finite(a) and _finite(b) and f is not None and f > 0.02 and a >= 0.5:
+        many = _hidden_rays(rows, c, _default("layered")) >= MIN_HIDDEN
+        if _finite(a) and _finite(b) and f is not None and f > 0.02 and a >= 0.5 and many:
             pairs.append((b, c, a))
     if not pairs:
         return None
@@ -267,7 +283,7 @@ def layered_fixes_occlusion(rows):
     sure = _sure((lo <= 0.05) == (hi <= 0.05), True) if ci else ""
     return Verdict(
         b <= 0.05,
-        f"{len(pairs)} cases with > 2 % hidden rays that localized gets wrong; worst wrong "
+        f"{len(pairs)} cases with > 2 % and ≥ {MIN_HIDDEN} hidden rays that localized gets wrong; worst wrong "
         f"fraction on hidden hits: layered {b:.3g}{ci} vs localized {a:.3g} ({c}){sure}",
     )
 

@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from study.measure import stats
+from study.outputs import power
 from study.outputs.markup import code, md_esc
 from study.tables import REFERENCE_ROWS, fmt_number
 
@@ -377,6 +378,9 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
             "against the best over the same cases.",
         ),
         ("table", interval_rows(tables), INTERVAL_COLUMNS),
+        *power.blocks(
+            [power.row(name, tab, rank) for name, tab in tables.items() if (rank := ranking(tab, WRONG))]
+        ),
     ]
 
 

@@ -138,10 +138,16 @@ def _canon(v: Any) -> Any:
     return repr(v)
 
 
+#: Camera keys that only set others (``target``, ``fov``) on validation: content keys leave them out, so a framed
+#: camera and the same camera given by hand share their results, and older keys stay valid.
+FRAMING_KEYS = ("frame_object", "frame_fill")
+
+
 def key_fields(model: BaseModel | dict) -> dict:
     """``model_dump`` of a scene (or part of one) for content keys: every field called ``file`` (or ``filename``,
-    in a Mitsuba scene dict) replaced by the
-    digest of the file's bytes, Python objects (Mitsuba transforms in a scene dict) by their repr."""
+    in a Mitsuba scene dict) replaced by the digest of the file's bytes (and of the files it references), Python
+    objects (Mitsuba transforms in a scene dict) by their repr; the framing keys (:data:`FRAMING_KEYS`) left
+    out."""
     data = model.model_dump(mode="python") if isinstance(model, BaseModel) else model
 
     def walk(v):
@@ -153,6 +159,7 @@ def key_fields(model: BaseModel | dict) -> dict:
                     else walk(x)
                 )
                 for k, x in v.items()
+                if k not in FRAMING_KEYS
             }
         if isinstance(v, (list, tuple)):
             return [walk(x) for x in v]
