@@ -362,9 +362,9 @@ def write_set(
 
 
 def _stale_temps(out: Path) -> list[Path]:
-    """The temporary directories an earlier run on ``out`` left (``.<name>.new-`` and mkdtemp's 8 characters), and
-    no others: a sibling output named ``<name>.new-x`` has temporaries ``.<name>.new-x.new-…``, which are alive."""
-    pat = re.compile(re.escape(f".{out.name}.new-") + r"[A-Za-z0-9_]{8}")
+    """The temporary directories an earlier run on ``out`` left (``.<name>.new-`` and mkdtemp's characters, no
+    dot), and no others: a sibling output named ``<name>.new-x`` has temporaries ``.<name>.new-x.new-…``, alive."""
+    pat = re.compile(re.escape(f".{out.name}.new-") + r"[A-Za-z0-9_]+")
     return [p for p in out.parent.glob(f".{glob.escape(out.name)}.new-*") if pat.fullmatch(p.name)]
 
 

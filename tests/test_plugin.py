@@ -149,4 +149,5 @@ def test_plugin_method_reaches_sweep_figure_check_report_bench(tmp_path, plugin)
     res = run(app, ["report", "--reports", str(reports)])
     assert res.exit_code == 0, res.output
     index = (reports / "index.md").read_text()
-    assert "| sweep-x | throwaway_probe |" in index and "| fig4 | throwaway_probe |" in index
+    # names are Markdown-escaped text in the tables (an underscore as \_)
+    assert "| sweep-x | throwaway\\_probe |" in index and "| fig4 | throwaway\\_probe |" in index
