@@ -2,6 +2,7 @@
 the GIF and MP4 decode with imageio, with one frame per position, of one size, and the frames differ; bad configs
 are one line with exit 2 and leave earlier outputs as they were."""
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +87,21 @@ def test_animation_files_decode_with_the_right_frames(tiny):
     wrong = {r["frame"]: r["wrong_fraction"] for r in rows if r["label"] == "classical"}
     assert wrong[2] > wrong[0]  # far from the reference point, environment mapping misses
     assert (out / "motion.png").stat().st_size > 0 and (out / "metadata.json").exists()
+
+
+def test_motion_jod_table_and_claim(tiny):
+    """With study[video]: a JOD row per method and the noise floor (truth_at_hit), each within (0, 10] with its
+    interval around it (or none for a sequence too short to split), and the motion claim's verdicts."""
+    from study.measure import video
+
+    if not video.available():
+        pytest.skip("needs the extra study[video]")
+    out = tiny / "out"
+    rows = {r["label"]: r for r in read_csv(out / "jod.csv")}
+    assert set(rows) == {"classical", "localized(iterations=10)", "truth_at_hit"}
+    assert all(0 < r["jod"] <= 10 and r["display"] == video.DISPLAY for r in rows.values())
+    meta = json.loads((out / "metadata.json").read_text())
+    assert len(meta["motion_claim"]) == 2 and all("the claim" in c for c in meta["motion_claim"])
 
 
 @pytest.mark.parametrize(

@@ -35,6 +35,7 @@ from study.harness import budget
 from study.harness.config import MethodSpecs, configured_scene, expand_methods
 from study.harness.runner import metadata
 from study.io import atomic_savefig, locked, write_set
+from study.measure import video
 from study.measure.case import CaseOutput
 from study.measure.metrics import to_ldr
 from study.measure.outcomes import NAMES as OUTCOME_NAMES
@@ -203,7 +204,7 @@ def animate(
     budget.check(scenes, methods, source=str(config))
     store, rows, frames, cases = Cache(cache), [], [], []
     t0 = time.perf_counter()
-    owns = ["motion.gif", "motion.mp4", "motion.png", "frames.csv", "metadata.json"]
+    owns = ["motion.gif", "motion.mp4", "motion.png", "frames.csv", "metadata.json", "jod.csv"]
     with locked(out):  # one command at a time here; the files are made first, then written together
         for i, (case_id, sc) in enumerate(scenes):
             case = run_config_case(
@@ -238,6 +239,13 @@ def animate(
             plot(rows, labels, d / "motion.png")
             files.update({p.name: p.read_bytes() for p in d.iterdir() if p.name in owns})
         files["frames.csv"] = to_csv(rows)
+        claim = []
+        if video.available():  # ColorVideoVDP (study[video]): JOD of each method's sequence against Mitsuba's
+            seq = {lab: np.stack([to_ldr(c.images[lab]) for c in cases]) for lab in labels}
+            seq["truth_at_hit"] = np.stack([to_ldr(c.truth) for c in cases])  # the noise floor
+            jods = video.motion_rows(seq, np.stack([to_ldr(c.mitsuba) for c in cases]), fps=cfg.fps)
+            files["jod.csv"] = to_csv(jods)
+            claim = video.motion_claim(jods)
         meta = metadata(
             config,
             backend=backend,
@@ -247,6 +255,9 @@ def animate(
             kind="animation",
             seconds=round(time.perf_counter() - t0, 1),
         )
+        if claim:
+            meta["motion_claim"] = claim
+            meta["jod_display"] = video.DISPLAY
         files["metadata.json"] = json.dumps(meta, indent=2)
         write_set(out, files, owns, lock=False)
     return rows
