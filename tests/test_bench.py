@@ -28,6 +28,7 @@ from study.tables import read_csv
 needs_llvm = pytest.mark.skipif("llvm" not in BACKENDS, reason="needs Dr.Jit's LLVM backend")
 
 
+@pytest.mark.slow
 def test_bench_cli_tiny_writes_tables(tmp_path):
     """A tiny bench (--no-ladder) writes bench-cpu.csv and .md: one exact Embree row per batch (3 batches), one
     row per registered method (its defaults) × backend × batch, plus the plain path of localized on Dr.Jit,
@@ -165,6 +166,7 @@ def test_median_time_evaluates_every_call():
     assert len(syncs) == 2 + 1 + 3 and len(calls) > 3 + 3
 
 
+@pytest.mark.slow
 def test_scaling_tiny_writes_plot(tmp_path):
     """The scaling studies on tiny sizes: every study present, the room grows by the requested triangles, the
     method's cost is reported at every triangle count (it does not trace the triangles), and the knob study

@@ -6,6 +6,7 @@ import os
 import subprocess
 from pathlib import Path
 
+import pytest
 from test_bad_inputs import DEFAULT, FIG
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -16,6 +17,7 @@ def run(*args: bytes):
     return subprocess.run([STUDY, *args], capture_output=True, timeout=600)
 
 
+@pytest.mark.slow
 def test_non_utf8_scene_folder_and_out(tmp_path):
     base = os.fsencode(tmp_path)
     folder = base + b"/sc\xff"

@@ -345,6 +345,7 @@ def test_damaged_or_forged_case_files_are_recomputed(tmp_path, shared_cache, dam
     assert [r["case"] for r in read_csv(out / "results.csv")] == [r["case"] for r in ref]
 
 
+@pytest.mark.slow
 def test_caustics_sweep_resumes_with_the_same_checks(tmp_path):
     """The caustics sweep runs on the same runner: a re-run reuses its cases; an empty or relabelled case file is
     recomputed; a resolution added later shifts nothing (ids and keys from the config as it is now)."""
@@ -382,6 +383,7 @@ def test_caustics_sweep_resumes_with_the_same_checks(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------- orphans
+@pytest.mark.slow
 def test_workers_die_with_the_sweep_process(tmp_path):
     """SIGKILL the parent of a --jobs 2 sweep while its workers run: none of its processes is left after a few
     seconds (before: the workers waited forever on a queue nobody would write to)."""

@@ -43,6 +43,7 @@ def plugin(tmp_path, monkeypatch):
     os.environ.pop(methods.PLUGIN_ENV, None)
 
 
+@pytest.mark.slow
 def test_plugin_method_reaches_sweep_figure_check_report_bench(tmp_path, plugin):
     assert "throwaway_probe" not in methods.names()
     scene = small_scene_dict()

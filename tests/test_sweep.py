@@ -171,6 +171,7 @@ def test_second_sweep_on_the_same_directory_stops(reference_run):
             run_sweep(cfg, d / "ref", cache=d / "cache")
 
 
+@pytest.mark.slow
 def test_five_random_kills_then_resume(reference_run, tmp_path):
     """SIGKILL the sweep at 5 random moments (seeded), with a cold cache so kills also land in impostor and
     render writes; resume each time. The final table equals the uninterrupted run's, with no duplicate or
@@ -249,6 +250,7 @@ def test_drjit_runs_agree_within_1e5(reference_run, tmp_path):
                 assert abs(va - rb[k]) <= 1e-5 * max(abs(va), 1e-12) + 1e-12, k
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_gives_the_same_table(reference_run, tmp_path):
     """Scale-out: the same sweep on a local Dask distributed cluster (2 worker processes)."""
     pytest.importorskip("distributed")

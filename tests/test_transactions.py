@@ -187,6 +187,7 @@ def consistent_new(out: Path) -> bool:
     )
 
 
+@pytest.mark.slow
 def test_figure_killed_at_random_moments_is_all_old_or_all_new(fig, tmp_path):
     """SIGKILL `study figure` after random delays (seeded, spread over a whole run): each time its files are all
     the earlier ones byte for byte or all new and consistent. A kill can land in the milliseconds while the
@@ -238,6 +239,7 @@ def test_sigterm_leaves_the_old_files_and_no_lock(fig, tmp_path):
     assert files(out) == OLD and not (out / ".lock").exists() and not temp_files(tmp_path)
 
 
+@pytest.mark.slow
 def test_concurrent_figure_runs(fig, tmp_path):
     """Two runs into two directories side by side both succeed (no shared temporary name); two runs into one
     directory: one may be refused (exit 3, the other holds it), the files are one run's, whole."""
