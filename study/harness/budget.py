@@ -34,6 +34,8 @@ BYTES_PER_SUBPIXEL = 256  # camera rays and per-pixel images
 BYTES_PER_OBJECT_RAY = 1024  # every method's arrays for one ray leaving the object (measured: ~0.8 KiB)
 BYTES_PER_TEXEL = 64  # one cube-map texel: radiance + distance, float32, in a few copies
 BYTES_PER_LAYER_TEXEL = 80  # one texel of one depth layer (layered methods)
+BYTES_PER_TRIANGLE = 350  # one environment triangle: study's arrays, Embree's BVH, Mitsuba's mesh
+SECONDS_PER_TRIANGLE = 30e-6  # per environment triangle and case: Embree and Mitsuba scenes, renders' set-up
 DEFAULT_MAX_MEMORY_GIB = 16.0  # of a 24 GiB machine
 DEFAULT_MAX_MINUTES = 120.0
 
@@ -114,11 +116,14 @@ def estimate(
     if lookups is None:
         lookups = sum(m.lookup_bound(r.cube_res) for m in methods)  # bounds: no method spends more
     sub_key = "render.supersample" if r.supersample > 1 else "camera.width"
+    tris = _triangles(scene)
     mem = {
+        "environment": tris * BYTES_PER_TRIANGLE,
         sub_key: sub * BYTES_PER_SUBPIXEL + rays * BYTES_PER_OBJECT_RAY,
         "render.cube_res": texels * (BYTES_PER_TEXEL + (BYTES_PER_LAYER_TEXEL * layers if layers > 1 else 0)),
     }
     time = {
+        "environment": tris * SECONDS_PER_TRIANGLE,
         "render.spp": (3 * c.width * c.height + 2 * rays) * r.spp / rate,
         sub_key: SECONDS_PER_CASE + sub * SECONDS_PER_SUBPIXEL + rays * len(methods) * SECONDS_PER_OBJECT_RAY,
         "methods": rays * lookups * SECONDS_PER_LOOKUP,
@@ -136,6 +141,14 @@ def estimate(
     return Estimate(BYTES_BASE + sum(mem.values()), sum(time.values()), mem, time)
 
 
+def _triangles(scene: Scene) -> float:
+    """The environment's triangle count (its mesh is loaded with the scene: placement needed it)."""
+    try:
+        return float(len(scene.mesh().faces))
+    except Exception:  # an environment that cannot be meshed fails later, with its own message
+        return 0.0
+
+
 def _hours(s: float) -> str:
     return f"{s / 3600:.1f} h" if s >= 3600 else f"{s / 60:.1f} min" if s >= 60 else f"{s:.0f} s"
 
@@ -148,6 +161,8 @@ def _scene_key(key: str, scene: Scene) -> str:
     """``key = value`` for the message (``methods``: the costliest lookups)."""
     if key == "methods":
         return "methods (their lookups per ray)"
+    if key == "environment":
+        return f"the environment's {int(_triangles(scene)):,} triangles (environment.file)"
     if key == "camera.width":
         return f"camera.width × camera.height = {scene.camera.width} × {scene.camera.height}"
     part, name = key.split(".")

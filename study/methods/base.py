@@ -42,6 +42,7 @@ parameters as keyword arguments, validated by the class's ``Params`` model (unkn
 from __future__ import annotations
 
 import inspect
+import math
 import re
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -170,7 +171,18 @@ class Method(ABC):
     def lookup_bound(self, res: int | None = None) -> float:
         """:meth:`lookups_per_ray` at ``res`` (also for a plug-in whose ``lookups_per_ray`` takes no argument)."""
         takes_res = bool(inspect.signature(self.lookups_per_ray).parameters)
-        return float(self.lookups_per_ray(res) if takes_res else self.lookups_per_ray())
+        v = self.lookups_per_ray(res) if takes_res else self.lookups_per_ray()
+        try:
+            bound = float(v)
+        except (TypeError, ValueError):
+            bound = math.nan
+        if not (math.isfinite(bound) and bound >= 0):  # a NaN would pass every budget (NaN > limit is False)
+            raise StudyError(
+                f"lookups_per_ray() of {self.name!r} gave {v!r}; it must be a finite number of lookups ≥ 0 "
+                "(the budget and the bench's floor model count it)",
+                key="method",
+            )
+        return bound
 
     def layers_needed(self) -> int:
         """Depth layers of the impostor this method searches (captured into ``Captured.layers`` when more than

@@ -1,0 +1,40 @@
+"""The budget sees what drives a case's cost: a plug-in's lookup bound must be a finite number (a NaN once passed
+every --max-minutes, since NaN > limit is False), and the environment's triangles count in memory and time (a
+2,007,372-triangle room was estimated at 0.50 GiB / 5 s and took 1.16 GiB / 181 s)."""
+
+import numpy as np
+import pytest
+
+from study import methods
+from study.errors import StudyError
+from study.harness import budget
+from study.scene import load_scene
+
+
+class NanBound(methods.base.Method):
+    name = "nan_bound_probe"
+
+    def localize(self, B, env, x, R):  # never called here
+        raise AssertionError
+
+    def lookups_per_ray(self, res=None):
+        return float("nan")
+
+
+def test_a_nan_lookup_bound_is_refused_naming_the_method():
+    scene = load_scene("scenes/room.toml")
+    with pytest.raises(StudyError, match="lookups_per_ray\\(\\) of 'nan_bound_probe' gave nan"):
+        budget.estimate(scene, [NanBound()])
+
+
+def test_environment_triangles_count_in_the_estimate(monkeypatch):
+    scene = load_scene("scenes/room.toml")
+    ms = [methods.make("classical")]
+    small = budget.estimate(scene, ms)
+    monkeypatch.setattr(budget, "_triangles", lambda sc: 2_007_372.0)
+    big = budget.estimate(scene, ms)
+    assert big.memory["environment"] == pytest.approx(2_007_372 * budget.BYTES_PER_TRIANGLE)
+    assert big.bytes - small.bytes > 0.6 * (1 << 30)  # the 2 M-triangle room's extra 0.66 GiB
+    assert big.seconds - small.seconds > 50
+    with pytest.raises(StudyError, match="environment: .*the environment's 2,007,372 triangles"):
+        budget.check([("c", scene)], ms, limits=budget.Limits(max_memory_gib=0.9, max_minutes=np.inf))
