@@ -35,9 +35,16 @@ def figure(
     out: Path | None = typer.Option(None, help="output directory (default reports/<name>)"),
     backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
+    quality: str = typer.Option(
+        "preview",
+        help="preview: the config as written | paper: 1024² renders (reports/paper/<name>; a GPU job)",
+    ),
 ):
     """Reproduce one of the paper's figures, or your own (--config ANY.toml): image grid, metrics, per-case EXRs
-    and viewer images under reports/<name>/."""
+    and viewer images under reports/<name>/ (reports/paper/<name>/ with --quality paper)."""
+    from study.harness.config import quality_overrides
+
+    quality_overrides(quality)  # an unknown preset: one line, before any work
     known = figures()
     if name is None and config is None:
         raise StudyError(f"name a figure or give --config; figures: {', '.join(known)}", key="name")
@@ -45,7 +52,7 @@ def figure(
         raise StudyError(f"unknown figure {name!r}; allowed: {', '.join(known)}", key="name")
     config = Path(known[name]) if config is None else shipped(config)
     name = name or file_stem(config.stem)
-    out = out or Path("reports") / name
+    out = out or (Path("reports") / name if quality == "preview" else Path("reports") / quality / name)
     t0 = time.perf_counter()
     if "caustic" in read_toml(config):  # caustics (fig8): study/caustics/figure.py
         return _caustics(config, out, backend, cache, sweep=False)
@@ -54,7 +61,9 @@ def figure(
         def progress(i, n):
             status.update(f"{name}: {i}/{n} rows done ({time.perf_counter() - t0:.0f} s)")
 
-        rows = figure_positions(config, out, name=name, backend=backend, cache=cache, progress=progress)
+        rows = figure_positions(
+            config, out, name=name, backend=backend, cache=cache, progress=progress, quality=quality
+        )
     _print_table(rows)
     console.print(f"{name}: wrote {out} in {time.perf_counter() - t0:.1f} s", highlight=False)
 

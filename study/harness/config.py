@@ -89,6 +89,22 @@ def base_scene(spec: str | dict, *, config_path: Path) -> Scene:
 MethodSpecs = Literal["all"] | list[str | dict[str, Any]]
 
 
+#: Quality presets of ``study figure --quality``: scene keys applied to every case after the config's own.
+#: ``preview`` is the config as written (what scripts/reproduce.sh and CI make on a CPU); ``paper`` renders at the
+#: paper's 1024² with the config's framing, one ray per pixel (the resolution gives the rays), for a GPU machine.
+QUALITY: dict[str, dict] = {
+    "preview": {},
+    "paper": {"camera.width": 1024, "camera.height": 1024, "render.supersample": 1},
+}
+
+
+def quality_overrides(quality: str) -> dict:
+    """The scene keys of a quality preset; an unknown name is one line naming the allowed ones."""
+    if quality not in QUALITY:
+        raise StudyError(f"unknown quality {quality!r}; allowed: {', '.join(QUALITY)}", key="--quality")
+    return QUALITY[quality]
+
+
 def configured_scene(cfg, path: Path) -> Scene:
     """The base scene of a config (``cfg.scene``: a path relative to the config file, or an inline table) with
     the config's ``[overrides]`` applied."""

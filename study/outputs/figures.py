@@ -18,7 +18,7 @@ import numpy as np
 from study.cache import Cache
 from study.errors import StudyError
 from study.harness import budget
-from study.harness.config import load_figure_config
+from study.harness.config import load_figure_config, quality_overrides
 from study.harness.runner import metadata
 from study.io import atomic_savefig, file_stems, json_text, locked, png_bytes, write_set
 from study.measure.case import CaseOutput, run_case
@@ -233,10 +233,13 @@ def figure_positions(
     backend: str = "numpy",
     cache: str | Path | None = ".cache",
     progress=None,
+    quality: str = "preview",
 ) -> list[dict]:
     """Run every position (or case) of a figure config with every method; write ``<out>/<name>.png`` and
-    ``<out>/metrics.csv`` (one row per position or case × method). Returns the rows."""
+    ``<out>/metrics.csv`` (one row per position or case × method). Returns the rows. ``quality``: a preset of
+    :data:`study.harness.config.QUALITY` applied to every case (``paper``: 1024² renders)."""
     cfg, scene, methods = load_figure_config(config)
+    preset = quality_overrides(quality)
     by_name = {m.name: m.label for m in reversed(methods)}  # a bare name means its first entry
     labels = (
         [g if g in {m.label for m in methods} else by_name.get(g, g) for g in cfg.grid]
@@ -253,7 +256,10 @@ def figure_positions(
         )
     todo = cfg.case_list()
     what = "positions" if cfg.positions is not None else "cases"
-    scenes = [(f"{name}-{suffix}", scene.with_updates(over, source=str(config))) for suffix, _, over in todo]
+    scenes = [
+        (f"{name}-{suffix}", scene.with_updates({**over, **preset}, source=str(config)))
+        for suffix, _, over in todo
+    ]
     budget.check_backend(backend)
     budget.check(scenes, methods, source=str(config))
     store = Cache(cache)
@@ -277,6 +283,7 @@ def figure_positions(
             methods=[m.label for m in methods],
             cases=len(todo),
             figure=name,
+            quality=quality,
         )
         pngs = image_grids(
             name,

@@ -1,0 +1,41 @@
+"""`study figure --quality`: a preset's scene keys reach every case after the config's own (the paper preset
+renders 1024²; here a stand-in preset of 20² keeps the test small), the metadata says which preset, the outputs go
+to reports/<preset>/<name>/ by default, and an unknown preset is one line naming the allowed ones."""
+
+import json
+
+from test_bad_inputs import DEFAULT, FIG
+from typer.testing import CliRunner
+
+from study.cli import app
+from study.harness import config
+from study.io import read_exr_layers
+
+runner = CliRunner()
+
+
+def test_paper_preset_is_1024_squared():
+    assert config.QUALITY["paper"]["camera.width"] == config.QUALITY["paper"]["camera.height"] == 1024
+    assert config.QUALITY["preview"] == {}
+
+
+def test_a_preset_reaches_every_case(tmp_path, monkeypatch):
+    monkeypatch.setitem(config.QUALITY, "tiny", {"camera.width": 20, "camera.height": 20})
+    cfg = tmp_path / "f.toml"
+    cfg.write_text(FIG.format(**DEFAULT))
+    res = runner.invoke(
+        app, ["figure", "--config", str(cfg), "--out", str(tmp_path / "o"), "--quality", "tiny"]
+    )
+    assert res.exit_code == 0, res.output
+    meta = json.loads((tmp_path / "o" / "metadata.json").read_text())
+    assert meta["quality"] == "tiny"
+    exr = next((tmp_path / "o" / "exr").glob("*.exr"))
+    assert next(iter(read_exr_layers(exr).values())).shape[:2] == (20, 20)
+
+
+def test_unknown_preset_is_one_line(tmp_path):
+    res = runner.invoke(app, ["figure", "fig4", "--quality", "ultra", "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and res.output.strip() == (
+        "error: --quality: unknown quality 'ultra'; allowed: preview, paper"
+    ), res.output
+    assert not (tmp_path / "o").exists()
