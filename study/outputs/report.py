@@ -284,7 +284,9 @@ def blocks(reports: Path) -> list[tuple]:
         out += sections.run_section(reports, d, read_table(d / "table.csv", numeric=numeric), SUMMARY)
     for d in sweeps:
         out += sections.sweep_section(d, tables[d.name])
-    out += sections.caustics_section(reports) + sections.media_section(reports)
+    out += (
+        sections.caustics_section(reports) + sections.media_section(reports) + sections.paper_section(reports)
+    )
     others = sections.shown(p for p in reports.glob("*.md") if p.name != "index.md")
     others += sections.shown(
         p for p in reports.glob("*/*.md") if p.parent.name not in {d.name for d in figs + sweeps}

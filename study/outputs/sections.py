@@ -168,6 +168,35 @@ def media_section(reports: Path) -> list[tuple]:
     return out
 
 
+def paper_section(reports: Path) -> list[tuple]:
+    """Figures at the paper's resolution made on a GPU machine (``reports/paper/<name>/``, ``study figure NAME
+    --quality paper``): their grids, the command and the seconds each took, from their metadata."""
+    dirs = shown(d for d in (reports / "paper").glob("*") if (d / "metadata.json").is_file())
+    if not dirs:
+        return []
+    out = [
+        ("h", 2, "Paper resolution (1024², made on a GPU)"),
+        (
+            "p",
+            "The preview figures above are what `scripts/reproduce.sh` makes on a CPU; these are the same configs "
+            "at the paper's 1024² (`--quality paper`), one ray per pixel. See [paper/README.md](paper/README.md).",
+        ),
+    ]
+    for d in dirs:
+        m = meta(d)
+        out.append(
+            (
+                "p",
+                Md(
+                    f"**{md_esc(d.name)}**: {code(m.get('command') or '?')}, {m.get('seconds', '?')} s on "
+                    f"{md_esc(m.get('machine_note', '?'))}; table: {link('metrics.csv', f'paper/{d.name}/metrics.csv')}"
+                ),
+            )
+        )
+        out += [("img", f"paper/{d.name}/{p.name}", f"{d.name} at 1024²") for p in shown(d.glob("*.png"))]
+    return out
+
+
 def versions_section(dirs: list[Path]) -> list[tuple]:
     rows = []
     for d in dirs:
