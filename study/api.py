@@ -129,7 +129,7 @@ def load_scene(
             f"not a scene source; allowed: .toml, {', '.join(MESH_SUFFIXES + MITSUBA_SUFFIXES)}",
             file=str(path),
         )
-    from study.scene import load_scene as load_toml
+    from study.scene import load_scene_file as load_toml
 
     scene = load_toml(path)
     return scene.with_updates(updates, source=str(path)) if updates else scene
@@ -338,7 +338,7 @@ def evaluate(
     scene = load_scene(scene, overrides)
     ms = method_list(methods)
     budget.check_backend(backend)
-    budget.check([("run", scene)], ms, source=source)
+    budget.check_cases([("run", scene)], ms, source=source)
     from study import runtime
 
     with runtime.using_render_device("cuda" if backend == "cuda" else None):  # renders and exact hits too, as
@@ -351,7 +351,7 @@ def evaluate(
         )
     mask = np.asarray(case.mask, bool)
     images = {"oracle_map": case.oracle, "truth_at_hit": case.truth, "mitsuba": case.mitsuba, **case.images}
-    flips = {"oracle_map": flip_map(case.oracle, case.truth), **case.flip_maps}
+    flips = {"oracle_map": flip_map(case.truth, case.oracle), **case.flip_maps}
     errors = {
         k: np.where(mask, np.sqrt(np.mean((np.asarray(v, float) - case.truth) ** 2, axis=-1)), np.nan)
         for k, v in images.items()

@@ -146,7 +146,7 @@ def test_shipped_motion_config_is_valid():
 def test_crop_box_holds_the_object_in_every_frame():
     a, b = np.zeros((64, 64), bool), np.zeros((64, 64), bool)
     a[10:20, 10:20], b[30:40, 40:50] = True, True
-    sy, sx = animation.crop_box([a, b])
+    sy, sx = animation.motion_crop([a, b])
     for m in (a, b):
         assert m[sy, sx].sum() == m.sum()  # nothing of either object cut off
     assert sy.stop - sy.start == sx.stop - sx.start < 64  # square, smaller than the frame

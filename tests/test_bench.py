@@ -17,7 +17,7 @@ from study import backend as backends
 from study import methods
 from study.bench.batches import distance_texels, room_triangles
 from study.bench.output import write_outputs
-from study.bench.run import BenchOptions, method_list, run_bench
+from study.bench.run import BenchOptions, bench_methods, run_bench
 from study.bench.timing import median_time, method_runner
 from study.cli import app
 from study.impostor import analytic
@@ -106,7 +106,7 @@ def test_bench_cli_tiny_writes_tables(tmp_path):
 def test_method_list_is_every_method_at_every_knob_value():
     """The methods timed: every registered method at each value of its declared knob's ladder (none looked up by
     parameter name), the defaults only with ladder=False, just the named ones with ``methods``."""
-    got = [m.label for m in method_list(BenchOptions())]
+    got = [m.label for m in bench_methods(BenchOptions())]
     want = []
     for name in methods.names():
         cls = methods.REGISTRY[name]
@@ -116,10 +116,10 @@ def test_method_list_is_every_method_at_every_knob_value():
             else [methods.make(name).label]
         )
     assert got == want and len(got) > len(methods.names())
-    assert [m.label for m in method_list(BenchOptions(ladder=False))] == [
+    assert [m.label for m in bench_methods(BenchOptions(ladder=False))] == [
         m.label for m in methods.all_methods()
     ]
-    assert [m.label for m in method_list(BenchOptions(methods=("localized", "classical")))] == [
+    assert [m.label for m in bench_methods(BenchOptions(methods=("localized", "classical")))] == [
         f"localized(iterations={n})" for n in methods.REGISTRY["localized"].knob.ladder
     ] + ["classical"]
 
@@ -414,10 +414,10 @@ def test_flip_on_the_mask_bounding_box_equals_the_whole_frame():
     mask = (yy - 70) ** 2 + (xx - 120) ** 2 < 30**2
     ref = rng.uniform(0, 1.2, (160, 200, 3)).astype(np.float32)
     test = np.clip(ref + rng.normal(0, 0.1, ref.shape), 0, None).astype(np.float32)
-    whole = flip_map(test, ref)
-    assert flip(test, ref, mask=mask) == float(whole[mask].mean())
+    whole = flip_map(ref, test)
+    assert flip(ref, test, mask=mask) == float(whole[mask].mean())
     y0, x0 = 70 - 30 - 8, 120 - 30 - 8  # the failing case: too small a margin
-    tight = flip_map(test[y0 : y0 + 77, x0 : x0 + 77], ref[y0 : y0 + 77, x0 : x0 + 77])
+    tight = flip_map(ref[y0 : y0 + 77, x0 : x0 + 77], test[y0 : y0 + 77, x0 : x0 + 77])
     assert float(tight[mask[y0 : y0 + 77, x0 : x0 + 77]].mean()) != float(whole[mask].mean())
 
 
@@ -435,9 +435,9 @@ def test_ssim_and_psnr_on_the_mask_equal_the_whole_frame():
     test = np.clip(ref + rng.normal(0, 0.1, ref.shape), 0, None).astype(np.float32)
     _, smap = structural_similarity(to_ldr(ref), to_ldr(test), channel_axis=-1, data_range=1.0, full=True)
     for mask in ((yy - 70) ** 2 + (xx - 120) ** 2 < 30**2, (yy < 20) & (xx > 150)):
-        assert abs(ssim(test, ref, mask=mask) - float(smap.mean(axis=-1)[mask].mean())) < 1e-12
+        assert abs(ssim(ref, test, mask=mask) - float(smap.mean(axis=-1)[mask].mean())) < 1e-12
         want = peak_signal_noise_ratio(to_ldr(ref)[mask], to_ldr(test)[mask], data_range=1.0)
-        assert psnr(test, ref, mask=mask) == want
+        assert psnr(ref, test, mask=mask) == want
     box = (slice(40, 100), slice(90, 150))  # the failing case: a square mask, cut without margin
     mask = np.zeros(yy.shape, bool)
     mask[box] = True
@@ -445,4 +445,4 @@ def test_ssim_and_psnr_on_the_mask_equal_the_whole_frame():
         to_ldr(ref[box]), to_ldr(test[box]), channel_axis=-1, data_range=1.0, full=True
     )
     assert abs(float(tight.mean()) - float(smap.mean(axis=-1)[mask].mean())) > 1e-4
-    assert abs(ssim(test, ref, mask=mask) - float(smap.mean(axis=-1)[mask].mean())) < 1e-12
+    assert abs(ssim(ref, test, mask=mask) - float(smap.mean(axis=-1)[mask].mean())) < 1e-12

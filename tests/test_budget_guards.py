@@ -8,7 +8,7 @@ import pytest
 from study import methods
 from study.errors import StudyError
 from study.harness import budget
-from study.scene import load_scene
+from study.scene import load_scene_file
 
 
 class NanBound(methods.base.Method):
@@ -22,13 +22,13 @@ class NanBound(methods.base.Method):
 
 
 def test_a_nan_lookup_bound_is_refused_naming_the_method():
-    scene = load_scene("scenes/room.toml")
+    scene = load_scene_file("scenes/room.toml")
     with pytest.raises(StudyError, match="lookups_per_ray\\(\\) of 'nan_bound_probe' gave nan"):
         budget.estimate(scene, [NanBound()])
 
 
 def test_environment_triangles_count_in_the_estimate(monkeypatch):
-    scene = load_scene("scenes/room.toml")
+    scene = load_scene_file("scenes/room.toml")
     ms = [methods.make("classical")]
     small = budget.estimate(scene, ms)
     monkeypatch.setattr(budget, "_triangles", lambda sc: 2_007_372.0)
@@ -37,4 +37,4 @@ def test_environment_triangles_count_in_the_estimate(monkeypatch):
     assert big.bytes - small.bytes > 0.6 * (1 << 30)  # the 2 M-triangle room's extra 0.66 GiB
     assert big.seconds - small.seconds > 50
     with pytest.raises(StudyError, match="environment: .*the environment's 2,007,372 triangles"):
-        budget.check([("c", scene)], ms, limits=budget.Limits(max_memory_gib=0.9, max_minutes=np.inf))
+        budget.check_cases([("c", scene)], ms, limits=budget.Limits(max_memory_gib=0.9, max_minutes=np.inf))

@@ -20,7 +20,7 @@ from study.measure.case import run_case
 from study.methods import make
 from study.reference.embree import Tracer
 from study.reference.mitsuba import mi, scene_dict, sensor
-from study.scene import load_scene, scene_from_dict
+from study.scene import load_scene_file, scene_from_dict
 from study.scene.environment import geometry
 from study.scene.sources import key_fields
 
@@ -72,7 +72,7 @@ def xml_scene(tmp_path, **over) -> dict:
 
 
 def mesh_scene(name: str) -> dict:
-    return load_scene(ROOT / "scenes" / f"{name}.toml").with_updates(TINY)
+    return load_scene_file(ROOT / "scenes" / f"{name}.toml").with_updates(TINY)
 
 
 def sources(tmp_path):
@@ -254,7 +254,7 @@ def test_mesh_without_faces_is_one_line(tmp_path):
 
 def test_relative_file_resolves_against_the_scene_file(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # not the repo: the path is the TOML's
-    s = load_scene(ROOT / "scenes" / "l_room.toml")
+    s = load_scene_file(ROOT / "scenes" / "l_room.toml")
     assert Path(s.environment.file) == ROOT / "scenes" / "rooms" / "l_room.ply"
 
 
@@ -284,7 +284,7 @@ def test_proxies_use_the_bounds_or_the_given_box():
 def test_a_closed_cube_with_flipped_normals_is_a_room():
     """A Mitsuba ``cube`` with ``flip_normals`` faces inwards: its inside is free space, placement and the
     suggested placement accept it (Mitsuba's flag, not the triangles' winding, says which side is free)."""
-    from study.scene.environment import suggest
+    from study.scene.environment import suggest_placement as suggest
 
     env = {
         "type": "mitsuba",

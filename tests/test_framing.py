@@ -20,7 +20,7 @@ from study.impostor.cubemap import FAR
 from study.optics import shading
 from study.outputs.animation import load_motion_config
 from study.reference.tracer import make_tracer
-from study.scene import load_scene
+from study.scene import load_scene_file
 from study.scene.sources import key_fields
 from study.tables import read_csv
 
@@ -105,7 +105,7 @@ def _object_rays(scene) -> tuple[int, int]:
 def test_frame_object_aims_and_zooms_from_the_same_eye():
     """target = the object's centre; the bounding sphere's image spans frame_fill of the frame's smaller side, so
     its pixels are π (fill · side / 2)² wherever it stands; moving the object (as a sweep does) reframes it."""
-    base = load_scene("scenes/room.toml").with_updates({"camera.width": 200, "camera.height": 100})
+    base = load_scene_file("scenes/room.toml").with_updates({"camera.width": 200, "camera.height": 100})
     s = base.with_updates({"camera.frame_object": True, "camera.frame_fill": 0.5})
     assert s.camera.eye == base.camera.eye and s.camera.target == s.object.center
     assert math.isclose(budget.object_pixels(s), math.pi * (0.5 * 100 / 2) ** 2, rel_tol=1e-9)
@@ -119,8 +119,8 @@ def test_frame_object_aims_and_zooms_from_the_same_eye():
 def test_framing_keys_leave_content_keys_alone():
     """A framed camera and the same camera written out by hand have one content key (cached results shared), and
     scenes without framing keep the keys they had."""
-    s = load_scene("scenes/room.toml").with_updates({"camera.frame_object": True})
-    by_hand = load_scene("scenes/room.toml").with_updates(
+    s = load_scene_file("scenes/room.toml").with_updates({"camera.frame_object": True})
+    by_hand = load_scene_file("scenes/room.toml").with_updates(
         {"camera.target": list(s.camera.target), "camera.fov": s.camera.fov}
     )
     assert key_fields(s) == key_fields(by_hand)
@@ -138,7 +138,7 @@ def test_framing_keys_leave_content_keys_alone():
 )
 def test_frame_object_refusals_name_the_key(over, key):
     with pytest.raises(StudyError) as e:
-        load_scene("scenes/room.toml").with_updates({"camera.frame_object": True, **over})
+        load_scene_file("scenes/room.toml").with_updates({"camera.frame_object": True, **over})
     assert e.value.key == key
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from study.errors import StudyError
-from study.scene import camera_rays, load_scene, objects, scene_from_dict
+from study.scene import camera_rays, load_scene_file, objects, scene_from_dict
 from tests.conftest import scene_toml, small_scene_dict
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -88,7 +88,7 @@ def test_embree_and_mitsuba_hit_the_same_mesh_with_the_same_normals():
     )
     o, d = (a.reshape(-1, 3) for a in camera_rays(c, 1))
     si = msc.ray_intersect(m.Ray3f(m.Point3f(*o.T.astype(np.float32)), m.Vector3f(*d.T.astype(np.float32))))
-    h = objects.geometry(sc).hits(o, d)
+    h = objects.object_geometry(sc).hits(o, d)
     ours = np.isfinite(h["t"])
     theirs = np.isclose(np.array(si.t), h["t"], atol=1e-4)
     assert ours.sum() > 100 and np.array_equal(ours, theirs)
@@ -104,7 +104,7 @@ def test_hit_normals_are_interpolated_vertex_normals():
     import trimesh
 
     sc = mesh_scene(camera={**CAMERA, "width": 16, "height": 16})
-    g = objects.geometry(sc)
+    g = objects.object_geometry(sc)
     o, d = (a.reshape(-1, 3) for a in camera_rays(sc.camera, 1))
     h = g.hits(o, d)
     hit = np.isfinite(h["t"])
@@ -128,7 +128,7 @@ def test_relative_file_resolves_against_the_scene_file(tmp_path, monkeypatch):
     d["object"] = {"file": "m/b.obj", "center": [0.6, 1.2, 0.3], "radius": 0.4}  # shape "mesh" implied
     (tmp_path / "scenes" / "s.toml").write_text(scene_toml(d))
     monkeypatch.chdir(tmp_path)  # not the scene's directory
-    sc = load_scene("scenes/s.toml")
+    sc = load_scene_file("scenes/s.toml")
     assert sc.object.shape == "mesh" and sc.object.file == str(tmp_path / "scenes" / "m" / "b.obj")
     assert sc.with_updates({"object.radius": 0.3}).object.file == sc.object.file  # stays absolute
 
@@ -150,7 +150,7 @@ def test_bad_object_files_are_one_line(tmp_path, obj, words):
     d["object"] = {k: (str(BUNNY) if v == "BUNNY" else v) for k, v in obj.items()}
     (tmp_path / "scene.toml").write_text(scene_toml(d))
     with pytest.raises(StudyError, match=words) as e:
-        load_scene(tmp_path / "scene.toml")
+        load_scene_file(tmp_path / "scene.toml")
     assert str(tmp_path / "scene.toml") in str(e.value) and "\n" not in str(e.value)
 
 
@@ -167,7 +167,7 @@ def test_unusable_mesh_files_are_one_line(tmp_path, name, text, words):
     (tmp_path / name).write_text(text)
     sc = mesh_scene(tmp_path / name)
     with pytest.raises(StudyError, match=f"{tmp_path / name}: object.file: .*({words})") as e:
-        objects.geometry(sc)
+        objects.object_geometry(sc)
     assert "\n" not in str(e.value)
 
 

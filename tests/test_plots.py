@@ -17,7 +17,7 @@ def test_pareto_front_equals_brute_force():
     rng = np.random.default_rng(5)
     for _ in range(20):
         pts = [tuple(p) for p in rng.integers(0, 8, (12, 2)).astype(float)]
-        front = set(plots.pareto_front(pts))
+        front = set(plots.pareto_indices(pts))
         brute = {
             i
             for i, (c, e) in enumerate(pts)

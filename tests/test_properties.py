@@ -66,7 +66,7 @@ def test_no_nan_and_shown_points_on_the_environment_surface(room, res, seed, nam
 @given(room=rooms(), seed=st.integers(0, 2**31 - 1))
 def test_localized_converges_to_the_analytic_hit_with_an_exact_environment(room, seed):
     lo, hi = room
-    env = analytic.BoxEnv(lo, hi, B)
+    env = analytic.AnalyticBox(lo, hi, B)
     x, d = rays_in(lo, hi, 500, seed, fill=0.6)
     exact = analytic.box_hit(x, d, lo, hi)
     with np.errstate(all="ignore"):

@@ -44,10 +44,14 @@ def test_unknown_preset_is_one_line(tmp_path):
 def test_report_shows_the_paper_resolution_figures(tmp_path):
     d = tmp_path / "paper" / "fig9"
     d.mkdir(parents=True)
-    (d / "metadata.json").write_text(json.dumps({"command": "study figure fig9 --quality paper", "seconds": 12.5}))
+    (d / "metadata.json").write_text(
+        json.dumps({"command": "study figure fig9 --quality paper", "seconds": 12.5})
+    )
     (d / "fig9.png").write_bytes(b"\x89PNG")
     res = runner.invoke(app, ["report", "--reports", str(tmp_path)])
     assert res.exit_code == 0, res.output
     md = (tmp_path / "index.md").read_text()
-    assert "## Paper resolution (1024², made on a GPU)" in md and "![fig9 at 1024²](paper/fig9/fig9.png)" in md
+    assert (
+        "## Paper resolution (1024², made on a GPU)" in md and "![fig9 at 1024²](paper/fig9/fig9.png)" in md
+    )
     assert "`study figure fig9 --quality paper`, 12.5 s" in md

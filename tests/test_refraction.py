@@ -157,7 +157,7 @@ def test_mesh_hits_have_interpolated_normals_facing_the_camera():
     """Camera rays on a torus: Embree hit points lie within 1e-4 of the bounding sphere; the interpolated
     normals face the incoming ray and stay within 10° of the triangle's geometric normal."""
     sc = glass_scene(shape="torus")
-    g = objects.geometry(sc)
+    g = objects.object_geometry(sc)
     from study.scene import camera_rays
 
     o, d = camera_rays(sc.camera, 1)
@@ -189,7 +189,7 @@ def test_distance_map_exit_of_a_sphere_is_close_to_the_closed_form():
     to interpolation) within 1 mm for a 0.4 m sphere at face resolution 128, for rays refracted in at the
     surface (random incoming directions, n = 1.5: inside within 41.8° of the inward normal)."""
     sc = glass_scene()
-    g = objects.geometry(sc)
+    g = objects.object_geometry(sc)
     dm = DistanceMap(g, 128)
     rng = np.random.default_rng(3)
     nrm = rng.normal(size=(500, 3))
@@ -262,7 +262,7 @@ def test_mitsuba_gets_the_same_triangles_and_normals():
     msc = m.load_dict(scene_dict(sc, with_object=True, sensor=sensor))
     o, d = (a.reshape(-1, 3) for a in camera_rays(c, 1))
     si = msc.ray_intersect(m.Ray3f(m.Point3f(*o.T.astype(np.float32)), m.Vector3f(*d.T.astype(np.float32))))
-    g = objects.geometry(sc)
+    g = objects.object_geometry(sc)
     h = g.hits(o, d)
     ours = np.isfinite(h["t"])
     t_m = np.array(si.t)

@@ -4,11 +4,11 @@ import pytest
 from conftest import small_scene_dict
 
 from study.errors import StudyError
-from study.scene import load_scene, scene_from_dict
+from study.scene import load_scene_file, scene_from_dict
 
 
 def test_shipped_scene_loads():
-    s = load_scene("scenes/room.toml")
+    s = load_scene_file("scenes/room.toml")
     assert s.render.cube_res == 256 and s.object.material.type == "conductor"
 
 
@@ -58,11 +58,11 @@ def test_invalid_scene(change, key, words):
 
 def test_missing_and_broken_files(tmp_path):
     with pytest.raises(StudyError, match="nope.toml: scene file not found"):
-        load_scene(tmp_path / "nope.toml")
+        load_scene_file(tmp_path / "nope.toml")
     p = tmp_path / "broken.toml"
     p.write_text("[room\n")
     with pytest.raises(StudyError, match="broken.toml: not valid TOML"):
-        load_scene(p)
+        load_scene_file(p)
 
 
 def test_with_updates_revalidates_and_rejects_unknown_keys():

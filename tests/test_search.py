@@ -149,7 +149,7 @@ def _exit_rays(g, n, seed=3):
 def test_distance_map_exit_is_the_same_on_numpy_and_llvm(shape):
     """The same exits from both backends (texture filtering differs only in float32 round-off): on a sphere
     within 1e-6 m everywhere, on a torus (whose map has edges: its hole) on 99 % of the rays, the same ok flags."""
-    g = objects.geometry(glass_scene(shape=shape))
+    g = objects.object_geometry(glass_scene(shape=shape))
     x, d = _exit_rays(g, 600)
     e_np, n_np, ok_np = DistanceMap(g, 64).exit(x, d)
     e_ll, n_ll, ok_ll = DistanceMap(g, 64, backend="llvm").exit(x, d)
@@ -167,7 +167,7 @@ def test_distance_map_exit_is_the_same_on_numpy_and_llvm(shape):
 def test_distance_map_spends_the_lookups_it_reports(B):
     """Every lookup of the exit search goes through the map's EnvMap: as many calls as lookups_per_ray() (on
     Dr.Jit with its loops unrolled: a symbolic loop traces its body once)."""
-    g = objects.geometry(glass_scene())
+    g = objects.object_geometry(glass_scene())
     x, d = _exit_rays(g, 50)
     dm = DistanceMap(g, 16, steps=7, iterations=5, backend=B.name)
     calls = []

@@ -107,7 +107,9 @@ def test_a_method_that_misses_most_rays_reports_what_it_dropped():
     oc = outcomes.classify(x, R, shown, exact, eps=0.01)
     ang = metrics.angular_error(x, shown, exact)
     cols = stats.ray_columns(oc, ang, np.zeros(n, bool), x, exact)
-    assert metrics.summary(ang, "angle", "_deg")["angle_p95_deg"] < 1e-3  # what the finite-only column says
+    assert (
+        metrics.value_stats(ang, "angle", "_deg")["angle_p95_deg"] < 1e-3
+    )  # what the finite-only column says
     assert cols["angle_dropped"] >= 0.95 and cols["dist_dropped"] >= 0.95
     assert cols["angle_p95_all_deg"] == np.inf
     assert cols["wrong_fraction_1cm"] >= 0.95 and cols["wrong_fraction_0p5deg"] >= 0.95
@@ -124,7 +126,7 @@ def test_pixel_columns_flag_a_handful_of_bad_pixels():
     img[:1, :10] += 5.0  # 10 fireflies among 10⁴ pixels
     mask = np.ones((100, 100), bool)
     cols = stats.pixel_columns(img, ref, mask=mask, sigma=0.0, rel_eps=1e-2)
-    r = metrics.rmse(img, ref, mask=mask)
+    r = metrics.rmse(ref, img, mask=mask)
     assert cols["rmse_truth_lo"] <= r <= cols["rmse_truth_hi"]
     assert cols["sqerr_top_share_truth"] > 0.99
     assert cols["rmse_truth_trim"] < 0.02 < r

@@ -56,7 +56,7 @@ def header(info: dict) -> str:
     )
 
 
-def headline(rows: list[dict]) -> list[dict]:
+def bench_headline(rows: list[dict]) -> list[dict]:
     """The headline rows: each method's frozen (Dr.Jit) row on the full-frame batches (close-up, synthetic)
     that has a floor, with its floor, its ratio to the floor and to the exact queries."""
     return [
@@ -73,14 +73,14 @@ def bench_table(rows: list[dict]) -> str:
     return markdown(rows, BENCH_COLS, digits=4)
 
 
-def write_table(rows, info, out: Path, *, lock: bool = True) -> list[Path]:
+def write_bench_files(rows, info, out: Path, *, lock: bool = True) -> list[Path]:
     """Replace the main table (``bench-<tag>.csv`` and ``.md``) in ``out``; the paths."""
     tag = info["tag"]
     fl = info.get("floors") or []
     md = (
         f"# study bench ({tag})\n\n{header(info)}\n\n## Headline: ms per 1024² frame, floor, ratios\n\n"
         f"x_floor = time / floor (1 = at the floor); x_vs_* = the exact query's time / the method's "
-        f"(> 1: the method is faster)\n\n{markdown(headline(rows), HEADLINE_COLS, digits=3)}\n\n"
+        f"(> 1: the method is faster)\n\n{markdown(bench_headline(rows), HEADLINE_COLS, digits=3)}\n\n"
         f"## Measured floors\n\n{markdown(fl, FLOOR_COLS, digits=4) if fl else '(none measured)'}\n\n"
         f"## Every row\n\n{bench_table(rows)}\n"
     )
@@ -99,7 +99,7 @@ def write_scaling(scaling, info, out: Path, *, lock: bool = True) -> list[Path]:
 
 def write_outputs(rows, scaling, info, out: Path, *, lock: bool = True) -> list[Path]:
     """Write the main table (CSV, Markdown) and, if there are scaling rows, their CSV and plot; the paths."""
-    files = write_table(rows, info, out, lock=lock)
+    files = write_bench_files(rows, info, out, lock=lock)
     return files + (write_scaling(scaling, info, out, lock=lock) if scaling else [])
 
 

@@ -100,7 +100,7 @@ def check_options(opt: BenchOptions) -> None:
         )
 
 
-def method_list(opt: BenchOptions) -> list[Method]:
+def bench_methods(opt: BenchOptions) -> list[Method]:
     """The methods timed: each one named (all registered by default) at each knob value of its ladder, or at
     its defaults only without ``opt.ladder``. An unknown name is a StudyError."""
     chosen = [registry.make(n) for n in dict.fromkeys(opt.methods or registry.names())]
@@ -116,7 +116,7 @@ def run_bench(
     names = list(opt.backends) or available_backends()
     for n in names:
         budget.check_backend(n)  # unknown or unavailable: StudyError now
-    methods = method_list(opt)  # unknown methods: StudyError now
+    methods = bench_methods(opt)  # unknown methods: StudyError now
     plain_too = registry.make(opt.focus).label  # also timed on the plain traced path
     if opt.scaling:
         knob_values(opt)  # invalid knob values: StudyError now

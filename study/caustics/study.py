@@ -252,8 +252,8 @@ def mitsuba_renders(scene: Scene, mp: MitsubaParams, cache: Cache) -> dict[str, 
 
 
 # ---------------------------------------------------------------------------------------------- metrics
-def lightmap_errors(E: np.ndarray, Eref: np.ndarray, area: np.ndarray, eps: float) -> dict[str, float]:
-    """E, Eref: (S, M, M, 3) irradiance; area (S,) m² per texel of each surface."""
+def lightmap_errors(Eref: np.ndarray, E: np.ndarray, area: np.ndarray, eps: float) -> dict[str, float]:
+    """Eref (the reference), E: (S, M, M, 3) irradiance; area (S,) m² per texel of each surface."""
     sup = ((E > 0) | (Eref > 0)).any(-1)
     d = (E - Eref)[sup]
     a = area[:, None, None, None]
@@ -266,7 +266,7 @@ def lightmap_errors(E: np.ndarray, Eref: np.ndarray, area: np.ndarray, eps: floa
 
 
 def caustic_image_errors(
-    img: np.ndarray, ref: np.ndarray, mask: np.ndarray, eps: float, suffix: str
+    ref: np.ndarray, img: np.ndarray, mask: np.ndarray, eps: float, suffix: str
 ) -> dict[str, float]:
     d = (img - ref)[mask]
     return {
@@ -362,7 +362,7 @@ def caustic_rows(
                     "knob": "",
                     "knob_value": np.nan,
                     **lightmap_errors(Eref, Eref, S.area, cfg.caustic.eps),
-                    **caustic_image_errors(img_ref, S.mi["caustic"], S.mask, S.eps_img, "mitsuba"),
+                    **caustic_image_errors(S.mi["caustic"], img_ref, S.mask, S.eps_img, "mitsuba"),
                     "mitsuba_noise_rmse": float(np.sqrt(np.mean(S.mi["caustic_noise"][S.mask] ** 2))),
                 }
             )
@@ -378,8 +378,8 @@ def caustic_rows(
                 "method": m.name,
                 "label": m.label,
                 **knob_columns(m),
-                **lightmap_errors(E, Eref, S.area, cfg.caustic.eps),
-                **caustic_image_errors(img, img_ref, S.mask, S.eps_img, "exact"),
+                **lightmap_errors(Eref, E, S.area, cfg.caustic.eps),
+                **caustic_image_errors(img_ref, img, S.mask, S.eps_img, "exact"),
                 "photon_angle_median_deg": float(np.median(ang)) if ang.size else np.nan,
                 "photon_angle_p95_deg": float(np.percentile(ang, 95)) if ang.size else np.nan,
                 "photon_dist_median_m": float(
@@ -389,7 +389,7 @@ def caustic_rows(
                 "seconds_per_map": seconds,
             }
             if S.mi is not None:
-                row.update(caustic_image_errors(img, S.mi["caustic"], S.mask, S.eps_img, "mitsuba"))
+                row.update(caustic_image_errors(S.mi["caustic"], img, S.mask, S.eps_img, "mitsuba"))
                 row["mitsuba_noise_rmse"] = float(np.sqrt(np.mean(S.mi["caustic_noise"][S.mask] ** 2)))
             rows.append(row)
             if progress:

@@ -81,7 +81,7 @@ def _options(
     DEBUG["on"] = debug
     _wide_when_logged()
     try:
-        budget.configure(max_memory, max_minutes)
+        budget.set_limits(max_memory, max_minutes)
         methods.load_plugins(plugin)
     except StudyError as err:
         _fail(err)

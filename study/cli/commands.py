@@ -9,7 +9,7 @@ from pathlib import Path
 import typer
 
 from study import methods
-from study.bench.output import bench_table, write_scaling, write_table
+from study.bench.output import bench_table, write_bench_files, write_scaling
 from study.bench.run import BenchOptions, check_options, run_bench
 from study.caustics.figure import fig8
 from study.cli.app import app, console, err_console, figures, guarded
@@ -244,7 +244,7 @@ def bench(
             scene,
             opt,
             log=lambda s: console.print(f"[{time.perf_counter() - t0:6.1f} s] {s}", highlight=False),
-            on_table=lambda rows, info: files.extend(write_table(rows, info, out, lock=False)),
+            on_table=lambda rows, info: files.extend(write_bench_files(rows, info, out, lock=False)),
         )
         if scal:
             files += write_scaling(scal, info, out, lock=False)

@@ -46,11 +46,11 @@ class Limits:
     max_minutes: float = DEFAULT_MAX_MINUTES
 
 
-#: The limits in force: set by the CLI's global options (:func:`configure`), defaults otherwise.
+#: The limits in force: set by the CLI's global options (:func:`set_limits`), defaults otherwise.
 LIMITS = Limits()
 
 
-def configure(
+def set_limits(
     max_memory_gib: float = DEFAULT_MAX_MEMORY_GIB, max_minutes: float = DEFAULT_MAX_MINUTES
 ) -> None:
     for key, v in (("--max-memory", max_memory_gib), ("--max-minutes", max_minutes)):
@@ -169,7 +169,7 @@ def _scene_key(key: str, scene: Scene) -> str:
     return f"{key} = {getattr(getattr(scene, part), name)}"
 
 
-def check(
+def check_cases(
     cases: list[tuple[str, Scene]],
     methods: list[Method],
     *,

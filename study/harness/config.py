@@ -40,7 +40,7 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool, model_validator
 from study import methods as registry
 from study.errors import StudyError
 from study.methods import Method
-from study.scene import Scene, Vec3, load_scene, scene_from_dict
+from study.scene import Scene, Vec3, load_scene_file, scene_from_dict
 from study.validation import validate_file
 
 
@@ -83,7 +83,7 @@ def base_scene(spec: str | dict, *, config_path: Path) -> Scene:
         except StudyError as err:  # keys of an inline scene are under "scene." in the config file
             raise StudyError(err.detail, file=str(config_path), key=f"scene.{err.key}") from None
     p = Path(spec)
-    return load_scene(p if p.is_absolute() else config_path.parent / p)
+    return load_scene_file(p if p.is_absolute() else config_path.parent / p)
 
 
 MethodSpecs = Literal["all"] | list[str | dict[str, Any]]

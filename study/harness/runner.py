@@ -227,7 +227,9 @@ def prepare_sweep(path: str | Path, *, backend: str = "numpy", jobs: int = 1):
     """The sweep, validated, with the backend and every case checked (:mod:`study.harness.budget`)."""
     sweep = load_sweep(path, backend=backend)
     budget.check_backend(backend)
-    budget.check([(c.id, c.scene) for c in sweep.cases], sweep.methods, source=str(sweep.path), jobs=jobs)
+    budget.check_cases(
+        [(c.id, c.scene) for c in sweep.cases], sweep.methods, source=str(sweep.path), jobs=jobs
+    )
     return sweep
 
 

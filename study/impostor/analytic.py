@@ -62,7 +62,7 @@ def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.degrees(np.arctan2(c, (a * b).sum(-1)))
 
 
-class BoxEnv:
+class AnalyticBox:
     """An exact environment on a backend: the box [lo, hi] (around the reference point at the origin) with
     ``distance(v)`` computed in closed form instead of read from texels. Same interface as
     :class:`study.impostor.envmap.EnvMap`; RGB is |v̂| (a smooth direction-dependent colour)."""

@@ -232,9 +232,9 @@ def run_case(
 
     def image_columns(img, reference=False, fmap=None):  # one image against every reference
         cols = {
-            **metrics.image_errors(img, oracle_img, mask=mask, suffix="oracle"),  # fmap: its
-            **metrics.image_errors(img, ref.image, mask=mask, suffix="truth", flip_emap=fmap),  # FLIP map
-            **metrics.image_errors(img, mitsuba, mask=mask, suffix="mitsuba"),
+            **metrics.image_errors(oracle_img, img, mask=mask, suffix="oracle"),  # fmap: its
+            **metrics.image_errors(ref.image, img, mask=mask, suffix="truth", flip_emap=fmap),  # FLIP map
+            **metrics.image_errors(mitsuba, img, mask=mask, suffix="mitsuba"),
             **truth.columns(img, oracle_img, ref, mitsuba, mask=mask, visible=visible),
             **stats.pixel_columns(  # intervals over pixels, robust variants (issue 24)
                 img, ref.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS, emap=fmap
@@ -284,7 +284,7 @@ def run_case(
                 "family": name,
                 "knob": "",
                 "knob_value": np.nan,
-                **metrics.summary(np.zeros(len(rays.x)), "angle", "_deg"),
+                **metrics.value_stats(np.zeros(len(rays.x)), "angle", "_deg"),
                 "dist_median": 0.0,
                 **outcomes.outcome_columns(classify(exact), occluded, np.zeros(len(rays.x))),  # correct
                 **stats.ray_columns(classify(exact), np.zeros(len(rays.x)), occluded, rays.x, exact),
@@ -331,13 +331,13 @@ def run_case(
         img = shading.composite(rays, np.nan_to_num(rad) * F, background)
         ang = metrics.angular_error(rays.x, shown, exact)
         oc = classify(shown)
-        fmap = metrics.flip_map(img, ref.image) if keep_images else None
+        fmap = metrics.flip_map(ref.image, img) if keep_images else None
         row = {
             **base,
             "method": m.name,
             "label": m.label,
             **knob_columns(m),
-            **metrics.summary(ang, "angle", "_deg"),
+            **metrics.value_stats(ang, "angle", "_deg"),
             "dist_median": float(np.nanmedian(np.linalg.norm(shown - exact, axis=-1))),
             **outcomes.outcome_columns(oc, occluded, ang),
             **stats.ray_columns(oc, ang, occluded, rays.x, exact),  # counts, intervals, fixed tolerances

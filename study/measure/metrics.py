@@ -25,7 +25,7 @@ def angular_error(x: np.ndarray, shown: np.ndarray, exact: np.ndarray) -> np.nda
     return np.degrees(np.arctan2(sin, cos))
 
 
-def summary(values: np.ndarray, prefix: str, unit: str = "") -> dict[str, float]:
+def value_stats(values: np.ndarray, prefix: str, unit: str = "") -> dict[str, float]:
     """``{prefix}_median{unit}``, ``_p95``, ``_max`` of the finite values (NaN if none).
 
     Rays without a finite value (no hit) are left out here; the share left out is the ``angle_dropped`` column of
@@ -42,7 +42,7 @@ def to_ldr(img: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
 
 
-def rmse(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
+def rmse(ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray) -> float:
     """Root mean squared error of linear radiance over the masked pixels (all channels)."""
     d = (np.asarray(test, float) - np.asarray(ref, float))[mask]
     return float(np.sqrt(np.mean(d * d))) if d.size else np.nan
@@ -56,7 +56,7 @@ def _crop(mask: np.ndarray, margin: int, *images):
     return [a[y0:y1, x0:x1] for a in (mask, *images)]
 
 
-def psnr(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
+def psnr(ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray) -> float:
     """PSNR (dB) of the LDR images over the masked pixels (scikit-image, data_range 1)."""
     from skimage.metrics import peak_signal_noise_ratio
 
@@ -68,7 +68,7 @@ def psnr(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
     return float(peak_signal_noise_ratio(a, b, data_range=1.0))
 
 
-def ssim(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
+def ssim(ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray) -> float:
     """Mean SSIM of the LDR images over the masked pixels (scikit-image's SSIM map, 7×7 window)."""
     from skimage.metrics import structural_similarity
 
@@ -79,7 +79,7 @@ def ssim(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray) -> float:
     return float(smap.mean(axis=-1)[mask].mean())
 
 
-def flip_map(test: np.ndarray, ref: np.ndarray) -> np.ndarray:
+def flip_map(ref: np.ndarray, test: np.ndarray) -> np.ndarray:
     """Per-pixel LDR-FLIP error map (flip-evaluator) of two linear-radiance images.
 
     Parameters
@@ -103,7 +103,7 @@ def flip_map(test: np.ndarray, ref: np.ndarray) -> np.ndarray:
     return np.asarray(emap, np.float32)[..., 0]
 
 
-def flip(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray, emap: np.ndarray | None = None) -> float:
+def flip(ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray, emap: np.ndarray | None = None) -> float:
     """Mean LDR-FLIP error (flip-evaluator) over the masked pixels; inputs are the sRGB LDR images.
 
     ``emap``: the (H, W) map of :func:`flip_map` for these two images, when the caller already has it (it is then
@@ -112,18 +112,18 @@ def flip(test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray, emap: np.ndarra
         return np.nan
     if emap is None:  # only the mask's bounding box + 24 px: FLIP's filters reach < 12 px (67 ppd), so the
         mask, test, ref = _crop(mask, 24, test, ref)  # masked pixels' errors are bit-identical
-        emap = flip_map(test, ref)
+        emap = flip_map(ref, test)
     return float(np.asarray(emap)[mask].mean())
 
 
 def image_errors(
-    test: np.ndarray, ref: np.ndarray, *, mask: np.ndarray, suffix: str, flip_emap: np.ndarray | None = None
+    ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray, suffix: str, flip_emap: np.ndarray | None = None
 ) -> dict[str, float]:
     """``rmse_<suffix>``, ``psnr_<suffix>``, ``ssim_<suffix>`` and ``flip_<suffix>`` of ``test`` against ``ref``
     over ``mask`` (``flip_emap``: the FLIP map of the two images, if already computed)."""
     return {
-        f"rmse_{suffix}": rmse(test, ref, mask=mask),
-        f"psnr_{suffix}": psnr(test, ref, mask=mask),
-        f"ssim_{suffix}": ssim(test, ref, mask=mask),
-        f"flip_{suffix}": flip(test, ref, mask=mask, emap=flip_emap),
+        f"rmse_{suffix}": rmse(ref, test, mask=mask),
+        f"psnr_{suffix}": psnr(ref, test, mask=mask),
+        f"ssim_{suffix}": ssim(ref, test, mask=mask),
+        f"flip_{suffix}": flip(ref, test, mask=mask, emap=flip_emap),
     }

@@ -115,17 +115,17 @@ def columns(
     """The truth columns of one method's image (or the oracle's): errors against truth_at_hit (raw, debiased,
     relMSE), against Mitsuba debiased, and the decomposition on ``visible`` pixels (module docstring)."""
     sigma, sigma_v = noise_rms(truth.noise, mask), noise_rms(truth.noise, visible)
-    total, loc = rmse(img, truth.image, mask=visible), rmse(img, oracle, mask=visible)
-    rep = debiased(rmse(oracle, truth.image, mask=visible), sigma_v)
+    total, loc = rmse(truth.image, img, mask=visible), rmse(oracle, img, mask=visible)
+    rep = debiased(rmse(truth.image, oracle, mask=visible), sigma_v)
     parts = np.sqrt(loc * loc + rep * rep + sigma_v * sigma_v)
-    rmse_truth = rmse(img, truth.image, mask=mask)
+    rmse_truth = rmse(truth.image, img, mask=mask)
     return {
         "rmse_truth": rmse_truth,
         "rmse_truth_debiased": debiased(rmse_truth, sigma),
         "relmse_truth": relmse(img, truth.image, mask),
         "truth_noise_rmse": sigma,
         "rmse_mitsuba_debiased": debiased(
-            rmse(img, mitsuba, mask=mask), noise_rms(truth.mitsuba_noise, mask)
+            rmse(mitsuba, img, mask=mask), noise_rms(truth.mitsuba_noise, mask)
         ),
         "mitsuba_noise_rmse": noise_rms(truth.mitsuba_noise, mask),
         "dec_total": total,

@@ -93,7 +93,7 @@ def object_rays(scene: Scene, occluder=None) -> ObjectRays:
     that meet the environment before the object (a wall between a camera anywhere and the object)."""
     o, d = camera_rays(scene.camera, scene.render.supersample)
     H, W, S, _ = d.shape
-    geom = objects.geometry(scene)
+    geom = objects.object_geometry(scene)
     t, n = geom.intersect(o.reshape(-1, 3), d.reshape(-1, 3))
     hit = np.isfinite(t)
     if occluder is not None and hit.any():

@@ -103,7 +103,7 @@ def overlay(image: np.ndarray, outcome: np.ndarray) -> np.ndarray:
     return out
 
 
-def crop_box(masks: list[np.ndarray], margin: float = 0.25) -> tuple[slice, slice]:
+def motion_crop(masks: list[np.ndarray], margin: float = 0.25) -> tuple[slice, slice]:
     """One square of the camera's frame around the object's pixels in every frame (their union), with a margin:
     the view stays still while the object moves."""
     ys, xs = np.nonzero(np.any(masks, axis=0))
@@ -201,7 +201,7 @@ def animate(
     cfg, scenes, methods, travelled = load_motion_config(config)
     labels = [m.label for m in methods]
     budget.check_backend(backend)
-    budget.check(scenes, methods, source=str(config))
+    budget.check_cases(scenes, methods, source=str(config))
     store, rows, frames, cases = Cache(cache), [], [], []
     t0 = time.perf_counter()
     owns = ["motion.gif", "motion.mp4", "motion.png", "frames.csv", "metadata.json", "jod.csv"]
@@ -215,7 +215,7 @@ def animate(
             cases.append(case)
             if progress:
                 progress(i + 1, len(scenes))
-        crop = crop_box([c.mask for c in cases])
+        crop = motion_crop([c.mask for c in cases])
         for i, (case, (_, sc)) in enumerate(zip(cases, scenes)):
             cx, cy, cz = sc.object.center
             frames.append(

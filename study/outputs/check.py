@@ -142,7 +142,7 @@ def run_check(
         return [], lines
     parsed = read_csv_rows(rows)
     fails = compare(parsed, base, cfg.tolerance)
-    verdicts = {c.id: (c, v) for c, v in claim_registry.evaluate(parsed)}
+    verdicts = {c.id: (c, v) for c, v in claim_registry.judge_claims(parsed)}
     for cid in cfg.claims:
         if cid not in verdicts:
             fails.append(Failure(f"claim {cid}: the check sweep has no rows it applies to"))

@@ -342,7 +342,7 @@ CLAIMS = [
 ]
 
 
-def evaluate(rows: list[dict]) -> list[tuple[Claim, Verdict]]:
+def judge_claims(rows: list[dict]) -> list[tuple[Claim, Verdict]]:
     """Every claim that applies to ``rows``."""
     out = []
     for cl in CLAIMS:

@@ -261,7 +261,7 @@ def figure_positions(
         for suffix, _, over in todo
     ]
     budget.check_backend(backend)
-    budget.check(scenes, methods, source=str(config))
+    budget.check_cases(scenes, methods, source=str(config))
     store = Cache(cache)
     with locked(out):  # one command at a time here; the files are written together at the end
         cases, rows = [], []

@@ -66,7 +66,7 @@ def style(i: int) -> dict:
     return {"color": colour(i), "marker": _MARKERS[i % 7], "linestyle": _LINES[(i // 10) % 4]}
 
 
-def pareto_front(points: list[tuple[float, float]]) -> list[int]:
+def pareto_indices(points: list[tuple[float, float]]) -> list[int]:
     """Indices of the (cost, error) points no other point beats in both (lower is better), by rising cost."""
     order = sorted(range(len(points)), key=lambda i: (points[i][0], points[i][1]))
     front, best = [], np.inf
@@ -162,7 +162,7 @@ def cost_plot(rows: list[dict], path: Path, *, metric: str, title: str) -> list[
             }
         )
     pts = [(t["lookups_per_ray"], t[metric]) for t in table]
-    front = pareto_front(pts)
+    front = pareto_indices(pts)
     for i, t in enumerate(table):
         t["pareto"] = i in front
     fig, ax = plt.subplots(figsize=(7.2, 4.6))

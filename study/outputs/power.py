@@ -132,7 +132,7 @@ def sentence(r: dict) -> str:
     return text + "."
 
 
-def blocks(rows: list[dict]) -> list[tuple]:
+def power_blocks(rows: list[dict]) -> list[tuple]:
     """The report blocks: a heading, what the numbers mean, one sentence and one table row per table."""
     if not rows:
         return []

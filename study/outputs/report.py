@@ -172,7 +172,7 @@ def summary_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
 def _claims_section(tables: dict[str, list[dict]]) -> list[tuple]:
     rows, seen = [], set()
     for name, tab in tables.items():
-        for cl, v in claim_registry.evaluate(tab):
+        for cl, v in claim_registry.judge_claims(tab):
             seen.add(cl.id)
             rows.append(
                 {
@@ -185,7 +185,7 @@ def _claims_section(tables: dict[str, list[dict]]) -> list[tuple]:
             )
     figs = [n for n in tables if n.startswith("fig")]
     if len(figs) > 1:  # claims that contrast figures (e.g. occluded vs free cases)
-        for cl, v in claim_registry.evaluate([r for n in figs for r in tables[n]]):
+        for cl, v in claim_registry.judge_claims([r for n in figs for r in tables[n]]):
             if cl.id not in seen:
                 rows.append(
                     {

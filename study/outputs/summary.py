@@ -378,7 +378,7 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
             "against the best over the same cases.",
         ),
         ("table", interval_rows(tables), INTERVAL_COLUMNS),
-        *power.blocks(
+        *power.power_blocks(
             [power.row(name, tab, rank) for name, tab in tables.items() if (rank := ranking(tab, WRONG))]
         ),
     ]

@@ -134,11 +134,11 @@ def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dic
             "bsdf": object_bsdf(scene),
         }
     elif with_object:
-        d["object"] = object_mesh(scene)
+        d["object"] = object_shape_dict(scene)
     return d
 
 
-def object_mesh(scene: Scene):
+def object_shape_dict(scene: Scene):
     """The object's triangles (:func:`study.scene.objects.object_mesh`, the ones Embree intersects) with their smooth
     vertex normals, as a Mitsuba mesh with the object's BSDF."""
     m = mi()

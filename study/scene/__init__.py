@@ -12,7 +12,7 @@ validation; runtime to load Mitsuba scenes); embreex directly for placement's ra
 
 from study.scene.camera import camera_rays, look_at_basis
 from study.scene.room import SURFACES, RoomMesh, room_mesh, texture
-from study.scene.schema import Camera, Column, Scene, Sphere, Vec3, load_scene, scene_from_dict
+from study.scene.schema import Camera, Column, Scene, Sphere, Vec3, load_scene_file, scene_from_dict
 
 __all__ = [
     "Camera",
@@ -23,7 +23,7 @@ __all__ = [
     "Sphere",
     "Vec3",
     "camera_rays",
-    "load_scene",
+    "load_scene_file",
     "look_at_basis",
     "room_mesh",
     "scene_from_dict",

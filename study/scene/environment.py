@@ -204,7 +204,7 @@ def geometry(scene: Scene | Any) -> EnvGeometry:
 
 # ---------------------------------------------------------------------------------------------- placement
 # for new scenes
-def suggest(scene: Scene | Any, given: dict[str, Any] | None = None) -> dict[str, Any]:
+def suggest_placement(scene: Scene | Any, given: dict[str, Any] | None = None) -> dict[str, Any]:
     """Where to put things in an environment nobody placed them in (:func:`study.scene.autoplace.suggest`): dotted
     overrides for the placement keys missing from ``given`` (the user's dotted keys → values). ``scene`` is a
     scene or an environment alone (a mesh or Mitsuba source, as :func:`geometry` takes)."""

@@ -15,8 +15,8 @@ from study.scene.parts import (
     Part,
     Piece,
     clean,
+    load_summary_line,
     srgb_to_linear,
-    summary,
     transform_lights,
     transform_sensor,
 )
@@ -127,6 +127,6 @@ def load(env) -> tuple[RoomMesh, tuple[Part, ...], list[dict], str, dict | None]
         mesh,
         tuple(parts),
         transform_lights(loaded.lights, M, t),
-        summary(path.name, loaded),
+        load_summary_line(path.name, loaded),
         (transform_sensor(loaded.sensor, M, t)),
     )

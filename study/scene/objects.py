@@ -2,7 +2,7 @@
 
 Contract
 --------
-:func:`geometry` turns ``scene.object`` into an :class:`ObjectGeometry` with
+:func:`object_geometry` turns ``scene.object`` into an :class:`ObjectGeometry` with
 
 * ``intersect(o, d)`` → ``(t, normal)``: nearest hit t > 0 of rays (o, unit d), shape (N,), inf on a miss, and the
   unit outward shading normal (N, 3) there (NaN on a miss). Meshes interpolate vertex normals with the hit's
@@ -279,7 +279,7 @@ class MeshGeometry(ObjectGeometry):
         return e, n, np.isfinite(h["t"]) & (np.sum(n * d, -1) > 0)
 
 
-def geometry(scene: Scene) -> ObjectGeometry:
+def object_geometry(scene: Scene) -> ObjectGeometry:
     obj = scene.object
     if obj.shape == "sphere":
         return SphereGeometry(obj.center, obj.radius)

@@ -1,6 +1,6 @@
 """What a mesh file holds once read (:mod:`study.scene.obj`, :mod:`study.scene.gltf`, trimesh for the rest): its
 parts with their linear colours, textures and emission, its punctual lights, and what the loader counted, dropped
-and ignored; checked (:func:`clean`) and told in one line (:func:`summary`).
+and ignored; checked (:func:`clean`) and told in one line (:func:`load_summary_line`).
 
 Lights are plain dicts in world space, radiometric, as Mitsuba takes them (:mod:`study.reference.mitsuba` builds
 the emitters): ``{"type": "point", "position", "intensity"}`` (W/sr per RGB channel), ``{"type": "spot",
@@ -116,7 +116,7 @@ def _n(count: int, what: str) -> str:
     return f"{count:,} {plural}"
 
 
-def summary(name: str, loaded: Loaded) -> str:
+def load_summary_line(name: str, loaded: Loaded) -> str:
     """``loaded rooms/x.glb: 1,234 triangles, 5 materials, 2 textures, 1 emissive material, 1 punctual light;
     ignored: 1 transmission, 2 alpha; dropped: 3 degenerate triangles``."""
     tris = sum(len(p.F) for p in loaded.pieces)

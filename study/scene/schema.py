@@ -156,7 +156,7 @@ class Scene(_Strict):
             return data
         from pydantic import TypeAdapter
 
-        from study.scene.environment import suggest
+        from study.scene.environment import suggest_placement as suggest
 
         try:
             model = TypeAdapter(Environment).validate_python(env, context=ctx)
@@ -312,6 +312,6 @@ def scene_from_dict(
         raise StudyError(err.detail, file=source, key=err.key) from None
 
 
-def load_scene(path: str | Path) -> Scene:
+def load_scene_file(path: str | Path) -> Scene:
     """Read and validate a scene TOML file."""
     return scene_from_dict(read_toml(path, what="scene file"), source=str(path), base=Path(path).parent)
