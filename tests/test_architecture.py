@@ -200,3 +200,23 @@ def test_readme_commands_and_links_hold():
     assert "docs/images/fig5-case.png" in targets
     missing = [t for t in targets if "://" not in t and not (ROOT / t).exists()]
     assert not missing, f"README.md links to missing files: {missing}"
+
+
+#: Names several modules define on purpose: each method's Params model, and CLI commands named after the function
+#: they call (``study check`` → budget and check, ``study animate`` → animation.animate, ``main``).
+SHARED_NAMES = {"Params", "check", "animate", "main"}
+
+
+def test_one_meaning_per_name():
+    """No public top-level function or class name is defined in two of study's modules (a reader who meets
+    ``load_scene`` or ``pareto_front`` should find one thing), except :data:`SHARED_NAMES`."""
+    import ast
+    import collections
+
+    defs = collections.defaultdict(list)
+    for p in (ROOT / "study").rglob("*.py"):
+        for n in ast.parse(p.read_text()).body:
+            if isinstance(n, ast.FunctionDef | ast.ClassDef) and not n.name.startswith("_"):
+                defs[n.name].append(str(p.relative_to(ROOT)))
+    twice = {k: v for k, v in defs.items() if len(v) > 1 and k not in SHARED_NAMES}
+    assert not twice, twice
