@@ -42,3 +42,8 @@ def test_motion_claim_verdicts():
     s = video.motion_claim(rows)
     assert "good" in s[0] and "the claim holds" in s[0]
     assert "bad" in s[1] and "the claim fails" in s[1]
+    noisy = [{**r, "jod": r["jod"] - 3, "jod_lo": r["jod_lo"] - 3, "jod_hi": r["jod_hi"] - 3} for r in rows]
+    assert all(
+        "is undecided: the references' own noise already costs 3.4 JOD" in t
+        for t in video.motion_claim(noisy)
+    )
