@@ -66,7 +66,7 @@ class Cache:
                 return None
             if arr.exists() or not arr.with_suffix(".exr").exists():
                 a = np.load(arr, allow_pickle=False)
-            else:  # an entry of the format before issue 15
+            else:  # an entry of the older format (EXR)
                 a = read_exr(arr.with_suffix(".exr"))
             if a.dtype != np.float32:
                 return None
@@ -193,7 +193,7 @@ class Cache:
         return gone
 
 
-_OURS = (".npy", ".exr")  # array files the cache writes (.exr: the format before issue 15)
+_OURS = (".npy", ".exr")  # array files the cache writes (.exr: the older format)
 
 
 #: A temporary file younger than this may belong to a write in progress (a running sweep's): clear leaves it.

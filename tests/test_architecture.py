@@ -220,3 +220,17 @@ def test_one_meaning_per_name():
                 defs[n.name].append(str(p.relative_to(ROOT)))
     twice = {k: v for k, v in defs.items() if len(v) > 1 and k not in SHARED_NAMES}
     assert not twice, twice
+
+
+def test_no_history_in_the_code():
+    """Docstrings and comments say what the code does, not how it came to be: no "issue N" (history belongs in
+    commits and issues)."""
+    import re
+
+    hits = [
+        f"{p.relative_to(ROOT)}:{i}"
+        for p in (ROOT / "study").rglob("*.py")
+        for i, line in enumerate(p.read_text().splitlines(), 1)
+        if re.search(r"\bissues? \d+", line, re.I)
+    ]
+    assert not hits, hits

@@ -236,7 +236,7 @@ def run_case(
             **metrics.image_errors(ref.image, img, mask=mask, suffix="truth", flip_emap=fmap),  # FLIP map
             **metrics.image_errors(mitsuba, img, mask=mask, suffix="mitsuba"),
             **truth.columns(img, oracle_img, ref, mitsuba, mask=mask, visible=visible),
-            **stats.pixel_columns(  # intervals over pixels, robust variants (issue 24)
+            **stats.pixel_columns(  # intervals over pixels, robust variants
                 img, ref.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS, emap=fmap
             ),
         }

@@ -30,7 +30,7 @@ step into the inside of nested surfaces (the layers of a layered map) that is no
 
 Every search and the secant steps are one loop through the backend (:meth:`study.backend.Backend.loop`): on Dr.Jit
 one symbolic loop (``dr.while_loop``), so a march of n samples is one kernel whose state stays in registers, not
-n kernels that write and read the whole state back (32–50× the fetch floor on an H100 before issue 15); on numpy
+n kernels that write and read the whole state back; on numpy
 a Python loop, with the same operations in the same order. g is traced once and must not evaluate (no ``B.eval``,
 no transfer to the host); the arrays it reads are captured.
 
