@@ -66,3 +66,25 @@ def test_sweep_plots_write_knob_and_cost_plots_with_their_tables(tmp_path):
     } <= made
     cost = {r["method"]: r for r in read_csv(tmp_path / "wrong_fraction_vs_lookups.csv")}
     assert cost["loc(10)"]["pareto"] == "True" and cost["slow"]["pareto"] == "False"  # dearer and worse
+
+
+def test_hidden_fraction_colour_bar_stays_inside_a_tall_figure():
+    """The continuous hidden-fraction bar sits a fixed distance in inches under its panel, inside the figure
+    (as a fraction of the height it fell off the bottom of fig5's 15-inch error grid)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from study.outputs.figures import _hidden_legend
+
+    for height in (4.0, 16.0):
+        fig, axes = plt.subplots(6, 2, figsize=(5, height))
+        fig.subplots_adjust(bottom=0.75 / height)
+        im = axes[-1, -1].imshow(np.random.default_rng(0).random((8, 8)))
+        _hidden_legend(fig, axes[-1, -1], False, im)
+        cax = fig.axes[-1]
+        y0 = cax.get_position().y0
+        assert 0 < y0 < axes[-1, -1].get_position().y0, (height, y0)
+        plt.close(fig)

@@ -76,7 +76,8 @@ def _hidden_legend(fig, ax, binary: bool, im) -> None:
             bbox_to_anchor=((p.x0 + p.x1) / 2, p.y0 - 0.01),
         )
     else:
-        cax = fig.add_axes((p.x0, p.y0 - 0.05, p.width, 0.015))
+        h = fig.get_size_inches()[1]  # placed in inches under the panel, whatever the figure's height
+        cax = fig.add_axes((p.x0, p.y0 - 0.2 / h, p.width, 0.08 / h))
         fig.colorbar(im, cax=cax, orientation="horizontal", label="fraction of rays hidden")
 
 
@@ -127,7 +128,7 @@ def image_grid(
     if max_width_px:
         side = max(0.6, min(side, (max_width_px / _DPI - 1.2 * errs) / ncol))
     kinds = {k for row in tpl for k, _ in row}
-    legend_h = 0.5 if kinds & {"outcome", "hidden"} else 0.0  # inches under the grid for the legends
+    legend_h = 0.75 if kinds & {"outcome", "hidden"} else 0.0  # inches under the grid for the legends
     height = side * nrow + 0.6 + legend_h
     fig, axes = plt.subplots(nrow, ncol, figsize=(side * ncol + 1.2 * errs, height), squeeze=False)
     ocmap = ListedColormap(OUTCOME_COLORS).with_extremes(bad="white")
