@@ -21,6 +21,7 @@ from study.impostor.capture import Impostor, capture_distance, impostor_key, ren
 from study.impostor.cubemap import FAR, FAR_MIN
 from study.impostor.envmap import EnvMap
 from study.impostor.layers import layered_impostor
+from study.impostor.sdf import SdfGrid, sdf_grid
 from study.impostor.views import Captured, Views
 from study.measure import metrics, outcomes, stats, truth
 from study.methods import Method
@@ -126,11 +127,13 @@ def capture_views(
         if background is None:
             background = camera_render(scene, cache, with_object=False)
         scr = screen.ScreenView.of_scene(scene, background, tracer, B)
+    fields = {spec: SdfGrid(*sdf_grid(scene, spec, cache), o, B) for spec in views.sdfs}  # distance fields
     return Captured(
         impostor=EnvMap(imp.texels(), B),
         layers=layers,
         probes=probe_sets,
         screen=scr,
+        sdfs=fields,
         open=open_environment(imp),
         **env_info(scene),
     )
