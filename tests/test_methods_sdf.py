@@ -227,3 +227,42 @@ def test_sphere_trace_agrees_with_mitsubas_exact_trace_of_the_same_grid(fig5):
           f"median {np.median(field):.2e} p99 {np.quantile(field, 0.99):.2e}")
     assert np.mean(tracing < 1e-3) >= 0.98
     assert np.quantile(field, 0.99) > np.quantile(tracing, 0.99)
+
+
+def test_ssr_then_sdf_takes_the_screen_where_it_has_the_hit_and_the_field_elsewhere(B):
+    """The engine chain ``ssr_sdf`` on the small room (a 48² camera whose colour buffer holds each pixel's surface
+    point): rays whose screen trace finds a hit show exactly what ``ssr`` alone shows; every other ray (off
+    screen: ≥ 30 % of them) is traced in the 64³ field and lands within one voxel of the exact hit (Embree)."""
+    from study.impostor.screen import ScreenView
+    from study.scene.camera import camera_rays
+
+    W = 48
+    s = scene_from_dict(small_scene_dict(camera={**small_scene_dict()["camera"], "width": W, "height": W}))
+    tracer = Tracer(s.mesh())
+    o = np.asarray(s.reference.point, float)
+    eo, ed = (a.reshape(-1, 3) for a in camera_rays(s.camera, 1))
+    colour = (eo + ed * tracer.distance(eo, ed)[:, None]).reshape(W, W, 3).astype(np.float32)
+    rng = np.random.default_rng(3)
+    n = 1500
+    pick = rng.integers(0, len(ed), n)
+    x = eo[pick] + ed[pick] * (tracer.distance(eo[pick], ed[pick]) * rng.uniform(0.3, 0.8, n))[:, None]
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    exact = tracer.intersect(x, d)["point"]
+    spec = SdfSpec(res=64)
+    grid, lo, h = build_grid(s.mesh().vertices, s.mesh().faces, s.bounds(), spec)
+    env = Captured(
+        impostor=EnvMap(probes.probe_texels(tracer, o, 32, lambda pts: pts), B),
+        reference=tuple(o),
+        room=(s.room.min, s.room.max),
+        screen=ScreenView.of_scene(s, colour, tracer, B),
+        sdfs={spec: SdfGrid(grid, lo, h, o, B)},
+    )
+    alone, _, on, _ = _trace(methods.make("ssr", fallback="none"), B, env, x - o, d)
+    chain = methods.make("ssr_sdf")
+    assert chain.params.fallback == "sdf"  # the chain's fallback is sdf at its defaults (64³)
+    shown, _, valid, spent = _trace(chain, B, env, x - o, d)
+    assert valid.all() and 0.3 < np.mean(~on) < 0.9
+    np.testing.assert_allclose(shown[on], alone[on], atol=1e-6)
+    assert np.all(np.linalg.norm(shown[~on] + o - exact[~on], axis=1) < h)
+    assert spent.max() <= chain.lookups_per_ray()
