@@ -192,3 +192,14 @@ class SdfGrid:
                     wx = f[0] if dx else 1 - f[0]
                     out = out + wx * wy * wz * G[i0[2] + dz, i0[1] + dy, i0[0] + dx]
         return out.astype(np.float32)
+
+
+def room_field(env, spec: SdfSpec) -> SdfGrid:
+    """The field of the room box on the backend of ``env`` (a :class:`~study.impostor.views.Captured`): its
+    ``room``, or where none is known a cube about o of the impostor's mean distance along the axes."""
+    o = env.origin()
+    box = env.room
+    if box is None:
+        r = float(np.mean(np.asarray(env.B.numpy(env.distance(env.B.vec(np.eye(3)))))))
+        box = (o - r, o + r)
+    return SdfGrid(*box_grid(box, spec), o, env.B)

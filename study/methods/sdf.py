@@ -21,9 +21,11 @@ Per ray x + R t (relative to o), φ the trilinear signed distance (one 3D fetch)
    ``"probes"`` the radiance of the nearest probe that sees p (:class:`study.impostor.probes.ProbeSet` of
    ``grid``, as ``multi_probe`` captures it; N lookups to choose, one to read).
 
-Cost per ray (``Trace.lookups``): the fetches of the march actually taken (a GPU thread stops at its bracket) +
-``refine_steps`` on rays with a bracket + the shading lookups; :meth:`SDF.lookups_per_ray` bounds it with
-``max_steps`` (counted as cube-map lookups: one 3D fetch each, the bench's floor prices them as such).
+Cost per ray (``Trace.lookups``): φ at the origin + the fetches of the march actually taken (a GPU thread stops at
+its bracket) + 1 + ``refine_steps`` on rays with a bracket (the bracket's near end re-read, the secant steps) + the
+shading lookups; :meth:`SDF.lookups_per_ray` bounds it with ``max_steps``. Every fetch of φ is a 3D (trilinear)
+fetch, counted as a lookup; :meth:`SDF.volume_lookups` says how many of the bound they are, and the bench's floor
+prices them at the measured 3D fetch rate (:mod:`study.bench.floors`).
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from study.backend import V3
-from study.impostor.sdf import SdfGrid, box_grid
+from study.impostor.sdf import SdfGrid, room_field
 from study.impostor.views import ProbeSpec, SdfSpec, Views
 from study.methods.base import Found, Knob, TracingMethod, register
 from study.methods.search import Bracket, refine, secant_point
@@ -81,14 +83,7 @@ class SDF(TracingMethod):
     def field(self, env) -> SdfGrid:
         """The distance field searched: the captured one, or the room box's on a fallback Captured."""
         f = env.need_sdf(self.name, self.spec())
-        if f is None:
-            o = env.origin()
-            box = env.room
-            if box is None:  # no room known: a box of the impostor's mean distance about o
-                r = float(np.mean(np.asarray(env.B.numpy(env.distance(env.B.vec(np.eye(3)))))))
-                box = (o - r, o + r)
-            f = SdfGrid(*box_grid(box, self.spec()), o, env.B)
-        return f
+        return f if f is not None else room_field(env, self.spec())
 
     # ---------------------------------------------------------------------------------------------- the search
     def search(self, B, env, x, R) -> Found:
@@ -124,7 +119,8 @@ class SDF(TracingMethod):
             return t, t_prev, d_prev, found, stop, spent
 
         d0 = phi.distance(x)  # φ at the origin: the bracket's near end if the first step crosses
-        t, t_prev, d_hi, found, _, spent = B.loop(p.max_steps, (zero, zero, d0, never, ~active0, zero), step)
+        state = (zero, zero, d0, never, ~active0, zero + 1.0)  # d0 counted
+        t, t_prev, d_hi, found, _, spent = B.loop(p.max_steps, state, step)
         # g at t_prev: φ there was the step before the crossing; re-read once (counted with the refinement)
         g_lo = phi.distance(x + R * t_prev)
         br = Bracket(t_prev, g_lo, t, d_hi, found)
@@ -162,7 +158,12 @@ class SDF(TracingMethod):
         return ch[:3], B.length(v) / ch[-1], float(P.n + 1)
 
     def lookups_per_ray(self, res: int | None = None) -> float:
-        # the march's fetches, the bracket's re-read and refinement, the shading lookups
+        # the 3D fetches (volume_lookups) and the shading lookups: the impostor's one, or N + 1 probe lookups
         p = self.params
         shade = 1 + (1 + int(np.prod(p.grid)) if p.shading == "probes" else 0)
-        return p.max_steps + 1 + p.refine_steps + shade
+        return self.volume_lookups(res) + shade
+
+    def volume_lookups(self, res: int | None = None) -> float:
+        # φ at the origin, the march, the bracket's near end re-read, the secant steps
+        p = self.params
+        return 1 + p.max_steps + 1 + p.refine_steps

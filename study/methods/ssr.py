@@ -169,6 +169,10 @@ class SSR(TracingMethod):
         fb = self._fallback()
         return self.params.max_steps + 1 + (fb.lookup_bound(res) if fb else 0)
 
+    def volume_lookups(self, res: int | None = None) -> float:
+        fb = self._fallback()
+        return fb.volume_lookups(res) if fb else 0.0
+
 
 @register
 class SSRThenSDF(SSR):
