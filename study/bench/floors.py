@@ -101,7 +101,10 @@ def fetch3d_rate(
     rng = np.random.default_rng(0)
     grid = rng.uniform(0.5, 2.0, (res, res, res, 1)).astype(np.float32)
     tex = m.Texture3f(
-        m.TensorXf(grid), filter_mode=dr.FilterMode.Linear, wrap_mode=dr.WrapMode.Clamp, use_accel=B.name == "cuda"
+        m.TensorXf(grid),
+        filter_mode=dr.FilterMode.Linear,
+        wrap_mode=dr.WrapMode.Clamp,
+        use_accel=B.name == "cuda",
     )
     lane = dr.arange(m.UInt32, n_lanes)
     u0 = _hash01(dr, m, 3 * lane) * 0.5
@@ -172,7 +175,9 @@ def method_floor(method, floors: dict, pattern: str, rays: int, res: int | None 
     bandwidth (see the module docstring); ``pattern`` is ``"coherent"`` or ``"random"``."""
     f3 = float(method.volume_lookups(res))
     f1 = method.lookup_bound(res) + 1 - f3
-    rate3 = floors.get(f"fetch_3d_{pattern}", floors[f"fetch_1ch_{pattern}"])  # floors measured before: 2D rate
+    rate3 = floors.get(
+        f"fetch_3d_{pattern}", floors[f"fetch_1ch_{pattern}"]
+    )  # floors measured before: 2D rate
     per_ray = (
         f1 / floors[f"fetch_1ch_{pattern}"]
         + f3 / rate3

@@ -46,7 +46,9 @@ class Params(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
     res: Annotated[int, Field(ge=16, le=512, description="grid nodes per axis of the distance field")] = 64
     band: Annotated[float, Field(ge=1, le=32, description="narrow band of exact distances, voxels")] = 4.0
-    max_steps: Annotated[int, Field(ge=1, le=4096, description="sphere-tracing step budget (3D fetches)")] = 96
+    max_steps: Annotated[int, Field(ge=1, le=4096, description="sphere-tracing step budget (3D fetches)")] = (
+        96
+    )
     min_step: Annotated[float, Field(gt=0, le=4, description="smallest step, voxels")] = 0.25
     refine_steps: Annotated[int, Field(ge=0, le=64, description="Illinois secant steps on the bracket")] = 4
     shading: Literal["impostor", "probes"] = Field(
@@ -100,7 +102,12 @@ class SDF(TracingMethod):
 
         def inside(q: V3):
             return (
-                (q.x >= lo[0]) & (q.x <= hi[0]) & (q.y >= lo[1]) & (q.y <= hi[1]) & (q.z >= lo[2]) & (q.z <= hi[2])
+                (q.x >= lo[0])
+                & (q.x <= hi[0])
+                & (q.y >= lo[1])
+                & (q.y <= hi[1])
+                & (q.z >= lo[2])
+                & (q.z <= hi[2])
             )
 
         # ------------------------------------------------------------- sphere trace to the first bracket
