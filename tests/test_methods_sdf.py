@@ -11,6 +11,7 @@ from conftest import small_scene_dict
 from study import backend as backends
 from study import methods
 from study.cache import Cache
+from study.errors import StudyError
 from study.harness.config import load_figure_config
 from study.impostor import probes
 from study.impostor.envmap import EnvMap
@@ -142,7 +143,8 @@ def test_fig5_hidden_column_top_found_by_the_field_shaded_wrong_by_the_impostor(
     (outcome class CORRECT, ε of a 128² cube map) on ≥ 90 % of them, where localized (the impostor) does on
     ≤ 10 %. Its radiance error there, reported: the impostor's radiance in the hit's direction is the column's
     side seen from o, > 5 cm from the hit on ≥ 90 % of the rays; shading from a probe above the column
-    (shading = "probes") reads the hit's own radiance (< 3 cm) on ≥ 90 %."""
+    (shading = "probes") reads the hit's own radiance (< 3 cm) on ≥ 90 %, and exact shading (shading = "exact",
+    ``Captured.shade``) within 1 cm; without ``Captured.shade`` the exact variant is a StudyError."""
     s, o, tracer, grids, imp = fig5
     B = backends.get("numpy")
     rng = np.random.default_rng(7)
@@ -177,6 +179,13 @@ def test_fig5_hidden_column_top_found_by_the_field_shaded_wrong_by_the_impostor(
     np.testing.assert_allclose(shown_p, shown, atol=1e-6)
     assert np.mean(np.linalg.norm(rad_p - hit, axis=1) < 0.03) >= 0.9
     assert spent.max() <= m.lookups_per_ray()
+    # exact shading (here: "radiance" = the point Embree hits from 2 voxels before sdf's hit): the hit's own point
+    m = methods.make("sdf", res=128, shading="exact")
+    env_e = _env(B, o, imp, grids, 128, shade=lambda org, dirs: tracer.intersect(org, dirs)["point"])
+    _, rad_e, _, spent = _trace(m, B, env_e, x - o, d)
+    assert np.mean(np.linalg.norm(rad_e - hit, axis=1) < 0.01) >= 0.9 and spent.max() <= m.lookups_per_ray()
+    with pytest.raises(StudyError, match="exact shading"):
+        m.trace(B, _env(B, o, imp, grids, 128), B.vec(x - o), B.vec(d))
 
 
 def test_numpy_and_llvm_agree(fig5):

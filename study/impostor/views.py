@@ -62,12 +62,14 @@ class SdfSpec:
 @dataclass(frozen=True)
 class Views:
     """A request for views: ``layers`` depth layers from o (1: the plain impostor), the probe sets ``probes``,
-    with ``screen`` the camera's depth and colour buffer, and the distance fields ``sdfs``."""
+    with ``screen`` the camera's depth and colour buffer, the distance fields ``sdfs`` and, with ``shade``, the
+    exact shading of points (``Captured.shade``)."""
 
     layers: int = 1
     probes: tuple[ProbeSpec, ...] = field(default_factory=tuple)
     screen: bool = False
     sdfs: tuple[SdfSpec, ...] = field(default_factory=tuple)
+    shade: bool = False
 
     @staticmethod
     def merge(*requests: Views) -> Views:
@@ -78,6 +80,7 @@ class Views:
             probes=probes,
             screen=any(r.screen for r in requests),
             sdfs=tuple(dict.fromkeys(s for r in requests for s in r.sdfs)),
+            shade=any(r.shade for r in requests),
         )
 
 
@@ -93,6 +96,8 @@ class Captured:
                (:mod:`study.impostor.probes`)
     screen     the camera's depth and colour buffer (:class:`~study.impostor.screen.ScreenView`), or None
     sdfs       {:class:`SdfSpec`: SdfGrid} signed distance fields of the environment (:mod:`study.impostor.sdf`)
+    shade      exact shading, not an image-based view: a function (origins, dirs), world (N, 3) numpy arrays →
+               (N, 3) radiance arriving along each ray (Mitsuba, the scene without the object), or None
     reference  o in world coordinates (None: unknown; methods then take the origin)
     room       the room box (min, max), world coordinates: ``reference.box`` where given, else the environment's
                bounds (None: unknown; proxies then fit a box or sphere to the impostor's own distances)
@@ -109,6 +114,7 @@ class Captured:
     probes: Mapping[ProbeSpec, Any] = field(default_factory=dict)  # ProbeSet (probes.py imports this module)
     screen: ScreenView | None = None
     sdfs: Mapping[SdfSpec, Any] = field(default_factory=dict)  # SdfGrid (sdf.py imports this module)
+    shade: Any = None  # (origins, dirs) world (N, 3) numpy → (N, 3) radiance along each ray, path traced
     reference: tuple[float, float, float] | None = None
     room: tuple[Vec3, Vec3] | None = None
     open: bool = False
@@ -183,3 +189,9 @@ class Captured:
         if self.fallback:
             return None
         raise self._missing(method, f"the distance field {spec} (Captured.sdfs)")
+
+    def need_shade(self, method: str):
+        """The exact shading function; None on a fallback Captured without it."""
+        if self.shade is not None or self.fallback:
+            return self.shade
+        raise self._missing(method, "exact shading (Captured.shade)")

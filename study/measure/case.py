@@ -27,7 +27,7 @@ from study.measure import metrics, outcomes, stats, truth
 from study.methods import Method
 from study.optics import shading
 from study.reference.embree import Tracer
-from study.reference.mitsuba import render_camera
+from study.reference.mitsuba import radiance_along, render_camera
 from study.reference.tracer import make_tracer
 from study.scene import Scene
 from study.scene.environment import env_key
@@ -128,12 +128,16 @@ def capture_views(
             background = camera_render(scene, cache, with_object=False)
         scr = screen.ScreenView.of_scene(scene, background, tracer, B)
     fields = {spec: SdfGrid(*sdf_grid(scene, spec, cache), o, B) for spec in views.sdfs}  # distance fields
+
+    def shade(origins, dirs):  # exact shading: Mitsuba along the rays, as truth_at_hit
+        return radiance_along(scene, origins, dirs, spp=scene.render.spp, seed=scene.render.seed)
     return Captured(
         impostor=EnvMap(imp.texels(), B),
         layers=layers,
         probes=probe_sets,
         screen=scr,
         sdfs=fields,
+        shade=shade if views.shade else None,
         open=open_environment(imp),
         **env_info(scene),
     )

@@ -19,7 +19,11 @@ Per ray x + R t (relative to o), φ the trilinear signed distance (one 3D fetch)
 3. **shade**: with ``shading = "impostor"`` the impostor's radiance in the direction of p seen from o (one lookup;
    where p is hidden from o that is the occluder's radiance: the cache's error, not the field's);
    ``"probes"`` the radiance of the nearest probe that sees p (:class:`study.impostor.probes.ProbeSet` of
-   ``grid``, as ``multi_probe`` captures it; N lookups to choose, one to read).
+   ``grid``, as ``multi_probe`` captures it; N lookups to choose, one to read); ``"exact"`` the radiance Mitsuba
+   path traces along R from 2 voxels before the hit (``Captured.shade``, the scene without the object, as
+   ``truth_at_hit``; counted as one lookup): what a perfect radiance cache gives at that point, so the error left
+   is the field's geometry alone, and sdf's error less this variant's is the cache's. Not on the bench (no
+   Mitsuba there: the impostor shades instead).
 
 Cost per ray (``Trace.lookups``): φ at the origin + the fetches of the march actually taken (a GPU thread stops at
 its bracket) + 1 + ``refine_steps`` on rays with a bracket (the bracket's near end re-read, the secant steps) + the
@@ -51,8 +55,9 @@ class Params(BaseModel):
     )
     min_step: Annotated[float, Field(gt=0, le=4, description="smallest step, voxels")] = 0.25
     refine_steps: Annotated[int, Field(ge=0, le=64, description="Illinois secant steps on the bracket")] = 4
-    shading: Literal["impostor", "probes"] = Field(
-        "impostor", description="radiance of the hit: the impostor from o, or the nearest probe that sees it"
+    shading: Literal["impostor", "probes", "exact"] = Field(
+        "impostor",
+        description="radiance of the hit: the impostor from o, the nearest probe that sees it, or exact",
     )
     grid: tuple[
         Annotated[int, Field(ge=1, le=8)],
@@ -80,7 +85,7 @@ class SDF(TracingMethod):
 
     def views_needed(self) -> Views:
         probes = (self.probe_spec(),) if self.params.shading == "probes" else ()
-        return Views(sdfs=(self.spec(),), probes=probes)
+        return Views(sdfs=(self.spec(),), probes=probes, shade=self.params.shading == "exact")
 
     def field(self, env) -> SdfGrid:
         """The distance field searched: the captured one, or the room box's on a fallback Captured."""
@@ -138,8 +143,11 @@ class SDF(TracingMethod):
         hit = x + R * ts
         hit = _sel(B, found, hit, R)  # finite everywhere (numpy gathers every ray)
         # ------------------------------------------------------------- shade the hit
+        shade = env.need_shade(self.name) if p.shading == "exact" else None
         if p.shading == "probes":
             rgb, ratio, extra = self._probe_shade(B, env, hit, 2.0 * h)
+        elif shade is not None:
+            rgb, ratio, extra = self._exact_shade(B, env, shade, x, R, ts, found, 2.0 * h)
         else:
             ch = env.lookup(hit)
             rgb, ratio, extra = ch[:3], B.length(hit) / ch[-1], 1.0
@@ -163,6 +171,22 @@ class SDF(TracingMethod):
         v = hit - P.centre(best)
         ch = P.lookup(best, v)
         return ch[:3], B.length(v) / ch[-1], float(P.n + 1)
+
+    def _exact_shade(self, B, env, shade, x, R, ts, found, back: float):
+        """Radiance arriving along R at the point ``back`` metres before the hit (not before x), path traced by
+        ``shade``: the hit's own radiance where the field put it on the right surface, another surface's where it
+        did not (a geometric error, and nothing else). The ratio from one impostor lookup (a diagnostic); the
+        lookups: 1 (the read of a radiance cache it stands for)."""
+        start = x + R * B.maximum(ts - back, 0.0)
+        ok = B.numpy(found).astype(bool)
+        pts = B.to_numpy(start).astype(float) + env.origin()
+        rad = np.full((len(ok), 3), np.nan, np.float32)
+        if ok.any():
+            rad[ok] = shade(pts[ok], B.to_numpy(R)[ok].astype(float))
+        hit = x + R * ts
+        safe = _sel(B, found, hit, R)
+        ratio = B.length(safe) / env.distance(safe)
+        return [B.array(rad[:, i]) for i in range(3)], ratio, 1.0
 
     def lookups_per_ray(self, res: int | None = None) -> float:
         # the 3D fetches (volume_lookups) and the shading lookups: the impostor's one, or N + 1 probe lookups
