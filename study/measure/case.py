@@ -131,6 +131,7 @@ def capture_views(
 
     def shade(origins, dirs):  # exact shading: Mitsuba along the rays, as truth_at_hit
         return radiance_along(scene, origins, dirs, spp=scene.render.spp, seed=scene.render.seed)
+
     return Captured(
         impostor=EnvMap(imp.texels(), B),
         layers=layers,
