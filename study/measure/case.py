@@ -129,8 +129,11 @@ def capture_views(
         scr = screen.ScreenView.of_scene(scene, background, tracer, B)
     fields = {spec: SdfGrid(*sdf_grid(scene, spec, cache), o, B) for spec in views.sdfs}  # distance fields
 
-    def shade(origins, dirs):  # exact shading: Mitsuba along the rays, as truth_at_hit
-        return radiance_along(scene, origins, dirs, spp=scene.render.spp, seed=scene.render.seed)
+    def shade(
+        origins, dirs
+    ):  # exact shading: Mitsuba along the rays, as truth_at_hit, with a seed of its own
+        seed = scene.render.seed + 2 * truth.SEED_OFFSET  # not the truth's two seeds: its noise is not shared
+        return radiance_along(scene, origins, dirs, spp=scene.render.spp, seed=seed)
 
     return Captured(
         impostor=EnvMap(imp.texels(), B),

@@ -21,9 +21,9 @@ Per ray x + R t (relative to o), φ the trilinear signed distance (one 3D fetch)
    ``"probes"`` the radiance of the nearest probe that sees p (:class:`study.impostor.probes.ProbeSet` of
    ``grid``, as ``multi_probe`` captures it; N lookups to choose, one to read); ``"exact"`` the radiance Mitsuba
    path traces along R from 2 voxels before the hit (``Captured.shade``, the scene without the object, as
-   ``truth_at_hit``; counted as one lookup): what a perfect radiance cache gives at that point, so the error left
-   is the field's geometry alone, and sdf's error less this variant's is the cache's. Not on the bench (no
-   Mitsuba there: the impostor shades instead).
+   ``truth_at_hit`` but with a seed of its own; counted as one lookup): what a perfect radiance cache gives at
+   that point, so the error left is the field's geometry alone, and sdf's error less this variant's is the
+   cache's. Not on the bench (no Mitsuba there: the impostor shades instead).
 
 Cost per ray (``Trace.lookups``): φ at the origin + the fetches of the march actually taken (a GPU thread stops at
 its bracket) + 1 + ``refine_steps`` on rays with a bracket (the bracket's near end re-read, the secant steps) + the
