@@ -281,3 +281,26 @@ def test_ssr_then_sdf_takes_the_screen_where_it_has_the_hit_and_the_field_elsewh
     np.testing.assert_allclose(shown[on], alone[on], atol=1e-6)
     assert np.all(np.linalg.norm(shown[~on] + o - exact[~on], axis=1) < h)
     assert spent.max() <= chain.lookups_per_ray()
+
+
+def test_case_gives_sdf_its_field_through_the_cache(tmp_path):
+    """run_case on the small room with a column taller than o: sdf, its exact-shading variant and ssr_sdf get
+    the field (one 64³ grid, stored once: a second run recomputes nothing), every ray valid, the measured
+    lookups within the bound; the exact variant shows the same points as sdf (same field, same trace)."""
+    from study.measure.case import run_case
+
+    s = scene_from_dict(
+        small_scene_dict(columns=[{"center": [-0.8, 0.3], "footprint": [0.5, 0.5], "height": 2.0}])
+    )
+    ms = [methods.make("sdf"), methods.make("sdf", shading="exact"), methods.make("ssr_sdf")]
+    cache = Cache(tmp_path)
+    rows = {r["label"]: r for r in run_case(s, ms, cache=cache, keep_images=False).rows}
+    for m in ms:
+        row = rows[m.label]
+        assert row["valid_fraction"] == 1.0 and row["lookups_per_ray"] <= m.lookups_per_ray()
+    a, b = rows["sdf(res=64)"], rows["sdf(res=64, shading='exact')"]
+    assert a["wrong_fraction"] == b["wrong_fraction"] and a["dist_p95"] == b["dist_p95"]
+    assert len(list((tmp_path / "sdf").glob("*.npy"))) == 1
+    cache2 = Cache(tmp_path)
+    run_case(s, ms, cache=cache2, keep_images=False)
+    assert cache2.misses == 0
