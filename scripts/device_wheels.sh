@@ -25,7 +25,7 @@ find "$m" \( -name 'volpath*' -o -name 'ellipsoids*' -o -name 'bsplinecurve*' -o
 # plugins and a variant study never asks for (materials, shapes and cameras it does not build; scalar_rgb)
 rm -f "$m"/scalar_rgb*.so
 for p in principled principledthin hair measured measured_polarized pplastic roughplastic plastic polarizer \
-    retarder thinlens irradiancemeter radiancemeter distant cylinder instance shapegroup linearcurve sdfgrid \
+    retarder thinlens irradiancemeter radiancemeter distant cylinder instance shapegroup linearcurve \
     blendbsdf mask bumpmap normalmap; do rm -f "$m/plugins/$p.so"; done
 tar cJf "$d/site.tar.xz" -C "$d/site" .
 rm -rf "$d/site" "$d/wheels"

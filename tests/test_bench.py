@@ -316,7 +316,7 @@ def test_frozen_function_replays():
 
 
 @needs_llvm
-@pytest.mark.parametrize("name", ["linear_secant", "layered", "multi_probe"])
+@pytest.mark.parametrize("name", ["linear_secant", "layered", "multi_probe", "sdf", "ssr_sdf"])
 def test_marching_methods_frozen_equal_plain_and_numpy(name):
     """The marching methods as the bench runs them (issue 15: their searches are one symbolic loop, and layered is
     frozen too, its layers coming in through the frozen function's arguments): the frozen call, replayed, gives
@@ -364,6 +364,21 @@ def test_method_floor_is_fetches_times_cost_plus_bytes_over_bandwidth():
     )
 
 
+def test_sdf_floor_prices_its_3d_fetches_at_the_3d_rate():
+    """sdf's bound (1 + 96 + 1 + 4 = 102 3D fetches, 1 impostor lookup) by hand: with 3D fetches at 0.5 ns and 2D
+    at 1 ns, (102 · 0.5 + (1 + 1) · 1 + 1 + 53) ns a ray; without a measured 3D rate (floors measured before) the
+    2D rate stands in. ssr_sdf's fallback fetches are priced the same way."""
+    from study.bench.floors import method_floor
+
+    fl = {"fetch_1ch_random": 1e9, "fetch_4ch_random": 1e9, "bandwidth": 1e9, "fetch_3d_random": 2e9}
+    m = methods.make("sdf")
+    assert m.volume_lookups() == 102 and m.lookups_per_ray() == 103
+    assert math.isclose(method_floor(m, fl, "random", 1), (51 + 2 + 1 + 53) * 1e-9, rel_tol=1e-12)
+    old = {k: v for k, v in fl.items() if k != "fetch_3d_random"}
+    assert math.isclose(method_floor(m, old, "random", 1), (102 + 2 + 1 + 53) * 1e-9, rel_tol=1e-12)
+    assert methods.make("ssr_sdf").volume_lookups() == 102 and methods.make("ssr").volume_lookups() == 0
+
+
 @pytest.mark.skipif("llvm" not in BACKENDS, reason="needs Dr.Jit LLVM")
 def test_measured_floors_are_positive_rates():
     """Fetch rates and copy bandwidth measured on LLVM: positive and finite, every pattern and channel count."""
@@ -371,10 +386,13 @@ def test_measured_floors_are_positive_rates():
 
     fl = measure(backends.get("llvm"), 16, n_lanes=1 << 12, fetches=8, copy_floats=1 << 18, repeats=1)
     assert set(fl) == {f"fetch_{c}ch_{p}" for c in (1, 4) for p in ("coherent", "random", "scattered")} | {
-        "bandwidth"
+        "bandwidth",
+        "fetch_3d_coherent",
+        "fetch_3d_random",
     }
     assert all(math.isfinite(v) and v > 0 for v in fl.values()), fl
-    assert len(floor_rows(fl, 16, "llvm")) == 7
+    rows = floor_rows(fl, 16, "llvm")
+    assert len(rows) == 9 and sum(r["quantity"].startswith("trilinear") for r in rows) == 2
 
 
 def test_direction_sorted_batch_is_a_permutation_in_texel_order():

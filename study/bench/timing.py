@@ -13,6 +13,7 @@ times each batch once and shares the numbers between tables.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import gc
 import math
 import time
@@ -20,6 +21,7 @@ import time
 import numpy as np
 
 from study.impostor.envmap import EnvMap
+from study.impostor.sdf import room_field
 from study.impostor.views import Captured
 from study.reference import mitsuba as mitsuba_ref
 from study.reference.embree import Tracer
@@ -68,7 +70,9 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
     ``room``), and with ``fallback`` set: a method that searches several layers gets a copy of the impostor as each
     layer (the bench times lookups; texel values do not change their cost), so its textures still come in through
     the frozen function's arguments; probe sets and the camera's buffer are not captured, so ``multi_probe`` and
-    ``ssr`` are timed on their fallbacks (the impostor as the only probe; every ray to the fallback method)."""
+    ``ssr`` are timed on their fallbacks (the impostor as the only probe; every ray to the fallback method); a
+    distance field is the room box's (:func:`study.impostor.sdf.room_field`: the cost of a 3D fetch does not
+    depend on the values), its texture an argument too."""
     env = EnvMap(tex_np, B)
     # the layer shares env's textures (a shallow copy): a texture of its own, replaced inside the recording below,
     # would be freed there — an unrecordable host call that aborts the process
@@ -76,18 +80,25 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
     views = Captured(
         impostor=env, layers=(layer,) * m.layers_needed() if layer else (), fallback=True, **(info or {})
     )
+    # distance fields: the room box's (made here, outside the recording; their textures come in as arguments)
+    fields = [room_field(views, spec) for spec in m.views_needed().sdfs]
+    if fields:
+        views = dataclasses.replace(views, sdfs=dict(zip(m.views_needed().sdfs, fields)))
     X, RR = B.vec(x), B.vec(R)
     B.eval(X.x, X.y, X.z, RR.x, RR.y, RR.z)
 
-    def trace(tex, dist, X, RR):  # textures as arguments: a frozen function sees only those
+    def trace(tex, dist, X, RR, vol):  # textures as arguments: a frozen function sees only those
         env.tex, env.dist = tex, dist
         if layer is not None:
             layer.tex, layer.dist = tex, dist
+        for f, t in zip(fields, vol):
+            f.tex = t
         t = m.trace(B, views, X, RR)
         return t.shown, t.radiance, t.ratio, t.valid
 
     fn = B.freeze(trace) if frozen else trace
     tex, dist = env.tex, env.dist
+    vol = [f.tex for f in fields]
 
     def finish(out):
         if out is None:
@@ -96,7 +107,7 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
             s, r, ratio, valid = out
             B.eval(s.x, s.y, s.z, r.x, r.y, r.z, ratio, valid)
 
-    return (lambda: fn(tex, dist, X, RR)), finish
+    return (lambda: fn(tex, dist, X, RR, vol)), finish
 
 
 def time_method(m, B, tex_np, x, R, *, frozen: bool, repeats: int, info: dict | None = None) -> float:

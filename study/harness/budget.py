@@ -34,6 +34,10 @@ BYTES_PER_SUBPIXEL = 256  # camera rays and per-pixel images
 BYTES_PER_OBJECT_RAY = 1024  # every method's arrays for one ray leaving the object (measured: ~0.8 KiB)
 BYTES_PER_TEXEL = 64  # one cube-map texel: radiance + distance, float32, in a few copies
 BYTES_PER_LAYER_TEXEL = 80  # one texel of one depth layer (layered methods)
+BYTES_PER_SDF_NODE = (
+    80  # one node of a distance field while built (float64 distance, cosine, EDT and indices)
+)
+SECONDS_PER_SDF_NODE = 1.2e-6  # building a field, per node (2.5 s for 128³ on fig5's room, 2 shared cores)
 BYTES_PER_TRIANGLE = 350  # one environment triangle: study's arrays, Embree's BVH, Mitsuba's mesh
 SECONDS_PER_TRIANGLE = 30e-6  # per environment triangle and case: Embree and Mitsuba scenes, renders' set-up
 DEFAULT_MAX_MEMORY_GIB = 16.0  # of a 24 GiB machine
@@ -134,6 +138,10 @@ def estimate(
         len(p.points) if p.points is not None else int(np.prod(p.grid))  # cube maps at more points
         for p in Views.merge(*(m.views_needed() for m in methods)).probes
     )  # (at most: grid cells)
+    nodes = sum(f.res**3 for f in Views.merge(*(m.views_needed() for m in methods)).sdfs)
+    if nodes:  # distance fields (built once per environment and cached; counted per case, the worst case)
+        mem["method.res"] = nodes * BYTES_PER_SDF_NODE
+        time["method.res"] = nodes * SECONDS_PER_SDF_NODE
     if probes:
         mem["render.cube_res"] += probes * texels * BYTES_PER_TEXEL
         if impostor:
@@ -163,6 +171,8 @@ def _scene_key(key: str, scene: Scene) -> str:
         return "methods (their lookups per ray)"
     if key == "environment":
         return f"the environment's {int(_triangles(scene)):,} triangles (environment.file)"
+    if key == "method.res":
+        return "the distance fields' grid nodes (method.res of sdf)"
     if key == "camera.width":
         return f"camera.width × camera.height = {scene.camera.width} × {scene.camera.height}"
     part, name = key.split(".")

@@ -51,13 +51,25 @@ class ProbeSpec:
 
 
 @dataclass(frozen=True)
+class SdfSpec:
+    """A signed distance field of the environment (:mod:`study.impostor.sdf`): ``res`` grid nodes along each axis
+    of the cube holding the environment, exact distances within ``band`` voxels of a surface."""
+
+    res: int = 64
+    band: float = 4.0
+
+
+@dataclass(frozen=True)
 class Views:
-    """A request for views: ``layers`` depth layers from o (1: the plain impostor), the probe sets ``probes`` and,
-    with ``screen``, the camera's depth and colour buffer."""
+    """A request for views: ``layers`` depth layers from o (1: the plain impostor), the probe sets ``probes``,
+    with ``screen`` the camera's depth and colour buffer, the distance fields ``sdfs`` and, with ``shade``, the
+    exact shading of points (``Captured.shade``)."""
 
     layers: int = 1
     probes: tuple[ProbeSpec, ...] = field(default_factory=tuple)
     screen: bool = False
+    sdfs: tuple[SdfSpec, ...] = field(default_factory=tuple)
+    shade: bool = False
 
     @staticmethod
     def merge(*requests: Views) -> Views:
@@ -67,6 +79,8 @@ class Views:
             layers=max((r.layers for r in requests), default=1),
             probes=probes,
             screen=any(r.screen for r in requests),
+            sdfs=tuple(dict.fromkeys(s for r in requests for s in r.sdfs)),
+            shade=any(r.shade for r in requests),
         )
 
 
@@ -81,6 +95,9 @@ class Captured:
     probes     {:class:`ProbeSpec`: ProbeSet} cube maps at several points, probe 0 the impostor
                (:mod:`study.impostor.probes`)
     screen     the camera's depth and colour buffer (:class:`~study.impostor.screen.ScreenView`), or None
+    sdfs       {:class:`SdfSpec`: SdfGrid} signed distance fields of the environment (:mod:`study.impostor.sdf`)
+    shade      exact shading, not an image-based view: a function (origins, dirs), world (N, 3) numpy arrays →
+               (N, 3) radiance arriving along each ray (Mitsuba, the scene without the object), or None
     reference  o in world coordinates (None: unknown; methods then take the origin)
     room       the room box (min, max), world coordinates: ``reference.box`` where given, else the environment's
                bounds (None: unknown; proxies then fit a box or sphere to the impostor's own distances)
@@ -89,13 +106,15 @@ class Captured:
     fallback   what to do when a method asks for a view that is missing: False (cases, caustic maps) → a
                StudyError naming the view; True (a bare impostor, as in the analytic tests, and the bench, which
                times lookups) → the method's documented fallback (the impostor as the only layer or probe, no
-               screen buffer)
+               screen buffer, the room box's distance field)
     """
 
     impostor: EnvMap
     layers: tuple[EnvMap, ...] = ()
     probes: Mapping[ProbeSpec, Any] = field(default_factory=dict)  # ProbeSet (probes.py imports this module)
     screen: ScreenView | None = None
+    sdfs: Mapping[SdfSpec, Any] = field(default_factory=dict)  # SdfGrid (sdf.py imports this module)
+    shade: Any = None  # (origins, dirs) world (N, 3) numpy → (N, 3) radiance along each ray, path traced
     reference: tuple[float, float, float] | None = None
     room: tuple[Vec3, Vec3] | None = None
     open: bool = False
@@ -162,3 +181,17 @@ class Captured:
         if self.screen is not None or self.fallback:
             return self.screen
         raise self._missing(method, "the camera's screen buffer (Captured.screen)")
+
+    def need_sdf(self, method: str, spec: SdfSpec):
+        """The distance field ``spec``; None on a fallback Captured without it."""
+        if spec in self.sdfs:
+            return self.sdfs[spec]
+        if self.fallback:
+            return None
+        raise self._missing(method, f"the distance field {spec} (Captured.sdfs)")
+
+    def need_shade(self, method: str):
+        """The exact shading function; None on a fallback Captured without it."""
+        if self.shade is not None or self.fallback:
+            return self.shade
+        raise self._missing(method, "exact shading (Captured.shade)")

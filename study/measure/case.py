@@ -21,12 +21,13 @@ from study.impostor.capture import Impostor, capture_distance, impostor_key, ren
 from study.impostor.cubemap import FAR, FAR_MIN
 from study.impostor.envmap import EnvMap
 from study.impostor.layers import layered_impostor
+from study.impostor.sdf import SdfGrid, sdf_grid
 from study.impostor.views import Captured, Views
 from study.measure import metrics, outcomes, stats, truth
 from study.methods import Method
 from study.optics import shading
 from study.reference.embree import Tracer
-from study.reference.mitsuba import render_camera
+from study.reference.mitsuba import radiance_along, render_camera
 from study.reference.tracer import make_tracer
 from study.scene import Scene
 from study.scene.environment import env_key
@@ -126,11 +127,21 @@ def capture_views(
         if background is None:
             background = camera_render(scene, cache, with_object=False)
         scr = screen.ScreenView.of_scene(scene, background, tracer, B)
+    fields = {spec: SdfGrid(*sdf_grid(scene, spec, cache), o, B) for spec in views.sdfs}  # distance fields
+
+    def shade(
+        origins, dirs
+    ):  # exact shading: Mitsuba along the rays, as truth_at_hit, with a seed of its own
+        seed = scene.render.seed + 2 * truth.SEED_OFFSET  # not the truth's two seeds: its noise is not shared
+        return radiance_along(scene, origins, dirs, spp=scene.render.spp, seed=seed)
+
     return Captured(
         impostor=EnvMap(imp.texels(), B),
         layers=layers,
         probes=probe_sets,
         screen=scr,
+        sdfs=fields,
+        shade=shade if views.shade else None,
         open=open_environment(imp),
         **env_info(scene),
     )

@@ -31,6 +31,7 @@ What the harness needs to know about a method it reads from the class, never fro
     lookups_per_ray(res)     the most lookups one ray can spend at cube resolution res (an upper bound from the
                              parameters alone, for the budget and the bench's floor model); tables report the mean
                              of what the rays spent (``Trace.lookups``), which never exceeds it
+    volume_lookups(res)      how many of those are 3D texture fetches (a distance field's; default 0)
     layers_needed()          depth layers of the impostor it searches (captured by the caller when > 1)
     views_needed()           every view it searches (:class:`study.impostor.views.Views`: layers, probe sets, the
                              camera's buffer); by default the layers of ``layers_needed()``
@@ -183,6 +184,11 @@ class Method(ABC):
                 key="method",
             )
         return bound
+
+    def volume_lookups(self, res: int | None = None) -> float:
+        """How many of :meth:`lookups_per_ray` are 3D texture fetches (a distance field's), which the bench's
+        floor prices at the 3D fetch rate; 0 for a method that reads only cube maps and 2D buffers."""
+        return 0.0
 
     def layers_needed(self) -> int:
         """Depth layers of the impostor this method searches (captured into ``Captured.layers`` when more than

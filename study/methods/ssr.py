@@ -16,8 +16,10 @@ No hit ("no hit": NaN shown point) where the ray leaves the screen (the answer i
 end, passes behind geometry by more than ``thickness`` until then (what it would hit is hidden from the camera), or
 exhausts ``max_steps``; also where its origin is off screen or behind the near plane. ``fallback`` traces those rays
 with another method on the impostor, as engines fall back to a reflection probe: ``"proxy_box"`` (the room box as
-a proxy; the default, as engines ship it, so the plain name is the hybrid) or ``"localized"`` (the paper's search);
-``"none"`` shows nothing (screen-space tracing alone). On a bare impostor without a camera buffer every ray goes to
+a proxy; the default, as engines ship it, so the plain name is the hybrid), ``"localized"`` (the paper's search) or
+``"sdf"`` (the distance field, :mod:`study.methods.sdf`: Lumen's chain of a screen trace, then a global distance
+field trace, registered as ``ssr_sdf``, the tables' "ssr → sdf"); ``"none"`` shows nothing (screen-space tracing
+alone). On a bare impostor without a camera buffer every ray goes to
 the fallback.
 
 Shown point of a hit: the ray point at depth clamp(z_b, range) of the hit step (perspective-correct parameter
@@ -51,8 +53,14 @@ class Params(BaseModel):
     max_distance: Annotated[float, Field(gt=0)] | None = Field(
         None, description="ray length, metres (default: the room's diagonal)"
     )
-    fallback: Literal["none", "proxy_box", "localized"] = Field(
+    fallback: Literal["none", "proxy_box", "localized", "sdf"] = Field(
         "proxy_box", description="method for the rays without a screen hit (none: no hit)"
+    )
+
+
+class ChainParams(Params):
+    fallback: Literal["none", "proxy_box", "localized", "sdf"] = Field(
+        "sdf", description="method for the rays without a screen hit (none: no hit)"
     )
 
 
@@ -160,3 +168,16 @@ class SSR(TracingMethod):
         # every step's depth fetch, the colour fetch, and the fallback's lookups
         fb = self._fallback()
         return self.params.max_steps + 1 + (fb.lookup_bound(res) if fb else 0)
+
+    def volume_lookups(self, res: int | None = None) -> float:
+        fb = self._fallback()
+        return fb.volume_lookups(res) if fb else 0.0
+
+
+@register
+class SSRThenSDF(SSR):
+    """``ssr`` whose fallback is ``sdf`` by default: the engine chain ssr → sdf (Lumen: screen trace first, the
+    global distance field where the screen has nothing)."""
+
+    name = "ssr_sdf"
+    Params = ChainParams
