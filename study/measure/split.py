@@ -37,8 +37,9 @@ Each term has a 95 % percentile-bootstrap interval over pixels (``scipy.stats.bo
 pixels for all terms, :func:`study.measure.stats.mean_cis`), written ``dec_<term>_lo``/``_hi``. ``dec_sums`` is 1
 when the parts add up to the total within their intervals: the parts' summed interval [Σ lo, Σ hi] meets the
 total's. ``dec_residual``'s own interval is the stricter, paired check (it excludes 0 where the map misses more than
-seed and resolution explain, e.g. at the edge of an emitter, where texel filtering errs more than first order). No term is defined from another: the representation is
-measured against O₂ and O_f, not against T, so the sum is a test, not an identity.
+seed and resolution explain, e.g. at the edge of an emitter, where texel filtering errs more than first order).
+No term is defined from another: the representation is measured against O₂ and O_f, not against T, so the sum is
+a test, not an identity.
 """
 
 from __future__ import annotations
