@@ -60,15 +60,18 @@ def test_only_visibility():
 def test_only_representation_capture_noise():
     rng, T = _base(3)
     s = 0.04
-    O, O2, Of = (T + rng.normal(0, s, T.shape) for _ in range(3))  # three independent captures, no bias
-    _only(_cols(O, T, 0 * T, O, O2, Of), "representation")  # the method shows the oracle
+    n = rng.normal(0, s, (4, P, 3))  # a map of noisy texels, four per coarse texel; O reads the first
+    O = T + n[0]
+    O2 = T + rng.normal(0, s * np.sqrt(split.SEED_SPP_DIVISOR), T.shape)  # second seed, 1/k of the samples
+    Oc = T + n.mean(axis=0)  # the half-resolution map: the mean of four texels, no bias
+    _only(_cols(O, T, 0 * T, O, O2, Oc), "representation")  # the method shows the oracle
 
 
 def test_only_representation_resolution():
     rng, T = _base(4)
-    b = rng.normal(0, 0.05, T.shape)  # a first-order bias: halved by a map twice as fine
-    O, Of = T + b, T + b / 2
-    _only(_cols(O, T, 0 * T, O, O, Of), "representation", rel=1e-9)
+    b = rng.normal(0, 0.05, T.shape)  # a first-order bias: doubled by a map half as fine
+    O, Oc = T + b, T + 2 * b
+    _only(_cols(O, T, 0 * T, O, O, Oc), "representation", rel=1e-9)
 
 
 def test_only_reference_noise():

@@ -138,22 +138,23 @@ def capture_views(
     )
 
 
-def second_captures(scene: Scene, cache: Cache) -> tuple[np.ndarray, np.ndarray]:
-    """The impostor's radiance captured again, (6, R, R, 4) texels each (distance channel 0, unused by the
-    oracle): with a second seed (``render.seed + SEED_OFFSET``) and at twice the resolution (same samples per
-    texel); the representation term of :mod:`study.measure.split` is measured from them."""
+def second_captures(scene: Scene, cache: Cache, imp: Impostor) -> tuple[np.ndarray, np.ndarray]:
+    """The impostor's radiance once more, (6, R, R, 4) texels (distance channel 0, unused by the oracle): captured
+    with a second seed (``render.seed + SEED_OFFSET``) and 1/:data:`~study.measure.split.SEED_SPP_DIVISOR` of the
+    samples per texel (a fraction of the capture's cost), and at half the resolution (2 × 2 texel means of the
+    map: the same as a capture at R/2 with four times the samples, texels being box-filtered pixel means). The
+    representation term of :mod:`study.measure.split` is measured from them."""
     r = scene.render
     other = scene.with_updates({"render.seed": r.seed + truth.SEED_OFFSET})
+    spp = max(1, r.cube_spp // split.SEED_SPP_DIVISOR)
     seed2 = cache.get(
-        "radiance", impostor_key(other), lambda: render_cube(other, r.cube_res, r.cube_spp), code=render_cube
-    ).reshape(6, r.cube_res, r.cube_res, 3)
-    fine = cache.get(
         "radiance",
-        impostor_key(scene, res=2 * r.cube_res),
-        lambda: render_cube(scene, 2 * r.cube_res, r.cube_spp),
+        impostor_key(other, spp=spp),
+        lambda: render_cube(other, r.cube_res, spp),
         code=render_cube,
-    ).reshape(6, 2 * r.cube_res, 2 * r.cube_res, 3)
-    return tuple(np.concatenate([c, np.zeros(c.shape[:-1] + (1,), c.dtype)], -1) for c in (seed2, fine))
+    ).reshape(6, r.cube_res, r.cube_res, 3)
+    coarse = split.coarser(imp.radiance)
+    return tuple(np.concatenate([c, np.zeros(c.shape[:-1] + (1,), c.dtype)], -1) for c in (seed2, coarse))
 
 
 def open_environment(imp: Impostor) -> bool:
@@ -253,7 +254,7 @@ def run_case(
 
     held_px = split.held_pixels(rays, held)
     oracle_img = split.mark(oracle_of(EnvMap(imp.texels(), nb)), held_px | ~mask)  # unheld pixels: MARK
-    oracle_seed, oracle_fine = (oracle_of(EnvMap(t, nb)) for t in second_captures(scene, cache))
+    oracle_seed, oracle_coarse = (oracle_of(EnvMap(t, nb)) for t in second_captures(scene, cache, imp))
     on_held = mask & held_px  # the pixels whose every hit the views hold: where the oracle has a value
     sigma = truth.noise_rms(ref.noise, mask)  # the truth's own noise (debiased columns)
 
@@ -267,7 +268,7 @@ def run_case(
                 img, ref.image, mask=over, sigma=sigma, rel_eps=truth.REL_EPS, emap=fmap
             ),
             **split.split_columns(
-                img, ref.image, ref.noise, oracle_img, oracle_seed, oracle_fine, mask=over, held_px=held_px
+                img, ref.image, ref.noise, oracle_img, oracle_seed, oracle_coarse, mask=over, held_px=held_px
             ),
         }
         if reference:  # the truth is not split against itself

@@ -22,10 +22,13 @@ held, u = 1 − h:
 ``dec_total``                 mean |img − T|²
 ``dec_search``                mean h·|img − O|²: what a better search on the same views could fix
 ``dec_visibility``            mean u·(|img − T|² − n²): the error on pixels whose hits the views do not hold
-``dec_representation``        mean h·(capture + resolution), measured *without* T: capture = |O − O₂|²/2 (O₂:
-                              the oracle from a second capture seed), resolution = K·(|O − O_f|² − 2·capture)
-                              (O_f: from a map of twice the resolution; its capture noise taken as O's; K =
-                              :data:`RICHARDSON`, first-order extrapolation: box-filtered texels err ∝ texel size)
+``dec_representation``        mean h·(capture + resolution), measured *without* T: capture = |O − O₂|²/(1 + k)
+                              (O₂: the oracle from a second capture seed with 1/k of the samples, k =
+                              :data:`SEED_SPP_DIVISOR`: its noise variance is k times O's), resolution =
+                              |O − O_c|² − ¾·capture (O_c: from the map at half the resolution, its 2 × 2 texel
+                              means; first-order extrapolation, box-filtered texels err ∝ texel size, so O_c errs
+                              twice as much as O and O − O_c is O's own error; ¾·capture: the noise of O − O_c,
+                              O_c averaging four texels one of which O reads)
 ``dec_noise``                 mean n²: the reference's own noise (two seeds)
 ``dec_cross``                 mean h·2(img − O)·(O − T): the search × (representation + noise) cross term
 ``dec_residual``              total − (search + visibility + representation + noise + cross) = mean
@@ -38,7 +41,7 @@ pixels for all terms, :func:`study.measure.stats.mean_cis`), written ``dec_<term
 when the parts add up to the total within their intervals: the parts' summed interval [Σ lo, Σ hi] meets the
 total's. ``dec_residual``'s own interval is the stricter, paired check (it excludes 0 where the map misses more than
 seed and resolution explain, e.g. at the edge of an emitter, where texel filtering errs more than first order).
-No term is defined from another: the representation is measured against O₂ and O_f, not against T, so the sum is
+No term is defined from another: the representation is measured against O₂ and O_c, not against T, so the sum is
 a test, not an identity.
 """
 
@@ -52,8 +55,8 @@ from study.measure.stats import mean_cis
 
 #: The colour of oracle_map pixels whose hits the views do not hold (linear RGB).
 MARK = (1.0, 0.0, 1.0)
-#: Richardson factor of the resolution term: (1 / (1 − 2⁻ᵖ))² with order p = 1.
-RICHARDSON = 4.0
+#: The second capture seed takes 1/k of the capture's samples per texel (its cost), k = this.
+SEED_SPP_DIVISOR = 8
 #: The split's terms, in the order the parts add up (``dec_residual`` closes the sum).
 TERMS = ("search", "visibility", "representation", "noise", "cross")
 
@@ -84,19 +87,26 @@ def mark(img: np.ndarray, keep: np.ndarray) -> np.ndarray:
     return out
 
 
+def coarser(radiance: np.ndarray) -> np.ndarray:
+    """(6, R, R, C) cube-map texels → (6, R/2, R/2, C): the means of 2 × 2 texels (R even)."""
+    f, r, _, c = radiance.shape
+    return radiance.reshape(f, r // 2, 2, r // 2, 2, c).mean(axis=(2, 4))
+
+
 def _sq(a, b=None) -> np.ndarray:
     """Per pixel, the mean over channels of a² (or a·b)."""
     return np.mean(a * (a if b is None else b), axis=-1)
 
 
-def pixel_terms(img, truth, noise, oracle, oracle_seed, oracle_fine, held_px) -> dict[str, np.ndarray]:
+def pixel_terms(img, truth, noise, oracle, oracle_seed, oracle_coarse, held_px) -> dict[str, np.ndarray]:
     """The per-pixel values whose means are the split's terms (module docstring), for P pixels.
 
     Parameters
     ----------
-    img, truth, noise, oracle, oracle_seed, oracle_fine : (P, 3) arrays
-        The method's image, truth_at_hit, its noise image, oracle_map, the oracle from a second capture seed and
-        from a map of twice the resolution, on the object's pixels (oracles may be NaN where not held).
+    img, truth, noise, oracle, oracle_seed, oracle_coarse : (P, 3) arrays
+        The method's image, truth_at_hit, its noise image, oracle_map, the oracle from a second capture seed (1/k
+        of the samples) and from the map at half the resolution, on the object's pixels (oracles may be NaN where
+        not held).
     held_px : (P,) bool
         The pixel's hits are all held.
 
@@ -106,14 +116,16 @@ def pixel_terms(img, truth, noise, oracle, oracle_seed, oracle_fine, held_px) ->
     """
     img, truth, noise = (np.asarray(a, float) for a in (img, truth, noise))
     h = np.asarray(held_px, bool)
-    O, O2, Of = (np.where(h[:, None], np.asarray(a, float), 0.0) for a in (oracle, oracle_seed, oracle_fine))
+    O, O2, Oc = (
+        np.where(h[:, None], np.asarray(a, float), 0.0) for a in (oracle, oracle_seed, oracle_coarse)
+    )
     e = img - truth
-    capture = _sq(O - O2) / 2
+    capture = _sq(O - O2) / (1 + SEED_SPP_DIVISOR)
     t = {
         "total": _sq(e),
         "search": np.where(h, _sq(img - O), 0.0),
         "visibility": np.where(h, 0.0, _sq(e) - _sq(noise)),
-        "representation": np.where(h, capture + RICHARDSON * (_sq(O - Of) - 2 * capture), 0.0),
+        "representation": np.where(h, capture + _sq(O - Oc) - 0.75 * capture, 0.0),
         "noise": _sq(noise),
         "cross": np.where(h, 2 * _sq(img - O, O - truth), 0.0),
     }
@@ -121,13 +133,17 @@ def pixel_terms(img, truth, noise, oracle, oracle_seed, oracle_fine, held_px) ->
     return t
 
 
-def split_columns(img, truth, noise, oracle, oracle_seed, oracle_fine, *, mask, held_px) -> dict[str, float]:
+def split_columns(
+    img, truth, noise, oracle, oracle_seed, oracle_coarse, *, mask, held_px
+) -> dict[str, float]:
     """The ``dec_*`` columns of one image (module docstring) over the object's pixels ``mask`` (H, W), with
     intervals; also ``rmse_truth_held`` / ``rmse_truth_unheld`` (RMSE against T on the pixels whose hits the views
     hold / do not hold, with ``_lo``/``_hi``), ``held_pixels`` and ``unheld_pixels``."""
     mask = np.asarray(mask, bool)
     h = np.asarray(held_px, bool)[mask]
-    t = pixel_terms(*(np.asarray(a)[mask] for a in (img, truth, noise, oracle, oracle_seed, oracle_fine)), h)
+    t = pixel_terms(
+        *(np.asarray(a)[mask] for a in (img, truth, noise, oracle, oracle_seed, oracle_coarse)), h
+    )
     names = ["total", *TERMS, "residual"]
     out: dict[str, float] = {"held_pixels": int(h.sum()), "unheld_pixels": int((~h).sum())}
     if not h.size:
