@@ -1,4 +1,4 @@
-"""The references a method's image is measured against, their noise, and the split of its error into parts.
+"""The references a method's image is measured against (truth_at_hit, Mitsuba's render) and their noise.
 
 Three images of the object's pixels, all built from the very sub-pixel rays the methods shade (same pixel
 sampling) and composited over the same object-free background:
