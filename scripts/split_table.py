@@ -57,7 +57,7 @@ def main() -> int:
     ms = [registry.make(n) for n in METHODS]
     for name, scene in cases(a.small):
         t0 = time.perf_counter()
-        rows = run_case(scene, ms, cache=Cache(a.cache), keep_images=False).rows
+        rows = run_case(scene, ms, cache=Cache(a.cache), keep_images=True).rows  # with intervals
         print(f"\n## {name}  ({time.perf_counter() - t0:.0f} s)")
         cols = ["total", *TERMS, "residual"]
         print("| method | pixels (held) | " + " | ".join(cols) + " | sums |")

@@ -105,7 +105,7 @@ def shipped_rows(tmp_path_factory):
     spec.loader.exec_module(mod)
     cache = Cache(tmp_path_factory.mktemp("cache"))
     ms = [registry.make(n) for n in mod.METHODS]
-    return {name: run_case(sc, ms, cache=cache, keep_images=False).rows for name, sc in mod.cases(small=True)}
+    return {name: run_case(sc, ms, cache=cache, keep_images=True).rows for name, sc in mod.cases(small=True)}
 
 
 def test_oracle_is_never_worse_than_a_method_on_held_pixels(shipped_rows):

@@ -72,7 +72,7 @@ def test_real_case_oracle_map_is_near_the_truth(tmp_path):
     d["render"].update(spp=64, cube_spp=64)  # noise well below the systematic parts
     scene = scene_from_dict(d)
     ms = [methods.make("classical"), methods.make("localized", iterations=1), methods.make("localized")]
-    rows = {r["label"]: r for r in run_case(scene, ms, cache=Cache(tmp_path), keep_images=False).rows}
+    rows = {r["label"]: r for r in run_case(scene, ms, cache=Cache(tmp_path), keep_images=True).rows}
     for m in ms:
         assert rows[m.label]["dec_sums"] == 1, m.label
     ref = rows["oracle_map"]

@@ -268,7 +268,15 @@ def run_case(
                 img, ref.image, mask=over, sigma=sigma, rel_eps=truth.REL_EPS, emap=fmap
             ),
             **split.split_columns(
-                img, ref.image, ref.noise, oracle_img, oracle_seed, oracle_coarse, mask=over, held_px=held_px
+                img,
+                ref.image,
+                ref.noise,
+                oracle_img,
+                oracle_seed,
+                oracle_coarse,
+                mask=over,
+                held_px=held_px,
+                intervals=keep_images,  # figures: with intervals; sweeps: the values only
             ),
         }
         if reference:  # the truth is not split against itself

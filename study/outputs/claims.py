@@ -344,14 +344,17 @@ def layered_fixes_occlusion(rows):
 def layered_radiance(rows):
     """Beyond the paper: where layered finds the hidden hits, the radiance it shows there is as good as elsewhere —
     its RMSE against truth_at_hit on the pixels with a hit the views do not hold is at most twice its RMSE on the
-    others, in every case with ≥ 50 such pixels (the pixels' intervals decide: a case fails when the lower bound
-    on the unheld pixels exceeds twice the upper bound on the held ones)."""
+    others, in every case with ≥ 50 such pixels (the pixels' intervals decide where the table has them: a case
+    fails when the lower bound on the unheld pixels exceeds twice the upper bound on the held ones)."""
     lab, found = _default("layered"), []
     for c in _cases(rows):
         r = _row(rows, c, lab)
         if r is None or not r.get("unheld_pixels", 0) >= 50 or not _finite(r.get("rmse_truth_unheld")):
             continue
-        found.append((r["rmse_truth_unheld_lo"] - 2 * r["rmse_truth_held_hi"], c, r))
+        lo, hi = r.get("rmse_truth_unheld_lo", np.nan), r.get("rmse_truth_held_hi", np.nan)
+        if not (_finite(lo) and _finite(hi)):  # a sweep's table: the values without intervals
+            lo, hi = r["rmse_truth_unheld"], r["rmse_truth_held"]
+        found.append((lo - 2 * hi, c, r))
     if not found:
         return None
     gap, c, r = max(found, key=lambda f: f[0])
