@@ -8,6 +8,7 @@ S=.venv/bin/study
 $S figure fig4
 $S figure fig5
 $S figure fig6
+$S figure fig_attic                              # a convex room that is not a box: the convergence claim
 $S figure fig_probes                            # screen-space and multi-probe tracing beside the paper's
 $S caustics-sweep
 $S animate                                       # the sphere in motion → reports/animation/

@@ -1,5 +1,6 @@
 """Print the error split (study.measure.split) of a few shipped cases at a chosen size: per method, every term with
-its 95 % pixel-bootstrap interval, in MSE (linear radiance²), and whether the parts add up to the total.
+its 95 % pixel-bootstrap interval, in MSE (linear radiance²), and whether the parts add up to the total; then the
+paper's claims judged on these cases.
 
 Run: ``python scripts/split_table.py [--small] [--cache DIR]`` (``--small``: camera 64², cube 64², 16 spp, the
 size the tests use; without it the configs' own sizes). Deterministic for the configs' seeds.
@@ -17,6 +18,7 @@ from study.cache import Cache
 from study.harness.config import load_figure_config
 from study.measure.case import run_case
 from study.measure.split import TERMS
+from study.outputs.claims import judge_claims
 
 SMALL = {
     "camera.width": 64,
@@ -55,9 +57,13 @@ def main() -> int:
     ap.add_argument("--cache", default=None)
     a = ap.parse_args()
     ms = [registry.make(n) for n in METHODS]
+    every = []
     for name, scene in cases(a.small):
         t0 = time.perf_counter()
-        rows = run_case(scene, ms, cache=Cache(a.cache), keep_images=True).rows  # with intervals
+        rows = run_case(
+            scene, ms, cache=Cache(a.cache), case_id=name, keep_images=True
+        ).rows  # with intervals
+        every += rows
         print(f"\n## {name}  ({time.perf_counter() - t0:.0f} s)")
         cols = ["total", *TERMS, "residual"]
         print("| method | pixels (held) | " + " | ".join(cols) + " | sums |")
@@ -76,6 +82,9 @@ def main() -> int:
                 + " | ".join(cells)
                 + f" | {'yes' if r['dec_sums'] == 1 else 'no'} |"
             )
+    print("\n## The claims on these cases (study/outputs/claims.py)")
+    for cl, v in judge_claims(every):
+        print(f"- {cl.id}: {'holds' if v.ok else 'FAILS'} — {v.subset}; {v.n}; {v.number}")
     return 0
 
 
