@@ -260,7 +260,9 @@ def run_case(
 
     def image_columns(img, reference=False, fmap=None, over=mask):  # one image against every reference
         cols = {
-            **metrics.image_errors(oracle_img, img, mask=on_held, suffix="oracle"),  # fmap: its
+            **metrics.image_errors(  # on held pixels; unheld ones take img's value (FLIP and SSIM filter
+                np.where((held_px | ~mask)[..., None], oracle_img, img), img, mask=on_held, suffix="oracle"
+            ),  # across pixels: a marked neighbour must not count); fmap: its
             **metrics.image_errors(ref.image, img, mask=over, suffix="truth", flip_emap=fmap),  # FLIP map
             **metrics.image_errors(mitsuba, img, mask=over, suffix="mitsuba"),
             **truth.columns(img, ref, mitsuba, mask=over),
