@@ -6,6 +6,10 @@
   square arcade of eight pillars joined by round arches, materials by colour (MTL ``Kd``) and a textured floor
   (``map_Kd``): the arches' undersides and the pillars' backs are hidden from the hall's centre.
 
+* ``scenes/rooms/attic.ply`` — an attic under a roof of unequal slopes (6 m × 4 m floor, 1 m knee walls, the
+  ridge 3.2 m high and 2 m from one side: slopes of 48° and 29°), one colour per face: a convex room that is not a
+  box, with sloped ceilings the reference point sees obliquely.
+
 Every face's normal points into free space (walls inward, pillars and arches outward), as study's placement
 checks expect. Run: ``python scripts/make_rooms.py`` (deterministic; the files are committed).
 """
@@ -81,6 +85,29 @@ def l_room():
         probe = p0 + du / 2 + 0.01 * n / np.linalg.norm(n)
         inside = (0 < probe[0] < 6 and 0 < probe[2] < 3) or (0 < probe[0] < 3 and 0 < probe[2] < 6)
         add(ts if inside else [t[::-1] for t in ts], rgb)  # every wall faces the inside of the L
+    return np.array(tris), np.array(cols, np.uint8)
+
+
+# ---------------------------------------------------------------------------------------------- attic
+def attic():
+    """(triangles, rgb per triangle) of the attic: the cross-section (x, y) is the convex pentagon (0, 0), (6, 0),
+    (6, 1), (2, 3.2), (0, 1), extruded along z over [0, 4]."""
+    L, section = 4.0, [(0.0, 0.0), (6.0, 0.0), (6.0, 1.0), (2.0, 3.2), (0.0, 1.0)]
+    centre = np.array([2.5, 1.2, 2.0])  # inside: every face is turned to face it
+    colours = [(170, 140, 100), (60, 110, 180), (225, 215, 200), (200, 200, 225), (190, 70, 60)]
+    tris, cols = [], []
+
+    def add(ts, rgb):
+        for t in ts:
+            n = np.cross(t[1] - t[0], t[2] - t[0])
+            tris.append(t if np.dot(n, centre - t[0]) > 0 else t[::-1])
+            cols.append(rgb)
+
+    for (a, b), rgb in zip(zip(section, section[1:] + section[:1]), colours):  # floor, knee wall, roofs, wall
+        add(quad([a[0], a[1], 0.0], [b[0] - a[0], b[1] - a[1], 0.0], [0.0, 0.0, L]), rgb)
+    for z, rgb in ((0.0, (70, 160, 90)), (L, (150, 90, 170))):  # the gable walls: fans of the pentagon
+        p = [np.array([x, y, z]) for x, y in section]
+        add([np.array([p[0], p[i], p[i + 1]]) for i in range(1, len(p) - 1)], rgb)
     return np.array(tris), np.array(cols, np.uint8)
 
 
@@ -211,6 +238,7 @@ def floor_texture(path: Path, size: int = 256) -> None:
 def main() -> int:
     OUT.mkdir(parents=True, exist_ok=True)
     write_ply(OUT / "l_room.ply", *l_room())
+    write_ply(OUT / "attic.ply", *attic())
     write_obj(OUT / "atrium.obj", atrium())
     floor_texture(OUT / "atrium_floor.png")
     print("wrote", ", ".join(str(p.relative_to(OUT.parents[1])) for p in sorted(OUT.iterdir())))

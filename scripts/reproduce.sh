@@ -20,6 +20,7 @@ commands=(
   "sweep configs/sweep_atrium.toml"
   "sweep configs/sweep_lroom.toml"
   "animate"                                     # the sphere in motion → reports/animation/
+  "figure fig_attic"                            # unequal roof slopes, an off-centre reference point
   "figure fig_probes"                           # screen-space and multi-probe tracing beside the paper's
 )
 t0=$(date +%s)

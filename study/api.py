@@ -183,8 +183,9 @@ def _methods_of(s: Any, expand_methods) -> list:
 class Result:
     """What :func:`evaluate` measured on one scene.
 
-    ``table``: pandas DataFrame, one row per method and the reference rows ``oracle_map`` (exact hit, impostor
-    radiance) and ``truth_at_hit`` (exact hit, Mitsuba radiance); every column of a results table
+    ``table``: pandas DataFrame, one row per method and the reference rows ``oracle_map`` (exact hit shaded with what
+    the reference point's views hold; hits hidden from it are magenta and left out, :mod:`study.measure.split`) and
+    ``truth_at_hit`` (exact hit, Mitsuba radiance); every column of a results table
     (``docs/usage.md``: *What is measured*). Arrays are keyed by method label, (H, W) over the camera image:
     ``images`` (H, W, 3) linear RGB, with the references ``oracle_map``, ``truth_at_hit`` and ``mitsuba`` (Mitsuba's
     render with the object); ``error_maps``: RMS over RGB of the image minus ``truth_at_hit``; ``flip_maps``: LDR-FLIP

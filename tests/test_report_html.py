@@ -131,9 +131,10 @@ def test_exrs_hold_what_the_metrics_measured(reports):
             continue
         layers = read_exr_layers(reports / "fig4" / "exr" / f"{r['case']}.exr")
         img, orc, mit = (layers[n] for n in (file_stem(r["label"]), "oracle_map", "mitsuba"))
-        mask = layers["mask"][..., 0] > 0.5
+        mask = layers["held"][..., 0] > 0.5  # the *_oracle columns: the pixels whose hits the views hold
         assert img.shape == (32, 32, 3) and mask.sum() >= 4
-        for ref, col in ((orc, "rmse_oracle"), (mit, "rmse_mitsuba")):
+        assert np.array_equal(mask, layers["mask"][..., 0] > 0.5)  # fig4's room hides nothing
+        for ref, col in ((orc, "rmse_oracle"), (mit, "rmse_mitsuba")):  # rmse_mitsuba: over the mask
             dd = (img.astype(float) - ref)[mask]
             assert math.sqrt(np.mean(dd * dd)) == pytest.approx(r[col], rel=1e-5, abs=1e-7), (r["label"], col)
         checked += 1

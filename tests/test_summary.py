@@ -169,3 +169,58 @@ def test_hidden_hit_claims_rest_on_cases_with_200_hidden_rays():
     v = claims.hidden_wrong(rows)
     assert v.ok and "1 cases with ≥ 200 hidden rays" in v.number and "1 more with 1–199" in v.number
     assert claims.hidden_wrong(rows[:1]) is None
+
+
+def _ladder_rows(case, wrong_at_3, exit="exact"):
+    """localized's ladder (1, 3, 10 iterations) in one convex case: tiny median angle, ``wrong_at_3`` wrong."""
+    return [
+        {
+            "case": case,
+            "label": f"localized(iterations={k})",
+            "method": "localized",
+            "family": "localized",
+            "knob_value": float(k),
+            "angle_median_deg": 0.001,  # a median-based claim would pass
+            "angle_p95_deg": 5.0 if k < 10 else 0.01,
+            "wrong_fraction": wrong_at_3 if k == 3 else 0.0,
+            "n_rays": 10_000.0,
+            "occluded_fraction": 0.0,
+            "exit": exit,
+        }
+        for k in (1, 3, 10)
+    ]
+
+
+def test_fast_convergence_is_judged_on_the_wrong_fraction_not_the_median():
+    """26 % wrong rays at 3 iterations (fig4's farthest position) with a median of 0.001°: the claim fails and
+    says so; the same ladder behind a glass exit from the distance map is not judged (exit error, not search)."""
+    v = claims.converges_quickly(_ladder_rows("p3", 0.26))
+    assert not v.ok and v.number.startswith("fails: ") and "0.26 [0.25" in v.number
+    assert v.subset.startswith("all rays, convex cases") and "10000 rays" in v.n
+    assert claims.converges_quickly(_ladder_rows("p0", 0.01)).ok
+    assert claims.converges_quickly(_ladder_rows("torus", 0.3, exit="distance_map")) is None
+
+
+def test_hardly_visible_judges_held_pixels_and_sets_the_glass_exit_aside():
+    lab = claims._default("localized")
+    rows = [
+        {"case": "mirror", "label": lab, "flip_oracle_p95": 0.03, "flip_oracle": 0.01, "held_pixels": 900},
+        {"case": "torus", "label": lab, "flip_oracle_p95": 0.4, "exit": "distance_map", "held_pixels": 900},
+    ]
+    v = claims.hardly_visible(rows)
+    assert v.ok and "0.4 (torus)" in v.number and "1 cases, 900 pixels" == v.n
+    rows[0]["flip_oracle_p95"] = 0.08
+    assert claims.hardly_visible(rows).number.startswith("fails: worst p95 FLIP vs the oracle 0.08")
+
+
+def test_layered_radiance_on_hidden_pixels_fails_plainly():
+    """RMSE 0.22 on the pixels whose hits o cannot see against 0.05 elsewhere (the audit's numbers): fails."""
+    lab = claims._default("layered")
+    row = {"case": "c", "label": lab, "unheld_pixels": 400, "held_pixels": 4000}
+    row |= {"rmse_truth_unheld": 0.22, "rmse_truth_unheld_lo": 0.2, "rmse_truth_unheld_hi": 0.24}
+    row |= {"rmse_truth_held": 0.05, "rmse_truth_held_lo": 0.048, "rmse_truth_held_hi": 0.052}
+    v = claims.layered_radiance([row])
+    assert not v.ok and v.number.startswith("fails: worst case c: RMSE on those pixels 0.22")
+    assert claims.layered_radiance([row | {"unheld_pixels": 10}]) is None  # too few pixels to judge
+    ok = row | {"rmse_truth_unheld": 0.09, "rmse_truth_unheld_lo": 0.08, "rmse_truth_unheld_hi": 0.1}
+    assert claims.layered_radiance([ok]).ok

@@ -54,36 +54,16 @@ def test_debiased_rmse_removes_known_noise():
     assert T.debiased(off, sigma) == pytest.approx(0.1, rel=0.05)
 
 
-def test_decomposition_adds_up_on_independent_parts():
-    """method = truth + localization error + representation error, reference = truth + noise, all independent:
-    the parts add up in quadrature to the measured total (dec_ratio ≈ 1) and each part is recovered."""
-    rng = np.random.default_rng(2)
-    H = W = 96
-    true = rng.uniform(0.2, 0.8, (H, W, 3))
-    rep, loc, sig = 0.03, 0.05, 0.02
-    oracle = true + rng.normal(0, rep, true.shape)
-    img = oracle + rng.normal(0, loc, true.shape)
-    n = rng.normal(0, sig * np.sqrt(2), true.shape)  # seed difference/2 has σ of the mean
-    t1, t2 = true + n, true + rng.normal(0, sig * np.sqrt(2), true.shape)
-    tr = T.Truth(image=(t1 + t2) / 2, noise=(t1 - t2) / 2, mitsuba_noise=np.zeros_like(true))
-    mask = np.ones((H, W), bool)
-    c = T.columns(img, oracle, tr, true, mask=mask, visible=mask)
-    assert c["dec_localization"] == pytest.approx(loc, rel=0.05)
-    assert c["dec_representation"] == pytest.approx(rep, rel=0.1)
-    assert c["dec_noise"] == pytest.approx(sig, rel=0.1)
-    assert c["dec_ratio"] == pytest.approx(1.0, abs=0.05)
-
-
 def test_relmse_is_relative():
     a, b = np.full((4, 4, 3), 2.0), np.full((4, 4, 3), 1.0)
     m = np.ones((4, 4), bool)
     assert T.relmse(a, b, m) == pytest.approx(1.0 / (1.0 + T.REL_EPS))
 
 
-def test_real_case_decomposition_adds_up_and_oracle_map_is_near_the_truth(tmp_path):
-    """A small case of the real pipeline: every method's error parts add up in quadrature to its total within 10 %,
-    and oracle_map vs truth_at_hit (noise-debiased) is well below oracle_map vs Mitsuba's camera render (which
-    carries the object's shadow and one bounce less on the reflected path)."""
+def test_real_case_oracle_map_is_near_the_truth(tmp_path):
+    """A small case of the real pipeline: oracle_map vs truth_at_hit (noise-debiased) is well below oracle_map vs
+    Mitsuba's camera render (which carries the object's shadow and one bounce less on the reflected path), and
+    classical's search error is far above localized's."""
     from study import methods
     from study.cache import Cache
     from study.measure.case import run_case
@@ -92,11 +72,9 @@ def test_real_case_decomposition_adds_up_and_oracle_map_is_near_the_truth(tmp_pa
     d["render"].update(spp=64, cube_spp=64)  # noise well below the systematic parts
     scene = scene_from_dict(d)
     ms = [methods.make("classical"), methods.make("localized", iterations=1), methods.make("localized")]
-    rows = {r["label"]: r for r in run_case(scene, ms, cache=Cache(tmp_path), keep_images=False).rows}
+    rows = {r["label"]: r for r in run_case(scene, ms, cache=Cache(tmp_path), keep_images=True).rows}
     for m in ms:
-        assert rows[m.label]["dec_ratio"] == pytest.approx(1.0, abs=0.1), m.label
+        assert rows[m.label]["dec_sums"] == 1, m.label
     ref = rows["oracle_map"]
     assert ref["rmse_truth_debiased"] < 0.7 * ref["rmse_mitsuba_debiased"]
-    assert (
-        rows["classical"]["dec_localization"] > 5 * rows[methods.make("localized").label]["dec_localization"]
-    )
+    assert rows["classical"]["dec_search"] > 25 * rows[methods.make("localized").label]["dec_search"]

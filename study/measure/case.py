@@ -3,7 +3,8 @@
 A reader can follow one ray here: camera ray → object (``shading.object_rays``) → reflected ray (x, R) →
 ``method.trace`` on the chosen backend → shown point and radiance → Fresnel → composited image; the same ray →
 Embree exact hit → outcome class and angular error; the images → image error against the oracle_map, the
-truth_at_hit and Mitsuba, and the error decomposition (:mod:`study.measure.truth`).
+truth_at_hit and Mitsuba (:mod:`study.measure.truth`), and the error split over every object pixel
+(:mod:`study.measure.split`, which also defines the oracle).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from study.impostor.envmap import EnvMap
 from study.impostor.layers import layered_impostor
 from study.impostor.sdf import SdfGrid, sdf_grid
 from study.impostor.views import Captured, Views
-from study.measure import metrics, outcomes, stats, truth
+from study.measure import metrics, outcomes, split, stats, truth
 from study.methods import Method
 from study.optics import shading
 from study.reference.embree import Tracer
@@ -46,7 +47,8 @@ class CaseOutput:
         default_factory=dict
     )  # label → (H, W) LDR-FLIP against truth_at_hit
     #   (metrics.flip_map over the whole frame; the flip_truth column is its mean over ``mask``)
-    oracle: np.ndarray | None = None  # (H, W, 3) what a perfect localization shows
+    oracle: np.ndarray | None = None  # (H, W, 3) oracle_map (study.measure.split; unheld pixels marked)
+    held: np.ndarray | None = None  # (H, W) pixels whose every hit o's views hold (the oracle's pixels)
     mitsuba: np.ndarray | None = None  # (H, W, 3) Mitsuba's render with the object (2 seeds)
     truth: np.ndarray | None = None  # (H, W, 3) truth_at_hit composited (study.measure.truth)
     occluded: np.ndarray | None = None  # (H, W) fraction of sub-pixel rays occluded from o
@@ -147,6 +149,25 @@ def capture_views(
     )
 
 
+def second_captures(scene: Scene, cache: Cache, imp: Impostor) -> tuple[np.ndarray, np.ndarray]:
+    """The impostor's radiance once more, (6, R, R, 4) texels (distance channel 0, unused by the oracle): captured
+    with a second seed (``render.seed + SEED_OFFSET``) and 1/:data:`~study.measure.split.SEED_SPP_DIVISOR` of the
+    samples per texel (a fraction of the capture's cost), and at half the resolution (2 × 2 texel means of the
+    map: the same as a capture at R/2 with four times the samples, texels being box-filtered pixel means). The
+    representation term of :mod:`study.measure.split` is measured from them."""
+    r = scene.render
+    other = scene.with_updates({"render.seed": r.seed + truth.SEED_OFFSET})
+    spp = max(1, r.cube_spp // split.SEED_SPP_DIVISOR)
+    seed2 = cache.get(
+        "radiance",
+        impostor_key(other, spp=spp),
+        lambda: render_cube(other, r.cube_res, spp),
+        code=render_cube,
+    ).reshape(6, r.cube_res, r.cube_res, 3)
+    coarse = split.coarser(imp.radiance)
+    return tuple(np.concatenate([c, np.zeros(c.shape[:-1] + (1,), c.dtype)], -1) for c in (seed2, coarse))
+
+
 def open_environment(imp: Impostor) -> bool:
     """Whether some texels of the impostor see no surface (distance FAR: an open environment)."""
     return bool(np.any(imp.distance >= FAR_MIN))
@@ -234,21 +255,41 @@ def run_case(
     seen = tracer.distance(np.broadcast_to(o, to_hit.shape), to_hit / hit_dist[:, None])
     occluded = seen < hit_dist * (1 - 1e-4) - 1e-5  # the exact hit is hidden from o
     nb = backends.get("numpy")
-    env_np = EnvMap(imp.texels(), nb)
-    oracle_rad = np.stack([np.asarray(c) for c in env_np.lookup(nb.vec(to_hit))[:3]], -1)
-    oracle_img = shading.composite(rays, oracle_rad * F, background)  # oracle_map: what the map holds
     ref = truth.build(scene, cache, rays, F, background, seeds)  # truth_at_hit and the noise images
-    visible = mask & (rays.per_pixel(occluded.astype(float), fill=1.0) == 0)  # pixels whose hits o sees
+    held = split.held(occluded, escapes)  # hits o's views hold: seen from o, or escaping to the background
+
+    def oracle_of(env):  # oracle_map from one capture (split.oracle_radiance)
+        looked = np.stack([np.asarray(c) for c in env.lookup(nb.vec(to_hit))[:3]], -1)
+        rad = split.oracle_radiance(looked, ref.along, held, escapes)
+        return shading.composite(rays, np.nan_to_num(rad) * F, background)
+
+    held_px = split.held_pixels(rays, held)
+    oracle_img = split.mark(oracle_of(EnvMap(imp.texels(), nb)), held_px | ~mask)  # unheld pixels: MARK
+    oracle_seed, oracle_coarse = (oracle_of(EnvMap(t, nb)) for t in second_captures(scene, cache, imp))
+    on_held = mask & held_px  # the pixels whose every hit the views hold: where the oracle has a value
     sigma = truth.noise_rms(ref.noise, mask)  # the truth's own noise (debiased columns)
 
-    def image_columns(img, reference=False, fmap=None):  # one image against every reference
+    def image_columns(img, reference=False, fmap=None, over=mask):  # one image against every reference
         cols = {
-            **metrics.image_errors(oracle_img, img, mask=mask, suffix="oracle"),  # fmap: its
-            **metrics.image_errors(ref.image, img, mask=mask, suffix="truth", flip_emap=fmap),  # FLIP map
-            **metrics.image_errors(mitsuba, img, mask=mask, suffix="mitsuba"),
-            **truth.columns(img, oracle_img, ref, mitsuba, mask=mask, visible=visible),
+            **metrics.image_errors(  # on held pixels; unheld ones take img's value (FLIP and SSIM filter
+                np.where((held_px | ~mask)[..., None], oracle_img, img), img, mask=on_held, suffix="oracle"
+            ),  # across pixels: a marked neighbour must not count); fmap: its
+            **metrics.image_errors(ref.image, img, mask=over, suffix="truth", flip_emap=fmap),  # FLIP map
+            **metrics.image_errors(mitsuba, img, mask=over, suffix="mitsuba"),
+            **truth.columns(img, ref, mitsuba, mask=over),
             **stats.pixel_columns(  # intervals over pixels, robust variants
-                img, ref.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS, emap=fmap
+                img, ref.image, mask=over, sigma=sigma, rel_eps=truth.REL_EPS, emap=fmap
+            ),
+            **split.split_columns(
+                img,
+                ref.image,
+                ref.noise,
+                oracle_img,
+                oracle_seed,
+                oracle_coarse,
+                mask=over,
+                held_px=held_px,
+                intervals=keep_images,  # figures: with intervals; sweeps: the values only
             ),
         }
         if reference:  # the truth is not split against itself
@@ -276,6 +317,7 @@ def run_case(
         mitsuba=mitsuba,
         truth=ref.image,
         mask=mask,
+        held=held_px,
         occluded=rays.per_pixel(occluded.astype(float), fill=0.0),
     )
     eps = outcomes.tolerance(o, exact, scene.render.cube_res)  # per ray: max(1 cm, one texel at the hit)
@@ -300,7 +342,10 @@ def run_case(
                 **outcomes.outcome_columns(classify(exact), occluded, np.zeros(len(rays.x))),  # correct
                 **stats.ray_columns(classify(exact), np.zeros(len(rays.x)), occluded, rays.x, exact),
                 **outcomes.offscreen_columns(classify(exact), outcomes.off_screen(scene.camera, exact)),
-                **image_columns(img, reference=name == "truth_at_hit"),
+                **image_columns(  # the oracle over the pixels it holds
+                    img, reference=name == "truth_at_hit", over=on_held if name == "oracle_map" else mask
+                ),
+                "held_fraction": float(held.mean()) if len(held) else np.nan,
                 "valid_fraction": 1.0,
                 "ratio_residual_median": 0.0,
                 "lookups_per_ray": 1 if name == "oracle_map" else 0,

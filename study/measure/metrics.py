@@ -103,27 +103,38 @@ def flip_map(ref: np.ndarray, test: np.ndarray) -> np.ndarray:
     return np.asarray(emap, np.float32)[..., 0]
 
 
-def flip(ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray, emap: np.ndarray | None = None) -> float:
-    """Mean LDR-FLIP error (flip-evaluator) over the masked pixels; inputs are the sRGB LDR images.
+def flip_values(
+    ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray, emap: np.ndarray | None = None
+) -> np.ndarray:
+    """LDR-FLIP error (flip-evaluator) of each masked pixel, (P,); inputs are the sRGB LDR images.
 
     ``emap``: the (H, W) map of :func:`flip_map` for these two images, when the caller already has it (it is then
     not computed again)."""
     if not mask.any():
-        return np.nan
+        return np.zeros(0, np.float32)
     if emap is None:  # only the mask's bounding box + 24 px: FLIP's filters reach < 12 px (67 ppd), so the
         mask, test, ref = _crop(mask, 24, test, ref)  # masked pixels' errors are bit-identical
         emap = flip_map(ref, test)
-    return float(np.asarray(emap)[mask].mean())
+    return np.asarray(emap)[mask]
+
+
+def flip(ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray, emap: np.ndarray | None = None) -> float:
+    """Mean LDR-FLIP error over the masked pixels (:func:`flip_values`; NaN without pixels)."""
+    v = flip_values(ref, test, mask=mask, emap=emap)
+    return float(v.mean()) if v.size else np.nan
 
 
 def image_errors(
     ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray, suffix: str, flip_emap: np.ndarray | None = None
 ) -> dict[str, float]:
-    """``rmse_<suffix>``, ``psnr_<suffix>``, ``ssim_<suffix>`` and ``flip_<suffix>`` of ``test`` against ``ref``
-    over ``mask`` (``flip_emap``: the FLIP map of the two images, if already computed)."""
+    """``rmse_<suffix>``, ``psnr_<suffix>``, ``ssim_<suffix>``, ``flip_<suffix>`` (mean) and ``flip_<suffix>_p95``
+    (the 95th percentile over the pixels: the tail a viewer notices) of ``test`` against ``ref`` over ``mask``
+    (``flip_emap``: the FLIP map of the two images, if already computed)."""
+    fv = flip_values(ref, test, mask=mask, emap=flip_emap)
     return {
         f"rmse_{suffix}": rmse(ref, test, mask=mask),
         f"psnr_{suffix}": psnr(ref, test, mask=mask),
         f"ssim_{suffix}": ssim(ref, test, mask=mask),
-        f"flip_{suffix}": flip(ref, test, mask=mask, emap=flip_emap),
+        f"flip_{suffix}": float(fv.mean()) if fv.size else np.nan,
+        f"flip_{suffix}_p95": float(np.percentile(fv, 95)) if fv.size else np.nan,
     }

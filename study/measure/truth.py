@@ -1,10 +1,11 @@
-"""The references a method's image is measured against, their noise, and the split of its error into parts.
+"""The references a method's image is measured against (truth_at_hit, Mitsuba's render) and their noise.
 
 Three images of the object's pixels, all built from the very sub-pixel rays the methods shade (same pixel
 sampling) and composited over the same object-free background:
 
-* ``oracle_map`` — the exact hit's direction, radiance read from the impostor: what the map holds. A method that
-  localizes perfectly shows this; for a hit hidden from the reference point it shows the occluder.
+* ``oracle_map`` — the exact hit shaded with what the reference point's views hold (:mod:`study.measure.split`:
+  the impostor read towards a hit o sees, the background along an escaping ray, and no value — a marked pixel —
+  where the hit is hidden from o).
 * ``truth_at_hit`` — the radiance arriving along each exact secondary ray, path traced by Mitsuba in the scene
   *without* the object (:func:`study.reference.mitsuba.radiance_along`), with the impostor's bounce budget
   (``render.max_depth`` counted from the ray's origin, as the impostor's faces were from the reference point).
@@ -17,12 +18,8 @@ sampling) and composited over the same object-free background:
 Noise-debiased RMSE: √max(0, RMSE² − σ²), σ² the mean squared noise of the reference over the same pixels
 (σ² of a two-seed mean from the seeds' half difference). relMSE: mean((a − b)² / (b² + ε)), ε = :data:`REL_EPS`.
 
-Error decomposition (over the object's pixels whose rays all hit points visible from the reference point):
-``dec_total`` = method vs truth_at_hit; ``dec_localization`` = method vs oracle_map (where it looked up);
-``dec_representation`` = oracle_map vs truth_at_hit, noise-debiased (what the map cannot hold: resolution,
-filtering, capture noise); ``dec_noise`` = truth_at_hit's own noise. If the parts are uncorrelated,
-dec_total² = localization² + representation² + noise²; ``dec_ratio`` = √(sum of the parts²) / dec_total says how
-well that holds.
+The split of a method's error into search, visibility, representation and noise, over every object pixel, and
+the oracle (``oracle_map``) are in :mod:`study.measure.split`.
 """
 
 from __future__ import annotations
@@ -46,6 +43,7 @@ SEED_OFFSET = 7919  # the second seed of every two-seed Mitsuba reference
 class Truth:
     image: np.ndarray  # (H, W, 3) truth_at_hit composited: Fresnel-weighted, over the background
     noise: np.ndarray  # (H, W, 3) its noise: half the two seeds' difference (Fresnel-weighted)
+    along: np.ndarray  # (K, 3) the radiance along each exact secondary ray (two seeds' mean, no Fresnel)
     mitsuba_noise: np.ndarray  # (H, W, 3) the same for Mitsuba's camera render with the object
 
 
@@ -82,6 +80,7 @@ def build(
     return Truth(
         image=shading.composite(rays, (t1 + t2) / 2 * F, background),
         noise=shading.composite(rays, (t1 - t2) / 2 * F, zero),
+        along=(t1 + t2) / 2,
         mitsuba_noise=(mitsuba[0] - mitsuba[1]) / 2,
     )
 
@@ -103,21 +102,10 @@ def relmse(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
     return float(np.mean(d * d / (r * r + REL_EPS))) if d.size else np.nan
 
 
-def columns(
-    img: np.ndarray,
-    oracle: np.ndarray,
-    truth: Truth,
-    mitsuba: np.ndarray,
-    *,
-    mask: np.ndarray,
-    visible: np.ndarray,
-) -> dict[str, float]:
-    """The truth columns of one method's image (or the oracle's): errors against truth_at_hit (raw, debiased,
-    relMSE), against Mitsuba debiased, and the decomposition on ``visible`` pixels (module docstring)."""
-    sigma, sigma_v = noise_rms(truth.noise, mask), noise_rms(truth.noise, visible)
-    total, loc = rmse(truth.image, img, mask=visible), rmse(oracle, img, mask=visible)
-    rep = debiased(rmse(truth.image, oracle, mask=visible), sigma_v)
-    parts = np.sqrt(loc * loc + rep * rep + sigma_v * sigma_v)
+def columns(img: np.ndarray, truth: Truth, mitsuba: np.ndarray, *, mask: np.ndarray) -> dict[str, float]:
+    """The truth columns of one method's image (or the oracle's) over ``mask``: errors against truth_at_hit (raw,
+    debiased, relMSE) and against Mitsuba debiased (module docstring)."""
+    sigma = noise_rms(truth.noise, mask)
     rmse_truth = rmse(truth.image, img, mask=mask)
     return {
         "rmse_truth": rmse_truth,
@@ -128,9 +116,4 @@ def columns(
             rmse(mitsuba, img, mask=mask), noise_rms(truth.mitsuba_noise, mask)
         ),
         "mitsuba_noise_rmse": noise_rms(truth.mitsuba_noise, mask),
-        "dec_total": total,
-        "dec_localization": loc,
-        "dec_representation": rep,
-        "dec_noise": sigma_v,
-        "dec_ratio": float(parts / total) if total > 0 else np.nan,
     }

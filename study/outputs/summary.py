@@ -401,6 +401,9 @@ def column_notes() -> list[str]:
         "*rmse_truth_trim*, *rmse_truth_debiased_trim*: RMSE without the worst 0.1 % of pixels; "
         "*sqerr_top_share_truth*: the share of the squared error those pixels carry (near 1: a handful of pixels "
         "decide the RMSE). *relmse_truth*: mean of (test − truth)² / (truth² + 0.01).",
+        "*_oracle* columns (and the *oracle_map* row) are over the pixels whose every hit the reference point's "
+        "views hold (*held_pixels*); *oracle_map* has no value on the others (*unheld_pixels*). *dec_**: the error "
+        "split over all object pixels (study/measure/split.py), each with a pixel-bootstrap interval.",
         "In these tables the value per table and method is the median over cases; the summary above gives it "
         "with a bootstrap interval over the cases and tests differences between methods over the same cases "
         "(Wilcoxon signed-rank).",

@@ -8,7 +8,9 @@ For every case of a figure (:class:`~study.measure.case.CaseOutput`) the figure 
   :func:`study.io.file_stem`: ``localized-iterations-10``); ``angle-<method>`` (degrees), ``outcome-<method>``
   (codes 0 correct, 1 wrong depth, 2 wrong surface, 3 no hit; NaN off the object), ``flip-<method>`` /
   ``error-<method>`` where the case has them, ``hidden`` (fraction of each pixel's rays whose exact hit the
-  reference point cannot see) and ``mask`` (1 on the object's pixels). Openable in tev (one layer per entry) or
+  reference point cannot see), ``mask`` (1 on the object's pixels) and ``held`` (1 on the object's pixels whose
+  every hit the reference point's views hold: where oracle_map has a value and the ``*_oracle`` columns are
+  measured; the others are magenta in ``oracle_map``). Openable in tev (one layer per entry) or
   with :func:`study.io.read_exr_layers`. They are large, so not committed (``.gitignore``);
   ``bash scripts/reproduce.sh`` makes them.
 * ``viewer/<case>.js``: the same images cropped to the object (:func:`crop_box`) as RGBE-coded PNGs
@@ -204,6 +206,8 @@ def case_files(
     named = {exr_layer(s, la, stems): a for s, la, a in layers}
     if case.mask is not None:
         named["mask"] = case.mask.astype(np.float32)
+        if getattr(case, "held", None) is not None:  # the pixels the *_oracle columns are measured over
+            named["held"] = (case.mask & case.held).astype(np.float32)
     entries, urls = [], []
     for source, layer, a in layers:
         crop = a[sy, sx]

@@ -1,0 +1,172 @@
+"""The oracle with one meaning, and the split of a method's image error over every object pixel.
+
+**Which hits the views hold.** The views are what the reference point o captured (the impostor). A secondary
+ray's exact hit is *held* when o sees it (not hidden, :func:`held`) or when the ray leaves the scene (its
+"hit" is the background at infinity, which the impostor's open texels hold by direction). A hit hidden from o
+is *not held*: no search on o's views can show it.
+
+**oracle_map** (:func:`oracle_radiance`) = the exact hit shaded with what the views hold:
+
+* a held hit seen from o: the impostor's radiance read in the direction o → exact hit;
+* an escaping ray: the background in the ray's *own* direction (the environment's radiance along the exact ray,
+  which for a ray that meets nothing is the emitter's value: Mitsuba's ``truth_at_hit`` there);
+* a hit the views do not hold: no value. Its pixels are marked (:data:`MARK`, magenta) in the image and left out
+  of every ``*_oracle`` column (``held_pixels`` says how many pixels are left).
+
+**The error split** (:func:`split_columns`), in mean squared error (linear radiance², per pixel the mean over
+channels), over *all* the object's pixels (``mask``); T = truth_at_hit (two seeds), n = its noise image (half the
+seeds' difference, so n² estimates the noise variance of T per pixel), O = oracle_map, h = the pixel's rays are all
+held, u = 1 − h:
+
+============================  ===========================================================================
+``dec_total``                 mean |img − T|²
+``dec_search``                mean h·|img − O|²: what a better search on the same views could fix
+``dec_visibility``            mean u·(|img − T|² − n²): the error on pixels whose hits the views do not hold
+``dec_representation``        mean h·(capture + resolution), measured *without* T: capture = |O − O₂|²/(1 + k)
+                              (O₂: the oracle from a second capture seed with 1/k of the samples, k =
+                              :data:`SEED_SPP_DIVISOR`: its noise variance is k times O's), resolution =
+                              |O − O_c|² − ¾·capture (O_c: from the map at half the resolution, its 2 × 2 texel
+                              means; first-order extrapolation, box-filtered texels err ∝ texel size, so O_c errs
+                              twice as much as O and O − O_c is O's own error; ¾·capture: the noise of O − O_c,
+                              O_c averaging four texels one of which O reads)
+``dec_noise``                 mean n²: the reference's own noise (two seeds)
+``dec_cross``                 mean h·2(img − O)·(O − T): the search × (representation + noise) cross term
+``dec_residual``              total − (search + visibility + representation + noise + cross) = mean
+                              h·(|O − T|² − n² − representation): what the map misses that neither seed nor
+                              resolution explains (view-dependent radiance, bounce budget, …)
+============================  ===========================================================================
+
+Each term has a 95 % percentile-bootstrap interval over pixels (``scipy.stats.bootstrap``, paired: one draw of
+pixels for all terms, :func:`study.measure.stats.mean_cis`), written ``dec_<term>_lo``/``_hi``. ``dec_sums`` is 1
+when the parts add up to the total within their intervals: the parts' summed interval [Σ lo, Σ hi] meets the
+total's. ``dec_residual``'s own interval is the stricter, paired check (it excludes 0 where the map misses more than
+seed and resolution explain, e.g. at the edge of an emitter, where texel filtering errs more than first order).
+No term is defined from another: the representation is measured against O₂ and O_c, not against T, so the sum is
+a test, not an identity.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from study.measure.stats import mean_cis
+
+#: The colour of oracle_map pixels whose hits the views do not hold (linear RGB).
+MARK = (1.0, 0.0, 1.0)
+#: The second capture seed takes 1/k of the capture's samples per texel (its cost), k = this.
+SEED_SPP_DIVISOR = 8
+#: The split's terms, in the order the parts add up (``dec_residual`` closes the sum).
+TERMS = ("search", "visibility", "representation", "noise", "cross")
+
+
+def held(hidden, escapes) -> np.ndarray:
+    """(N,) bool: the exact hit is held by o's views (seen from o, or the ray escapes to the background)."""
+    return np.asarray(escapes, bool) | ~np.asarray(hidden, bool)
+
+
+def oracle_radiance(looked_up, background_along, held_rays, escapes) -> np.ndarray:
+    """(N, 3) oracle radiance per ray (module docstring): ``looked_up`` (the map read towards the exact hit) where
+    the hit is held and finite, ``background_along`` (radiance along the ray itself) where the ray escapes, NaN
+    where the views do not hold the hit."""
+    escapes = np.asarray(escapes, bool)[:, None]
+    out = np.where(escapes, background_along, looked_up)
+    return np.where(np.asarray(held_rays, bool)[:, None], out, np.nan)
+
+
+def held_pixels(rays, held_rays) -> np.ndarray:
+    """(H, W) bool: pixels none of whose object rays has a hit the views do not hold."""
+    return rays.per_pixel((~np.asarray(held_rays, bool)).astype(float), fill=0.0) == 0
+
+
+def mark(img: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """``img`` with the pixels not in ``keep`` painted :data:`MARK`."""
+    out = np.array(img, np.float32, copy=True)
+    out[~np.asarray(keep, bool)] = MARK
+    return out
+
+
+def coarser(radiance: np.ndarray) -> np.ndarray:
+    """(6, R, R, C) cube-map texels → (6, R/2, R/2, C): the means of 2 × 2 texels (R even)."""
+    f, r, _, c = radiance.shape
+    return radiance.reshape(f, r // 2, 2, r // 2, 2, c).mean(axis=(2, 4))
+
+
+def _sq(a, b=None) -> np.ndarray:
+    """Per pixel, the mean over channels of a² (or a·b)."""
+    return np.mean(a * (a if b is None else b), axis=-1)
+
+
+def pixel_terms(img, truth, noise, oracle, oracle_seed, oracle_coarse, held_px) -> dict[str, np.ndarray]:
+    """The per-pixel values whose means are the split's terms (module docstring), for P pixels.
+
+    Parameters
+    ----------
+    img, truth, noise, oracle, oracle_seed, oracle_coarse : (P, 3) arrays
+        The method's image, truth_at_hit, its noise image, oracle_map, the oracle from a second capture seed (1/k
+        of the samples) and from the map at half the resolution, on the object's pixels (oracles may be NaN where
+        not held).
+    held_px : (P,) bool
+        The pixel's hits are all held.
+
+    Returns
+    -------
+    dict of (P,) float arrays: ``total`` and every name of :data:`TERMS`, and ``residual``.
+    """
+    img, truth, noise = (np.asarray(a, float) for a in (img, truth, noise))
+    h = np.asarray(held_px, bool)
+    O, O2, Oc = (
+        np.where(h[:, None], np.asarray(a, float), 0.0) for a in (oracle, oracle_seed, oracle_coarse)
+    )
+    e = img - truth
+    capture = _sq(O - O2) / (1 + SEED_SPP_DIVISOR)
+    t = {
+        "total": _sq(e),
+        "search": np.where(h, _sq(img - O), 0.0),
+        "visibility": np.where(h, 0.0, _sq(e) - _sq(noise)),
+        "representation": np.where(h, capture + _sq(O - Oc) - 0.75 * capture, 0.0),
+        "noise": _sq(noise),
+        "cross": np.where(h, 2 * _sq(img - O, O - truth), 0.0),
+    }
+    t["residual"] = t["total"] - sum(t[k] for k in TERMS)
+    return t
+
+
+def split_columns(
+    img, truth, noise, oracle, oracle_seed, oracle_coarse, *, mask, held_px, intervals: bool = True
+) -> dict[str, float]:
+    """The ``dec_*`` columns of one image (module docstring) over the object's pixels ``mask`` (H, W), with
+    intervals; also ``rmse_truth_held`` / ``rmse_truth_unheld`` (RMSE against T on the pixels whose hits the views
+    hold / do not hold, with ``_lo``/``_hi``: the interval of the mean of se·[held] over all pixels, divided by the
+    held share, i.e. given the number of held pixels), ``held_pixels`` and ``unheld_pixels``. ``intervals`` False
+    (sweeps: about 1 s of CPU per method and case saved at 10⁴ pixels) leaves every ``_lo``/``_hi`` and
+    ``dec_sums`` NaN."""
+    mask = np.asarray(mask, bool)
+    h = np.asarray(held_px, bool)[mask]
+    t = pixel_terms(
+        *(np.asarray(a)[mask] for a in (img, truth, noise, oracle, oracle_seed, oracle_coarse)), h
+    )
+    names = ["total", *TERMS, "residual"]
+    out: dict[str, float] = {"held_pixels": int(h.sum()), "unheld_pixels": int((~h).sum())}
+    nan2 = (math.nan, math.nan)
+    if not h.size:
+        return (
+            out
+            | {f"dec_{k}{s}": math.nan for k in names for s in ("", "_lo", "_hi")}
+            | {"dec_sums": math.nan}
+        )
+    parts = {**{f"dec_{k}": t[k] for k in names}, "held": t["total"] * h, "unheld": t["total"] * ~h}
+    cis = dict(zip(parts, mean_cis(*parts.values()))) if intervals else dict.fromkeys(parts, nan2)
+    for k in names:
+        out[f"dec_{k}"], (out[f"dec_{k}_lo"], out[f"dec_{k}_hi"]) = float(t[k].mean()), cis[f"dec_{k}"]
+    lo, hi = sum(out[f"dec_{k}_lo"] for k in TERMS), sum(out[f"dec_{k}_hi"] for k in TERMS)
+    out["dec_sums"] = (
+        float(lo <= out["dec_total_hi"] and out["dec_total_lo"] <= hi) if intervals else math.nan
+    )
+    for name, sel in (("held", h), ("unheld", ~h)):
+        share = sel.mean()
+        out[f"rmse_truth_{name}"] = math.sqrt(t["total"][sel].mean()) if sel.any() else math.nan
+        lo, hi = (math.sqrt(max(b, 0.0) / share) for b in cis[name]) if sel.any() else nan2
+        out[f"rmse_truth_{name}_lo"], out[f"rmse_truth_{name}_hi"] = lo, hi
+    return out
