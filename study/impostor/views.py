@@ -58,6 +58,7 @@ class Views:
     layers: int = 1
     probes: tuple[ProbeSpec, ...] = field(default_factory=tuple)
     screen: bool = False
+    prefiltered: bool = False  # the GGX-prefiltered mip chain of the impostor (study.impostor.prefilter)
 
     @staticmethod
     def merge(*requests: Views) -> Views:
@@ -67,7 +68,18 @@ class Views:
             layers=max((r.layers for r in requests), default=1),
             probes=probes,
             screen=any(r.screen for r in requests),
+            prefiltered=any(r.prefiltered for r in requests),
         )
+
+
+@dataclass(frozen=True, eq=False)
+class Lobe:
+    """The rough surface the secondary rays leave: GGX roughness ``alpha`` (0: a mirror) and each ray's unit
+    shading normal ``normal`` (a V3 on the backend, one per ray, in the rays' order); the glossy methods need
+    both, as the direction towards the eye is the reflection of R about the normal."""
+
+    alpha: float
+    normal: Any
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,6 +98,9 @@ class Captured:
                bounds (None: unknown; proxies then fit a box or sphere to the impostor's own distances)
     open       some texels of the impostor see no surface (distance ``cubemap.FAR``): the escape rule of
                :meth:`study.methods.base.Method.trace` applies
+    prefiltered  the GGX-prefiltered mip chain of the impostor (:class:`~study.impostor.prefilter.Prefiltered`),
+               or None
+    lobe       the surface the rays leave (:class:`Lobe`: roughness and per-ray normals), or None
     fallback   what to do when a method asks for a view that is missing: False (cases, caustic maps) → a
                StudyError naming the view; True (a bare impostor, as in the analytic tests, and the bench, which
                times lookups) → the method's documented fallback (the impostor as the only layer or probe, no
@@ -100,6 +115,8 @@ class Captured:
     room: tuple[Vec3, Vec3] | None = None
     open: bool = False
     fallback: bool = False
+    prefiltered: Any = None  # Prefiltered (prefilter.py imports envmap, as this module does)
+    lobe: Lobe | None = None
 
     @staticmethod
     def of(env) -> Captured:
@@ -156,6 +173,18 @@ class Captured:
         if self.fallback:
             return None
         raise self._missing(method, f"the probe set {spec} (Captured.probes)")
+
+    def need_prefiltered(self, method: str):
+        """The prefiltered mip chain (no fallback: it is made from the impostor's texels by the caller)."""
+        if self.prefiltered is not None:
+            return self.prefiltered
+        raise self._missing(method, "the prefiltered impostor (Captured.prefiltered)")
+
+    def need_lobe(self, method: str) -> Lobe:
+        """The rays' surface: roughness and normals (no fallback)."""
+        if self.lobe is not None:
+            return self.lobe
+        raise self._missing(method, "the rays' surface roughness and normals (Captured.lobe)")
 
     def need_screen(self, method: str):
         """The camera's buffer; None on a fallback Captured without one."""
