@@ -271,6 +271,7 @@ def run_case(
         "object_x": scene.object.center[0],
         "object_y": scene.object.center[1],
         "object_z": scene.object.center[2],
+        **({"object_alpha": scene.object.alpha} if scene.object.alpha > 0 else {}),  # rough objects only
         "backend": backend,
         "displacement": float(
             np.linalg.norm(np.subtract(scene.object.center, o)) / np.linalg.norm(np.subtract(*scene.bounds()))
