@@ -41,8 +41,13 @@ def test_all_keeps_the_mirror_methods_and_glossy_names_the_glossy_ones():
     mirror = {m.name for m in expand_methods("all", source="t")}
     rough = {m.name for m in expand_methods("glossy", source="t")}
     assert "classical" in mirror and "prefiltered" in rough and not mirror & rough
-    assert rough == {"prefiltered", "proxy_box_prefiltered", "distance_roughness", "localized_prefiltered",
-                     "stochastic"}
+    assert rough == {
+        "prefiltered",
+        "proxy_box_prefiltered",
+        "distance_roughness",
+        "localized_prefiltered",
+        "stochastic",
+    }
 
 
 def test_split_of_a_glossy_figure(tmp_path):
@@ -68,8 +73,16 @@ def test_split_of_a_glossy_figure(tmp_path):
     (tmp_path / "exr").mkdir()
     atomic_write(tmp_path / "exr" / "c1.exr", layers_exr_bytes(layers))
     rows = [
-        {"case": "c1", "method": m, "label": m, "object_x": 1.0, "object_y": 0.5, "object_z": 0.0,
-         "object_alpha": 0.2, "truth_noise_rmse": 0.01}
+        {
+            "case": "c1",
+            "method": m,
+            "label": m,
+            "object_x": 1.0,
+            "object_y": 0.5,
+            "object_z": 0.0,
+            "object_alpha": 0.2,
+            "truth_noise_rmse": 0.01,
+        }
         for m in ("truth_at_hit", "prefiltered")
     ]
     pd.DataFrame(rows).to_csv(tmp_path / "metrics.csv", index=False)

@@ -116,8 +116,8 @@ def configured_scene(cfg, path: Path) -> Scene:
 
 def expand_methods(specs: MethodSpecs, *, source: str) -> list[Method]:
     """The methods a config asks for. ``"all"`` (alone or as a list entry) is every registered mirror method with
-    its default parameters, ``"glossy"`` every glossy one (``Method.glossy``); a name is that method with its defaults; a table is {name, param = value | [values]},
-    lists expanding into the Cartesian product.
+    its default parameters, ``"glossy"`` every glossy one (``Method.glossy``); a name is that method with its
+    defaults; a table is {name, param = value | [values]}, lists expanding into the Cartesian product.
     A method that two entries ask for is kept once, where it first appears."""
     out = []
     for i, spec in enumerate([specs] if isinstance(specs, str) else specs):

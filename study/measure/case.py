@@ -130,7 +130,8 @@ def capture_views(
     """What ``methods`` search, captured for ``scene``: the impostor ``imp`` on backend ``B``, the views their
     :meth:`~study.methods.base.Method.views_needed` ask for (depth layers, probe sets, the camera's buffer, whose
     colour is ``background``: the camera's render without the object, rendered here when not given, the
-    prefiltered impostor) and the scene knowledge, with ``lobe`` (the rays' roughness and normals); a method asking for a view that is missing is then an error, not a fallback."""
+    prefiltered impostor) and the scene knowledge, with ``lobe`` (the rays' roughness and normals); a method
+    asking for a view that is missing is then an error, not a fallback."""
     o = np.asarray(scene.reference.point, float)
     views = Views.merge(*(m.views_needed() for m in methods))
     layers, probe_sets, scr = (), {}, None

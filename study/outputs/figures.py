@@ -113,9 +113,10 @@ def image_grid(
     max_width_px: int | None = None,
 ) -> bytes | None:
     """Rows: cases; columns: each method's image, the ray-traced (Mitsuba) image (for a rough object the truth,
-    :func:`study.measure.truth.lobe_at_hit`, as Mitsuba's camera render adds the point light's highlight), each method's angular-error
-    heatmap (degrees, log scale 0.01°–30°), with ``outcome_panel`` each method's outcome-class map (per pixel the
-    most frequent class of its rays: correct / wrong depth / wrong surface / no hit, :mod:`study.measure.outcomes`)
+    :func:`study.measure.truth.lobe_at_hit`, as Mitsuba's camera render adds the point light's highlight), each
+    method's angular-error heatmap (degrees, log scale 0.01°–30°), with ``outcome_panel`` each method's
+    outcome-class map (per pixel the most frequent class of its rays: correct / wrong depth / wrong surface / no
+    hit, :mod:`study.measure.outcomes`)
     and, with ``occlusion_panel``, the fraction of each pixel's rays whose exact hit is hidden from the reference
     point (two classes with a legend where each pixel is one ray). ``part``: ``"images"`` or ``"errors"`` (the
     angular errors, the outcome and hidden maps under them) for only those panels. Images are tone mapped by
@@ -163,7 +164,9 @@ def image_grid(
                 ax = axr[c]
                 if kind == "image":
                     ax.imshow(to_ldr(case.images[lab])[sy, sx], interpolation="nearest")
-                elif kind == "mitsuba":  # a rough object: the lobe's truth (Mitsuba's adds the lamp's highlight)
+                elif (
+                    kind == "mitsuba"
+                ):  # a rough object: the lobe's truth (Mitsuba's adds the lamp's highlight)
                     ref = case.truth if _rough(case) and case.truth is not None else case.mitsuba
                     ax.imshow(to_ldr(ref)[sy, sx], interpolation="nearest")
                 elif kind == "angle":

@@ -71,7 +71,7 @@ def case_split(exr: Path) -> dict:
     for part, a, b, where in PARTS:
         px = mask if where == "all" else hidden
         sq = np.mean((layers[names[a]] - layers[names[b]]) ** 2, axis=-1)[px]
-        (lo, hi), = mean_cis(sq) if sq.size else [(np.nan, np.nan)]
+        ((lo, hi),) = mean_cis(sq) if sq.size else [(np.nan, np.nan)]
         out[part] = float(np.sqrt(sq.mean())) if sq.size else np.nan
         out[f"{part}_lo"], out[f"{part}_hi"] = float(np.sqrt(lo)), float(np.sqrt(hi))
         out[f"{part}_pixels"] = int(px.sum())
