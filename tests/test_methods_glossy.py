@@ -48,7 +48,7 @@ def rays(n=2000, seed=3):
 def captured(B, tex, levels, alpha, nrm):
     return Captured(
         impostor=EnvMap(tex, B),
-        prefiltered=prefilter.Prefiltered(levels, B),
+        prefiltered=prefilter.MipChain(levels, B),
         lobe=Lobe(alpha, B.vec(nrm)),
         reference=tuple(O),
         room=(tuple(O + BOX_LO), tuple(O + BOX_HI)),

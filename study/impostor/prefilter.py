@@ -18,7 +18,7 @@ The convolution *without* the split sum's assumption depends on v and n of every
 ``stochastic`` method (:mod:`study.methods.stochastic`) with ``localize = false``, the lobe sampled from the
 reference point.
 
-A lookup (:meth:`Prefiltered.lookup`) blends the two levels around r = √α (trilinear, one filtered fetch on a GPU).
+A lookup (:meth:`MipChain.lookup`) blends the two levels around r = √α (trilinear, one filtered fetch on a GPU).
 The footprint of the lobe seen from the reference point o rather than from the shading point x is narrower by
 |hit − x| / |hit − o|; :func:`footprint_alpha` scales α so (Lagarde 2012's distance-based roughness).
 """
@@ -107,7 +107,7 @@ def footprint_alpha(B: Backend, alpha: float, x: V3, hit: V3):
     return B.minimum(d_x * (alpha / 1.0) / d_o, d_x * 0.0 + 1.0)
 
 
-class Prefiltered:
+class MipChain:
     """The mip chain of :func:`prefilter` bound to a backend: ``lookup(v, alpha)`` → (r, g, b, mean distance)
     blended between the levels around r = √α (``alpha``: a number or one value per ray)."""
 

@@ -98,7 +98,7 @@ class Captured:
                bounds (None: unknown; proxies then fit a box or sphere to the impostor's own distances)
     open       some texels of the impostor see no surface (distance ``cubemap.FAR``): the escape rule of
                :meth:`study.methods.base.Method.trace` applies
-    prefiltered  the GGX-prefiltered mip chain of the impostor (:class:`~study.impostor.prefilter.Prefiltered`),
+    prefiltered  the GGX-prefiltered mip chain of the impostor (:class:`~study.impostor.prefilter.MipChain`),
                or None
     lobe       the surface the rays leave (:class:`Lobe`: roughness and per-ray normals), or None
     fallback   what to do when a method asks for a view that is missing: False (cases, caustic maps) → a
@@ -115,7 +115,7 @@ class Captured:
     room: tuple[Vec3, Vec3] | None = None
     open: bool = False
     fallback: bool = False
-    prefiltered: Any = None  # Prefiltered (prefilter.py imports envmap, as this module does)
+    prefiltered: Any = None  # MipChain (prefilter.py imports envmap, as this module does)
     lobe: Lobe | None = None
 
     @staticmethod

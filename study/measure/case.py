@@ -92,7 +92,7 @@ def camera_render(scene: Scene, cache: Cache, *, with_object: bool) -> np.ndarra
     return img.reshape(s.camera.height, s.camera.width, 3)
 
 
-def prefiltered(scene: Scene, cache: Cache, imp: Impostor, B) -> prefilter.Prefiltered:
+def prefiltered(scene: Scene, cache: Cache, imp: Impostor, B) -> prefilter.MipChain:
     """The impostor's GGX-prefiltered mip chain (:mod:`study.impostor.prefilter`), cached like the impostor (its
     key, the chain's settings and the code)."""
     r = scene.render
@@ -106,7 +106,7 @@ def prefiltered(scene: Scene, cache: Cache, imp: Impostor, B) -> prefilter.Prefi
     )
     ends = np.cumsum([6 * s * s * 4 for s in sizes])
     levels = [a.reshape(6, s, s, 4) for a, s in zip(np.split(flat, ends[:-1]), sizes)]
-    return prefilter.Prefiltered(levels, B)
+    return prefilter.MipChain(levels, B)
 
 
 def env_info(scene: Scene) -> dict:
