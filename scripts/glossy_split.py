@@ -28,7 +28,7 @@ def main() -> None:
     ap.add_argument("fig", nargs="?", default="reports/fig_glossy", type=Path)
     a = ap.parse_args()
     m = pd.read_csv(a.fig / "metrics.csv")
-    m = m[m.method != "truth_at_hit"]
+    m = m[m.method != "truth_at_hit"].copy()
     m["where"] = m.apply(
         lambda r: f"α={r.object_alpha:g} @({r.object_x:g}, {r.object_y:g}, {r.object_z:g})", 1
     )
@@ -56,7 +56,10 @@ def main() -> None:
             "## The split of `prefiltered` (RMSE [95 % interval over pixels])",
             markdown(split.to_dict("records"), list(split.columns)),
             "## From which α on localization errs less than prefiltering",
-            "\n".join(f"- object at {pos}: α ≥ {a_:g}" for pos, a_ in cross.items()),
+            "\n".join(
+                f"- object at {pos}: " + (f"α ≥ {a_:g}" if a_ == a_ else "at no α of the table")
+                for pos, a_ in cross.items()
+            ),
         ]
     )
     print(text)
