@@ -175,15 +175,21 @@ class Captured:
         raise self._missing(method, f"the probe set {spec} (Captured.probes)")
 
     def need_prefiltered(self, method: str):
-        """The prefiltered mip chain (no fallback: it is made from the impostor's texels by the caller)."""
+        """The prefiltered mip chain; on a fallback Captured without one, the impostor as its only level (what
+        α = 0 reads)."""
         if self.prefiltered is not None:
             return self.prefiltered
+        if self.fallback:
+            return _SharpOnly(self.impostor)
         raise self._missing(method, "the prefiltered impostor (Captured.prefiltered)")
 
-    def need_lobe(self, method: str) -> Lobe:
-        """The rays' surface: roughness and normals (no fallback)."""
+    def need_lobe(self, method: str, R) -> Lobe:
+        """The rays' surface: roughness and normals; on a fallback Captured without one, a mirror (α = 0) whose
+        normal is R itself (v = R: the lobe is R alone, whatever the true normal)."""
         if self.lobe is not None:
             return self.lobe
+        if self.fallback:
+            return Lobe(0.0, R)
         raise self._missing(method, "the rays' surface roughness and normals (Captured.lobe)")
 
     def need_screen(self, method: str):
@@ -191,3 +197,13 @@ class Captured:
         if self.screen is not None or self.fallback:
             return self.screen
         raise self._missing(method, "the camera's screen buffer (Captured.screen)")
+
+
+@dataclass(frozen=True)
+class _SharpOnly:
+    """A prefiltered chain of one level, the impostor itself: every roughness reads it (the fallback)."""
+
+    impostor: Any
+
+    def lookup(self, v, alpha) -> list:
+        return self.impostor.lookup(v)

@@ -22,6 +22,9 @@ localized_prefiltered   the paper's search along d   α |l − x| / |l| (the lob
 At α = 0 every one of them is its mirror method (d = R, α′ = 0 reads level 0, the impostor itself). The
 ``stochastic`` method samples the lobe instead and localizes every sample (:mod:`study.methods.stochastic`).
 
+On a bare impostor (no ``Captured.lobe``, no prefiltered chain: the fallback) every glossy method is its mirror
+twin (α = 0, the impostor as the only level).
+
 Glossy methods set ``glossy = True``: ``methods = "all"`` leaves them out (the mirror figures keep their cost and
 tables) and ``methods = "glossy"`` asks for them (:func:`study.harness.config.expand_methods`).
 """
@@ -62,7 +65,7 @@ class PrefilteredMethod(GlossyMethod):
         raise NotImplementedError
 
     def search(self, B: Backend, views: Captured, x: V3, R: V3) -> Found:
-        lobe, pre = views.need_lobe(self.name), views.need_prefiltered(self.name)
+        lobe, pre = views.need_lobe(self.name, R), views.need_prefiltered(self.name)
         d = ggx.dominant_direction(B, lobe.normal, R, lobe.alpha)
         l, valid, spent = self.point(B, views, x, d)
         a = footprint_alpha(B, lobe.alpha, x, l) if self.footprint else x.x * 0.0 + lobe.alpha

@@ -43,7 +43,7 @@ class Stochastic(GlossyMethod):
         return Localized(iterations=self.params.iterations)
 
     def search(self, B, views, x, R):
-        p, lobe = self.params, views.need_lobe(self.name)
+        p, lobe = self.params, views.need_lobe(self.name, R)
         n = lobe.normal
         v = eye(n, R)
         M = B.shape_of(x.x)[1]
