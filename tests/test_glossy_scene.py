@@ -97,3 +97,35 @@ def test_split_of_a_glossy_figure(tmp_path):
     assert r["total_lo"] == pytest.approx(r["total_hi"], abs=1e-6)  # the same error on every pixel
     assert r["localization_lo"] < r["localization"] < r["localization_hi"]  # two kinds of pixels
     assert glossy.crossover(t) == {(1.0, 0.5, 0.0): 0.2}  # localization < prefiltering already at 0.2
+
+
+def test_glossy_claims_decide_both_ways():
+    """The two glossy claims on hand-made rows: true where the numbers say so, false where one case disagrees,
+    and not applicable to a mirror table."""
+    from study.outputs import claims
+
+    def row(case, label, e, method=None, knob=float("nan")):
+        return {
+            "case": case,
+            "label": label,
+            "method": method or label.split("(")[0],
+            "knob_value": knob,
+            "rmse_truth_debiased": e,
+            "rmse_truth_debiased_lo": e - 0.01,
+            "rmse_truth_debiased_hi": e + 0.01,
+        }
+
+    loc, pre = "localized_prefiltered(iterations=10)", "prefiltered"
+    rows = [row("a", loc, 0.05), row("a", pre, 0.5), row("b", loc, 0.1), row("b", pre, 0.105)]
+    rows += [
+        row(c, f"stochastic(samples={n})", e, "stochastic", n) for c in "ab" for n, e in ((4, 0.2), (16, 0.1))
+    ]
+    rows += [row("a", "stochastic(samples=16, localize=False)", 0.9, "stochastic", 16)]
+    v = claims.glossy_localized(rows)
+    assert v.ok and "apart in 1 of 2" in v.number
+    assert claims.glossy_converges(rows).ok
+    rows[2] = row("b", loc, 0.2)  # worse than prefiltered in case b
+    rows.append(row("b", "stochastic(samples=64)", 0.15, "stochastic", 64))  # rises at the last step
+    assert not claims.glossy_localized(rows).ok and not claims.glossy_converges(rows).ok
+    mirror = [row("a", "classical", 0.3), row("a", "localized(iterations=10)", 0.1)]
+    assert claims.glossy_localized(mirror) is None and claims.glossy_converges(mirror) is None
