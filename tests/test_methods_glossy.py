@@ -85,10 +85,10 @@ def test_alpha_zero_is_the_mirror_method(room, spec):
     assert np.allclose(shown[ok], want_shown[ok], atol=2e-3)
 
 
-@pytest.mark.parametrize("alpha", [0.1, 0.5, 1.0])
-def test_furnace_every_method_shows_the_uniform_radiance(alpha):
-    """A uniform environment (same radiance everywhere): every glossy method returns it, whatever α."""
-    B = backends.get("numpy")
+@pytest.mark.parametrize("alpha", [0.1, 1.0])
+def test_furnace_every_method_shows_the_uniform_radiance(alpha, B):
+    """A uniform environment (same radiance everywhere): every glossy method returns it, whatever α, on every
+    backend."""
     c = np.array([0.7, 0.5, 0.3])
     tex = analytic.box_impostor(RES, BOX_LO, BOX_HI, lambda p: np.broadcast_to(c, p.shape))
     levels = prefilter.prefilter(tex, samples=16)
