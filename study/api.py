@@ -137,9 +137,10 @@ def load_scene(
 
 # ---------------------------------------------------------------------------------------------- methods
 def method_list(spec: Any = "all", *, key: str = "methods") -> list:
-    """Methods from ``"all"``, a name, a label (``"localized(iterations=3)"``: parameters as TOML values), a
-    :class:`~study.methods.Method`, a config table (``{"name": "localized", "iterations": [0, 1, 3]}``) or a list
-    of these; a method asked for twice is kept once. Errors name ``key`` (and the entry's index)."""
+    """Methods from ``"all"`` (the mirror methods), ``"glossy"`` (the glossy ones), a name, a label
+    (``"localized(iterations=3)"``: parameters as TOML values), a :class:`~study.methods.Method`, a config table
+    (``{"name": "localized", "iterations": [0, 1, 3]}``) or a list of these; a method asked for twice is kept once.
+    Errors name ``key`` (and the entry's index)."""
     from study.harness.config import expand_methods
 
     out = []
@@ -160,7 +161,7 @@ def _methods_of(s: Any, expand_methods) -> list:
     """The methods of one entry of :func:`method_list`."""
     if isinstance(s, registry.Method):
         return [s]
-    if isinstance(s, str) and s != "all":
+    if isinstance(s, str) and s not in ("all", "glossy"):
         m = re.fullmatch(r"\s*([A-Za-z_]\w*)\s*(?:\((.*)\))?\s*", s)
         if not m:
             raise StudyError(f"not a method name or label: {s!r}; allowed: {', '.join(registry.names())}")
@@ -169,7 +170,7 @@ def _methods_of(s: Any, expand_methods) -> list:
         except tomllib.TOMLDecodeError as err:
             raise StudyError(f"the parameters of {s!r} are not TOML values ({err})") from None
         s = {"name": m.group(1), **params}
-    if not (s == "all" or isinstance(s, dict)):
+    if not (s in ("all", "glossy") or isinstance(s, dict)):
         raise StudyError(f"not a method: {s!r}; a name, a label, a Method or a table")
     try:
         return expand_methods([s], source=None)

@@ -27,6 +27,7 @@ COLUMNS = [
     "object_x",
     "object_y",
     "object_z",
+    "object_alpha",
     "displacement",
     "angle_median_deg",
     "angle_p95_deg",

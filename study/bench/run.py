@@ -101,9 +101,11 @@ def check_options(opt: BenchOptions) -> None:
 
 
 def bench_methods(opt: BenchOptions) -> list[Method]:
-    """The methods timed: each one named (all registered by default) at each knob value of its ladder, or at
-    its defaults only without ``opt.ladder``. An unknown name is a StudyError."""
-    chosen = [registry.make(n) for n in dict.fromkeys(opt.methods or registry.names())]
+    """The methods timed: each one named (every mirror method by default, as ``"all"``: not the glossy ones) at
+    each knob value of its ladder, or at its defaults only without ``opt.ladder``. An unknown name is a
+    StudyError."""
+    default = [m.name for m in registry.all_methods()]
+    chosen = [registry.make(n) for n in dict.fromkeys(opt.methods or default)]
     return [v for m in chosen for v in (m.ladder() if opt.ladder else [m])]
 
 

@@ -86,7 +86,7 @@ def base_scene(spec: str | dict, *, config_path: Path) -> Scene:
     return load_scene_file(p if p.is_absolute() else config_path.parent / p)
 
 
-MethodSpecs = Literal["all"] | list[str | dict[str, Any]]
+MethodSpecs = Literal["all", "glossy"] | list[str | dict[str, Any]]
 
 
 #: Quality presets of ``study figure --quality``: scene keys applied to every case after the config's own.
@@ -115,19 +115,22 @@ def configured_scene(cfg, path: Path) -> Scene:
 
 
 def expand_methods(specs: MethodSpecs, *, source: str) -> list[Method]:
-    """The methods a config asks for. ``"all"`` (alone or as a list entry) is every registered method with its
-    default parameters; a name is that method with its defaults; a table is {name, param = value | [values]},
-    lists expanding into the Cartesian product.
+    """The methods a config asks for. ``"all"`` (alone or as a list entry) is every registered mirror method with
+    its default parameters, ``"glossy"`` every glossy one (``Method.glossy``); a name is that method with its
+    defaults; a table is {name, param = value | [values]}, lists expanding into the Cartesian product.
     A method that two entries ask for is kept once, where it first appears."""
     out = []
     for i, spec in enumerate([specs] if isinstance(specs, str) else specs):
         if spec == "all":
             out += registry.all_methods()
             continue
+        if spec == "glossy":  # the methods for rough objects (study.methods.glossy)
+            out += registry.glossy_methods()
+            continue
         if isinstance(spec, str):  # a bare name: the method with its defaults
             if spec not in registry.REGISTRY:
                 raise StudyError(
-                    f'unknown method {spec!r}; allowed: "all", {", ".join(registry.names())} (or a '
+                    f'unknown method {spec!r}; allowed: "all", "glossy", {", ".join(registry.names())} (or a '
                     "table { name = …, parameter = value })",
                     file=source,
                     key=f"methods[{i}]",

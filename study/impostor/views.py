@@ -70,6 +70,7 @@ class Views:
     screen: bool = False
     sdfs: tuple[SdfSpec, ...] = field(default_factory=tuple)
     shade: bool = False
+    prefiltered: bool = False  # the GGX-prefiltered mip chain of the impostor (study.impostor.prefilter)
 
     @staticmethod
     def merge(*requests: Views) -> Views:
@@ -81,7 +82,18 @@ class Views:
             screen=any(r.screen for r in requests),
             sdfs=tuple(dict.fromkeys(s for r in requests for s in r.sdfs)),
             shade=any(r.shade for r in requests),
+            prefiltered=any(r.prefiltered for r in requests),
         )
+
+
+@dataclass(frozen=True, eq=False)
+class Lobe:
+    """The rough surface the secondary rays leave: GGX roughness ``alpha`` (0: a mirror) and each ray's unit
+    shading normal ``normal`` (a V3 on the backend, one per ray, in the rays' order); the glossy methods need
+    both, as the direction towards the eye is the reflection of R about the normal."""
+
+    alpha: float
+    normal: Any
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,6 +115,9 @@ class Captured:
                bounds (None: unknown; proxies then fit a box or sphere to the impostor's own distances)
     open       some texels of the impostor see no surface (distance ``cubemap.FAR``): the escape rule of
                :meth:`study.methods.base.Method.trace` applies
+    prefiltered  the GGX-prefiltered mip chain of the impostor (:class:`~study.impostor.prefilter.MipChain`),
+               or None
+    lobe       the surface the rays leave (:class:`Lobe`: roughness and per-ray normals), or None
     fallback   what to do when a method asks for a view that is missing: False (cases, caustic maps) → a
                StudyError naming the view; True (a bare impostor, as in the analytic tests, and the bench, which
                times lookups) → the method's documented fallback (the impostor as the only layer or probe, no
@@ -119,6 +134,8 @@ class Captured:
     room: tuple[Vec3, Vec3] | None = None
     open: bool = False
     fallback: bool = False
+    prefiltered: Any = None  # MipChain (prefilter.py imports envmap, as this module does)
+    lobe: Lobe | None = None
 
     @staticmethod
     def of(env) -> Captured:
@@ -176,6 +193,24 @@ class Captured:
             return None
         raise self._missing(method, f"the probe set {spec} (Captured.probes)")
 
+    def need_prefiltered(self, method: str):
+        """The prefiltered mip chain; on a fallback Captured without one, the impostor as its only level (what
+        α = 0 reads)."""
+        if self.prefiltered is not None:
+            return self.prefiltered
+        if self.fallback:
+            return _SharpOnly(self.impostor)
+        raise self._missing(method, "the prefiltered impostor (Captured.prefiltered)")
+
+    def need_lobe(self, method: str, R) -> Lobe:
+        """The rays' surface: roughness and normals; on a fallback Captured without one, a mirror (α = 0) whose
+        normal is R itself (v = R: the lobe is R alone, whatever the true normal)."""
+        if self.lobe is not None:
+            return self.lobe
+        if self.fallback:
+            return Lobe(0.0, R)
+        raise self._missing(method, "the rays' surface roughness and normals (Captured.lobe)")
+
     def need_screen(self, method: str):
         """The camera's buffer; None on a fallback Captured without one."""
         if self.screen is not None or self.fallback:
@@ -195,3 +230,13 @@ class Captured:
         if self.shade is not None or self.fallback:
             return self.shade
         raise self._missing(method, "exact shading (Captured.shade)")
+
+
+@dataclass(frozen=True)
+class _SharpOnly:
+    """A prefiltered chain of one level, the impostor itself: every roughness reads it (the fallback)."""
+
+    impostor: Any
+
+    def lookup(self, v, alpha) -> list:
+        return self.impostor.lookup(v)

@@ -17,13 +17,13 @@ import numpy as np
 from study import backend as backends
 from study.cache import Cache, content_key
 from study.errors import StudyError
-from study.impostor import probes, screen
+from study.impostor import prefilter, probes, screen
 from study.impostor.capture import Impostor, capture_distance, impostor_key, render_cube
 from study.impostor.cubemap import FAR, FAR_MIN
 from study.impostor.envmap import EnvMap
 from study.impostor.layers import layered_impostor
 from study.impostor.sdf import SdfGrid, sdf_grid
-from study.impostor.views import Captured, Views
+from study.impostor.views import Captured, Lobe, Views
 from study.measure import metrics, outcomes, split, stats, truth
 from study.methods import Method
 from study.optics import shading
@@ -95,6 +95,23 @@ def camera_render(scene: Scene, cache: Cache, *, with_object: bool) -> np.ndarra
     return img.reshape(s.camera.height, s.camera.width, 3)
 
 
+def prefiltered(scene: Scene, cache: Cache, imp: Impostor, B) -> prefilter.MipChain:
+    """The impostor's GGX-prefiltered mip chain (:mod:`study.impostor.prefilter`), cached like the impostor (its
+    key, the chain's settings and the code)."""
+    r = scene.render
+    sizes = [prefilter.level_res(r.cube_res, prefilter.level_alpha(m)) for m in range(prefilter.LEVELS)]
+    key = content_key(impostor_key(scene), prefilter.LEVELS, prefilter.SAMPLES, "prefiltered-v1")
+    flat = cache.get(
+        "prefiltered",
+        key,
+        lambda: np.concatenate([t.ravel() for t in prefilter.prefilter(imp.texels())]),
+        code=prefilter.prefilter,
+    )
+    ends = np.cumsum([6 * s * s * 4 for s in sizes])
+    levels = [a.reshape(6, s, s, 4) for a, s in zip(np.split(flat, ends[:-1]), sizes)]
+    return prefilter.MipChain(levels, B)
+
+
 def env_info(scene: Scene) -> dict:
     """The scene knowledge methods may use (fields of :class:`~study.impostor.views.Captured`): reference point,
     room (the proxy box: ``reference.box`` where given, else the environment's bounds)."""
@@ -111,11 +128,13 @@ def capture_views(
     cache: Cache,
     tracer: Tracer,
     background: np.ndarray | None = None,
+    lobe: Lobe | None = None,
 ) -> Captured:
     """What ``methods`` search, captured for ``scene``: the impostor ``imp`` on backend ``B``, the views their
     :meth:`~study.methods.base.Method.views_needed` ask for (depth layers, probe sets, the camera's buffer, whose
-    colour is ``background``: the camera's render without the object, rendered here when not given) and the scene
-    knowledge; a method asking for a view that is missing is then an error, not a fallback."""
+    colour is ``background``: the camera's render without the object, rendered here when not given, the
+    prefiltered impostor) and the scene knowledge, with ``lobe`` (the rays' roughness and normals); a method
+    asking for a view that is missing is then an error, not a fallback."""
     o = np.asarray(scene.reference.point, float)
     views = Views.merge(*(m.views_needed() for m in methods))
     layers, probe_sets, scr = (), {}, None
@@ -137,6 +156,7 @@ def capture_views(
         seed = scene.render.seed + 2 * truth.SEED_OFFSET  # not the truth's two seeds: its noise is not shared
         return radiance_along(scene, origins, dirs, spp=scene.render.spp, seed=seed)
 
+    pre = prefiltered(scene, cache, imp, B) if views.prefiltered else None
     return Captured(
         impostor=EnvMap(imp.texels(), B),
         layers=layers,
@@ -145,6 +165,8 @@ def capture_views(
         sdfs=fields,
         shade=shade if views.shade else None,
         open=open_environment(imp),
+        prefiltered=pre,
+        lobe=lobe,
         **env_info(scene),
     )
 
@@ -302,6 +324,7 @@ def run_case(
         "object_x": scene.object.center[0],
         "object_y": scene.object.center[1],
         "object_z": scene.object.center[2],
+        **({"object_alpha": scene.object.alpha} if scene.object.alpha > 0 else {}),  # rough objects only
         "backend": backend,
         "displacement": float(
             np.linalg.norm(np.subtract(scene.object.center, o)) / np.linalg.norm(np.subtract(*scene.bounds()))
@@ -355,7 +378,8 @@ def run_case(
         )
 
     # ------------------------------------------------------------------ every method on the same rays
-    env = capture_views(scene, methods, imp, B, cache=cache, tracer=tracer, background=background)
+    lobe = Lobe(scene.object.alpha, B.vec(rays.N)) if rays.src is None else None  # glossy: conductors only
+    env = capture_views(scene, methods, imp, B, cache=cache, tracer=tracer, background=background, lobe=lobe)
     offscreen = outcomes.off_screen(scene.camera, exact)  # exact hits the camera's frame does not show
     x, R = B.vec(rays.x - o), B.vec(rays.R)
     for m in methods:

@@ -9,7 +9,9 @@ sampling) and composited over the same object-free background:
 * ``truth_at_hit`` — the radiance arriving along each exact secondary ray, path traced by Mitsuba in the scene
   *without* the object (:func:`study.reference.mitsuba.radiance_along`), with the impostor's bounce budget
   (``render.max_depth`` counted from the ray's origin, as the impostor's faces were from the reference point).
-  Neither it nor the methods see the object's own shadow or interreflection. Rendered with two seeds
+  Neither it nor the methods see the object's own shadow or interreflection. A rough object (``object.alpha``
+  > 0): the GGX lobe's average radiance at each shading point, path traced along directions sampled from the
+  lobe (:func:`lobe_at_hit`). Rendered with two seeds
   (``render.spp`` samples per ray each): the mean is the truth, half their difference its noise.
 * ``mitsuba`` — Mitsuba's own camera render with the object (kept: the end-to-end comparison a user would make);
   it differs from the methods' setting by the object's shadow and interreflection and by one bounce on the
@@ -28,7 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from study import backend as backends
 from study.cache import Cache, content_key
+from study.impostor import ggx
 from study.measure.metrics import rmse
 from study.optics import shading
 from study.reference.mitsuba import radiance_along
@@ -48,22 +52,54 @@ class Truth:
 
 
 def truth_at_hit(scene: Scene, cache: Cache, rays: shading.ObjectRays) -> tuple[np.ndarray, np.ndarray]:
-    """Radiance along each exact secondary ray, (K, 3) twice: seeds ``render.seed`` and ``+ SEED_OFFSET``."""
+    """Radiance along each exact secondary ray, (K, 3) twice: seeds ``render.seed`` and ``+ SEED_OFFSET``; for a
+    rough object (``object.alpha`` > 0) the GGX lobe's average instead (:func:`lobe_at_hit`)."""
     origins, dirs = rays.exact_rays()
-    s = key_fields(scene)  # files by their bytes
+    s = key_fields(scene)  # files by their bytes (a rough object's alpha among them)
     s["render"] = {k: v for k, v in s["render"].items() if k not in ("cube_res", "cube_spp", "object_res")}
+    rough = scene.object.alpha > 0
     out = []
     for seed in (scene.render.seed, scene.render.seed + SEED_OFFSET):
-        key = content_key(s, seed, "truth-at-hit-v1")
-        out.append(
-            cache.get(
-                "truth_at_hit",
-                key,
-                lambda: radiance_along(scene, origins, dirs, spp=scene.render.spp, seed=seed),  # noqa: B023
-                code=radiance_along,
-            ).reshape(-1, 3)
+        key = content_key(s, seed, "truth-lobe-v1" if rough else "truth-at-hit-v1")
+        make = (
+            (lambda: lobe_at_hit(scene, rays, seed))  # noqa: B023
+            if rough
+            else (lambda: radiance_along(scene, origins, dirs, spp=scene.render.spp, seed=seed))  # noqa: B023
         )
+        out.append(cache.get("truth_at_hit", key, make, code=(radiance_along, lobe_at_hit)).reshape(-1, 3))
     return out[0], out[1]
+
+
+#: GGX directions per ray of the rough truth (each path traced with render.spp / LOBE_SAMPLES samples)
+LOBE_SAMPLES = 16
+
+
+def lobe_at_hit(scene: Scene, rays: shading.ObjectRays, seed: int) -> np.ndarray:
+    """The truth of a rough object, (M, 3): per shading point, ``LOBE_SAMPLES`` directions importance-sampled
+    from its GGX lobe (:mod:`study.impostor.ggx`, seeded), the radiance along each path traced by Mitsuba in the
+    scene without the object (``render.spp`` / ``LOBE_SAMPLES`` samples each, so as many paths as the mirror
+    truth), averaged with the weights G (v·h)/((n·h)(n·v)): the lobe's average radiance, which the case multiplies
+    by the albedo E as it does the methods'. Like the mirror truth it leaves out the object's shadow and
+    interreflection — and the highlight of the point light (a delta light no image of the room holds), which
+    Mitsuba's camera render of a rough object shows."""
+    B = backends.get("numpy")
+    alpha, K = scene.object.alpha, min(LOBE_SAMPLES, scene.render.spp)
+    n, v = B.vec(rays.N), B.vec(-rays.V)
+    u = np.random.default_rng((seed, 1)).random((K, 2, len(rays.x)))  # not the methods' stream of seed
+    dirs, w = [], []
+    for k in range(K):
+        h = ggx.half_vectors(alpha, u[k, 0], u[k, 1])
+        l, wk = ggx.lobe_directions(B, n, v, (h[:, 0], h[:, 1], h[:, 2]), alpha)
+        dirs.append(B.to_numpy(l).astype(np.float64))
+        w.append(np.asarray(wk, np.float64))
+    d = np.concatenate(dirs)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    spp = max(1, scene.render.spp // K)
+    L = radiance_along(scene, np.tile(rays.x, (K, 1)), d, spp=spp, seed=seed).reshape(K, -1, 3)
+    W = np.stack(w)[..., None]
+    num, den = (L * W).sum(0), W.sum(0)
+    along_R = radiance_along(scene, rays.x, rays.R, spp=spp, seed=seed) if (den == 0).any() else None
+    return np.where(den > 0, num / np.maximum(den, 1e-30), along_R if along_R is not None else 0.0)
 
 
 def build(

@@ -83,8 +83,13 @@ def make(name: str, **params) -> Method:
 
 
 def all_methods() -> list[Method]:
-    """Every registered method with its default parameters, in name order."""
-    return [make(n) for n in names()]
+    """Every registered mirror method (not ``glossy``) with its default parameters, in name order."""
+    return [make(n) for n in names() if not getattr(REGISTRY[n], "glossy", False)]
+
+
+def glossy_methods() -> list[Method]:
+    """Every registered glossy method (``Method.glossy``, :mod:`study.methods.glossy`), defaults, name order."""
+    return [make(n) for n in names() if getattr(REGISTRY[n], "glossy", False)]
 
 
 __all__ = [
@@ -96,6 +101,7 @@ __all__ = [
     "Trace",
     "TracingMethod",
     "all_methods",
+    "glossy_methods",
     "load_plugins",
     "make",
     "names",

@@ -36,6 +36,10 @@ What the harness needs to know about a method it reads from the class, never fro
     views_needed()           every view it searches (:class:`study.impostor.views.Views`: layers, probe sets, the
                              camera's buffer); by default the layers of ``layers_needed()``
 
+Families: a method with ``glossy = True`` (:mod:`study.methods.glossy`) shades rough objects; its radiance is the
+average of the GGX lobe around R, read with ``Captured.lobe`` (roughness, normals). ``methods = "all"`` means the
+mirror methods only, so mirror figures keep their cost and tables; ``methods = "glossy"`` means the glossy ones.
+
 Methods are registered by name (``@register``; the labels of reference rows are reserved) and take their
 parameters as keyword arguments, validated by the class's ``Params`` model (unknown names are errors).
 """
@@ -107,6 +111,7 @@ class Method(ABC):
     name: ClassVar[str]
     Params: ClassVar[type[BaseModel]] = NoParams
     knob: ClassVar[Knob | None] = None
+    glossy: ClassVar[bool] = False  # a method for rough objects (module docstring: families)
 
     def __init__(self, **params):
         try:

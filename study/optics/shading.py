@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from study.errors import StudyError
+from study.impostor import ggx
 from study.optics import interfaces as optics
 from study.optics.distance_map import DistanceMap
 from study.scene import Scene, camera_rays, objects
@@ -186,16 +187,28 @@ def fresnel_conductor(n, k, cos_theta) -> np.ndarray:
 
 
 def fresnel(scene: Scene, rays: ObjectRays) -> np.ndarray:
-    """Fresnel reflectance (M, 3) of the object's material for the object's rays."""
+    """Fresnel reflectance (M, 3) of the object's material for the object's rays. A rough object (``object.alpha``
+    > 0) gets its GGX directional albedo E = ∫ F D G / (4 n·v) dl instead (:func:`study.impostor.ggx.albedo`,
+    Fresnel at v·h): the methods' radiance is then the lobe's average, and E × average its reflection."""
     mat = scene.object.material
+    alpha = scene.object.alpha
+    if alpha > 0 and (rays.weight is not None or mat.type == "dielectric"):
+        raise StudyError(
+            "the methods shade rough conductors and mirrors only; a rough dielectric is rendered by Mitsuba "
+            "alone (set object.alpha = 0 or a conductor material)",
+            key="object.alpha",
+        )
     if rays.weight is not None:
         return rays.weight
     cos = np.sum(rays.N * rays.R, axis=-1)
     if mat.type == "mirror":
-        return np.ones((len(cos), 3))
+        ones = lambda c: np.ones((len(c), 3))  # noqa: E731
+        return ggx.albedo(rays.N, -rays.V, alpha, ones, seed=scene.render.seed) if alpha > 0 else ones(cos)
     if mat.type != "conductor":
         raise StudyError(f"shading of {mat.type!r} objects is not implemented yet", key="object.material")
     f = fresnel_conductor if scene.render.fresnel == "exact" else fresnel_approx
+    if alpha > 0:
+        return ggx.albedo(rays.N, -rays.V, alpha, lambda c: f(mat.n, mat.k, c), seed=scene.render.seed)
     return f(mat.n, mat.k, cos)
 
 

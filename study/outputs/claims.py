@@ -11,78 +11,25 @@ claim that does not hold says so first: "fails: …".
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
-from study import methods as registry
+from study.outputs.claims_glossy import glossy_converges, glossy_localized
 from study.outputs.power import MIN_HIDDEN, counts
 from study.outputs.summary import fraction_bounds
-
-
-@dataclass
-class Verdict:
-    ok: bool
-    number: str  # the evidence with its interval; "fails: …" when the claim does not hold
-    subset: str = ""  # the rays or pixels the claim was judged on
-    n: str = ""  # how many (cases, rays or pixels)
-
-
-@dataclass
-class Claim:
-    id: str
-    text: str  # the claim, in the paper's words where possible
-    source: str  # where in the paper
-    test: Callable[[list[dict]], Verdict | None]
-
-
-def _by(rows, **eq):
-    return [r for r in rows if all(r.get(k) == v for k, v in eq.items())]
-
-
-def _cases(rows):
-    return list(dict.fromkeys(r["case"] for r in rows))
-
-
-def _default(name: str) -> str:
-    """The label of method ``name`` with its default parameters (what the claims speak of)."""
-    return registry.make(name).label
-
-
-def _get(rows, case, label, metric):
-    hit = [r.get(metric) for r in rows if r["case"] == case and r["label"] == label]  # None: an older table
-    return hit[0] if hit else None
-
-
-def _ci(rows, case, label, metric) -> str:
-    """' [lo–hi]': the 95 % interval over the case's rays of a fraction (``_lo``/``_hi`` or from the counts)."""
-    hit = [r for r in rows if r["case"] == case and r["label"] == label]
-    lo, hi = fraction_bounds(hit[0], metric) if hit else (np.nan, np.nan)
-    return f" [{lo:.3g}–{hi:.3g}]" if np.isfinite(lo) and np.isfinite(hi) else ""
-
-
-def _sure(lo_ok: bool, hi_ok: bool) -> str:
-    """Whether the bounds a claim tests lie wholly on one side (``lo_ok``, ``hi_ok``: each interval decided)."""
-    return (
-        "; beyond the rays' uncertainty" if lo_ok and hi_ok else "; within the rays' uncertainty of the bound"
-    )
-
-
-def _convex(rows):
-    """Rows of cases without columns (the room is convex from the reference point)."""
-    if rows and "axis:columns" in rows[0]:
-        return [r for r in rows if r["axis:columns"] in ("none", "[]")]
-    return [r for r in rows if r.get("occluded_fraction", 0) == 0]
-
-
-# ---------------------------------------------------------------------------------------------- the claims
-def _row(rows, case, label):
-    return next((r for r in rows if r["case"] == case and r["label"] == label), None)
-
-
-def _verdict(ok: bool, subset: str, n: str, number: str) -> Verdict:
-    return Verdict(ok, number if ok else f"fails: {number}", subset, n)
+from study.outputs.verdicts import (
+    Claim,
+    Verdict,
+    _cases,
+    _ci,
+    _convex,
+    _default,
+    _finite,
+    _get,
+    _row,
+    _sure,
+    _verdict,
+)
 
 
 def localized_beats_classical(rows):
@@ -223,10 +170,6 @@ def hardly_visible(rows):
         f"{len(exact)} cases, {sum(_row(rows, e[1], lab).get('held_pixels', 0) for e in exact):.0f} pixels",
         f"worst p95 FLIP vs the oracle {v:.3g} ({c}; mean {r.get('flip_oracle', np.nan):.3g}){side}",
     )
-
-
-def _finite(v) -> bool:
-    return v is not None and np.isfinite(v)
 
 
 def _hidden_rays(rows, case, label) -> float:
@@ -427,6 +370,19 @@ CLAIMS = [
         "most twice its error elsewhere",
         "beyond the paper: related methods",
         layered_radiance,
+    ),
+    Claim(
+        "glossy-localized",
+        "Beyond the paper: on rough objects the localized, prefiltered lookup errs less than the engines' "
+        "prefiltered cube map",
+        "beyond the paper: glossy reflections",
+        glossy_localized,
+    ),
+    Claim(
+        "glossy-converges",
+        "Beyond the paper: the stochastic glossy method converges to the lobe's truth as its samples grow",
+        "beyond the paper: glossy reflections",
+        glossy_converges,
     ),
 ]
 

@@ -81,6 +81,11 @@ def _hidden_legend(fig, ax, binary: bool, im) -> None:
         fig.colorbar(im, cax=cax, orientation="horizontal", label="fraction of rays hidden")
 
 
+def _rough(case: CaseOutput) -> bool:
+    """A case whose object is rough (``object.alpha`` > 0): its reference panel is the lobe's truth_at_hit."""
+    return case.scene.object.alpha > 0
+
+
 def _template(labels: list[str], part: str, outcome_panel: bool, occlusion_panel: bool) -> list[list[tuple]]:
     """The panels of one case, row by row, as (kind, label): ``all`` one row of everything; ``images`` the images;
     ``errors`` the angular errors, and under them the outcome maps and the hidden fraction."""
@@ -107,9 +112,11 @@ def image_grid(
     part: str = "all",
     max_width_px: int | None = None,
 ) -> bytes | None:
-    """Rows: cases; columns: each method's image, the ray-traced (Mitsuba) image, each method's angular-error
-    heatmap (degrees, log scale 0.01°–30°), with ``outcome_panel`` each method's outcome-class map (per pixel the
-    most frequent class of its rays: correct / wrong depth / wrong surface / no hit, :mod:`study.measure.outcomes`)
+    """Rows: cases; columns: each method's image, the ray-traced (Mitsuba) image (for a rough object the truth,
+    :func:`study.measure.truth.lobe_at_hit`, as Mitsuba's camera render adds the point light's highlight), each
+    method's angular-error heatmap (degrees, log scale 0.01°–30°), with ``outcome_panel`` each method's
+    outcome-class map (per pixel the most frequent class of its rays: correct / wrong depth / wrong surface / no
+    hit, :mod:`study.measure.outcomes`)
     and, with ``occlusion_panel``, the fraction of each pixel's rays whose exact hit is hidden from the reference
     point (two classes with a legend where each pixel is one ray). ``part``: ``"images"`` or ``"errors"`` (the
     angular errors, the outcome and hidden maps under them) for only those panels. Images are tone mapped by
@@ -144,7 +151,7 @@ def image_grid(
     fs = 8 if side >= 1.6 else 6.5
     titles = {
         "image": lambda lab: _wrap(lab),
-        "mitsuba": lambda lab: "ray traced (Mitsuba)",
+        "mitsuba": lambda lab: "ray traced (Mitsuba)" if not _rough(cases[0]) else "lobe ray traced (truth)",
         "angle": lambda lab: f"angle error: {_wrap(lab)}",
         "outcome": lambda lab: f"outcome: {_wrap(lab)}",
         "hidden": lambda lab: "hidden from\nreference point",
@@ -157,8 +164,11 @@ def image_grid(
                 ax = axr[c]
                 if kind == "image":
                     ax.imshow(to_ldr(case.images[lab])[sy, sx], interpolation="nearest")
-                elif kind == "mitsuba":
-                    ax.imshow(to_ldr(case.mitsuba)[sy, sx], interpolation="nearest")
+                elif (
+                    kind == "mitsuba"
+                ):  # a rough object: the lobe's truth (Mitsuba's adds the lamp's highlight)
+                    ref = case.truth if _rough(case) and case.truth is not None else case.mitsuba
+                    ax.imshow(to_ldr(ref)[sy, sx], interpolation="nearest")
                 elif kind == "angle":
                     err = np.clip(case.angle_maps[lab][sy, sx], 0.01, None)
                     hm = ax.imshow(err, norm=norm, cmap="magma", interpolation="nearest")

@@ -74,6 +74,16 @@ def punctual(m, li: dict) -> dict:
 
 
 def object_bsdf(scene: Scene) -> dict:
+    """The object's BSDF: ``conductor`` / ``dielectric`` when smooth, ``roughconductor`` / ``roughdielectric``
+    with GGX ``alpha`` = ``object.alpha`` when α > 0."""
+    bsdf = _smooth_bsdf(scene)
+    alpha = scene.object.alpha
+    if alpha > 0:
+        bsdf = {**bsdf, "type": "rough" + bsdf["type"], "distribution": "ggx", "alpha": float(alpha)}
+    return bsdf
+
+
+def _smooth_bsdf(scene: Scene) -> dict:
     mat = scene.object.material
     if mat.type == "mirror":
         return {"type": "conductor", "material": "none"}

@@ -129,12 +129,16 @@ class Sphere(_Strict):
     turned by ``rotation`` (Euler angles in degrees about x, then y, then z) and tessellated finer with ``detail``.
     ``shape = "mesh"`` reads the triangles from ``file`` (OBJ, PLY, GLB/glTF, STL, OFF through trimesh; relative to
     the scene file; ``shape`` may be left out when ``file`` is given), centred on its bounding box and scaled
-    in the same way; ``detail`` does not apply to it. Cache keys hash the file's bytes, not its path."""
+    in the same way; ``detail`` does not apply to it. Cache keys hash the file's bytes, not its path. ``alpha``
+    (0 ≤ α ≤ 1) is the GGX roughness of its surface: 0 is today's smooth material, α > 0 makes Mitsuba render
+    ``roughconductor`` (``roughdielectric`` for glass) with that α and ``distribution = "ggx"``, and the glossy
+    methods (:mod:`study.methods.glossy`) integrate the lobe."""
 
     shape: Literal["mesh", "sphere", "torus", "knot", "blob"] = "sphere"
     center: Vec3 = (0.5, 1.2, 0.3)
     radius: PosFloat = 0.4  # sphere radius, or bounding-sphere radius of a mesh
     material: Material = Mirror(type="mirror")
+    alpha: Annotated[Float, Field(ge=0, le=1)] = 0.0  # GGX roughness α (isotropic); 0 = a perfect mirror
     rotation: Vec3 = (0.0, 0.0, 0.0)  # meshes: Euler angles x, y, z in degrees
     detail: Annotated[Int, Field(ge=1, le=6)] = 3  # meshes: tessellation level
     file: str | None = None  # shape "mesh": the mesh file (stored as an absolute path)

@@ -23,6 +23,7 @@ A scene is a TOML file (or dict) validated on load; y is up, units are metres. E
     center = [0.5, 1.2, 0.3]
     radius = 0.4
     material = { type = "conductor", n = [0.155, 0.117, 0.138], k = [4.83, 3.12, 2.15] }
+    alpha = 0.0                          # GGX roughness α in [0, 1]: 0 a mirror, > 0 glossy (roughconductor)
 
     [camera]
     eye = [0.0, 1.5, -1.9]

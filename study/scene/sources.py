@@ -141,13 +141,16 @@ def _canon(v: Any) -> Any:
 #: Camera keys that only set others (``target``, ``fov``) on validation: content keys leave them out, so a framed
 #: camera and the same camera given by hand share their results, and older keys stay valid.
 FRAMING_KEYS = ("frame_object", "frame_fill")
+#: Object keys added later, left out of content keys at their default (the object's GGX ``alpha`` = 0: a mirror),
+#: so that every result made before they existed keeps its key.
+LATER_DEFAULTS = {"alpha": 0.0}
 
 
 def key_fields(model: BaseModel | dict) -> dict:
     """``model_dump`` of a scene (or part of one) for content keys: every field called ``file`` (or ``filename``,
     in a Mitsuba scene dict) replaced by the digest of the file's bytes (and of the files it references), Python
     objects (Mitsuba transforms in a scene dict) by their repr; the framing keys (:data:`FRAMING_KEYS`) left
-    out."""
+    out, and the object's later keys at their defaults (:data:`LATER_DEFAULTS`)."""
     data = model.model_dump(mode="python") if isinstance(model, BaseModel) else model
 
     def walk(v):
@@ -159,7 +162,7 @@ def key_fields(model: BaseModel | dict) -> dict:
                     else walk(x)
                 )
                 for k, x in v.items()
-                if k not in FRAMING_KEYS
+                if k not in FRAMING_KEYS and not ("material" in v and LATER_DEFAULTS.get(k, ()) == x)
             }
         if isinstance(v, (list, tuple)):
             return [walk(x) for x in v]
