@@ -52,7 +52,7 @@ from study.backend import V3
 from study.impostor import cubemap
 from study.impostor.envmap import EnvMap
 from study.methods.base import Found, Knob, TracingMethod, register
-from study.methods.linear_secant import TexelMarchParams, march_steps
+from study.methods.linear_secant import TexelMarchParams, march_bound, march_steps, skipper
 from study.methods.search import arc_samples, first_entry, refine, secant_point
 
 
@@ -110,6 +110,8 @@ class Layered(TracingMethod):
             return [lp - (1.0 - t) * m.distance(pt) for m in maps]
 
         # ------------------------------------------------------------- march: the first entry that is not skin
+        # (hierarchical: blocks in front of the nearest layer skipped; g_0 ≥ g_k, so in front of every layer)
+        skip = skipper(B, getattr(maps[0], "pyramid", None), x, R, a) if p.hierarchical else None
         br, e = first_entry(
             B,
             gs,
@@ -120,6 +122,7 @@ class Layered(TracingMethod):
             hold=hold,
             t_max=1.0,
             default=(zero, zero - 1.0, zero + 1.0, zero + 1.0),
+            skip=skip,
         )  # harmless dummy bracket
 
         # ------------------------------------------------------------- secant steps on the entry's layer
@@ -129,7 +132,9 @@ class Layered(TracingMethod):
         chs = [m.lookup(l) for m in maps]
         ch = [_pick(B, e, [c[i] for c in chs]) for i in range(len(chs[0]))]
         dist, lhat = ch[-1], B.normalize(l)
-        spent = zero + float(len(maps) * (1 + n + p.iterations + 1))
+        K = len(maps)
+        march = zero + float(K * n) if skip is None else skip.lookups
+        spent = march + float(K * (1 + p.iterations + 1))
         shown = V3(lhat.x * dist, lhat.y * dist, lhat.z * dist)
         return Found(l, shown, V3(*ch[:3]), B.length(l) / dist, br.found & B.isfinite(t), spent)
 
@@ -137,4 +142,4 @@ class Layered(TracingMethod):
         # per layer: g(0), the n steps (all of them on every ray), the secant steps and the final lookup (every
         # layer, as the kept layer differs between rays)
         p = self.params
-        return p.layers * (1 + march_steps(res, p) + p.iterations + 1)
+        return p.layers * (1 + march_bound(res, p) + p.iterations + 1)
