@@ -96,7 +96,6 @@ class MinPyramid:
         same = face0 == face1
         return B.select(same, value * (1.0 - MARGIN), value * 0.0 - 1.0)
 
-
     def clear(self, pa, wa, pb, wb):
         """True where the ray points p/w between p_a/w_a and p_b/w_b (on a line: the points p(t)/(1 − t) of a
         ray, p a V3 of directions, w > 0 or 0 at the point at infinity) are all nearer to o than the surface that
