@@ -169,7 +169,10 @@ class NumpyBackend(Backend):
         return state
 
     def branch(self, cond, state, true_fn, false_fn):
-        """``true_fn(*state)`` where ``cond``, ``false_fn(*state)`` elsewhere (numpy evaluates both)."""
+        """``true_fn(*state)`` where ``cond``, ``false_fn(*state)`` elsewhere (numpy evaluates both sides, or the
+        one side every lane takes)."""
+        if np.all(cond) or not np.any(cond):
+            return tuple(true_fn(*state) if np.all(cond) else false_fn(*state))
         a, b = true_fn(*state), false_fn(*state)
         return tuple(np.where(cond, p, q) for p, q in zip(a, b))
 
