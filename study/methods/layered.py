@@ -32,10 +32,16 @@ crossing near the column's top edge on 45 % of the rays whose hit o does not see
 stay wrong, as the jump test rejects true top hits within a texel of the edge and a third crossing goes unrecorded;
 the entry rule leaves 2.4 % (scripts/compare_layered.py).
 
-Cost: every layer is looked up at every sample (a vectorized loop of n steps on every ray) and, since the kept
-layer differs between rays, at every secant step and at the final lookup: layers × (1 + n + iterations + 1) on
-every ray, which is also :meth:`Layered.lookups_per_ray` (n from the cube resolution; ``max_steps`` when it is
-not given).
+Hierarchical search (``hierarchical``, default): blocks of samples in front of the nearest layer (then in front of
+every layer: c = 0, outside) that layer 0's min pyramid proves so are skipped in one lookup, a ray reads sample by
+sample while an entry is pending, and stops at its kept entry (:class:`study.methods.march.Skip`); the entry is the
+texel march's (``hierarchical=False``, kept as the tests' brute-force twin).
+
+Cost: every layer is looked up at every sample read and, since the kept layer differs between rays, at every
+secant step and at the final lookup: with the texel march layers × (1 + n + iterations + 1) on every ray; the
+hierarchical search reports what each ray spent (one lookup per pyramid read, one per layer per sample read and
+for the re-read of the bracket's start). :meth:`Layered.lookups_per_ray` is the bound of either (n from the cube
+resolution; ``max_steps`` when it is not given).
 
 Open environments: no-surface texels hold FAR in every layer, so such rays find no entry into a solid and
 escape in the finishing step of :meth:`Method.trace`, as for ``linear_secant``.

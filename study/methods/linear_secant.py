@@ -24,10 +24,17 @@ the secant point of the final bracket. The secant works on g(t) instead of the c
 at t = 1; both vanish at the same points. Invalid (NaN shown point) where no crossing is found (x itself behind the
 environment surface and the ray never comes out in front of it).
 
-Cost: the vectorized loop runs all n steps on every ray (a ray whose arc ends earlier repeats t = 1; a per-ray
-loop on a GPU would stop there): g(0), n steps, ``secant_steps`` and the shown point, 1 + n + secant_steps + 1 on
-every ray, which is also :meth:`LinearSecant.lookups_per_ray` (n from the cube resolution; ``max_steps`` when it is
-not given).
+Hierarchical search (``hierarchical``, default): the same samples, but blocks of them that the impostor's min
+pyramid (:mod:`study.impostor.pyramid`) proves to lie in front of the surface (the ray point nearer to o than any
+distance the lookups there could read) are skipped in one lookup, and a ray stops at its crossing
+(:class:`study.methods.march.Skip`): the same bracket as the texel march, from tens of lookups instead of n.
+``hierarchical=False`` is the texel march itself, kept as the brute-force twin the tests compare with.
+
+Cost: the texel march runs all n steps on every ray (a ray whose arc ends earlier repeats t = 1): g(0), n steps,
+``secant_steps`` and the shown point, 1 + n + secant_steps + 1 on every ray. The hierarchical search reports what
+each ray spent (``Localization.lookups``: pyramid reads and samples read, plus one re-read of the bracket's start);
+:meth:`LinearSecant.lookups_per_ray` is the bound of either (n from the cube resolution; ``max_steps`` when it is
+not given; for the hierarchical search at most 2n + log₂ n + 3 in place of n).
 
 Open environments: samples whose texel holds FAR (no surface) are undershoots, so a ray that leaves the scene
 finds no crossing; :meth:`Method.trace` then lets it escape when its direction R sees no surface from o.

@@ -28,6 +28,11 @@ step into the inside of nested surfaces (the layers of a layered map) that is no
 :func:`secant_point` gives its secant point t_lo − g_lo (t_hi − t_lo) / (g_hi − g_lo), the estimate of the root
 (not finite where g_hi = g_lo, as on a bracket without a sign change).
 
+Hierarchical march: :func:`first_crossing` and :func:`first_entry` take ``skip`` (a :class:`~study.methods.march.Skip`
+that proves blocks of samples free of crossings from a min pyramid); they then read the same samples at per-ray k
+(:meth:`Samples.direct`), skip what it proves, stop each ray at its crossing and give the texel march's bracket
+(:mod:`study.methods.march`); ``skip.lookups`` then holds the lookups each ray spent.
+
 Every search and the secant steps are one loop through the backend (:meth:`study.backend.Backend.loop`): on Dr.Jit
 one symbolic loop (``dr.while_loop``), so a march of n samples is one kernel whose state stays in registers, not
 n kernels that write and read the whole state back; on numpy
