@@ -71,12 +71,18 @@ class Params(TexelMarchParams):  # + steps_per_texel, max_steps
     ] = 4.0
 
 
-def _pick(B, e, values):
-    """values[e] per ray (e an array of layer indices)."""
-    out = values[-1]
-    for i in range(len(values) - 2, -1, -1):
-        out = B.select(e == float(i), values[i], out)
-    return out
+def _one(B, e, K: int, read, i: int = 0) -> list:
+    """read(e) per ray (e an array of layer indices; read(i) an array or a list of them for layer i): each ray
+    reads its own layer alone (nested branches: one lookup, not K)."""
+    if i == K - 1:
+        return _listed(read(i))
+    return list(
+        B.branch(e == float(i), (e,), lambda e: _listed(read(i)), lambda e: _one(B, e, K, read, i + 1))
+    )
+
+
+def _listed(v) -> list:
+    return list(v) if isinstance(v, (list, tuple)) else [v]
 
 
 @register
@@ -107,20 +113,36 @@ class Layered(TracingMethod):
 
         shared = all(isinstance(m, EnvMap) and m.res == res for m in maps)  # one face/uv for every layer
 
-        def gs(t):
+        K = len(maps)
+
+        def reader(t):  # read(i): g_i(t), one lookup of layer i
             pt = point(t)
             lp = B.length(pt)
             if shared:
                 face, u, w = cubemap.face_uv(B, pt.x, pt.y, pt.z)
-                return [lp - (1.0 - t) * B.sample(m.dist, face, u, w)[0] for m in maps]
-            return [lp - (1.0 - t) * m.distance(pt) for m in maps]
+                return lambda i: lp - (1.0 - t) * B.sample(maps[i].dist, face, u, w)[0]
+            return lambda i: lp - (1.0 - t) * maps[i].distance(pt)
+
+        def gs(t):
+            read = reader(t)
+            return [read(i) for i in range(K)]
+
+        def gs_lazy(t):  # layer 0, the others only behind it (in front of it, g_0 < 0 stands for every g_k)
+            read = reader(t)
+            g0 = read(0)
+            if K == 1:
+                return [g0]
+            rest = B.branch(
+                g0 >= 0.0, (g0,), lambda g0: [read(i) for i in range(1, K)], lambda g0: [g0] * (K - 1)
+            )
+            return [g0, *rest]
 
         # ------------------------------------------------------------- march: the first entry that is not skin
         # (hierarchical: blocks in front of the nearest layer skipped; g_0 ≥ g_k, so in front of every layer)
         skip = skipper(B, getattr(maps[0], "pyramid", None), x, R, a) if p.hierarchical else None
         br, e = first_entry(
             B,
-            gs,
+            gs if skip is None else gs_lazy,
             zero,
             gs(zero),
             arc_samples(B, cos, n),
@@ -129,23 +151,22 @@ class Layered(TracingMethod):
             t_max=1.0,
             default=(zero, zero - 1.0, zero + 1.0, zero + 1.0),
             skip=skip,
+            cost=lambda g_0: 1.0 + (K - 1.0) * B.select(g_0 >= 0.0, zero + 1.0, zero),
         )  # harmless dummy bracket
 
         # ------------------------------------------------------------- secant steps on the entry's layer
-        br = refine(B, lambda t: _pick(B, e, gs(t)), br, p.iterations)
+        br = refine(B, lambda t: _one(B, e, K, reader(t))[0], br, p.iterations)
         t = secant_point(br)
         l = point(t) / B.maximum(1.0 - t, 1e-7)  # x + R d(t)
-        chs = [m.lookup(l) for m in maps]
-        ch = [_pick(B, e, [c[i] for c in chs]) for i in range(len(chs[0]))]
+        ch = _one(B, e, K, lambda i: maps[i].lookup(l))  # the shown point, read on its layer alone
         dist, lhat = ch[-1], B.normalize(l)
-        K = len(maps)
         march = zero + float(K * n) if skip is None else skip.lookups
-        spent = march + float(K * (1 + p.iterations + 1))
+        spent = march + float(K + p.iterations + 1)
         shown = V3(lhat.x * dist, lhat.y * dist, lhat.z * dist)
         return Found(l, shown, V3(*ch[:3]), B.length(l) / dist, br.found & B.isfinite(t), spent)
 
     def lookups_per_ray(self, res: int | None = None) -> float:
-        # per layer: g(0), the n steps (all of them on every ray), the secant steps and the final lookup (every
-        # layer, as the kept layer differs between rays)
+        # per layer: g(0) and the linear search (texel march: all n steps on every ray); on the kept layer alone:
+        # the secant steps and the final lookup
         p = self.params
-        return p.layers * (1 + march_bound(res, p) + p.iterations + 1)
+        return p.layers * (1 + march_bound(res, p)) + p.iterations + 1

@@ -59,11 +59,11 @@ def reread(B, g: Callable, value, t):
     return B.select(value == -math.inf, g(t), value)
 
 
-def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jumped):
+def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jumped, cost=None):
     """The march of :class:`Skip`: ``step(k, *state)`` reads sample k + 1 as the texel march's loop body does,
     ``jumped(ok, t_b, *state)`` is the state after a jump to the sample t_b where ``ok``; ``done(*state)`` stops a
-    ray, ``busy(*state)`` (or None) keeps it reading sample by sample. Returns the final state; sets
-    ``skip.lookups``."""
+    ray, ``busy(*state)`` (or None) keeps it reading sample by sample; ``cost(*state)`` (or None: G) the lookups
+    of the sample read that led to ``state``. Returns the final state; sets ``skip.lookups``."""
     zero = state[0] * 0.0
     top = float(1 << max(n - 1, 0).bit_length())  # the widest block: ≥ n samples
 
@@ -72,7 +72,8 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         return B.minimum(t, t_max) if t_max is not None else t
 
     def fine(k, w, spent, *s):  # the next sample, as the texel march reads it
-        return (k + 1.0, w * 0.0 + 2.0, spent + float(G), *step(k, *s))
+        s = step(k, *s)
+        return (k + 1.0, w * 0.0 + 2.0, spent + (cost(*s) if cost is not None else float(G)), *s)
 
     def coarse(k, w, spent, *s):  # a block of w samples in one pyramid read
         kb = B.minimum(k + w, float(n))

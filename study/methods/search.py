@@ -286,9 +286,12 @@ def first_entry(
     t_max: float | None = None,
     default: tuple | None = None,
     skip: Skip | None = None,
+    cost: Callable | None = None,
 ):
     """The first step into the inside of nested surfaces that is not skin: a (:class:`Bracket`, e) pair. With
-    ``skip``, the hierarchical march (:class:`Skip`, proving g_0 < 0: in front of every surface).
+    ``skip``, the hierarchical march (:class:`Skip`, proving g_0 < 0: in front of every surface); ``cost(g_0)``:
+    the lookups of a sample read, given g_0 there (default K; g may read the other layers only where g_0 ≥ 0 and
+    return g_0 for them elsewhere, which leaves c and the entries as they are).
 
     ``g`` returns K functions ordered g_0 ≥ g_1 ≥ … (the layers of a layered map, nearest first: behind layer k
     means behind every nearer one). At each sample, c = how many have g ≥ 0 (the layers the point is behind);
@@ -379,6 +382,7 @@ def first_entry(
             G=K,
             done=lambda *s: s[K + 3],
             busy=lambda *s: s[K + 4],
+            cost=(lambda *s: cost(s[0])) if cost is not None else None,
             jumped=lambda ok, t_b, *s: (
                 *(B.select(ok, -math.inf, gp) for gp in s[:K]),
                 B.select(ok, zero, s[K]),
@@ -391,7 +395,10 @@ def first_entry(
     res = tuple(B.select(pend, v, r) for v, r in zip(pb, res))
     found = found | pend
     if skip is not None:  # g at the bracket's start that a skip left unread: one more read of every layer
-        res = (res[0], reread(B, lambda t: pick(list(g(t)), res[4]), res[1], res[0]), *res[2:])
+        gt = list(g(res[0]))
+        res = (res[0], reread(B, lambda t: pick(gt, res[4]), res[1], res[0]), *res[2:])
+        if cost is not None:  # the re-read's own cost (the march counted K)
+            skip.lookups = skip.lookups + (cost(gt[0]) - float(K))
     return Bracket(*res[:4], found), res[4]
 
 
