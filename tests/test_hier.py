@@ -164,7 +164,9 @@ def column_room():
     res = 128
     dist, point, _, _ = layers.peel(tracer, o, cubemap.texel_directions(res).reshape(-1, 3), 3)
     d = dist.reshape(3, 6, res, res)
-    tex = np.concatenate([point.reshape(3, 6, res, res, 3), layers.depth_jump(d)[..., None], d[..., None]], -1)
+    tex = np.concatenate(
+        [point.reshape(3, 6, res, res, 3), layers.depth_jump(d)[..., None], d[..., None]], -1
+    )
     return o, tracer, tex.astype(np.float32)
 
 
