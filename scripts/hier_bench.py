@@ -8,7 +8,7 @@ time over it (:func:`study.bench.floors.method_floor` at the measured mean looku
 (``Trace.lookups``), and the time over localized(10)'s. The fig4 scene's object at the bench's default position
 (configs/fig4.toml, position 2), the close-up batch of :func:`study.bench.batches.closeup_rays` at ``--scene-res``²
 rays, the impostor's distances exact from Embree at cube resolution 256. Writes ``hier-<backend>.csv`` and
-``.md`` to ``--out`` (default reports/perf) and prints the table. Targets (on one H200, ``--backend cuda``):
+``.md`` to ``--out`` (default reports/performance) and prints the table. Targets (on one H200, ``--backend cuda``):
 ≤ 60 lookups per ray and ≤ 3× localized(10)'s time for linear_secant and layered, linear_secant ≤ 1.5× its floor.
 """
 
@@ -45,7 +45,7 @@ def main() -> None:
     ap.add_argument("--scene-res", type=int, default=1024)
     ap.add_argument("--cube-res", type=int, default=256)
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--out", type=Path, default=Path("reports/perf"))
+    ap.add_argument("--out", type=Path, default=Path("reports/performance"))
     a = ap.parse_args()
     t_start = time.perf_counter()
     cfg, scene, _ = load_figure_config(Path("configs/fig4.toml"))
