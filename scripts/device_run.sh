@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The GPU measurements of reports/performance.md (issue 15), run on a lent GPU machine from the repository root:
 #
-#   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3]   (default: bench studies)
+#   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3] [hier]   (default: bench studies)
 #
 #   bench   : `study bench --backends cuda` — methods, exact queries (ray_intersect, _preliminary, ray_test) and
 #             the measured floors (texture fetch rates, copy bandwidth) → perf/
@@ -13,6 +13,8 @@
 #   single  : the 104-case subset of sweep_large in one process, no Dask (the reference table for the Dask runs)
 #   profile : scripts/profile_case.py on the main sweep's heaviest case and on fig4 (cProfile, cold and warm)
 #   fig4x3  : fig4 cold, with a warm kernel cache, and with every cache warm (what compiling kernels costs)
+#   hier    : scripts/hier_bench.py --backend cuda: linear_secant(1) and layered(1), hierarchical search against the
+#             texel march, and localized(10), on the close-up batch: ms, × floor, lookups per ray → perf/hier-cuda.*
 #
 # Wheels: the machine has Python 3.12 without mitsuba/drjit/embreex/pydantic/dask; cp312 wheels are installed
 # from $WHEELS/a and $WHEELS/b (default .devcarry; how to make them: ../shared/field-notes.md, "Device (GPU) runs"),
@@ -105,6 +107,11 @@ for part in $parts; do
     timed fig4-cold $S figure fig4 --backend cuda --cache "$W/c1" --out "$W/x3a" > /dev/null 2>&1
     timed fig4-kernels-warm $S figure fig4 --backend cuda --cache "$W/c2" --out "$W/x3b" > /dev/null 2>&1
     timed fig4-all-warm $S figure fig4 --backend cuda --cache "$W/c2" --out "$W/x3c" > /dev/null 2>&1 ;;
+  hier)     # the hierarchical search against the texel march on the close-up batch (1024², cube 256²): ms, × floor,
+            # lookups per ray, × localized(10) for linear_secant(1) and layered(1), both ways → perf/hier-cuda.*
+    timed hier python3 scripts/hier_bench.py --backend cuda --scene-res 1024 --repeats 5 --out "$W/perf" 2>&1 \
+      | tee "$OUT/log-hier.txt"
+    tar czf "$OUT/results-hier.tgz" -C "$W" perf ;;
   *) echo "unknown part $part"; exit 2 ;;
   esac
 done

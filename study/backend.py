@@ -65,10 +65,15 @@ class Backend:
     def maximum(self, a, b): ...
     def isfinite(self, a): ...
     def floor(self, a): ...
+    def sin(self, a): ...
+    def cos(self, a): ...
+    def gather(self, data, index): ...
     def texture(self, texels: np.ndarray): ...
     def sample(self, tex, face, u, v) -> list: ...
     def eval(self, *arrays) -> None: ...
     def loop(self, n: int, state: tuple, body, *, index: bool = False) -> tuple: ...
+    def while_loop(self, state: tuple, cond, body, *, limit: int) -> tuple: ...
+    def branch(self, cond, state: tuple, true_fn, false_fn) -> tuple: ...
     def freeze(self, fn): ...
     def sync(self) -> None: ...
     def shape_of(self, a) -> tuple[str, int] | None:
@@ -125,6 +130,16 @@ class NumpyBackend(Backend):
     def floor(self, a):
         return np.floor(a)
 
+    def sin(self, a):
+        return np.sin(a).astype(np.float32)
+
+    def cos(self, a):
+        return np.cos(a).astype(np.float32)
+
+    def gather(self, data, index):
+        """data[index] (``index`` a float array of integer values)."""
+        return data[np.asarray(index).astype(np.int64)]
+
     def eval(self, *arrays):
         pass
 
@@ -140,6 +155,26 @@ class NumpyBackend(Backend):
         for i in range(n):
             state = tuple(body(i, *state) if index else body(*state))
         return tuple(state)
+
+    def while_loop(self, state, cond, body, *, limit):
+        """``state = body(*state)`` on the lanes where ``cond(*state)`` holds, until it holds on none (at most
+        ``limit`` times); see :meth:`DrJitBackend.while_loop`."""
+        state = tuple(state)
+        for _ in range(limit):
+            active = cond(*state)
+            if not np.any(active):
+                break
+            new = body(*state)
+            state = tuple(np.where(active, b, a) for a, b in zip(state, new))
+        return state
+
+    def branch(self, cond, state, true_fn, false_fn):
+        """``true_fn(*state)`` where ``cond``, ``false_fn(*state)`` elsewhere (numpy evaluates both sides, or the
+        one side every lane takes)."""
+        if np.all(cond) or not np.any(cond):
+            return tuple(true_fn(*state) if np.all(cond) else false_fn(*state))
+        a, b = true_fn(*state), false_fn(*state)
+        return tuple(np.where(cond, p, q) for p, q in zip(a, b))
 
     def texture(self, texels):
         return np.ascontiguousarray(texels, dtype=np.float32)
@@ -220,6 +255,15 @@ class DrJitBackend(Backend):
     def floor(self, a):
         return self.dr.floor(a)
 
+    def sin(self, a):
+        return self.dr.sin(a)
+
+    def cos(self, a):
+        return self.dr.cos(a)
+
+    def gather(self, data, index):
+        return self.dr.gather(self.m.Float, data, self.m.UInt32(index))
+
     def eval(self, *arrays):
         self.dr.eval(*arrays)
 
@@ -239,6 +283,22 @@ class DrJitBackend(Backend):
             step = lambda i, *s: (i + 1, *body(*s))  # noqa: E731
         out = self.dr.while_loop((i, *state), lambda i, *s: i < n, step)
         return tuple(out[1:])
+
+    def while_loop(self, state, cond, body, *, limit):
+        """``state = body(*state)`` while ``cond(*state)`` holds, per lane (``dr.while_loop``: a lane stops when its
+        condition fails; one symbolic loop in the kernel), at most ``limit`` times. ``state``: a flat tuple of
+        arrays."""
+        i = self.m.UInt32(0)
+        out = self.dr.while_loop(
+            (i, *state), lambda i, *s: (i < limit) & cond(*s), lambda i, *s: (i + 1, *body(*s))
+        )
+        return tuple(out[1:])
+
+    def branch(self, cond, state, true_fn, false_fn):
+        """``dr.if_stmt``: each lane runs only its side (a lane's lookups on the other side are not made)."""
+        return tuple(
+            self.dr.if_stmt(tuple(state), cond, lambda *s: tuple(true_fn(*s)), lambda *s: tuple(false_fn(*s)))
+        )
 
     def freeze(self, fn):
         """``dr.freeze(fn)``: the first call records the kernels fn launches, later calls replay them without

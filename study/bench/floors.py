@@ -16,9 +16,10 @@ Bandwidth
     bytes read + written per second by ``y = x + 1`` over ``copy_floats`` float32s (one read, one write each).
 Floor of a method (:func:`method_floor`)
     f₁ · (1-channel fetch cost) + f₄ · (4-channel fetch cost) + bytes per ray / bandwidth, per ray, with
-    f₁ = ``lookups_per_ray(res)`` + 1 − f₃ (the method's bound at the bench's cube resolution: every counted lookup
-    reads the distance texture, plus the origin check of ``Method.trace``), f₃ = ``volume_lookups(res)`` (its 3D
-    fetches, priced at the 3D fetch rate: f₃ · (3D fetch cost) is added), f₄ = 1 (the colour at the shown
+    f₁ = the mean lookups per ray measured in the method's timed calls (``Trace.lookups``; ``lookups_per_ray(res)``,
+    the bound, where none is given) + 1 − f₃ (every counted lookup reads the distance texture, plus the origin
+    check of ``Method.trace``), f₃ = ``volume_lookups(res)`` scaled by measured / bound (its 3D fetches, priced
+    at the 3D fetch rate: f₃ · (3D fetch cost) is added), f₄ = 1 (the colour at the shown
     point; a 3-channel texture is stored as 4 on CUDA) and :data:`BYTES_PER_RAY` (origin and direction read, the
     bench's outputs written). The pattern's fetch cost is taken for the batch: coherent for the scene's rays,
     random for synthetic ones.
@@ -170,11 +171,16 @@ def measure(
     return out
 
 
-def method_floor(method, floors: dict, pattern: str, rays: int, res: int | None = None) -> float:
+def method_floor(
+    method, floors: dict, pattern: str, rays: int, res: int | None = None, lookups: float | None = None
+) -> float:
     """The floor (seconds) of ``method`` on ``rays`` rays at cube resolution ``res``: fetches × fetch cost + bytes /
-    bandwidth (see the module docstring); ``pattern`` is ``"coherent"`` or ``"random"``."""
-    f3 = float(method.volume_lookups(res))
-    f1 = method.lookup_bound(res) + 1 - f3
+    bandwidth (see the module docstring); ``pattern`` is ``"coherent"`` or ``"random"``; ``lookups``: the mean
+    lookups per ray measured (a search that skips or stops early spends fewer than its bound), else the bound."""
+    bound = float(method.lookup_bound(res))
+    spent = bound if lookups is None else float(lookups)
+    f3 = float(method.volume_lookups(res)) * (spent / bound if bound > 0 else 1.0)  # its 3D share
+    f1 = spent + 1 - f3
     rate3 = floors.get(
         f"fetch_3d_{pattern}", floors[f"fetch_1ch_{pattern}"]
     )  # floors measured before: 2D rate

@@ -202,16 +202,27 @@ def run_bench(
             for m in methods:
                 extra = ["plain"] if nm != "numpy" and m.label == plain_too else []
                 for path in paths + extra:
+                    spent: list = []
                     try:
                         t = time_method(
-                            m, B, tex, x, R, frozen=path == "frozen", repeats=opt.repeats, info=info_env
+                            m,
+                            B,
+                            tex,
+                            x,
+                            R,
+                            frozen=path == "frozen",
+                            repeats=opt.repeats,
+                            info=info_env,
+                            spent=spent,
                         )
                     except Exception as err:  # e.g. a method whose arrays a frozen function cannot see
                         log(f"{m.label} on {nm} ({path}) failed: {str(err).splitlines()[0][:160]}")
                         if path != "frozen":
                             raise
                         path = "plain"
-                        t = time_method(m, B, tex, x, R, frozen=False, repeats=opt.repeats, info=info_env)
+                        t = time_method(
+                            m, B, tex, x, R, frozen=False, repeats=opt.repeats, info=info_env, spent=spent
+                        )
                     row = rate_row(
                         {
                             "batch": b.name,
@@ -224,6 +235,7 @@ def run_bench(
                         t,
                         len(x),
                     )
+                    row["lookups_per_ray"] = spent[-1]  # measured mean (Trace.lookups)
                     rows.append(with_floor(with_ratios(row, exact, b, nm), m, floors.get(nm), b))
             log(f"methods on {nm}, {b.name} timed")
 
@@ -253,9 +265,13 @@ def batch_pattern(b: Batch) -> str:
 
 
 def with_floor(row: dict, m: Method, floors: dict | None, b: Batch) -> dict:
-    """``row`` plus floor_ms_per_frame (:func:`study.bench.floors.method_floor` of a 1024² frame) and x_floor (the
-    method's time over its floor; 1 = at the floor); empty where no floor was measured (numpy)."""
+    """``row`` plus floor_ms_per_frame (:func:`study.bench.floors.method_floor` of a 1024² frame, at the row's
+    measured ``lookups_per_ray``) and x_floor (the method's time over its floor; 1 = at the floor); empty where no
+    floor was measured (numpy)."""
     if not floors:
         return {**row, "floor_ms_per_frame": "", "x_floor": ""}
-    fl = floor_model.method_floor(m, floors, batch_pattern(b), FRAME, int(row["cube_res"])) * 1e3
+    fl = floor_model.method_floor(
+        m, floors, batch_pattern(b), FRAME, int(row["cube_res"]), row.get("lookups_per_ray")
+    )
+    fl *= 1e3
     return {**row, "floor_ms_per_frame": fl, "x_floor": row["ms_per_frame"] / fl}

@@ -74,6 +74,7 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
     distance field is the room box's (:func:`study.impostor.sdf.room_field`: the cost of a 3D fetch does not
     depend on the values), its texture an argument too."""
     env = EnvMap(tex_np, B)
+    pyramid = env.pyramid  # built here, outside the recording; its data comes in through the arguments
     # the layer shares env's textures (a shallow copy): a texture of its own, replaced inside the recording below,
     # would be freed there — an unrecordable host call that aborts the process
     layer = copy.copy(env) if m.layers_needed() > 1 else None
@@ -87,14 +88,15 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
     X, RR = B.vec(x), B.vec(R)
     B.eval(X.x, X.y, X.z, RR.x, RR.y, RR.z)
 
-    def trace(tex, dist, X, RR, vol):  # textures as arguments: a frozen function sees only those
-        env.tex, env.dist = tex, dist
+    def trace(tex, dist, pyr, X, RR, vol):  # textures as arguments: a frozen function sees only those
+        env.tex, env.dist, pyramid.data = tex, dist, pyr
         if layer is not None:
             layer.tex, layer.dist = tex, dist
         for f, t in zip(fields, vol):
             f.tex = t
         t = m.trace(B, views, X, RR)
-        return t.shown, t.radiance, t.ratio, t.valid
+        spent = t.lookups if t.lookups is not None else X.x * 0.0 + m.lookup_bound(env.res)
+        return t.shown, t.radiance, t.ratio, t.valid, spent
 
     fn = B.freeze(trace) if frozen else trace
     tex, dist = env.tex, env.dist
@@ -104,13 +106,18 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
         if out is None:
             B.sync()
         else:
-            s, r, ratio, valid = out
-            B.eval(s.x, s.y, s.z, r.x, r.y, r.z, ratio, valid)
+            s, r, ratio, valid, spent = out
+            B.eval(s.x, s.y, s.z, r.x, r.y, r.z, ratio, valid, spent)
 
-    return (lambda: fn(tex, dist, X, RR, vol)), finish
+    pyr = pyramid.data
+    return (lambda: fn(tex, dist, pyr, X, RR, vol)), finish
 
 
-def time_method(m, B, tex_np, x, R, *, frozen: bool, repeats: int, info: dict | None = None) -> float:
+def time_method(
+    m, B, tex_np, x, R, *, frozen: bool, repeats: int, info: dict | None = None, spent: list | None = None
+) -> float:
+    """Median seconds per call of ``m`` on the rays; with ``spent``, the mean lookups per ray that the calls
+    measured (``Trace.lookups``) is appended to it."""
     # Garbage left by earlier runs (reference cycles) must not be freed while a frozen function records:
     # freeing Dr.Jit memory then is an unrecordable host call that aborts the process.
     gc.collect()
@@ -118,7 +125,16 @@ def time_method(m, B, tex_np, x, R, *, frozen: bool, repeats: int, info: dict | 
     gc.disable()
     try:
         call, finish = method_runner(m, B, tex_np, x, R, frozen=frozen, info=info)
-        return median_time(call, finish, repeats=repeats)
+        last = []
+
+        def kept():
+            last[:] = [call()]
+            return last[0]
+
+        seconds = median_time(kept, finish, repeats=repeats)
+        if spent is not None:
+            spent.append(float(np.mean(B.numpy(last[0][4]))))
+        return seconds
     finally:
         gc.enable()
 

@@ -6,6 +6,7 @@ import numpy as np
 
 from study.backend import V3, Backend
 from study.impostor import cubemap
+from study.impostor.pyramid import MinPyramid
 
 
 class EnvMap:
@@ -22,6 +23,14 @@ class EnvMap:
         self.B, self.res, self.channels = B, texels.shape[1], texels.shape[-1]
         self.tex = B.texture(texels[..., :-1]) if self.channels > 1 else None  # colour channels
         self.dist = B.texture(texels[..., -1:])  # distance |v'|
+        self._dist_np, self._pyramid = texels[..., -1], None
+
+    @property
+    def pyramid(self) -> MinPyramid:
+        """The min pyramid of the distances (:mod:`study.impostor.pyramid`), built on first use and kept."""
+        if self._pyramid is None:
+            self._pyramid = MinPyramid(self._dist_np, self.B)
+        return self._pyramid
 
     def lookup(self, v: V3) -> list:
         face, u, w = cubemap.face_uv(self.B, v.x, v.y, v.z)

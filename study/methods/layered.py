@@ -32,10 +32,16 @@ crossing near the column's top edge on 45 % of the rays whose hit o does not see
 stay wrong, as the jump test rejects true top hits within a texel of the edge and a third crossing goes unrecorded;
 the entry rule leaves 2.4 % (scripts/compare_layered.py).
 
-Cost: every layer is looked up at every sample (a vectorized loop of n steps on every ray) and, since the kept
-layer differs between rays, at every secant step and at the final lookup: layers × (1 + n + iterations + 1) on
-every ray, which is also :meth:`Layered.lookups_per_ray` (n from the cube resolution; ``max_steps`` when it is
-not given).
+Hierarchical search (``hierarchical``, default): blocks of samples in front of the nearest layer (then in front of
+every layer: c = 0, outside) that layer 0's min pyramid proves so are skipped in one lookup, a ray reads sample by
+sample while an entry is pending, and stops at its kept entry (:class:`study.methods.march.Skip`); the entry is the
+texel march's (``hierarchical=False``, kept as the tests' brute-force twin).
+
+Cost: every layer is looked up at every sample read and, since the kept layer differs between rays, at every
+secant step and at the final lookup: with the texel march layers × (1 + n + iterations + 1) on every ray; the
+hierarchical search reports what each ray spent (one lookup per pyramid read, one per layer per sample read and
+for the re-read of the bracket's start). :meth:`Layered.lookups_per_ray` is the bound of either (n from the cube
+resolution; ``max_steps`` when it is not given).
 
 Open environments: no-surface texels hold FAR in every layer, so such rays find no entry into a solid and
 escape in the finishing step of :meth:`Method.trace`, as for ``linear_secant``.
@@ -52,7 +58,7 @@ from study.backend import V3
 from study.impostor import cubemap
 from study.impostor.envmap import EnvMap
 from study.methods.base import Found, Knob, TracingMethod, register
-from study.methods.linear_secant import TexelMarchParams, march_steps
+from study.methods.linear_secant import TexelMarchParams, march_bound, march_steps, skipper
 from study.methods.search import arc_samples, first_entry, refine, secant_point
 
 
@@ -65,12 +71,18 @@ class Params(TexelMarchParams):  # + steps_per_texel, max_steps
     ] = 4.0
 
 
-def _pick(B, e, values):
-    """values[e] per ray (e an array of layer indices)."""
-    out = values[-1]
-    for i in range(len(values) - 2, -1, -1):
-        out = B.select(e == float(i), values[i], out)
-    return out
+def _one(B, e, K: int, read, i: int = 0) -> list:
+    """read(e) per ray (e an array of layer indices; read(i) an array or a list of them for layer i): each ray
+    reads its own layer alone (nested branches: one lookup, not K)."""
+    if i == K - 1:
+        return _listed(read(i))
+    return list(
+        B.branch(e == float(i), (e,), lambda e: _listed(read(i)), lambda e: _one(B, e, K, read, i + 1))
+    )
+
+
+def _listed(v) -> list:
+    return list(v) if isinstance(v, (list, tuple)) else [v]
 
 
 @register
@@ -101,18 +113,36 @@ class Layered(TracingMethod):
 
         shared = all(isinstance(m, EnvMap) and m.res == res for m in maps)  # one face/uv for every layer
 
-        def gs(t):
+        K = len(maps)
+
+        def reader(t):  # read(i): g_i(t), one lookup of layer i
             pt = point(t)
             lp = B.length(pt)
             if shared:
                 face, u, w = cubemap.face_uv(B, pt.x, pt.y, pt.z)
-                return [lp - (1.0 - t) * B.sample(m.dist, face, u, w)[0] for m in maps]
-            return [lp - (1.0 - t) * m.distance(pt) for m in maps]
+                return lambda i: lp - (1.0 - t) * B.sample(maps[i].dist, face, u, w)[0]
+            return lambda i: lp - (1.0 - t) * maps[i].distance(pt)
+
+        def gs(t):
+            read = reader(t)
+            return [read(i) for i in range(K)]
+
+        def gs_lazy(t):  # layer 0, the others only behind it (in front of it, g_0 < 0 stands for every g_k)
+            read = reader(t)
+            g0 = read(0)
+            if K == 1:
+                return [g0]
+            rest = B.branch(
+                g0 >= 0.0, (g0,), lambda g0: [read(i) for i in range(1, K)], lambda g0: [g0] * (K - 1)
+            )
+            return [g0, *rest]
 
         # ------------------------------------------------------------- march: the first entry that is not skin
+        # (hierarchical: blocks in front of the nearest layer skipped; g_0 ≥ g_k, so in front of every layer)
+        skip = skipper(B, getattr(maps[0], "pyramid", None), x, R, a) if p.hierarchical else None
         br, e = first_entry(
             B,
-            gs,
+            gs if skip is None else gs_lazy,
             zero,
             gs(zero),
             arc_samples(B, cos, n),
@@ -120,21 +150,23 @@ class Layered(TracingMethod):
             hold=hold,
             t_max=1.0,
             default=(zero, zero - 1.0, zero + 1.0, zero + 1.0),
+            skip=skip,
+            cost=lambda g_0: 1.0 + (K - 1.0) * B.select(g_0 >= 0.0, zero + 1.0, zero),
         )  # harmless dummy bracket
 
         # ------------------------------------------------------------- secant steps on the entry's layer
-        br = refine(B, lambda t: _pick(B, e, gs(t)), br, p.iterations)
+        br = refine(B, lambda t: _one(B, e, K, reader(t))[0], br, p.iterations)
         t = secant_point(br)
         l = point(t) / B.maximum(1.0 - t, 1e-7)  # x + R d(t)
-        chs = [m.lookup(l) for m in maps]
-        ch = [_pick(B, e, [c[i] for c in chs]) for i in range(len(chs[0]))]
+        ch = _one(B, e, K, lambda i: maps[i].lookup(l))  # the shown point, read on its layer alone
         dist, lhat = ch[-1], B.normalize(l)
-        spent = zero + float(len(maps) * (1 + n + p.iterations + 1))
+        march = zero + float(K * n) if skip is None else skip.lookups
+        spent = march + float(K + p.iterations + 1)
         shown = V3(lhat.x * dist, lhat.y * dist, lhat.z * dist)
         return Found(l, shown, V3(*ch[:3]), B.length(l) / dist, br.found & B.isfinite(t), spent)
 
     def lookups_per_ray(self, res: int | None = None) -> float:
-        # per layer: g(0), the n steps (all of them on every ray), the secant steps and the final lookup (every
-        # layer, as the kept layer differs between rays)
+        # per layer: g(0) and the linear search (texel march: all n steps on every ray); on the kept layer alone:
+        # the secant steps and the final lookup
         p = self.params
-        return p.layers * (1 + march_steps(res, p) + p.iterations + 1)
+        return p.layers * (1 + march_bound(res, p)) + p.iterations + 1

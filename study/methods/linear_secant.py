@@ -24,10 +24,17 @@ the secant point of the final bracket. The secant works on g(t) instead of the c
 at t = 1; both vanish at the same points. Invalid (NaN shown point) where no crossing is found (x itself behind the
 environment surface and the ray never comes out in front of it).
 
-Cost: the vectorized loop runs all n steps on every ray (a ray whose arc ends earlier repeats t = 1; a per-ray
-loop on a GPU would stop there): g(0), n steps, ``secant_steps`` and the shown point, 1 + n + secant_steps + 1 on
-every ray, which is also :meth:`LinearSecant.lookups_per_ray` (n from the cube resolution; ``max_steps`` when it is
-not given).
+Hierarchical search (``hierarchical``, default): the same samples, but blocks of them that the impostor's min
+pyramid (:mod:`study.impostor.pyramid`) proves to lie in front of the surface (the ray point nearer to o than any
+distance the lookups there could read) are skipped in one lookup, and a ray stops at its crossing
+(:class:`study.methods.march.Skip`): the same bracket as the texel march, from tens of lookups instead of n.
+``hierarchical=False`` is the texel march itself, kept as the brute-force twin the tests compare with.
+
+Cost: the texel march runs all n steps on every ray (a ray whose arc ends earlier repeats t = 1): g(0), n steps,
+``secant_steps`` and the shown point, 1 + n + secant_steps + 1 on every ray. The hierarchical search reports what
+each ray spent (``Localization.lookups``: pyramid reads and samples read, plus one re-read of the bracket's start);
+:meth:`LinearSecant.lookups_per_ray` is the bound of either (n from the cube resolution; ``max_steps`` when it is
+not given; for the hierarchical search at most 2n + log₂ n + 3 in place of n).
 
 Open environments: samples whose texel holds FAR (no surface) are undershoots, so a ray that leaves the scene
 finds no crossing; :meth:`Method.trace` then lets it escape when its direction R sees no surface from o.
@@ -41,6 +48,7 @@ from typing import Annotated
 from pydantic import BaseModel, ConfigDict, Field
 
 from study.methods.base import Knob, Localization, Method, register
+from study.methods.march import Skip, iterations
 from study.methods.search import arc_samples, first_crossing, refine, secant_point
 
 
@@ -52,6 +60,28 @@ class TexelMarchParams(BaseModel):
         float, Field(gt=0, le=16, description="samples per texel of arc (≥ 1: no crossing stepped over)")
     ] = 1.0
     max_steps: Annotated[int, Field(ge=1, le=65536, description="cap on the steps of a half-turn arc")] = 4096
+    hierarchical: bool = Field(
+        True, description="skip what the impostor's min pyramid proves empty (False: read every sample)"
+    )
+
+
+def skipper(B, pyramid, x, R, a) -> Skip | None:
+    """The :class:`~study.methods.search.Skip` of a march along p(t) = (1 − t) x + t a R over a distance map with
+    a min pyramid (:class:`study.impostor.pyramid.MinPyramid`); None without one (an analytic environment)."""
+    if pyramid is None:
+        return None
+
+    def point(t):
+        return x * (1.0 - t) + R * (a * t)
+
+    return Skip(lambda ta, tb: pyramid.clear(point(ta), 1.0 - ta, point(tb), 1.0 - tb))
+
+
+def march_bound(res: int | None, p: TexelMarchParams) -> int:
+    """The most lookups per function of the linear search (without g(0)): n samples, or with ``hierarchical``
+    the march's iterations and the re-read of the bracket's start (:func:`study.methods.march.iterations`)."""
+    n = march_steps(res, p)
+    return iterations(n) + 1 if p.hierarchical and res != 0 else n
 
 
 def march_steps(res: int, p: TexelMarchParams) -> int:
@@ -88,17 +118,21 @@ class LinearSecant(Method):
         # ------------------------------------------------------------- linear search for the first crossing
         zero = xl * 0.0
         g0 = g(zero)
+        pyr = getattr(getattr(env, "impostor", env), "pyramid", None) if p.hierarchical else None
+        skip = skipper(B, pyr, x, R, a)
         # bracket: last undershoot, first overshoot (no crossing: the whole arc, t = 0 to the point at infinity)
         br = first_crossing(
-            B, g, zero, g0, arc_samples(B, cos, n), n, t_max=1.0, default=(zero, g0, zero + 1.0, a)
+            B, g, zero, g0, arc_samples(B, cos, n), n, t_max=1.0, default=(zero, g0, zero + 1.0, a), skip=skip
         )
+        spent = zero + float(n) if skip is None else skip.lookups
 
         # ------------------------------------------------------------- secant steps inside the bracket
         br = refine(B, g, br, p.secant_steps, illinois=p.illinois, rising=True)
         t = secant_point(br)
         l = (x * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)  # x + R d(t)
-        return Localization(l=l, valid=br.found & B.isfinite(t))
+        # lookups before the shown point's: g(0), the linear search, the secant steps
+        return Localization(l=l, valid=br.found & B.isfinite(t), lookups=spent + float(1 + p.secant_steps))
 
     def lookups_per_ray(self, res: int | None = None) -> float:
-        # g(0), the n linear steps (the vectorized loop spends all n on every ray), the secant steps, the shown point
-        return 1 + march_steps(res, self.params) + self.params.secant_steps + 1
+        # g(0), the linear search (texel march: all n samples on every ray), the secant steps, the shown point
+        return 1 + march_bound(res, self.params) + self.params.secant_steps + 1

@@ -28,6 +28,11 @@ step into the inside of nested surfaces (the layers of a layered map) that is no
 :func:`secant_point` gives its secant point t_lo − g_lo (t_hi − t_lo) / (g_hi − g_lo), the estimate of the root
 (not finite where g_hi = g_lo, as on a bracket without a sign change).
 
+Hierarchical march: :func:`first_crossing` and :func:`first_entry` take ``skip`` (a :class:`~study.methods.march.Skip`
+that proves blocks of samples free of crossings from a min pyramid); they then read the same samples at per-ray k
+(:meth:`Samples.direct`), skip what it proves, stop each ray at its crossing and give the texel march's bracket
+(:mod:`study.methods.march`); ``skip.lookups`` then holds the lookups each ray spent.
+
 Every search and the secant steps are one loop through the backend (:meth:`study.backend.Backend.loop`): on Dr.Jit
 one symbolic loop (``dr.while_loop``), so a march of n samples is one kernel whose state stays in registers, not
 n kernels that write and read the whole state back; on numpy
@@ -44,6 +49,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
+
+from study.methods.march import Direct, Skip, every, march, reread
 
 
 class Bracket(NamedTuple):
@@ -77,6 +84,10 @@ class Samples:
         t, self._seq = self.at(k, self._seq)
         return t
 
+    def direct(self, k):
+        """t_k for a per-ray k (an array), without the state: what a search that skips samples reads."""
+        raise NotImplementedError
+
 
 class _Uniform(Samples):
     def __init__(self, t0, dt):
@@ -84,6 +95,9 @@ class _Uniform(Samples):
 
     def at(self, k, state):
         return self.t0 + self.dt * k, state  # t0 + k dt (k exact in float32)
+
+    def direct(self, k):
+        return self.t0 + self.dt * k
 
 
 def _samples(t0, dt) -> Samples:
@@ -129,6 +143,15 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
             t = B.select(end, self.one, t)
         return t, (cp, sp)
 
+    def direct(self, k):
+        """t_k with φ_k = k π/steps from sin and cos (the rotation's value up to rounding)."""
+        B, c = self.B, self.c
+        phi = k * (math.pi / self.steps)
+        cp, sp = B.cos(phi), B.sin(phi)
+        t = sp / B.maximum(self.s * cp + (1.0 - c) * sp, 1e-30)
+        t = B.select(cp > c, B.minimum(t, 1.0), self.one)
+        return B.select(k >= float(self.steps), self.one, t)
+
     def __call__(self, k):
         t = super().__call__(k)
         self.B.eval(t, *self._seq)  # outside a loop: keep Dr.Jit's graph short
@@ -137,10 +160,22 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
 
 # ---------------------------------------------------------------------------------------------- linear search
 def first_crossing(
-    B, g: Callable, t0, g0, dt, steps: int, *, t_max: float | None = None, default: tuple | None = None
+    B,
+    g: Callable,
+    t0,
+    g0,
+    dt,
+    steps: int,
+    *,
+    t_max: float | None = None,
+    default: tuple | None = None,
+    skip: Skip | None = None,
 ):
-    """The first step from g < 0 to g ≥ 0: a :class:`Bracket` (a list of them when g returns a list)."""
-    return _scan(B, g, t0, g0, dt, steps, t_max=t_max, default=default, count=1, rising=True, first=True)
+    """The first step from g < 0 to g ≥ 0: a :class:`Bracket` (a list of them when g returns a list). With
+    ``skip``, the hierarchical march (:class:`Skip`): the same bracket, from fewer lookups."""
+    return _scan(
+        B, g, t0, g0, dt, steps, t_max=t_max, default=default, count=1, rising=True, first=True, skip=skip
+    )
 
 
 def sign_changes(
@@ -162,11 +197,11 @@ def sign_changes(
     )
 
 
-def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first):
+def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first, skip=None):
     many = isinstance(g0, (list, tuple))
     G = len(g0) if many else 1
     never = B.isfinite(t0) & ~B.isfinite(t0)  # all False
-    smp = _samples(t0, dt)
+    smp = _samples(t0, dt) if skip is None else Direct(_samples(t0, dt))
     # per function, per crossing: found, t_lo, g_lo, t_hi, g_hi (the default, or a placeholder until the end)
     start = [tuple(default) if default is not None else (t0, gp, t0, gp) for gp in (g0 if many else [g0])]
     state = (
@@ -192,9 +227,39 @@ def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first):
                 out += [f | new, *(B.select(new, v, o) for v, o in zip((t_prev, g_prev[i], t, gt), b))]
         return (t, *gts, *out, *sst)
 
-    t_last, *rest = B.loop(steps, state, step, index=True)
+    if skip is None:
+        t_last, *rest = B.loop(steps, state, step, index=True)
+    else:  # count = 1, rising: done where every function's crossing is found
+        t_last, *rest = march(
+            B,
+            smp.smp,
+            steps,
+            t_max,
+            state,
+            step,
+            skip,
+            G=G,
+            done=lambda *s: every([s[1 + G + 5 * i] for i in range(G)]),
+            busy=None,
+            jumped=lambda ok, t_b, t_prev, *s: (
+                B.select(ok, t_b, t_prev),
+                *(B.select(ok, -math.inf, gp) for gp in s[:G]),
+                *s[G:],
+            ),
+        )
     g_last, flat = rest[:G], rest[G : len(rest) - ns]
     cross = [[flat[(i * count + j) * 5 : (i * count + j + 1) * 5] for j in range(count)] for i in range(G)]
+    if (
+        skip is not None
+    ):  # g at a bracket's start that a skip left unread (−∞): one more read of every function
+        pick = (lambda i: lambda t: g(t)[i]) if many else (lambda i: g)
+        cross = [
+            [[f, t_lo, reread(B, pick(i), g_lo, t_lo), t_hi, g_hi]]
+            for i, ((f, t_lo, g_lo, t_hi, g_hi),) in enumerate(cross)
+        ]
+        if default is None:
+            g_last = [reread(B, pick(i), gl, t_last) for i, gl in enumerate(g_last)]
+            skip.lookups = skip.lookups + G
     # ----------------------------------------------------------------------- rays without a crossing
     if default is None:  # the whole range: (t0, g0, last sample, g there)
         cross = [
@@ -220,8 +285,13 @@ def first_entry(
     hold: int,
     t_max: float | None = None,
     default: tuple | None = None,
+    skip: Skip | None = None,
+    cost: Callable | None = None,
 ):
-    """The first step into the inside of nested surfaces that is not skin: a (:class:`Bracket`, e) pair.
+    """The first step into the inside of nested surfaces that is not skin: a (:class:`Bracket`, e) pair. With
+    ``skip``, the hierarchical march (:class:`Skip`, proving g_0 < 0: in front of every surface); ``cost(g_0)``:
+    the lookups of a sample read, given g_0 there (default K; g may read the other layers only where g_0 ≥ 0 and
+    return g_0 for them elsewhere, which leaves c and the entries as they are).
 
     ``g`` returns K functions ordered g_0 ≥ g_1 ≥ … (the layers of a layered map, nearest first: behind layer k
     means behind every nearer one). At each sample, c = how many have g ≥ 0 (the layers the point is behind);
@@ -265,7 +335,7 @@ def first_entry(
     in_prev = inside(c_prev, g_prev)
     never = in_prev & ~in_prev
     res = (*(default if default is not None else (t0, pick(g0, zero), t0, pick(g0, zero))), zero)
-    smp = _samples(t0, dt)
+    smp = _samples(t0, dt) if skip is None else Direct(_samples(t0, dt))
     # state: g_prev (K), c_prev, in_prev, t_prev, found, pend, clip, age, c_pend, res (5), pb (the pending entry:
     # t_lo, g_lo, t_hi, g_hi, e; 5), the sampler's
     state = (*g_prev, c_prev, in_prev, t0, never, never, never, zero, zero, *res, *res, *smp.state)
@@ -298,10 +368,37 @@ def first_entry(
             res, found, pend = tuple(B.select(new, v, r) for v, r in zip(pb, res)), found | new, pend & ~new
         return (*gs, c, ins, t, found, pend, clip, age, c_pend, *res, *pb, *sst)
 
-    s = B.loop(steps, state, step, index=True)
+    if skip is None:
+        s = B.loop(steps, state, step, index=True)
+    else:  # a skipped block is in front of every layer: c = 0, outside, the g's unread (−∞)
+        s = march(
+            B,
+            smp.smp,
+            steps,
+            t_max,
+            state,
+            step,
+            skip,
+            G=K,
+            done=lambda *s: s[K + 3],
+            busy=lambda *s: s[K + 4],
+            cost=(lambda *s: cost(s[0])) if cost is not None else None,
+            jumped=lambda ok, t_b, *s: (
+                *(B.select(ok, -math.inf, gp) for gp in s[:K]),
+                B.select(ok, zero, s[K]),
+                s[K + 1] & ~ok,
+                B.select(ok, t_b, s[K + 2]),
+                *s[K + 3 :],
+            ),
+        )
     found, pend, res, pb = s[K + 3], s[K + 4], s[K + 8 : K + 13], s[K + 13 : K + 18]
     res = tuple(B.select(pend, v, r) for v, r in zip(pb, res))
     found = found | pend
+    if skip is not None:  # g at the bracket's start that a skip left unread: one more read of every layer
+        gt = list(g(res[0]))
+        res = (res[0], reread(B, lambda t: pick(gt, res[4]), res[1], res[0]), *res[2:])
+        if cost is not None:  # the re-read's own cost (the march counted K)
+            skip.lookups = skip.lookups + (cost(gt[0]) - float(K))
     return Bracket(*res[:4], found), res[4]
 
 

@@ -1,0 +1,96 @@
+"""The hierarchical march of the searches in :mod:`study.methods.search`: blocks of samples that a min pyramid
+(:mod:`study.impostor.pyramid`) proves to lie in front of every surface are skipped in one lookup, and a ray stops
+at its crossing; see :class:`Skip`. Written against the array backend (numpy and Dr.Jit): one per-lane loop
+(:meth:`study.backend.Backend.while_loop`) whose body reads either a block's bound or the next sample
+(:meth:`study.backend.Backend.branch`: a ray pays only the lookup of its own side). It registers no method.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+
+class Direct:
+    """A sampler read at per-ray k (its ``direct``), with no state: the samples of a hierarchical march."""
+
+    state: tuple = ()
+
+    def __init__(self, smp):
+        self.smp = smp
+
+    def at(self, k, state):
+        return self.smp.direct(k), state
+
+
+class Skip:
+    """How a search skips samples: ``clear(t_a, t_b)`` → (N,) bool, true where every function searched is proven
+    < 0 at every t in [t_a, t_b] (in front of every surface: no crossing, no entry), from one read of a min
+    pyramid (:meth:`study.impostor.pyramid.MinPyramid.bound`). After the search, ``lookups`` holds per ray the
+    lookups the march spent: pyramid reads, samples read × functions, and the re-read of the bracket's start
+    (g0 not included).
+
+    The march (Hi-Z style): a block of w samples after the last one read is tried in one pyramid read; cleared,
+    the march jumps over it and doubles w; not cleared, it halves w; at w = 1 it reads the next sample as the
+    texel march does (and tries w = 2 next). A ray stops at its crossing (its kept entry). Only cleared blocks are
+    skipped, so the bracket is the texel march's (the samples come from :meth:`Samples.direct`, equal to the
+    march's up to rounding); the bracket's start, when skipped, is read once after the march.
+    At most 2·steps + log₂(steps) + 2 iterations, each one lookup per function at most."""
+
+    def __init__(self, clear: Callable):
+        self.clear, self.lookups = clear, None
+
+
+def iterations(steps: int) -> int:
+    """The most iterations of the hierarchical march over ``steps`` samples."""
+    return 2 * steps + max(steps - 1, 0).bit_length() + 2
+
+
+def every(masks):
+    """The lanes where every mask holds."""
+    out = masks[0]
+    for m in masks[1:]:
+        out = out & m
+    return out
+
+
+def reread(B, g: Callable, value, t):
+    """``value`` where a sample was read, g(t) where a skip left it unread (−∞)."""
+    return B.select(value == -math.inf, g(t), value)
+
+
+def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jumped, cost=None):
+    """The march of :class:`Skip`: ``step(k, *state)`` reads sample k + 1 as the texel march's loop body does,
+    ``jumped(ok, t_b, *state)`` is the state after a jump to the sample t_b where ``ok``; ``done(*state)`` stops a
+    ray, ``busy(*state)`` (or None) keeps it reading sample by sample; ``cost(*state)`` (or None: G) the lookups
+    of the sample read that led to ``state``. Returns the final state; sets ``skip.lookups``."""
+    zero = state[0] * 0.0
+    top = float(1 << max(n - 1, 0).bit_length())  # the widest block: ≥ n samples
+
+    def t_at(k):
+        t = smp.direct(k)
+        return B.minimum(t, t_max) if t_max is not None else t
+
+    def fine(k, w, spent, *s):  # the next sample, as the texel march reads it
+        s = step(k, *s)
+        return (k + 1.0, w * 0.0 + 2.0, spent + (cost(*s) if cost is not None else float(G)), *s)
+
+    def coarse(k, w, spent, *s):  # a block of w samples in one pyramid read
+        kb = B.minimum(k + w, float(n))
+        t_b = t_at(kb)
+        ok = skip.clear(t_at(k + 1.0), t_b)
+        w = B.select(ok, B.minimum(w * 2.0, top), w * 0.5)
+        return (B.select(ok, kb, k), w, spent + 1.0, *jumped(ok, t_b, *s))
+
+    def body(k, w, spent, *s):
+        fine_now = (w <= 1.0) | busy(*s) if busy is not None else w <= 1.0
+        return B.branch(fine_now, (k, w, spent, *s), fine, coarse)
+
+    out = B.while_loop(
+        (zero, zero + 2.0, zero, *state),
+        lambda k, w, spent, *s: (k < float(n)) & ~done(*s),
+        body,
+        limit=iterations(n),
+    )
+    skip.lookups = out[2] + float(G)  # + the re-read of the bracket's start
+    return out[3:]
