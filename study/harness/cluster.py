@@ -199,8 +199,10 @@ def run_dask(batches, task, jobs: int, address: str, finish, warm: tuple | None 
             ) from None
         marks["ready"] = time.perf_counter()
         workers = list(client.scheduler_info().get("workers", {}))
-        for w in workers:
+        warming = [  # held, so that the scheduler does not forget them before they run
             client.submit(_warm_once, warm, workers=[w], allow_other_workers=False, pure=False, priority=10)
+            for w in workers
+        ]
         futs, earlier = {}, {}
         for batch in batches:
             made = {}
@@ -230,6 +232,7 @@ def run_dask(batches, task, jobs: int, address: str, finish, warm: tuple | None 
             first_at.setdefault(worker, done_at[-1])
         marks["last"] = time.perf_counter()
         records = client.run(_worker_record) if futs else {}
+        del warming
     finally:
         client.close()
         if cluster is not None:
