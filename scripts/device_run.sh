@@ -7,8 +7,9 @@
 #             the measured floors (texture fetch rates, copy bandwidth) → perf/
 #   studies : fig4, fig5, fig6 and the main sweep with --backend cuda (renders cuda_ad_rgb, exact hits OptiX),
 #             cold (fresh cache, fresh Dr.Jit kernel cache), each timed → studies/
-#   dask    : configs/sweep_large.toml (512 cases) on a Dask cluster of $DASK_PER_GPU (4) workers per GPU
-#             (--dask local-gpus), on 1, 2, … GPUs ($DASK_GPUS, default: 1 and every visible GPU); cases/s → dask/
+#   dask    : configs/sweep_dask.toml (2000 cases) on a Dask cluster of $DASK_PER_GPU (4) workers per GPU
+#             (--dask local-gpus), on 1, 2, … GPUs ($DASK_GPUS, default: 1 and every visible GPU): fixed cost and
+#             steady cases/s of each run → dask/, dask-<k>gpu.json, times.csv; tables compared → dask-tables.txt
 #   sweep   : the main sweep alone, every case profiled in its worker (STUDY_PROFILE) → profiles.tgz
 #   single  : the 104-case subset of sweep_large in one process, no Dask (the reference table for the Dask runs)
 #   profile : scripts/profile_case.py on the main sweep's heaviest case and on fig4 (cProfile, cold and warm)
@@ -63,23 +64,41 @@ for part in $parts; do
     timed sweep timeout "${SWEEP_LIMIT:-300}" $S sweep configs/sweep.toml --backend cuda --cache "$W/cache" \
       --out "$W/sweep" --jobs "${SWEEP_JOBS:-8}" --no-plots 2>&1 | tail -5
     tar czf "$OUT/results-sweep.tgz" -C "$W" --exclude=cases sweep ;;
-  dask)   # configs/sweep_large.toml (512 cases) on 1, 2, … GPUs ($DASK_GPUS, default "1 N": one and every visible GPU),
-          # each with a cold cache; cases/s → dask/ (DASK_1GPU_CONFIG=sweep_large_subset: 1 GPU on every 5th position;
-          # DASK_WARM=1: Dr.Jit's kernel cache filled first by an untimed run and shared, else fresh for each run)
+  dask)   # configs/$DASK_CONFIG.toml (default sweep_dask: 2000 cases) on a Dask cluster of $DASK_PER_GPU (4) workers
+          # per GPU on 1, 2, … GPUs ($DASK_GPUS, default "1 N": one and every visible GPU; DASK_GPUS="1" on a one-GPU
+          # machine), each with a cold study cache. Each run prints (and logs to $OUT/log-dask-<k>gpu.txt) its fixed
+          # cost (cluster start, warm-up, shutdown) and its steady cases/s, also in dask/gpus<k>/metadata.json
+          # ("dask") and $OUT/dask-<k>gpu.json; every table after the first is compared with the first (timings
+          # aside) → $OUT/dask-tables.txt. DASK_WARM=1: Dr.Jit's kernel cache filled first by an untimed run of 104
+          # cases and shared (as on a user's machine after the first sweep), else a fresh one for each run.
     per=${DASK_PER_GPU:-4}; n=$(nvidia-smi -L | grep -c "^GPU ")
+    cfg=configs/${DASK_CONFIG:-sweep_dask}.toml
     sed 's/steps = 256/steps = 52/' configs/sweep_large.toml > configs/sweep_large_subset.toml
     if [ -n "${DASK_WARM:-}" ]; then    # compile the kernels once (Dr.Jit's kernel cache, shared by the runs below,
       export HOME=$W/home-dask; mkdir -p "$HOME"   # as on a user's machine after the first sweep); not timed
       CUDA_VISIBLE_DEVICES=0 $S sweep configs/sweep_large_subset.toml --backend cuda --cache "$W/dcache-warm" \
         --out "$W/dask-warm" --dask local-gpus --jobs "$per" --no-plots > /dev/null 2>&1
     fi
+    first=
     for k in ${DASK_GPUS:-1 $n}; do
-      cfg=configs/sweep_large.toml; [ "$k" = 1 ] && cfg=configs/${DASK_1GPU_CONFIG:-sweep_large}.toml
       [ -z "${DASK_WARM:-}" ] && export HOME=$W/home-$k && mkdir -p "$HOME"
-      CUDA_VISIBLE_DEVICES=$(seq -s, 0 $((k - 1))) timed "dask-${k}gpu" timeout "${LIMIT_DASK:-240}" $S sweep "$cfg" \
+      CUDA_VISIBLE_DEVICES=$(seq -s, 0 $((k - 1))) timed "dask-${k}gpu" timeout "${LIMIT_DASK:-500}" $S sweep "$cfg" \
         --backend cuda --cache "$W/dcache-$k" --out "$W/dask/gpus$k" --dask local-gpus --jobs "$per" --no-plots 2>&1 \
-        | tail -3
+        | tee "$OUT/log-dask-${k}gpu.txt" | tail -2
       echo "dask-${k}gpu-cases,$(ls "$W/dask/gpus$k/cases" 2>/dev/null | wc -l)" | tee -a "$OUT/times.csv"
+      python3 -c "import json, sys; t = json.load(open(sys.argv[1]))['dask']; print(json.dumps(t, indent=1))
+print(f\"dask-{sys.argv[2]}gpu-fixed_s,{t['fixed_s']}\ndask-{sys.argv[2]}gpu-steady_cases_per_s,{t['steady_cases_per_s']}\")" \
+        "$W/dask/gpus$k/metadata.json" "$k" > "$OUT/dask-${k}gpu.json" 2>&1 && tail -2 "$OUT/dask-${k}gpu.json" \
+        | tee -a "$OUT/times.csv"
+      if [ -z "$first" ]; then first=$k; else   # the same table on k GPUs as on the first run's, timings aside
+        python3 -c "import sys; from study.tables import read_csv
+a, b = (read_csv(f'{d}/results.csv') for d in sys.argv[1:])
+bad = [(ra['case'], k) for ra, rb in zip(a, b) for k in ra if 'seconds' not in k and ra[k] != rb.get(k)
+       and not (ra[k] != ra[k] and rb.get(k) != rb.get(k))]
+print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' if len(a) == len(b) and not bad
+      else f'DIFFERENT ({len(bad)} cells, first {bad[:3]})')" "$W/dask/gpus$first" "$W/dask/gpus$k" \
+          | tee -a "$OUT/dask-tables.txt"
+      fi
     done
     tar czf "$OUT/results-dask.tgz" -C "$W" --exclude=cases dask ;;
   single)  # the 104-case subset in one process on GPU 0, no Dask: the reference table for the Dask runs

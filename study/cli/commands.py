@@ -120,7 +120,7 @@ def sweep(
 
     dask = check_address(dask)  # before any work: '' and 'banana' are refused, not run locally
     out = out or Path("reports") / f"sweep-{config.stem}"
-    prepare_sweep(config, backend=backend, jobs=jobs)  # every case checked before the progress bar appears
+    ready = prepare_sweep(config, backend=backend, jobs=jobs)  # every case checked before the progress bar
     with Progress(
         TextColumn("[bold]{task.description}"),  # the description is escaped: a name is text
         BarColumn(),
@@ -148,6 +148,7 @@ def sweep(
             cache=cache,
             jobs=jobs,
             dask=dask,
+            prepared=ready,
             progress=progress,  # the curves join the table's output set
             extra=(lambda rows, d: sweep_plots(rows, d / "plots")) if plots else None,
         )
@@ -156,6 +157,10 @@ def sweep(
         f"in {stats['seconds']:.1f} s → {out / 'results.csv'}",
         highlight=False,
     )
+    if "dask" in stats:  # the fixed cost apart from the steady throughput (also in metadata.json)
+        from study.harness.cluster import timing_line
+
+        console.print(timing_line(stats["dask"]), highlight=False)
 
 
 @app.command()

@@ -33,7 +33,7 @@ from study.cache import Cache
 from study.codehash import code_hash
 from study.errors import StudyError, os_problem
 from study.harness import budget
-from study.harness.cluster import run_dask
+from study.harness.cluster import run_dask, warm_worker
 from study.harness.sweep import Case, load_sweep
 from study.impostor.capture import impostor_key
 from study.io import atomic_write, json_text, locked, output_set
@@ -102,19 +102,6 @@ def _run_one(
             prof.disable()
             Path(prof_dir).mkdir(parents=True, exist_ok=True)
             prof.dump_stats(str(Path(prof_dir) / f"{case_id}.prof"))
-
-
-def warm_worker(backend: str) -> None:
-    """Ready a worker before its first case: study's modules imported, the render device's Mitsuba variant and,
-    on CUDA, the GPU context made (a few seconds each worker would otherwise spend in its first case)."""
-    from study.measure import case  # noqa: F401 - the imports a case needs
-
-    with runtime.using_render_device("cuda" if backend == "cuda" else None):
-        runtime.mitsuba()
-        if backend == "cuda":
-            from study import backend as backends
-
-            backends.get("cuda")
 
 
 def _git_commit() -> str:
@@ -243,14 +230,16 @@ def run_sweep(
     dask: str | None = None,
     progress: Callable[[int, int, str], None] | None = None,
     extra: Callable[[list[dict], Path], None] | None = None,
+    prepared=None,
 ) -> tuple[list[dict], dict]:
     """Run (or resume) a sweep; returns (rows, stats) with stats = {cases, cached, computed, seconds}.
+    ``prepared``: the sweep as :func:`prepare_sweep` gave it for the same path, backend and jobs (not redone).
     ``extra(rows, dir)`` writes more outputs (the curves, under ``dir/plots``) into the sweep's output set.
 
     Cases run in this process (``jobs=1``), in ``jobs`` local processes, or on a Dask distributed cluster
     (``dask`` = a scheduler address, or ``"local"`` for a LocalCluster of ``jobs`` single-threaded worker
     processes). The table is the same either way: rows are ordered by case, not by completion."""
-    sweep = prepare_sweep(path, backend=backend, jobs=jobs)
+    sweep = prepared or prepare_sweep(path, backend=backend, jobs=jobs)
     specs = [(m.name, m.params.model_dump(exclude_unset=True)) for m in sweep.methods]
     cache_s = str(cache) if cache else None
     labels = [m.label for m in sweep.methods]
@@ -280,6 +269,7 @@ def run_sweep(
             check=sweep_check(sweep.methods),
             extra=extra,
             warm=(warm_worker, backend),
+            group=lambda c: impostor_key(c.scene),
         )
     except StudyError as err:  # a case's refusal names the sweep file
         if err.file:
@@ -305,6 +295,7 @@ def run_cases(
     extra: Callable[[list[dict], Path], None] | None = None,
     into: Path | None = None,
     warm: tuple | None = None,
+    group: Callable[[Case], str] | None = None,
 ) -> tuple[list[dict], dict]:
     """Run the cases not yet finished under ``out`` and write ``<out>/results.csv`` (+ ``metadata.json``, and
     what ``extra(rows, dir)`` writes) as one output set, swapped in at the end (:func:`study.io.output_set`); with
@@ -314,8 +305,10 @@ def run_cases(
     on Dask); each row gets the case id and one ``axis:<key>`` column per label of the case. A case file is reused
     only if ``check(case, rows)`` accepts its rows (e.g. :func:`sweep_check`); computed rows must pass it too.
     ``batches`` splits the cases to run into groups run one after the other (e.g. the first case of each impostor
-    first). ``warm`` = (function, *args) readies each Dask worker at the start (:func:`warm_worker`). The output
-    directory is locked for the run. Returns (rows, stats = {cases, cached, computed, seconds})."""
+    first); on Dask a case waits only for earlier batches' cases of its ``group(case)``. ``warm`` = (function,
+    *args) readies each Dask worker once (:func:`~study.harness.cluster.warm_worker`). The output directory is
+    locked for the run. Returns (rows, stats = {cases, cached, computed, seconds}, and on Dask ``dask``: its fixed
+    cost and steady throughput, :func:`~study.harness.cluster.throughput`, also in the metadata)."""
     t0 = time.perf_counter()
     out = Path(out)
     with locked(out) if into is None else _locked_into(out, into):
@@ -344,8 +337,10 @@ def run_cases(
 
         if progress:
             progress(len(done), len(cases), "")
-        if dask:
-            run_dask(batches(todo), task, jobs, dask, finish, warm=warm)
+        timing = None
+        if dask and todo:
+            timing = run_dask(batches(todo), task, jobs, dask, finish, warm=warm, group=group)
+            meta = {**meta, "dask": timing}
         elif jobs <= 1 or len(todo) <= 1:
             for c in todo:
                 fn, args = task(c)
@@ -369,6 +364,7 @@ def run_cases(
         "cached": cached,
         "computed": len(todo),
         "seconds": time.perf_counter() - t0,
+        **({"dask": timing} if timing else {}),
     }
 
 

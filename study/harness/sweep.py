@@ -175,20 +175,22 @@ def load_sweep(path: str | Path, *, backend: str = "numpy") -> Sweep:
             labels = ", ".join(f"{k}={lab}" for k, (lab, _) in chosen.items())
             raise StudyError(f"{err.detail} (case {labels})", file=str(path), key=f"axes.{err.key}") from None
         cases.append(Case(idx, f"c{idx:04d}", sc, {k: lab for k, (lab, _) in chosen.items()}))
+    code = code_hash(run_case, *[type(m) for m in methods])  # once: the same for every case
     for c in cases:
-        c.key = case_key(c.scene, methods, backend)
+        c.key = case_key(c.scene, methods, backend, code=code)
     return Sweep(path, cfg, methods, cases, hashlib.sha256(path.read_bytes()).hexdigest()[:16])
 
 
-def case_key(scene: Scene, methods: list[Method], backend: str) -> str:
+def case_key(scene: Scene, methods: list[Method], backend: str, code: str | None = None) -> str:
     """The content key of a case: its scene, the methods' labels, the backend, and the hash of the code that
-    computes its rows (run_case and everything it imports, and each method's class and module)."""
+    computes its rows (run_case and everything it imports, and each method's class and module; ``code``, when
+    given, is that hash, computed once for many cases)."""
     blob = json.dumps(
         {
             "scene": key_fields(scene),
             "methods": [m.label for m in methods],
             "backend": backend,
-            "code": code_hash(run_case, *[type(m) for m in methods]),
+            "code": code or code_hash(run_case, *[type(m) for m in methods]),
         },
         sort_keys=True,
     )
