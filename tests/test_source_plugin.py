@@ -59,7 +59,9 @@ def plugin(tmp_path, monkeypatch):
 
 
 def test_unknown_source_type_names_the_registered_ones():
-    with pytest.raises(StudyError, match=r"environment\.type: unknown environment type 'walls'; allowed: box, mesh"):
+    with pytest.raises(
+        StudyError, match=r"environment\.type: unknown environment type 'walls'; allowed: box, mesh"
+    ):
         scene_from_dict({**small_scene_dict(), "environment": {"type": "walls"}})
 
 

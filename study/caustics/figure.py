@@ -234,6 +234,7 @@ def _fig8_files(
             progress=(lambda done, n, cid: progress(done, n)) if progress else None,
             check=check,
             into=tmp / "sweep",
+            name="caustics sweep",
         )
         sweep_plot(srows, tmp / "sweep.png")
         rows = rows + srows

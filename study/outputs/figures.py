@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from study import progress as pg
 from study.cache import Cache
 from study.errors import StudyError
 from study.harness import budget
@@ -239,7 +240,13 @@ def figure_positions(
     """Run every position (or case) of a figure config with every method; write ``<out>/<name>.png`` and
     ``<out>/metrics.csv`` (one row per position or case × method). Returns the rows. ``quality``: a preset of
     :data:`study.harness.config.QUALITY` applied to every case (``paper``: 1024² renders)."""
-    cfg, scene, methods = load_figure_config(config)
+    with pg.task(name, None) as job:  # stage lines and the ETA (study.progress)
+        return _figure(config, out, name, backend, cache, progress, quality, job)
+
+
+def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) -> list[dict]:
+    with pg.stage("load"):
+        cfg, scene, methods = load_figure_config(config)
     preset = quality_overrides(quality)
     by_name = {m.name: m.label for m in reversed(methods)}  # a bare name means its first entry
     labels = (
@@ -264,19 +271,24 @@ def figure_positions(
     budget.check_backend(backend)
     budget.check_cases(scenes, methods, source=str(config))
     store = Cache(cache)
+    job.total = len(scenes)
     with locked(out):  # one command at a time here; the files are written together at the end
         cases, rows = [], []
         for i, (case_id, sc) in enumerate(scenes):
             t0 = time.perf_counter()
-            case = run_config_case(
-                sc, methods, backend=backend, cache=store, case_id=case_id, where=f"{config} {what}[{i}]"
-            )
+            with pg.item(case_id):
+                case = run_config_case(
+                    sc, methods, backend=backend, cache=store, case_id=case_id, where=f"{config} {what}[{i}]"
+                )
             for r in case.rows:
                 r["case_seconds"] = time.perf_counter() - t0
             cases.append(case)
             rows += case.rows
             if progress:
                 progress(i + 1, len(todo))
+            pg.advance(case_id)
+        mark = pg.Stages()
+        mark("outputs")  # the grid PNGs, EXRs and the viewer's images
         meta = metadata(
             config,
             backend=backend,
@@ -313,4 +325,5 @@ def figure_positions(
         files[viewer.MANIFEST] = viewer.manifest_text(name, entries)
         # every byte is made: the output set lives only while they are written (study.io.write_set)
         write_set(out, files, [f"{name}.png", f"{name}-errors.png", "exr", "viewer"], lock=False)
+        mark.end()
     return rows

@@ -80,6 +80,7 @@ from pydantic import (
     model_validator,
 )
 
+from study import progress
 from study.errors import StudyError
 from study.io import read_toml
 from study.scene.models import (  # noqa: F401  (re-exported: the scene's types live there)
@@ -164,7 +165,8 @@ class Scene(_Strict):
         except ValidationError:
             return data  # the field's own validation says what is wrong
         out = {k: (dict(v.model_dump()) if isinstance(v, BaseModel) else v) for k, v in data.items()}
-        suggested = suggest(model, given)
+        with progress.stage("placement"):
+            suggested = suggest(model, given)
         for k, v in suggested.items():
             table, key = k.split(".")
             out[table] = {**(out.get(table) or {}), key: v}
@@ -303,9 +305,7 @@ def scene_from_dict(
         ctx = {"base": str(base) if base is not None else None, "suggested": set(suggested)}
         return Scene.model_validate(data, context=ctx)
     except ValidationError as err:
-        key, msg = first_error(
-            err, Scene, skip=("mirror", "conductor", "dielectric")
-        )
+        key, msg = first_error(err, Scene, skip=("mirror", "conductor", "dielectric"))
         raise StudyError(msg, file=source, key=key or "(top level)") from None
     except StudyError as err:  # an environment that cannot be loaded (study.scene.environment)
         if err.file:

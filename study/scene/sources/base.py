@@ -8,7 +8,7 @@ A source is a pydantic model (one ``[environment]`` table of a scene) deriving f
 ``build(scene)``           the environment as an :class:`EnvGeometry` (``scene``: the whole scene, for sources
                            that read other tables — the box reads ``[room]`` and ``[[columns]]``)
 ``key_extra(scene)``       what else :meth:`build` depends on beyond the source's own keys (content keys; files
-                           called ``file`` are hashed by their bytes already, :func:`~study.scene.sources.keys.key_fields`)
+                           called ``file`` are hashed by their bytes already, :func:`.keys.key_fields`)
 ``label()``                the source in a few words (its file name, builtin, …) for log lines
 ``describe(scene)``        a short name for figure titles
 =========================  ===================================================================================

@@ -16,6 +16,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationInfo
 from pydantic_core import PydanticCustomError
 
+
 def resolve(v: Any, info: ValidationInfo) -> Any:
     """A ``file`` field: absolute, resolved against the scene file's directory; it must exist."""
     if v is None or not isinstance(v, (str, Path)):

@@ -120,7 +120,6 @@ class MitsubaEnv(Source):
         )
 
 
-
 def _sensor(m, sc) -> dict | None:
     """The scene's first camera as eye/target/up/fov (horizontal degrees)/size, or None."""
     if not sc.sensors():
@@ -144,5 +143,3 @@ def _sensor(m, sc) -> dict | None:
         "width": W,
         "height": H,
     }
-
-
