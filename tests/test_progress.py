@@ -5,6 +5,7 @@ in a log; ``--quiet`` leaves only the tables.
 The ETA is checked against the definition written in study.progress (mean seconds per unit finished in this run ×
 units left) with a clock the test controls."""
 
+import json
 import re
 
 import pytest
@@ -39,12 +40,13 @@ def figure_run(tmp_path_factory):
         str(tmp / "c"),
     ]
     loud = CliRunner().invoke(app, args)
+    meta = json.loads((tmp / "out" / "metadata.json").read_text())
     quiet = CliRunner().invoke(app, ["--quiet", *args])
-    return loud, quiet
+    return loud, quiet, meta
 
 
 def test_figure_reports_every_stage_of_every_case_in_order_with_times(figure_run):
-    res, _ = figure_run
+    res, _, _ = figure_run
     assert res.exit_code == 0, res.output
     lines = res.stderr.splitlines()
     assert lines and all(STAMP.match(line) for line in lines), lines
@@ -65,7 +67,8 @@ def test_figure_reports_every_stage_of_every_case_in_order_with_times(figure_run
 
 
 def test_tables_stay_on_stdout_whole_and_quiet_leaves_only_them(figure_run):
-    res, quiet = figure_run
+    res, quiet, meta = figure_run
+    assert isinstance(meta["exposure_ev"], float) and "99th percentile" in meta["exposure_rule"]  # stated
     assert "fig_tiny-p0: capture" not in res.stdout  # progress never in the tables
     for label in ("classical", "localized", "proxy_sphere", "angle_median_deg", "occluded_fraction"):
         assert label in res.stdout  # full labels: no cell cut to fit 80 columns in a log

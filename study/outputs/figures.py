@@ -96,6 +96,27 @@ def _template(labels: list[str], part: str, outcome_panel: bool, occlusion_panel
     return [imgs + angle + more]
 
 
+# ---------------------------------------------------------------------------------------------- exposure
+#: The exposure of a figure's images: the PERCENTILE-th percentile of the object's luminance in the reference
+#: (Mitsuba's render, over the object's pixels of every case) is shown at WHITE, before clipping at 1 and sRGB.
+PERCENTILE, WHITE = 99.0, 0.8
+EXPOSURE_RULE = f"the {PERCENTILE:g}th percentile of the object's luminance in Mitsuba's render → {WHITE:g}"
+
+
+def figure_exposure(cases: list[CaseOutput]) -> float:
+    """The exposure (EV: images × 2^EV) of a figure's images, one for all its cases so rows compare:
+    :data:`EXPOSURE_RULE` (Rec. 709 luminance); 0 where the object shows no light."""
+    lum = [
+        np.asarray(c.mitsuba, np.float64)[c.mask] @ np.array([0.2126, 0.7152, 0.0722])
+        for c in cases
+        if c.mitsuba is not None and c.mask is not None
+    ]
+    lum = np.concatenate(lum) if lum else np.zeros(0)
+    lum = lum[np.isfinite(lum)]
+    top = float(np.percentile(lum, PERCENTILE)) if lum.size else 0.0
+    return float(np.log2(WHITE / top)) if top > 0 else 0.0
+
+
 def image_grid(
     cases: list[CaseOutput],
     labels: list[str],
@@ -107,6 +128,7 @@ def image_grid(
     row_labels: list[str] | None = None,
     part: str = "all",
     max_width_px: int | None = None,
+    exposure: float = 0.0,
 ) -> bytes | None:
     """Rows: cases; columns: each method's image, the ray-traced (Mitsuba) image, each method's angular-error
     heatmap (degrees, log scale 0.01°–30°), with ``outcome_panel`` each method's outcome-class map (per pixel the
@@ -114,8 +136,8 @@ def image_grid(
     and, with ``occlusion_panel``, the fraction of each pixel's rays whose exact hit is hidden from the reference
     point (two classes with a legend where each pixel is one ray). ``part``: ``"images"`` or ``"errors"`` (the
     angular errors, the outcome and hidden maps under them) for only those panels. Images are tone mapped by
-    clipping at 1 and sRGB encoding. ``max_width_px``: panels shrink so the PNG is at most this wide. With ``path``
-    None: the PNG's bytes."""
+    ``exposure`` (EV: × 2^exposure, :func:`figure_exposure`), clipping at 1 and sRGB encoding. ``max_width_px``:
+    panels shrink so the PNG is at most this wide. With ``path`` None: the PNG's bytes."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -123,6 +145,7 @@ def image_grid(
     from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
 
     tpl = _template(labels, part, outcome_panel, occlusion_panel)
+    gain = 2.0**exposure
     errs = part != "images"
     ncol, nrow = max(len(r) for r in tpl), len(tpl) * len(cases)
     side = 2.3
@@ -157,9 +180,9 @@ def image_grid(
             for c, (kind, lab) in enumerate(row):
                 ax = axr[c]
                 if kind == "image":
-                    ax.imshow(to_ldr(case.images[lab])[sy, sx], interpolation="nearest")
+                    ax.imshow(to_ldr(case.images[lab][sy, sx] * gain), interpolation="nearest")
                 elif kind == "mitsuba":
-                    ax.imshow(to_ldr(case.mitsuba)[sy, sx], interpolation="nearest")
+                    ax.imshow(to_ldr(case.mitsuba[sy, sx] * gain), interpolation="nearest")
                 elif kind == "angle":
                     err = np.clip(case.angle_maps[lab][sy, sx], 0.01, None)
                     hm = ax.imshow(err, norm=norm, cmap="magma", interpolation="nearest")
@@ -199,9 +222,15 @@ def image_grid(
     return None
 
 
-def image_grids(name: str, cases, labels, **kw) -> dict[str, bytes]:
+def image_grids(
+    name: str, cases, labels, *, title: str, exposure: float | None = None, **kw
+) -> dict[str, bytes]:
     """The figure's grid PNGs: ``<name>.png`` whole where it is at most :data:`MAX_WIDTH_PX` wide, else the images
-    in ``<name>.png`` and the error maps in ``<name>-errors.png``, each shrunk to fit a page."""
+    in ``<name>.png`` and the error maps in ``<name>-errors.png``, each shrunk to fit a page. The images' exposure
+    (EV; :func:`figure_exposure` of ``cases`` unless given) is stated at the end of the title."""
+    if exposure is None:
+        exposure = figure_exposure(cases)
+    kw.update(exposure=exposure, title=f"{title}, exposure {exposure:+.2f} EV (object's p99 → {WHITE:g})")
     ncol = (
         2 * len(labels)
         + 1
@@ -289,6 +318,7 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) 
             pg.advance(case_id)
         mark = pg.Stages()
         mark("outputs")  # the grid PNGs, EXRs and the viewer's images
+        exposure = figure_exposure(cases)
         meta = metadata(
             config,
             backend=backend,
@@ -297,6 +327,8 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) 
             cases=len(todo),
             figure=name,
             quality=quality,
+            exposure_ev=round(exposure, 4),  # of the grid's images (figure_exposure)
+            exposure_rule=EXPOSURE_RULE,
         )
         pngs = image_grids(
             name,
@@ -308,6 +340,7 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) 
             occlusion_panel=cfg.occlusion_panel,
             outcome_panel=cfg.outcome_panel,
             row_labels=None if cfg.positions is not None else [lab for _, lab, _ in todo],
+            exposure=exposure,
         )
         files = {
             **table_files(rows, "metrics"),
