@@ -72,7 +72,10 @@ class Reporter:
         """Unit ``what`` finished (``task.done`` counts it)."""
 
     def finished(self, task: Task) -> None:
-        """The task ended."""
+        """The task ended with all its work done."""
+
+    def failed(self, task: Task) -> None:
+        """The task ended on an error (the error says why; nothing more to print)."""
 
 
 _reporter: Reporter | None = None
@@ -96,17 +99,24 @@ def _current() -> Task:
 
 @contextlib.contextmanager
 def task(name: str, total: int | None, done: int = 0) -> Iterator[Task]:
-    """A loop over ``total`` units, ``done`` of them finished already (resumed)."""
+    """A loop over ``total`` units, ``done`` of them finished already (resumed); ``finished`` is reported only when
+    the block ends without an error."""
     t = Task(name, total, done=done, start=done)
     _tasks.append(t)
+    reporter = _reporter
     try:
-        if _reporter:
-            _reporter.started(t)
+        if reporter:
+            reporter.started(t)
         yield t
+    except BaseException:
+        if reporter:
+            reporter.failed(t)
+        raise
+    else:
+        if reporter:
+            reporter.finished(t)
     finally:
         _tasks.remove(t)
-        if _reporter:
-            _reporter.finished(t)
 
 
 def advance(what: str = "") -> None:

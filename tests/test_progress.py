@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from study import progress
 from study.cli import app
-from study.cli.progress import Lines, duration
+from study.cli.progress import Bar, Lines, duration
 from tests.conftest import scene_toml, small_scene_dict
 
 CASE = ["load", "capture", "probes", "references", "methods", "metrics"]
@@ -89,23 +89,33 @@ def test_eta_is_mean_time_per_unit_run_here_times_units_left(monkeypatch):
 
 
 def test_nothing_is_reported_without_a_reporter_and_lines_name_task_item_and_stage():
+    import io
+
     from rich.console import Console
 
     with progress.task("quiet", 2), progress.item("a"), progress.stage("load"):
         pass  # no reporter: a no-op
-    con = Console(file=__import__("io").StringIO(), width=100_000)
-    with progress.reporting(Lines(con)), progress.task("job", 2):
-        with progress.item("case-a"):
-            mark = progress.Stages()
-            mark("load")
-            mark("capture")
-            mark.end()
-        progress.advance("case-a")
-    out = con.file.getvalue()
-    said = [line.split("] ", 1)[1] for line in out.splitlines()]
-    assert said[0] == "job: 2 to do"
-    assert re.fullmatch(r"job 1/2 case-a: load \d+\.\d s", said[1])
-    assert re.fullmatch(r"job 1/2 case-a: capture \d+\.\d s", said[2])
-    assert re.fullmatch(r"job: 1/2 done \(case-a\), ETA \d+\.\d s", said[3])
-    assert re.fullmatch(r"job: finished in \d+\.\d s", said[4]) and len(said) == 5
+    for kind, tty in (
+        (Lines, False),
+        (Bar, True),
+    ):  # plain lines in a log; the same above a bar on a terminal
+        con = Console(file=io.StringIO(), width=200, force_terminal=tty, color_system=None)
+        with progress.reporting(kind(con)), progress.task("job", 2):
+            with progress.item("case-a"):
+                mark = progress.Stages()
+                mark("load")
+                mark("capture")
+                mark.end()
+            progress.advance("case-a")
+        text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", con.file.getvalue())  # the bar's cursor moves out
+        lines = [ln.rsplit("\r", 1)[-1] for ln in text.split("\n")]  # a line printed over the bar
+        said = [ln.split("] ", 1)[1] for ln in lines if STAMP.match(ln)]
+        assert re.fullmatch(r"job 1/2 case-a: load \d+\.\d s", said[0]), (kind, said)
+        assert re.fullmatch(r"job 1/2 case-a: capture \d+\.\d s", said[1])
+        assert re.fullmatch(r"job: 1/2 done \(case-a\), ETA \d+\.\d s", said[2])
+        assert re.fullmatch(r"job: finished in \d+\.\d s", said[3]) and len(said) == 4
+    con = Console(file=io.StringIO(), width=200)
+    with pytest.raises(ValueError), progress.reporting(Lines(con)), progress.task("job", 2):
+        raise ValueError  # a failed task: the error says why, no "finished" line
+    assert con.file.getvalue() == ""
     assert duration(42.04) == "42.0 s" and duration(192) == "3 min 12 s" and duration(3720) == "1 h 02 min"

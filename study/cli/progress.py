@@ -46,11 +46,6 @@ class Lines(Reporter):
         stamp = f"[{time.perf_counter() - self.t0:7.1f} s] "
         self.console.print(stamp + text, highlight=False, markup=False, soft_wrap=True)
 
-    def started(self, task: Task) -> None:
-        if task.total:
-            earlier = f", {task.done} done earlier" if task.done else ""
-            self.line(f"{task.name}: {task.total} to do{earlier}")
-
     def stage(self, task: Task, name: str, seconds: float) -> None:
         self.line(f"{task.where}: {name} {duration(seconds)}")
 
@@ -58,7 +53,8 @@ class Lines(Reporter):
         of = f"/{task.total}" if task.total else ""
         left = task.eta
         eta = "" if left is None else (", ETA " + duration(left) if task.done < (task.total or 0) else "")
-        self.line(f"{task.name}: {task.done}{of} done" + (f" ({what})" if what else "") + eta)
+        earlier = f", {task.start} of them by an earlier run" if task.start else ""
+        self.line(f"{task.name}: {task.done}{of} done" + (f" ({what})" if what else "") + earlier + eta)
 
     def finished(self, task: Task) -> None:
         self.line(f"{task.name}: finished in {duration(task.elapsed)}")
@@ -98,7 +94,6 @@ class Bar(Lines):
         if not self.ids:
             self.bar.start()
         self.ids[id(task)] = self.bar.add_task(escape(task.name), total=task.total, completed=task.done)
-        super().started(task)
 
     def entered(self, task: Task, name: str) -> None:
         if id(task) in self.ids:
@@ -109,12 +104,15 @@ class Bar(Lines):
             self.bar.update(self.ids[id(task)], total=task.total, completed=task.done)
         super().advanced(task, what)
 
-    def finished(self, task: Task) -> None:
+    def failed(self, task: Task) -> None:
         tid = self.ids.pop(id(task), None)
         if tid is not None:
             self.bar.remove_task(tid)
         if not self.ids:
             self.bar.stop()
+
+    def finished(self, task: Task) -> None:
+        self.failed(task)  # the bar goes either way
         super().finished(task)
 
 
