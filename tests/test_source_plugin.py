@@ -30,10 +30,10 @@ PLUGIN = textwrap.dedent('''
     from study.scene.parts import Part
     from study.scene.room import SURFACES, room_mesh, texture
     from study.scene.schema import Room
-    from study.scene.sources import EnvGeometry, Source, register
+    from study.scene.sources import EnvGeometry, Source, register_source
 
 
-    @register
+    @register_source
     class Walls(Source):
         type: Literal["walls"]
         lo: tuple[float, float, float]

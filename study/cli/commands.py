@@ -129,8 +129,7 @@ def check(
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
 ):
     """CI regression: run a small fixed sweep and compare every metric with the committed baseline."""
-    with console.status("check: running the check sweep…"):
-        fails, lines = run_check(shipped(config), update=update, cache=cache, backend=backend)
+    fails, lines = run_check(shipped(config), update=update, cache=cache, backend=backend)  # progress: stderr
     for line in lines:
         console.print(line, highlight=False)
     if fails:

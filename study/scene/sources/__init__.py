@@ -5,7 +5,7 @@ content keys of their files (``keys``).
 
 Every module of this package is imported here, so adding a source type means adding a file and nothing else;
 from outside the package a module that study imports at start (``study --plugin MODULE``, ``$STUDY_PLUGINS``)
-registers one the same way (``@register``).
+registers one the same way (``@register_source``).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from typing import Annotated
 
 from pydantic import PlainValidator, SerializeAsAny
 
-from study.scene.sources.base import SOURCES, EnvGeometry, Source, register, validate_source
+from study.scene.sources.base import SOURCES, EnvGeometry, Source, register_source, validate_source
 from study.scene.sources.keys import FRAMING_KEYS, file_digest, key_fields, resolve
 
 for _m in pkgutil.iter_modules(__path__):
@@ -37,6 +37,6 @@ __all__ = [
     "Source",
     "file_digest",
     "key_fields",
-    "register",
+    "register_source",
     "resolve",
 ]

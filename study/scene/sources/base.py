@@ -2,7 +2,7 @@
 what a source builds: triangles with surface ids, each surface's material, the emitters, and the bounds.
 
 A source is a pydantic model (one ``[environment]`` table of a scene) deriving from :class:`Source`, with a field
-``type: Literal["<name>"]`` and its own keys, decorated with :func:`register`. It answers four questions:
+``type: Literal["<name>"]`` and its own keys, decorated with :func:`register_source`. It answers four questions:
 
 =========================  ===================================================================================
 ``build(scene)``           the environment as an :class:`EnvGeometry` (``scene``: the whole scene, for sources
@@ -93,11 +93,11 @@ class Source(BaseModel):
         return f"{self.type} {self.label()}"
 
 
-#: Source name (its ``type``) → its model class, filled by :func:`register`.
+#: Source name (its ``type``) → its model class, filled by :func:`register_source`.
 SOURCES: dict[str, type[Source]] = {}
 
 
-def register(cls: type[Source]) -> type[Source]:
+def register_source(cls: type[Source]) -> type[Source]:
     """Class decorator: add an environment source under the name its ``type: Literal["name"]`` field gives."""
     args = typing.get_args(cls.model_fields["type"].annotation) if "type" in cls.model_fields else ()
     if not (isinstance(cls, type) and issubclass(cls, Source)) or len(args) != 1:

@@ -9,10 +9,10 @@ import numpy as np
 
 from study.scene.parts import Part
 from study.scene.room import SURFACES, room_mesh, texture
-from study.scene.sources.base import EnvGeometry, Source, register
+from study.scene.sources.base import EnvGeometry, Source, register_source
 
 
-@register
+@register_source
 class BoxEnv(Source):
     type: Literal["box"] = "box"
     placed: ClassVar[bool] = False  # the scene's defaults are the paper's placement

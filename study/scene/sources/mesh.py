@@ -14,13 +14,13 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, ValidationInfo, field_validator
 
-from study.scene.sources.base import EnvGeometry, Source, register
+from study.scene.sources.base import EnvGeometry, Source, register_source
 from study.scene.sources.keys import resolve
 
 Vec3 = tuple[float, float, float]
 
 
-@register
+@register_source
 class MeshEnv(Source):
     type: Literal["mesh"]
     file: str  # OBJ / glTF / GLB by study's readers; PLY / STL / OFF by trimesh

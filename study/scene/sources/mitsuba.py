@@ -18,11 +18,11 @@ from pydantic_core import PydanticCustomError
 from study.errors import StudyError
 from study.scene.parts import Part
 from study.scene.room import RoomMesh
-from study.scene.sources.base import EnvGeometry, Source, register
+from study.scene.sources.base import EnvGeometry, Source, register_source
 from study.scene.sources.keys import resolve
 
 
-@register
+@register_source
 class MitsubaEnv(Source):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, arbitrary_types_allowed=True)
     type: Literal["mitsuba"]
