@@ -57,7 +57,7 @@ def test_figure_reports_every_stage_of_every_case_in_order_with_times(figure_run
     ]
     assert stages == [("1/2 fig_tiny-p0", s) for s in CASE] + [("2/2 fig_tiny-p1", s) for s in CASE]
     text = res.stderr
-    assert re.search(r"\] fig_tiny: load \d+\.\d s\n", text)  # the config, before any case
+    assert lines[0].endswith("fig_tiny 1/2 fig_tiny-p0: load " + lines[0].rsplit(" ", 2)[1] + " s")  # first
     done1 = re.search(r"\] fig_tiny: 1/2 done \(fig_tiny-p0\), ETA (\d+\.\d) s\n", text)
     assert done1 and text.index(done1.group(0)) > text.index("fig_tiny-p0: metrics")
     assert text.index(done1.group(0)) < text.index("fig_tiny-p1: load")

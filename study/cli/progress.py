@@ -5,11 +5,10 @@ off. Tables and results go to stdout, untouched.
 
 A log of ``study figure fig4`` reads::
 
-    [   0.4 s] fig4: load 0.4 s
-    [   1.9 s] fig4 1/5 fig4-p0: load 1.5 s
-    [  14.2 s] fig4 1/5 fig4-p0: capture 12.3 s
+    [    1.4 s] fig4 1/4 fig4-p0: load 1.1 s
+    [  320.2 s] fig4 1/4 fig4-p0: capture 5 min 19 s
     …
-    [  31.0 s] fig4: 1/5 done (fig4-p0), ETA 2 min 4 s
+    [  …     s] fig4: 1/4 done (fig4-p0), ETA …
 """
 
 from __future__ import annotations

@@ -204,8 +204,7 @@ def animate(
 def _animate(config, out, backend, cache, progress, job: pg.Task) -> list[dict]:
     import imageio.v3 as iio
 
-    with pg.stage("load"):
-        cfg, scenes, methods, travelled = load_motion_config(config)
+    cfg, scenes, methods, travelled = load_motion_config(config)
     job.total = len(scenes)
     labels = [m.label for m in methods]
     budget.check_backend(backend)

@@ -274,8 +274,7 @@ def figure_positions(
 
 
 def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) -> list[dict]:
-    with pg.stage("load"):
-        cfg, scene, methods = load_figure_config(config)
+    cfg, scene, methods = load_figure_config(config)  # placement, where it runs, is a stage of its own
     preset = quality_overrides(quality)
     by_name = {m.name: m.label for m in reversed(methods)}  # a bare name means its first entry
     labels = (
