@@ -6,6 +6,7 @@ The plug-in ("walls") builds the box room's own triangles and textures from a ``
 independent check that every layer took the environment from the source, not from the box room's code path."""
 
 import os
+import re
 import sys
 import textwrap
 
@@ -87,6 +88,8 @@ def test_plugin_source_runs_end_to_end_like_the_box_it_draws(tmp_path, plugin):
         )
         assert res.exit_code == 0, res.output
         rows[name] = {r["method"]: r for r in read_csv(out / "results.csv")}
+        stages = re.findall(rf"\] sweep sweep-{name} 1/1 \S+: (\w+) \d+\.\d s\n", res.stderr)  # progress
+        assert stages == ["load", "capture", "probes", "references", "methods", "metrics"], res.stderr
     assert set(rows["walls"]) >= {"classical", "localized", "proxy_box", "oracle_map"}
     for m, r in rows["box"].items():
         for col in ("angle_median_deg", "wrong_fraction", "rmse_oracle", "rmse_mitsuba"):
