@@ -37,6 +37,7 @@ ORDER = [
     "runtime.py",
     "codehash.py",
     "errors.py",
+    "progress.py",
 ]
 
 
@@ -56,8 +57,13 @@ def table() -> str:
         p = ROOT / "study" / name
         if p.is_dir():
             rows.append(f"| `study/{name}/` | {_first_sentence(p / '__init__.py')} |")
-            for mod in sorted(p.glob("*.py")):
-                if mod.name != "__init__.py":
+            for mod in sorted([*p.glob("*.py"), *(d for d in p.iterdir() if (d / "__init__.py").is_file())]):
+                if mod.is_dir():  # a package inside the package (scene/sources/): its modules under it
+                    rows.append(f"| &nbsp;&nbsp;`{mod.name}/` | {_first_sentence(mod / '__init__.py')} |")
+                    for sub in sorted(mod.glob("*.py")):
+                        if sub.name != "__init__.py":
+                            rows.append(f"| &nbsp;&nbsp;&nbsp;&nbsp;`{sub.name}` | {_first_sentence(sub)} |")
+                elif mod.name != "__init__.py":
                     rows.append(f"| &nbsp;&nbsp;`{mod.name}` | {_first_sentence(mod)} |")
         else:
             rows.append(f"| `study/{name}` | {_first_sentence(p)} |")

@@ -1,6 +1,8 @@
 """Shared fixtures. Reference values are computed analytically (study.impostor.analytic) unless a test says
 otherwise."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -77,3 +79,12 @@ def scene_toml(d: dict) -> str:
     return "\n".join(
         f"[{t}]\n" + "\n".join(f"{k} = {val(v)}" for k, v in tab.items()) + "\n" for t, tab in d.items()
     )
+
+
+#: A progress line of a command (study.cli.progress), stamped with the seconds since the command began.
+PROGRESS_LINE = re.compile(r"^\[\s*\d+\.\d s\] ")
+
+
+def error_output(res) -> str:
+    """A command's output without its progress lines: what one-line-error checks read."""
+    return "\n".join(ln for ln in res.output.splitlines() if not PROGRESS_LINE.match(ln)).strip()

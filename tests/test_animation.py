@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import error_output
 from typer.testing import CliRunner
 
 from study.cli import app
@@ -131,7 +132,7 @@ def test_bad_config_is_one_line_and_keeps_outputs(tmp_path, extra, words):
     )
     assert res.exit_code == 2, res.output
     assert words in res.output.replace("\n", ""), res.output
-    assert len(res.output.strip().splitlines()) == 1 and "Traceback" not in res.output
+    assert len(error_output(res).splitlines()) == 1 and "Traceback" not in res.output
     assert (out / "motion.gif").read_bytes() == b"earlier"
 
 

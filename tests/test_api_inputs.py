@@ -2,6 +2,7 @@
 never a bare TypeError or a message about an internal union branch."""
 
 import pytest
+from conftest import error_output
 from typer.testing import CliRunner
 
 import study
@@ -70,6 +71,6 @@ def test_run_refusal_names_the_scene_file(tmp_path):
             str(tmp_path),
         ],
     )
-    text = res.output.strip()
+    text = error_output(res)  # progress lines (stderr) may precede the one error line
     assert res.exit_code == 2 and text.startswith("error: scenes/room.toml: render.spp"), text
     assert "evaluate" not in text

@@ -11,6 +11,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
+from conftest import error_output
 from typer.testing import CliRunner
 
 from study.cli import app
@@ -142,7 +143,7 @@ def digest(d: Path) -> dict:
 
 
 def assert_one_line_error(res, words, before, out, code=2):
-    text = res.output.strip()
+    text = error_output(res)  # the error is one line; progress lines on stderr may precede it
     assert res.exit_code == code, res.output
     assert text.startswith("error: ") and "\n" not in text, text
     assert words in text, text

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import BACKENDS
+from conftest import BACKENDS, error_output
 from typer.testing import CliRunner
 
 from study import runtime
@@ -99,7 +99,7 @@ def test_cuda_backend_without_gpu_is_one_line_environment_error(cpu_device, tmp_
     if res.exit_code == 0:
         pytest.skip("a GPU is present")
     assert res.exit_code == 3, res.output
-    assert len(res.output.strip().splitlines()) == 1 and "cuda" in res.output.lower()
+    assert len(error_output(res).splitlines()) == 1 and "cuda" in res.output.lower()
     assert runtime.render_device() == "cpu"  # the command's setting does not outlive it
 
 

@@ -13,14 +13,14 @@ from study.cli.run import parse_sets
 from study.errors import StudyError
 from study.io import read_exr_layers
 from study.tables import read_csv
-from tests.conftest import scene_toml, small_scene_dict
+from tests.conftest import error_output, scene_toml, small_scene_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 run = CliRunner().invoke
 
 
 def one_line_error(res, *words):
-    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    lines = [ln for ln in error_output(res).splitlines() if ln.strip()]  # progress lines aside
     assert len(lines) == 1 and lines[0].startswith("error: "), res.output
     for w in words:
         assert w in lines[0], (w, lines[0])

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from study import progress as pg
 from study.cache import Cache, content_key
 from study.caustics import display, lightmap
 from study.caustics import photons as caustics
@@ -107,7 +108,15 @@ def fig8(
     progress=None,
 ) -> list[dict]:
     """Figure 8 (``<out>/fig8.png``, ``<out>/fig8.csv``) and, with ``sweep``, the sweep (``<out>/sweep.csv``,
-    ``<out>/sweep.png``) over the config's resolutions × methods. Returns the rows written."""
+    ``<out>/sweep.png``) over the config's resolutions × methods. Returns the rows written. Progress: stages of
+    the figure, then the sweep's cases (:mod:`study.progress`)."""
+    with pg.task("fig8", None):
+        return _fig8(config, out, backend, cache, sweep, progress)
+
+
+def _fig8(config, out, backend, cache, sweep, progress) -> list[dict]:
+    mark = pg.Stages()
+    mark("load")
     cfg, scene, methods = load_caustic_config(config)
     out = Path(out)
     budget.check_backend(backend)
@@ -116,7 +125,9 @@ def fig8(
     show = next((m for m in methods if m.label == (cfg.show or methods[-1].label)), None)
     if show is None:
         raise StudyError(f"show names {cfg.show!r}, not among the methods", file=str(config), key="show")
+    mark("capture")  # the impostor, Mitsuba's renders, the light maps' frames
     *_, S = _setup(str(config), backend, cache_s)
+    mark.end()
     owns = ["fig8.csv", "fig8.png"] + (
         ["sweep.png", "sweep/results.csv", "sweep/metadata.json"] if sweep else []
     )
@@ -154,6 +165,8 @@ def _fig8_files(
 ) -> list[dict]:
     """Figure 8 and, with ``sweep``, the sweep, written into ``tmp`` (the case files under ``out/sweep/cases``)."""
     res = cfg.caustic.res
+    mark = pg.Stages()
+    mark("methods")  # the caustic map of the method shown, measured, and Figure 8's images
     rows = caustic_rows(cfg, scene, [show], resolutions=[res], setup=S)
     write_csv(rows, tmp / "fig8.csv")
     # ------------------------------------------------------------------ images (display only: not in fig8.csv)
@@ -190,6 +203,7 @@ def _fig8_files(
         f"caustic image RMSE vs Mitsuba {r['img_rmse_mitsuba']:.3g} (σ = {cp.sigma * 1e3:g} mm), "
         f"{adaptive:.3g} (kNN splats); Mitsuba noise {r['mitsuba_noise_rmse']:.3g}",
     )
+    mark.end()
     if sweep:
         labels = [m.label for m in methods]
         code = code_hash(_resolution_case, *[type(m) for m in methods])
@@ -234,6 +248,7 @@ def _fig8_files(
             progress=(lambda done, n, cid: progress(done, n)) if progress else None,
             check=check,
             into=tmp / "sweep",
+            name="caustics sweep",
         )
         sweep_plot(srows, tmp / "sweep.png")
         rows = rows + srows

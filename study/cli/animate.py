@@ -22,12 +22,7 @@ def animate(
     """Render the motion config's frames (one case each) and write motion.gif / motion.mp4, frames.csv,
     motion.png and metadata.json under <out>."""
     t0 = time.perf_counter()
-    with console.status("animate: rendering frames…") as status:
-
-        def progress(i, n):
-            status.update(f"animate: {i}/{n} frames ({time.perf_counter() - t0:.0f} s)")
-
-        rows = make_animation(config, out, backend=backend, cache=cache, progress=progress)
+    rows = make_animation(config, out, backend=backend, cache=cache)  # progress: study.cli.progress
     frames = len({r["frame"] for r in rows})
     console.print(
         f"animate: wrote {out} ({frames} frames) in {time.perf_counter() - t0:.1f} s", highlight=False

@@ -18,7 +18,7 @@ from pathlib import Path
 import typer
 from rich.console import Console
 
-from study import __version__, methods, runtime
+from study import __version__, methods, progress, runtime
 from study.errors import StudyError, user_error
 from study.harness import budget
 from study.harness.config import shipped
@@ -50,6 +50,7 @@ def _version(value: bool) -> None:
 
 #: Global options of this run (set by the callback before the command).
 DEBUG = {"on": False}
+QUIET = {"on": False}
 
 
 @app.callback()
@@ -61,6 +62,12 @@ def _options(
         help="import MODULE first: methods it registers join every command (repeatable; also $STUDY_PLUGINS)",
     ),
     debug: bool = typer.Option(False, "--debug", help="show the traceback of an error"),
+    quiet: bool = typer.Option(
+        False,
+        "--quiet",
+        "-q",
+        help="no progress lines on stderr (stages, times, ETA); tables and errors stay",
+    ),
     max_memory: float = typer.Option(
         budget.DEFAULT_MAX_MEMORY_GIB,
         "--max-memory",
@@ -79,6 +86,7 @@ def _options(
 ):
     """Measure how close GPU-friendly approximations of ray tracing come to ray tracing."""
     DEBUG["on"] = debug
+    QUIET["on"] = quiet
     _wide_when_logged()
     try:
         budget.set_limits(max_memory, max_minutes)
@@ -110,8 +118,9 @@ def _fail(err: StudyError) -> None:
 
 
 def guarded(llvm: bool = False):
-    """A command whose errors are one line each (:func:`study.errors.user_error`); ``llvm``: it renders, so the
-    libLLVM that Mitsuba and Dr.Jit will load is checked first (exit 3 where it would abort the process)."""
+    """A command whose errors are one line each (:func:`study.errors.user_error`) and whose progress goes to
+    stderr by stage (:mod:`study.cli.progress`, unless ``--quiet``); ``llvm``: it renders, so the libLLVM that
+    Mitsuba and Dr.Jit will load is checked first (exit 3 where it would abort the process)."""
 
     def wrap(fn):
         @functools.wraps(fn)
@@ -122,7 +131,7 @@ def guarded(llvm: bool = False):
                 cuda = (
                     "cuda" if kwargs.get("backend") == "cuda" else None
                 )  # renders and exact hits on the GPU too
-                with runtime.using_render_device(cuda):
+                with runtime.using_render_device(cuda), progress.reporting(_reporter()):
                     return fn(*args, **kwargs)
             except (typer.Exit, typer.Abort, typer.TyperException):
                 raise
@@ -139,6 +148,13 @@ def guarded(llvm: bool = False):
         return run
 
     return wrap
+
+
+def _reporter():
+    """Progress by stage on stderr (:mod:`study.cli.progress`), or none with ``--quiet``."""
+    from study.cli.progress import reporter
+
+    return None if QUIET["on"] else reporter(err_console)
 
 
 def _interrupt(signum, frame):

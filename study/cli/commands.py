@@ -56,14 +56,7 @@ def figure(
     t0 = time.perf_counter()
     if "caustic" in read_toml(config):  # caustics (fig8): study/caustics/figure.py
         return _caustics(config, out, backend, cache, sweep=False)
-    with console.status(f"{name}: rendering and measuring…") as status:
-
-        def progress(i, n):
-            status.update(f"{name}: {i}/{n} rows done ({time.perf_counter() - t0:.0f} s)")
-
-        rows = figure_positions(
-            config, out, name=name, backend=backend, cache=cache, progress=progress, quality=quality
-        )
+    rows = figure_positions(config, out, name=name, backend=backend, cache=cache, quality=quality)
     _print_table(rows)
     console.print(f"{name}: wrote {out} in {time.perf_counter() - t0:.1f} s", highlight=False)
 
@@ -106,52 +99,21 @@ def sweep(
     plots: bool = typer.Option(True, help="write the error curves next to the table"),
 ):
     """Run (or resume) a sweep: one row per case × method in <out>/results.csv, curves beside it."""
-    from rich.markup import escape
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
     from study.harness.cluster import check_address
 
     dask = check_address(dask)  # before any work: '' and 'banana' are refused, not run locally
     out = out or Path("reports") / f"sweep-{config.stem}"
-    ready = prepare_sweep(config, backend=backend, jobs=jobs)  # every case checked before the progress bar
-    with Progress(
-        TextColumn("[bold]{task.description}"),  # the description is escaped: a name is text
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TextColumn("ETA"),
-        TimeRemainingColumn(),
-        console=err_console,
-        transient=False,
-    ) as bar:
-        task = bar.add_task(escape(f"sweep {config.stem}"), total=None)
-
-        def progress(done, total, case_id):
-            if bar.tasks[task].total is None:
-                bar.update(task, total=total, completed=done)  # finished cases from an earlier run
-                bar.tasks[task].start_time = None
-                bar.start_task(task)
-            else:
-                bar.update(task, completed=done, description=escape(f"sweep {config.stem} ({case_id})"))
-
-        rows, stats = run_sweep(
-            config,
-            out,
-            backend=backend,
-            cache=cache,
-            jobs=jobs,
-            dask=dask,
-            prepared=ready,
-            progress=progress,  # the curves join the table's output set
-            extra=(lambda rows, d: sweep_plots(rows, d / "plots")) if plots else None,
-        )
+    ready = prepare_sweep(config, backend=backend, jobs=jobs)  # every case checked before any work
+    rows, stats = run_sweep(  # progress by case on stderr (study.cli.progress)
+        config,
+        out,
+        backend=backend,
+        cache=cache,
+        jobs=jobs,
+        dask=dask,
+        prepared=ready,
+        extra=(lambda rows, d: sweep_plots(rows, d / "plots")) if plots else None,  # in the output set
+    )
     console.print(
         f"sweep: {stats['cases']} cases ({stats['cached']} already done, {stats['computed']} computed) "
         f"in {stats['seconds']:.1f} s → {out / 'results.csv'}",
@@ -172,8 +134,7 @@ def check(
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
 ):
     """CI regression: run a small fixed sweep and compare every metric with the committed baseline."""
-    with console.status("check: running the check sweep…"):
-        fails, lines = run_check(shipped(config), update=update, cache=cache, backend=backend)
+    fails, lines = run_check(shipped(config), update=update, cache=cache, backend=backend)  # progress: stderr
     for line in lines:
         console.print(line, highlight=False)
     if fails:
@@ -248,7 +209,7 @@ def bench(
         rows, scal, info = run_bench(
             scene,
             opt,
-            log=lambda s: console.print(f"[{time.perf_counter() - t0:6.1f} s] {s}", highlight=False),
+            log=lambda s: err_console.print(f"[{time.perf_counter() - t0:7.1f} s] {s}", highlight=False),
             on_table=lambda rows, info: files.extend(write_bench_files(rows, info, out, lock=False)),
         )
         if scal:

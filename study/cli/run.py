@@ -19,6 +19,7 @@ from pathlib import Path
 
 import typer
 
+from study import progress
 from study.cli.app import app, console, guarded
 from study.errors import StudyError
 from study.io import file_stem
@@ -89,23 +90,27 @@ def run(
     t0 = time.perf_counter()  # the time reported includes loading and placing the scene
     overrides = parse_sets(set_)
     methods = method_list(method or "all", key="--method")
-    with console.status(f"{scene.name}: loading and placing…"):
-        sc = load_scene(scene, overrides)
-    t_load = time.perf_counter() - t0
-    if sc.load_summary():  # what the environment's file held, and what was ignored (stderr)
-        typer.echo(sc.load_summary(), err=True)
-    out = out or Path("reports") / f"run-{file_stem(scene.stem)}"
-    with console.status(f"{scene.name}: rendering and measuring…"):
-        res = evaluate(sc, methods, backend=backend, cache=cache, source=str(scene))
-    shown = res.shown()
-    t = Table(title=res.summary())
-    for c in shown.columns:
-        t.add_column(HEADERS.get(c, c), justify="left" if c == "label" else "right", overflow="fold")
-    for row in shown.itertuples(index=False):
-        t.add_row(*(f"{v:.3g}" if isinstance(v, float) else str(v) for v in row))
-    Console(width=max(console.width, 150), highlight=False, markup=False).print(t)  # wide: no cell cut to "…"
-    res.save(out)
-    console.print(
-        f"run: wrote {out} in {time.perf_counter() - t0:.1f} s (loading and placement {t_load:.1f} s)",
-        highlight=False,
-    )
+    with progress.task(f"run {scene.name}", 1):  # stages on stderr (study.cli.progress)
+        with progress.stage("load"):
+            sc = load_scene(scene, overrides)
+        t_load = time.perf_counter() - t0
+        if sc.load_summary():  # what the environment's file held, and what was ignored (stderr)
+            typer.echo(sc.load_summary(), err=True)
+        out = out or Path("reports") / f"run-{file_stem(scene.stem)}"
+        with progress.item(file_stem(scene.stem)):
+            res = evaluate(sc, methods, backend=backend, cache=cache, source=str(scene))
+        progress.advance(file_stem(scene.stem))
+        shown = res.shown()
+        t = Table(title=res.summary())
+        for c in shown.columns:
+            t.add_column(HEADERS.get(c, c), justify="left" if c == "label" else "right", overflow="fold")
+        for row in shown.itertuples(index=False):
+            t.add_row(*(f"{v:.3g}" if isinstance(v, float) else str(v) for v in row))
+        wide = Console(width=max(console.width, 150), highlight=False, markup=False)  # no cell cut to "…"
+        wide.print(t)
+        with progress.stage("outputs"):
+            res.save(out)
+        console.print(
+            f"run: wrote {out} in {time.perf_counter() - t0:.1f} s (loading and placement {t_load:.1f} s)",
+            highlight=False,
+        )

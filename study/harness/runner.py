@@ -28,6 +28,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from study import methods as registry
+from study import progress as pg
 from study import runtime
 from study.cache import Cache
 from study.codehash import code_hash
@@ -270,6 +271,7 @@ def run_sweep(
             extra=extra,
             warm=(warm_worker, backend),
             group=lambda c: impostor_key(c.scene),
+            name=f"sweep {Path(path).stem}",
         )
     except StudyError as err:  # a case's refusal names the sweep file
         if err.file:
@@ -296,6 +298,7 @@ def run_cases(
     into: Path | None = None,
     warm: tuple | None = None,
     group: Callable[[Case], str] | None = None,
+    name: str = "cases",
 ) -> tuple[list[dict], dict]:
     """Run the cases not yet finished under ``out`` and write ``<out>/results.csv`` (+ ``metadata.json``, and
     what ``extra(rows, dir)`` writes) as one output set, swapped in at the end (:func:`study.io.output_set`); with
@@ -307,8 +310,9 @@ def run_cases(
     ``batches`` splits the cases to run into groups run one after the other (e.g. the first case of each impostor
     first); on Dask a case waits only for earlier batches' cases of its ``group(case)``. ``warm`` = (function,
     *args) readies each Dask worker once (:func:`~study.harness.cluster.warm_worker`). The output directory is
-    locked for the run. Returns (rows, stats = {cases, cached, computed, seconds}, and on Dask ``dask``: its fixed
-    cost and steady throughput, :func:`~study.harness.cluster.throughput`, also in the metadata)."""
+    locked for the run; ``name`` names the run in progress lines (:mod:`study.progress`). Returns (rows, stats =
+    {cases, cached, computed, seconds}, and on Dask ``dask``: its fixed cost and steady throughput,
+    :func:`~study.harness.cluster.throughput`, also in the metadata)."""
     t0 = time.perf_counter()
     out = Path(out)
     with locked(out) if into is None else _locked_into(out, into):
@@ -332,21 +336,25 @@ def run_cases(
                 json_text({"key": c.key, "rows": rows}, nonfinite="text", default=float).encode(),
             )
             done[c.index] = rows
+            pg.advance(c.id)
             if progress:
                 progress(len(done), len(cases), c.id)
 
         if progress:
             progress(len(done), len(cases), "")
         timing = None
-        if dask and todo:
-            timing = run_dask(batches(todo), task, jobs, dask, finish, warm=warm, group=group)
-            meta = {**meta, "dask": timing}
-        elif jobs <= 1 or len(todo) <= 1:
-            for c in todo:
-                fn, args = task(c)
-                finish(c, fn(*args))
-        else:
-            _run_parallel(batches(todo), task, jobs, finish)
+        with pg.task(name, len(cases), done=len(done)):  # stage lines in this process, the ETA everywhere
+            if dask and todo:
+                timing = run_dask(batches(todo), task, jobs, dask, finish, warm=warm, group=group)
+                meta = {**meta, "dask": timing}
+            elif jobs <= 1 or len(todo) <= 1:
+                for c in todo:
+                    fn, args = task(c)
+                    with pg.item(c.id):
+                        rows = fn(*args)
+                    finish(c, rows)
+            else:
+                _run_parallel(batches(todo), task, jobs, finish)
         rows = [r for i in sorted(done) for r in done[i]]
         outputs = (
             output_set(out, OWNS, keeps=("cases",), lock=False)

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from study import backend as backends
+from study import progress
 from study.cache import Cache, content_key
 from study.errors import StudyError
 from study.impostor import prefilter, probes, screen
@@ -231,6 +232,8 @@ def run_case(
 ) -> CaseOutput:
     cache = cache or Cache(None)
     B = backends.get(backend)
+    mark = progress.Stages()  # load, capture, probes, references, methods, metrics (study.progress)
+    mark("load")
     tracer = make_tracer(scene.mesh())
     rays = shading.object_rays(
         scene, occluder=tracer.distance
@@ -244,30 +247,27 @@ def run_case(
         )
     o = np.asarray(scene.reference.point, float)
 
-    # ------------------------------------------------------------------ inputs: impostor, renders, rays
+    # ------------------------------------------------------------------ inputs: impostor, renders, views
+    mark("capture")
     imp = impostor(scene, cache, tracer)
     background = camera_render(scene, cache, with_object=False)
+    for what, img in (("impostor radiance", imp.radiance), ("camera render", background)):
+        _finite(scene, what, img)
+    mark("probes")
+    lobe = Lobe(scene.object.alpha, B.vec(rays.N)) if rays.src is None else None  # glossy: conductors only
+    env = capture_views(scene, methods, imp, B, cache=cache, tracer=tracer, background=background, lobe=lobe)
+
+    # ------------------------------------------------------------------ exact references: Mitsuba, Embree, oracle
+    mark("references")
     seeds = [
         camera_render(sc, cache, with_object=True)  # Mitsuba with the object, two seeds
         for sc in (scene, scene.with_updates({"render.seed": scene.render.seed + truth.SEED_OFFSET}))
     ]
-    for what, img in (
-        ("impostor radiance", imp.radiance),
-        ("camera render", background),
-        ("render", seeds[0]),
-        ("render", seeds[1]),
-    ):  # float32 overflow would still give plausible metrics
-        if not np.isfinite(img).all():
-            raise StudyError(
-                f"the {what} is not finite (Mitsuba's float32 radiance overflows); lower "
-                f"light.intensity (now {max(scene.light.intensity):g})",
-                key="light.intensity",
-            )
+    for img in seeds:
+        _finite(scene, "render", img)
     mitsuba = (seeds[0] + seeds[1]) / 2
     F = shading.fresnel(scene, rays)
     mask = rays.full
-
-    # ------------------------------------------------------------------ exact references: Embree and oracle
     ex_o, ex_d = rays.exact_rays()  # dielectrics: the exactly traced rays
     exact = tracer.intersect(ex_o, ex_d)["point"]
     escapes = ~np.all(np.isfinite(exact), axis=-1)  # open environments: the ray leaves the scene
@@ -348,6 +348,41 @@ def run_case(
     def classify(shown):  # outcome classes against the exact hits
         return outcomes.classify(rays.x, rays.R, shown, exact, eps=eps, exact_origin=rays.exact_x)
 
+    # ------------------------------------------------------------------ every method on the same rays
+    mark("methods")
+    offscreen = outcomes.off_screen(scene.camera, exact)  # exact hits the camera's frame does not show
+    x, R = B.vec(rays.x - o), B.vec(rays.R)
+    traced = []
+    for m in methods:
+        t0 = time.perf_counter()
+        with np.errstate(divide="ignore", invalid="ignore"):  # numpy evaluates both sides of every select
+            tr = m.trace(B, env, x, R)
+        B.eval(
+            tr.shown.x,
+            tr.shown.y,
+            tr.shown.z,
+            tr.radiance.x,
+            tr.radiance.y,
+            tr.radiance.z,
+            tr.ratio,
+            tr.valid,
+            tr.lookups,
+        )  # one kernel for all outputs, not one per numpy copy
+        shown = B.to_numpy(tr.shown).astype(np.float64) + o
+        rad = B.to_numpy(tr.radiance).astype(np.float64)
+        ratio, valid = B.numpy(tr.ratio), B.numpy(tr.valid).astype(bool)
+        seconds = time.perf_counter() - t0
+        lookups, bound = checked_lookups(m, B.numpy(tr.lookups), scene.render.cube_res)
+        if not np.isfinite(shown[valid]).all():
+            raise StudyError(
+                f"method {m.name!r} returned {int((~np.isfinite(shown[valid])).any(-1).sum())} non-finite "
+                "point(s) on rays it marked valid (NaN or inf)",
+                key="method",
+            )
+        traced.append((m, shown, rad, ratio, valid, seconds, lookups, bound))
+
+    # ------------------------------------------------------------------ metrics: references' rows, then methods'
+    mark("metrics")
     for name, img in (
         ("oracle_map", oracle_img),
         ("truth_at_hit", ref.image),
@@ -376,38 +411,7 @@ def run_case(
                 "seconds": 0.0,
             }
         )
-
-    # ------------------------------------------------------------------ every method on the same rays
-    lobe = Lobe(scene.object.alpha, B.vec(rays.N)) if rays.src is None else None  # glossy: conductors only
-    env = capture_views(scene, methods, imp, B, cache=cache, tracer=tracer, background=background, lobe=lobe)
-    offscreen = outcomes.off_screen(scene.camera, exact)  # exact hits the camera's frame does not show
-    x, R = B.vec(rays.x - o), B.vec(rays.R)
-    for m in methods:
-        t0 = time.perf_counter()
-        with np.errstate(divide="ignore", invalid="ignore"):  # numpy evaluates both sides of every select
-            tr = m.trace(B, env, x, R)
-        B.eval(
-            tr.shown.x,
-            tr.shown.y,
-            tr.shown.z,
-            tr.radiance.x,
-            tr.radiance.y,
-            tr.radiance.z,
-            tr.ratio,
-            tr.valid,
-            tr.lookups,
-        )  # one kernel for all outputs, not one per numpy copy
-        shown = B.to_numpy(tr.shown).astype(np.float64) + o
-        rad = B.to_numpy(tr.radiance).astype(np.float64)
-        ratio, valid = B.numpy(tr.ratio), B.numpy(tr.valid).astype(bool)
-        seconds = time.perf_counter() - t0
-        lookups, bound = checked_lookups(m, B.numpy(tr.lookups), scene.render.cube_res)
-        if not np.isfinite(shown[valid]).all():
-            raise StudyError(
-                f"method {m.name!r} returned {int((~np.isfinite(shown[valid])).any(-1).sum())} non-finite "
-                "point(s) on rays it marked valid (NaN or inf)",
-                key="method",
-            )
+    for m, shown, rad, ratio, valid, seconds, lookups, bound in traced:
         img = shading.composite(rays, np.nan_to_num(rad) * F, background)
         ang = metrics.angular_error(rays.x, shown, exact)
         oc = classify(shown)
@@ -437,4 +441,15 @@ def run_case(
             out.outcome_maps[m.label] = outcomes.majority(
                 rays.per_pixel(outcomes.class_fractions(oc), fill=np.nan)
             )
+    mark.end()
     return out
+
+
+def _finite(scene: Scene, what: str, img: np.ndarray) -> None:
+    """Refuse a render that is not finite: float32 overflow would still give plausible metrics."""
+    if not np.isfinite(img).all():
+        raise StudyError(
+            f"the {what} is not finite (Mitsuba's float32 radiance overflows); lower "
+            f"light.intensity (now {max(scene.light.intensity):g})",
+            key="light.intensity",
+        )

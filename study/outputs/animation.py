@@ -29,6 +29,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from study import progress as pg
 from study.cache import Cache
 from study.errors import StudyError
 from study.harness import budget
@@ -195,10 +196,16 @@ def animate(
     progress=None,
 ) -> list[dict]:
     """Render every frame of a motion config and write the animation, ``frames.csv``, ``motion.png`` and
-    ``metadata.json`` into ``out``. Returns the rows."""
+    ``metadata.json`` into ``out``. Returns the rows. Progress: one unit per frame (:mod:`study.progress`)."""
+    with pg.task("animate", None) as job:
+        return _animate(config, out, backend, cache, progress, job)
+
+
+def _animate(config, out, backend, cache, progress, job: pg.Task) -> list[dict]:
     import imageio.v3 as iio
 
     cfg, scenes, methods, travelled = load_motion_config(config)
+    job.total = len(scenes)
     labels = [m.label for m in methods]
     budget.check_backend(backend)
     budget.check_cases(scenes, methods, source=str(config))
@@ -207,12 +214,19 @@ def animate(
     owns = ["motion.gif", "motion.mp4", "motion.png", "frames.csv", "metadata.json", "jod.csv"]
     with locked(out):  # one command at a time here; the files are made first, then written together
         for i, (case_id, sc) in enumerate(scenes):
-            case = run_config_case(
-                sc, methods, backend=backend, cache=store, case_id=case_id, where=f"{config} path (frame {i})"
-            )
+            with pg.item(case_id):
+                case = run_config_case(
+                    sc,
+                    methods,
+                    backend=backend,
+                    cache=store,
+                    case_id=case_id,
+                    where=f"{config} path (frame {i})",
+                )
             for r in case.rows:
                 rows.append({"frame": i, "path_m": float(travelled[i]), **r})
             cases.append(case)
+            pg.advance(case_id)
             if progress:
                 progress(i + 1, len(scenes))
         crop = motion_crop([c.mask for c in cases])

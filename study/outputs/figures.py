@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from study import progress as pg
 from study.cache import Cache
 from study.errors import StudyError
 from study.harness import budget
@@ -100,6 +101,27 @@ def _template(labels: list[str], part: str, outcome_panel: bool, occlusion_panel
     return [imgs + angle + more]
 
 
+# ---------------------------------------------------------------------------------------------- exposure
+#: The exposure of a figure's images: the PERCENTILE-th percentile of the object's luminance in the reference
+#: (Mitsuba's render, over the object's pixels of every case) is shown at WHITE, before clipping at 1 and sRGB.
+PERCENTILE, WHITE = 99.0, 0.8
+EXPOSURE_RULE = f"the {PERCENTILE:g}th percentile of the object's luminance in Mitsuba's render → {WHITE:g}"
+
+
+def figure_exposure(cases: list[CaseOutput]) -> float:
+    """The exposure (EV: images × 2^EV) of a figure's images, one for all its cases so rows compare:
+    :data:`EXPOSURE_RULE` (Rec. 709 luminance); 0 where the object shows no light."""
+    lum = [
+        np.asarray(c.mitsuba, np.float64)[c.mask] @ np.array([0.2126, 0.7152, 0.0722])
+        for c in cases
+        if c.mitsuba is not None and c.mask is not None
+    ]
+    lum = np.concatenate(lum) if lum else np.zeros(0)
+    lum = lum[np.isfinite(lum)]
+    top = float(np.percentile(lum, PERCENTILE)) if lum.size else 0.0
+    return float(np.log2(WHITE / top)) if top > 0 else 0.0
+
+
 def image_grid(
     cases: list[CaseOutput],
     labels: list[str],
@@ -111,6 +133,7 @@ def image_grid(
     row_labels: list[str] | None = None,
     part: str = "all",
     max_width_px: int | None = None,
+    exposure: float = 0.0,
 ) -> bytes | None:
     """Rows: cases; columns: each method's image, the ray-traced (Mitsuba) image (for a rough object the truth,
     :func:`study.measure.truth.lobe_at_hit`, as Mitsuba's camera render adds the point light's highlight), each
@@ -120,8 +143,8 @@ def image_grid(
     and, with ``occlusion_panel``, the fraction of each pixel's rays whose exact hit is hidden from the reference
     point (two classes with a legend where each pixel is one ray). ``part``: ``"images"`` or ``"errors"`` (the
     angular errors, the outcome and hidden maps under them) for only those panels. Images are tone mapped by
-    clipping at 1 and sRGB encoding. ``max_width_px``: panels shrink so the PNG is at most this wide. With ``path``
-    None: the PNG's bytes."""
+    ``exposure`` (EV: × 2^exposure, :func:`figure_exposure`), clipping at 1 and sRGB encoding. ``max_width_px``:
+    panels shrink so the PNG is at most this wide. With ``path`` None: the PNG's bytes."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -129,6 +152,7 @@ def image_grid(
     from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
 
     tpl = _template(labels, part, outcome_panel, occlusion_panel)
+    gain = 2.0**exposure
     errs = part != "images"
     ncol, nrow = max(len(r) for r in tpl), len(tpl) * len(cases)
     side = 2.3
@@ -163,12 +187,12 @@ def image_grid(
             for c, (kind, lab) in enumerate(row):
                 ax = axr[c]
                 if kind == "image":
-                    ax.imshow(to_ldr(case.images[lab])[sy, sx], interpolation="nearest")
+                    ax.imshow(to_ldr(case.images[lab][sy, sx] * gain), interpolation="nearest")
                 elif (
                     kind == "mitsuba"
                 ):  # a rough object: the lobe's truth (Mitsuba's adds the lamp's highlight)
                     ref = case.truth if _rough(case) and case.truth is not None else case.mitsuba
-                    ax.imshow(to_ldr(ref)[sy, sx], interpolation="nearest")
+                    ax.imshow(to_ldr(ref[sy, sx] * gain), interpolation="nearest")
                 elif kind == "angle":
                     err = np.clip(case.angle_maps[lab][sy, sx], 0.01, None)
                     hm = ax.imshow(err, norm=norm, cmap="magma", interpolation="nearest")
@@ -208,9 +232,15 @@ def image_grid(
     return None
 
 
-def image_grids(name: str, cases, labels, **kw) -> dict[str, bytes]:
+def image_grids(
+    name: str, cases, labels, *, title: str, exposure: float | None = None, **kw
+) -> dict[str, bytes]:
     """The figure's grid PNGs: ``<name>.png`` whole where it is at most :data:`MAX_WIDTH_PX` wide, else the images
-    in ``<name>.png`` and the error maps in ``<name>-errors.png``, each shrunk to fit a page."""
+    in ``<name>.png`` and the error maps in ``<name>-errors.png``, each shrunk to fit a page. The images' exposure
+    (EV; :func:`figure_exposure` of ``cases`` unless given) is stated at the end of the title."""
+    if exposure is None:
+        exposure = figure_exposure(cases)
+    kw.update(exposure=exposure, title=f"{title}, exposure {exposure:+.2f} EV (object's p99 → {WHITE:g})")
     ncol = (
         2 * len(labels)
         + 1
@@ -249,7 +279,12 @@ def figure_positions(
     """Run every position (or case) of a figure config with every method; write ``<out>/<name>.png`` and
     ``<out>/metrics.csv`` (one row per position or case × method). Returns the rows. ``quality``: a preset of
     :data:`study.harness.config.QUALITY` applied to every case (``paper``: 1024² renders)."""
-    cfg, scene, methods = load_figure_config(config)
+    with pg.task(name, None) as job:  # stage lines and the ETA (study.progress)
+        return _figure(config, out, name, backend, cache, progress, quality, job)
+
+
+def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) -> list[dict]:
+    cfg, scene, methods = load_figure_config(config)  # placement, where it runs, is a stage of its own
     preset = quality_overrides(quality)
     by_name = {m.name: m.label for m in reversed(methods)}  # a bare name means its first entry
     labels = (
@@ -274,19 +309,25 @@ def figure_positions(
     budget.check_backend(backend)
     budget.check_cases(scenes, methods, source=str(config))
     store = Cache(cache)
+    job.total = len(scenes)
     with locked(out):  # one command at a time here; the files are written together at the end
         cases, rows = [], []
         for i, (case_id, sc) in enumerate(scenes):
             t0 = time.perf_counter()
-            case = run_config_case(
-                sc, methods, backend=backend, cache=store, case_id=case_id, where=f"{config} {what}[{i}]"
-            )
+            with pg.item(case_id):
+                case = run_config_case(
+                    sc, methods, backend=backend, cache=store, case_id=case_id, where=f"{config} {what}[{i}]"
+                )
             for r in case.rows:
                 r["case_seconds"] = time.perf_counter() - t0
             cases.append(case)
             rows += case.rows
             if progress:
                 progress(i + 1, len(todo))
+            pg.advance(case_id)
+        mark = pg.Stages()
+        mark("outputs")  # the grid PNGs, EXRs and the viewer's images
+        exposure = figure_exposure(cases)
         meta = metadata(
             config,
             backend=backend,
@@ -295,6 +336,8 @@ def figure_positions(
             cases=len(todo),
             figure=name,
             quality=quality,
+            exposure_ev=round(exposure, 4),  # of the grid's images (figure_exposure)
+            exposure_rule=EXPOSURE_RULE,
         )
         pngs = image_grids(
             name,
@@ -306,6 +349,7 @@ def figure_positions(
             occlusion_panel=cfg.occlusion_panel,
             outcome_panel=cfg.outcome_panel,
             row_labels=None if cfg.positions is not None else [lab for _, lab, _ in todo],
+            exposure=exposure,
         )
         files = {
             **table_files(rows, "metrics"),
@@ -323,4 +367,5 @@ def figure_positions(
         files[viewer.MANIFEST] = viewer.manifest_text(name, entries)
         # every byte is made: the output set lives only while they are written (study.io.write_set)
         write_set(out, files, [f"{name}.png", f"{name}-errors.png", "exr", "viewer"], lock=False)
+        mark.end()
     return rows

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from study import progress as pg
 from study.errors import StudyError
 from study.io import locked, write_set
 from study.outputs import claims as claim_registry
@@ -359,7 +360,12 @@ def build_report(reports: str | Path = "reports") -> Path:
     reports = Path(reports)
     if not reports.is_dir():
         raise StudyError("no such directory (expected the reports: figures and sweeps)", file=str(reports))
-    with locked(reports):
-        bl = blocks(reports)
-        files = {"index.md": markdown_text(bl, reports), "index.html": html.page(bl, reports, title=TITLE)}
-        return write_set(reports, files, lock=False, swap=False)[0]  # others write beside it
+    with locked(reports), pg.task("report", None):  # stage lines (study.progress)
+        with pg.stage("sections"):  # the tables read, the claims checked, the viewers' images listed
+            bl = blocks(reports)
+        with pg.stage("pages"):
+            files = {
+                "index.md": markdown_text(bl, reports),
+                "index.html": html.page(bl, reports, title=TITLE),
+            }
+            return write_set(reports, files, lock=False, swap=False)[0]  # others write beside it

@@ -81,6 +81,7 @@ from pydantic import (
     model_validator,
 )
 
+from study import progress
 from study.errors import StudyError
 from study.io import read_toml
 from study.scene.models import (  # noqa: F401  (re-exported: the scene's types live there)
@@ -109,7 +110,7 @@ from study.scene.models import (  # noqa: F401  (re-exported: the scene's types 
     _Strict,
 )
 from study.scene.room import RoomMesh
-from study.scene.sources import BoxEnv, Environment
+from study.scene.sources import SOURCES, BoxEnv, Environment
 from study.validation import KeyedError, first_error
 
 
@@ -135,13 +136,14 @@ class Scene(_Strict):
     @model_validator(mode="before")
     @classmethod
     def _fill_placement(cls, data, info: ValidationInfo):
-        """Mesh and Mitsuba environments: the placement keys the user left out, suggested
+        """Environments whose source is placed (:attr:`study.scene.sources.Source.placed`: mesh files, Mitsuba
+        scenes, not the box): the placement keys the user left out, suggested
         (:func:`study.scene.autoplace.suggest`); the keys suggested are remembered, so that a check that fails on
         one of them blames the automatic placement, not a key the user never set."""
         ctx = info.context if isinstance(info.context, dict) else None
         env = data.get("environment") if isinstance(data, dict) else None
         kind = env.get("type") if isinstance(env, dict) else getattr(env, "type", "box")
-        if kind not in ("mesh", "mitsuba"):
+        if kind not in SOURCES or not SOURCES[kind].placed:
             return data
         from study.scene.autoplace import KEYS
 
@@ -164,7 +166,8 @@ class Scene(_Strict):
         except ValidationError:
             return data  # the field's own validation says what is wrong
         out = {k: (dict(v.model_dump()) if isinstance(v, BaseModel) else v) for k, v in data.items()}
-        suggested = suggest(model, given)
+        with progress.stage("placement"):
+            suggested = suggest(model, given)
         for k, v in suggested.items():
             table, key = k.split(".")
             out[table] = {**(out.get(table) or {}), key: v}
@@ -303,9 +306,7 @@ def scene_from_dict(
         ctx = {"base": str(base) if base is not None else None, "suggested": set(suggested)}
         return Scene.model_validate(data, context=ctx)
     except ValidationError as err:
-        key, msg = first_error(
-            err, Scene, skip=("mirror", "conductor", "dielectric", "box", "mesh", "mitsuba")
-        )
+        key, msg = first_error(err, Scene, skip=("mirror", "conductor", "dielectric"))
         raise StudyError(msg, file=source, key=key or "(top level)") from None
     except StudyError as err:  # an environment that cannot be loaded (study.scene.environment)
         if err.file:

@@ -1,0 +1,172 @@
+"""Progress by stage: what a long command is doing, how long each stage took, and when the whole will be done.
+
+The pipeline marks its work and never prints: a command's loop over its units is a :func:`task` (the cases of a
+figure or sweep, the frames of an animation) whose units finish with :func:`advance`; one unit is an
+:func:`item` (a case), and inside it each phase is a :func:`stage` — for a case, in this order, :data:`STAGES`:
+load (the environment and the object's rays), placement (automatic placement of the keys a scene leaves out),
+capture (impostor and camera renders), probes (the other views methods search: layers, probes, the camera's
+buffer), references (Mitsuba with the object, Embree's exact hits, the oracle), methods (every method traced)
+and metrics (the rows). The command line decides where that goes by installing a :class:`Reporter`
+(:func:`reporting`; :mod:`study.cli.progress` prints lines on stderr, with a live bar on a terminal). Without
+one every call here is a no-op: the Python API, tests and worker processes stay silent.
+
+The elapsed time and the ETA (the mean time per unit finished in this run × the units left) are computed here,
+so every reporter shows the same numbers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+#: The stages of one case, in the order they run.
+STAGES = ("load", "placement", "capture", "probes", "references", "methods", "metrics")
+
+
+@dataclass
+class Task:
+    """A command's loop over its units: ``total`` units, ``done`` of them finished (``start`` of those before
+    this run began: resumed work does not count towards the ETA)."""
+
+    name: str
+    total: int | None
+    done: int = 0
+    start: int = 0
+    t0: float = field(default_factory=time.perf_counter)
+    item: str = ""  # the unit now running
+
+    @property
+    def elapsed(self) -> float:
+        return time.perf_counter() - self.t0
+
+    @property
+    def eta(self) -> float | None:
+        """Seconds left: mean seconds per unit finished in this run × units left (None before the first)."""
+        ran = self.done - self.start
+        if not self.total or ran <= 0:
+            return None
+        return self.elapsed / ran * max(self.total - self.done, 0)
+
+    @property
+    def where(self) -> str:
+        """``name i/n item``: the task, the unit now running (counted from 1) and its label."""
+        n = f" {min(self.done + 1, self.total)}/{self.total}" if self.total else ""
+        return f"{self.name}{n}" + (f" {self.item}" if self.item else "")
+
+
+class Reporter:
+    """Where progress goes (the command line's; the default reports nothing). Every method gets the task."""
+
+    def started(self, task: Task) -> None:
+        """A task began (its ``done`` may be > 0: units finished by an earlier run)."""
+
+    def stage(self, task: Task, name: str, seconds: float) -> None:
+        """Stage ``name`` of the unit now running finished after ``seconds``."""
+
+    def entered(self, task: Task, name: str) -> None:
+        """Stage ``name`` began."""
+
+    def advanced(self, task: Task, what: str) -> None:
+        """Unit ``what`` finished (``task.done`` counts it)."""
+
+    def finished(self, task: Task) -> None:
+        """The task ended with all its work done."""
+
+    def failed(self, task: Task) -> None:
+        """The task ended on an error (the error says why; nothing more to print)."""
+
+
+_reporter: Reporter | None = None
+_tasks: list[Task] = []
+
+
+@contextlib.contextmanager
+def reporting(reporter: Reporter | None) -> Iterator[Reporter | None]:
+    """Send progress to ``reporter`` for the duration of the block (``None``: nowhere)."""
+    global _reporter
+    before, _reporter = _reporter, reporter
+    try:
+        yield reporter
+    finally:
+        _reporter = before
+
+
+def _current() -> Task:
+    return _tasks[-1] if _tasks else Task("study", None)
+
+
+@contextlib.contextmanager
+def task(name: str, total: int | None, done: int = 0) -> Iterator[Task]:
+    """A loop over ``total`` units, ``done`` of them finished already (resumed); ``finished`` is reported only when
+    the block ends without an error."""
+    t = Task(name, total, done=done, start=done)
+    _tasks.append(t)
+    reporter = _reporter
+    try:
+        if reporter:
+            reporter.started(t)
+        yield t
+    except BaseException:
+        if reporter:
+            reporter.failed(t)
+        raise
+    else:
+        if reporter:
+            reporter.finished(t)
+    finally:
+        _tasks.remove(t)
+
+
+def advance(what: str = "") -> None:
+    """One unit of the current task finished."""
+    t = _current()
+    t.done += 1
+    if _reporter:
+        _reporter.advanced(t, what)
+
+
+@contextlib.contextmanager
+def item(label: str) -> Iterator[None]:
+    """One unit (a case) running: the stages inside are reported under its label."""
+    t = _current()
+    before, t.item = t.item, label
+    try:
+        yield
+    finally:
+        t.item = before
+
+
+@contextlib.contextmanager
+def stage(name: str) -> Iterator[None]:
+    """A stage of the unit now running (:data:`STAGES` for a case); reported when it begins and with its time
+    when it ends (not when it fails: the error says why)."""
+    if _reporter is None:
+        yield
+        return
+    t = _current()
+    _reporter.entered(t, name)
+    t0 = time.perf_counter()
+    yield
+    _reporter.stage(t, name, time.perf_counter() - t0)
+
+
+class Stages:
+    """Consecutive stages of one unit without nesting the code: ``mark = Stages()``, then ``mark("load")``,
+    ``mark("capture")``, … — each call ends the stage before it — and ``mark.end()`` after the last."""
+
+    def __init__(self) -> None:
+        self._name: str | None = None
+        self._t0 = 0.0
+
+    def __call__(self, name: str) -> None:
+        self.end()
+        if _reporter is not None:
+            self._name, self._t0 = name, time.perf_counter()
+            _reporter.entered(_current(), name)
+
+    def end(self) -> None:
+        if self._name is not None and _reporter is not None:
+            _reporter.stage(_current(), self._name, time.perf_counter() - self._t0)
+        self._name = None

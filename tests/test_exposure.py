@@ -1,0 +1,73 @@
+"""Figures pick their exposure from the image and state it (study.outputs.figures.figure_exposure): the 99th
+percentile of the object's luminance in Mitsuba's render is shown at 0.8. Checked against the rule computed by
+hand on a flat image, and by invariance: a scene 100× brighter gets log2(100) = 6.64 EV less and the same PNG
+(pixel values within one step of rounding)."""
+
+import io
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from study.outputs import figures
+
+H = W = 32
+LABELS = ["classical", "localized"]
+
+
+def fake_case(seed: int, scale: float = 1.0):
+    """A case's images (seeded noise, linear radiance up to 0.3) on a 32² frame with the object in the middle."""
+    rng = np.random.default_rng(seed)
+    mask = np.zeros((H, W), bool)
+    mask[8:24, 8:24] = True
+    img = lambda: (rng.random((H, W, 3)) * 0.3 * scale).astype(np.float32)  # noqa: E731
+    return SimpleNamespace(
+        scene=SimpleNamespace(object=SimpleNamespace(center=(0.0, 1.0, 0.0))),
+        images={lab: img() for lab in LABELS},
+        mitsuba=img(),
+        angle_maps={lab: np.where(mask, rng.random((H, W)) * 10, np.nan) for lab in LABELS},
+        outcome_maps={},
+        occluded=None,
+        mask=mask,
+    )
+
+
+def test_exposure_maps_the_objects_99th_percentile_to_0_8():
+    case = fake_case(0)
+    case.mitsuba[:] = 0.05  # a grey object (luminance 0.05) in a frame 10× brighter around it
+    case.mitsuba[~case.mask] = 0.5
+    assert figures.figure_exposure([case]) == pytest.approx(np.log2(0.8 / 0.05))  # +4 EV
+    case.mitsuba[:] = 0.0
+    assert figures.figure_exposure([case]) == 0.0  # no light on the object: as rendered
+
+
+def test_a_scene_100x_brighter_gets_6_6_ev_less_and_the_same_png():
+    cases = [fake_case(1), fake_case(2)]
+    bright = [fake_case(1, scale=100.0), fake_case(2, scale=100.0)]
+    ev, ev_bright = figures.figure_exposure(cases), figures.figure_exposure(bright)
+    assert ev_bright - ev == pytest.approx(-np.log2(100.0), abs=1e-6)
+    assert round(ev_bright - ev, 1) == -6.6
+    png = [
+        np.asarray(
+            Image.open(io.BytesIO(figures.image_grid(c, LABELS, None, title="t", exposure=e))).convert("RGB"),
+            np.int16,
+        )
+        for c, e in ((cases, ev), (bright, ev_bright))
+    ]
+    assert png[0].shape == png[1].shape
+    assert np.abs(png[0] - png[1]).max() <= 1
+    unexposed = np.asarray(
+        Image.open(io.BytesIO(figures.image_grid(bright, LABELS, None, title="t"))).convert("RGB"), np.int16
+    )
+    assert np.abs(unexposed - png[1]).max() > 100  # without the exposure it would be white: the test can fail
+
+
+def test_the_grid_title_states_the_exposure(monkeypatch):
+    said = []
+    monkeypatch.setattr(figures, "image_grid", lambda cases, labels, path, **kw: said.append(kw) or b"")
+    cases = [fake_case(3)]
+    figures.image_grids("f", cases, LABELS, title="f: room")
+    ev = figures.figure_exposure(cases)
+    assert said[0]["exposure"] == ev
+    assert said[0]["title"] == f"f: room, exposure {ev:+.2f} EV (object's p99 → 0.8)"
