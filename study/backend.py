@@ -65,6 +65,12 @@ class Backend:
     def maximum(self, a, b): ...
     def isfinite(self, a): ...
     def floor(self, a): ...
+    def power(self, a, b): ...
+    def shifted(self, a, width: int, height: int, k: int, axis: int):
+        """The image ``a`` (a flat row-major ``height × width`` array) moved by ``k`` pixels along ``axis`` (1: x,
+        0: y), edges clamped: pixel (y, x) of the result holds ``a[y, clip(x + k)]`` (axis 1)."""
+
+    def total(self, a) -> float: ...
     def texture(self, texels: np.ndarray): ...
     def sample(self, tex, face, u, v) -> list: ...
     def eval(self, *arrays) -> None: ...
@@ -124,6 +130,18 @@ class NumpyBackend(Backend):
 
     def floor(self, a):
         return np.floor(a)
+
+    def power(self, a, b):
+        return np.power(a, np.float32(b) if np.isscalar(b) else b)
+
+    def shifted(self, a, width, height, k, axis):
+        img = np.asarray(a).reshape(height, width)
+        n = img.shape[axis]
+        idx = np.clip(np.arange(n) + k, 0, n - 1)
+        return np.take(img, idx, axis=axis).reshape(-1)
+
+    def total(self, a):
+        return float(np.sum(np.asarray(a, np.float64)))
 
     def eval(self, *arrays):
         pass
@@ -219,6 +237,23 @@ class DrJitBackend(Backend):
 
     def floor(self, a):
         return self.dr.floor(a)
+
+    def power(self, a, b):
+        return self.dr.power(a, b)
+
+    def shifted(self, a, width, height, k, axis):
+        dr, m = self.dr, self.m
+        w, h = dr.opaque(m.Int32, width), dr.opaque(m.Int32, height)  # one kernel for every image size
+        i = dr.arange(m.Int32, width * height)
+        x, y = i % w, i // w
+        if axis == 1:
+            x = dr.clip(x + k, 0, w - 1)
+        else:
+            y = dr.clip(y + k, 0, h - 1)
+        return dr.gather(type(a), a, m.UInt32(y * w + x))
+
+    def total(self, a):
+        return float(self.dr.sum(self.m.Float64(a))[0]) if self.dr.width(a) else 0.0
 
     def eval(self, *arrays):
         self.dr.eval(*arrays)

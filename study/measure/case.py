@@ -232,9 +232,11 @@ def run_case(
 
     def image_columns(img, reference=False, fmap=None):  # one image against every reference
         cols = {
-            **metrics.image_errors(oracle_img, img, mask=mask, suffix="oracle"),  # fmap: its
-            **metrics.image_errors(ref.image, img, mask=mask, suffix="truth", flip_emap=fmap),  # FLIP map
-            **metrics.image_errors(mitsuba, img, mask=mask, suffix="mitsuba"),
+            **metrics.image_errors(oracle_img, img, mask=mask, suffix="oracle", backend=backend),  # fmap: its
+            **metrics.image_errors(
+                ref.image, img, mask=mask, suffix="truth", flip_emap=fmap, backend=backend
+            ),
+            **metrics.image_errors(mitsuba, img, mask=mask, suffix="mitsuba", backend=backend),  # ↑ FLIP map
             **truth.columns(img, oracle_img, ref, mitsuba, mask=mask, visible=visible),
             **stats.pixel_columns(  # intervals over pixels, robust variants
                 img, ref.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS, emap=fmap
@@ -331,7 +333,7 @@ def run_case(
         img = shading.composite(rays, np.nan_to_num(rad) * F, background)
         ang = metrics.angular_error(rays.x, shown, exact)
         oc = classify(shown)
-        fmap = metrics.flip_map(ref.image, img) if keep_images else None
+        fmap = metrics.flip_map(ref.image, img, backend) if keep_images else None
         row = {
             **base,
             "method": m.name,
