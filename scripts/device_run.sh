@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The GPU measurements of reports/performance.md (issue 15), run on a lent GPU machine from the repository root:
 #
-#   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3]   (default: bench studies)
+#   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3] [fig4paper]
+#                                                                                   (default: bench studies)
 #
 #   bench   : `study bench --backends cuda` — methods, exact queries (ray_intersect, _preliminary, ray_test) and
 #             the measured floors (texture fetch rates, copy bandwidth) → perf/
@@ -13,6 +14,9 @@
 #   single  : the 104-case subset of sweep_large in one process, no Dask (the reference table for the Dask runs)
 #   profile : scripts/profile_case.py on the main sweep's heaviest case and on fig4 (cProfile, cold and warm)
 #   fig4x3  : fig4 cold, with a warm kernel cache, and with every cache warm (what compiling kernels costs)
+#   fig4paper: fig4 at paper quality (--quality paper: 1024² camera) with --backend cuda, so FLIP and the metrics run
+#             on the GPU (study/measure/flip.py): cold (fresh study and kernel caches; target ≤ 20 s), then with
+#             the kernel cache warm → results-fig4paper.tgz (the paper-resolution figure, reports/paper/fig4)
 #
 # Wheels: the machine has Python 3.12 without mitsuba/drjit/embreex/pydantic/dask; cp312 wheels are installed
 # from $WHEELS/a and $WHEELS/b (default .devcarry; how to make them: ../shared/field-notes.md, "Device (GPU) runs"),
@@ -105,6 +109,13 @@ for part in $parts; do
     timed fig4-cold $S figure fig4 --backend cuda --cache "$W/c1" --out "$W/x3a" > /dev/null 2>&1
     timed fig4-kernels-warm $S figure fig4 --backend cuda --cache "$W/c2" --out "$W/x3b" > /dev/null 2>&1
     timed fig4-all-warm $S figure fig4 --backend cuda --cache "$W/c2" --out "$W/x3c" > /dev/null 2>&1 ;;
+  fig4paper)
+    export HOME=$W/home-paper; mkdir -p "$HOME"                               # a fresh Dr.Jit kernel cache
+    timed fig4-paper-cold $S figure fig4 --quality paper --backend cuda --cache "$W/pc1" --out "$W/paper/fig4" \
+      2>&1 | tail -30
+    timed fig4-paper-kernels-warm $S figure fig4 --quality paper --backend cuda --cache "$W/pc2" \
+      --out "$W/paper-warm/fig4" > /dev/null 2>&1
+    tar czf "$OUT/results-fig4paper.tgz" -C "$W" paper ;;
   *) echo "unknown part $part"; exit 2 ;;
   esac
 done

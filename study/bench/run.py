@@ -25,6 +25,7 @@ import numpy as np
 
 from study import backend as backends
 from study import methods as registry
+from study.bench import carry
 from study.bench import floors as floor_model
 from study.bench.batches import (
     Batch,
@@ -37,7 +38,7 @@ from study.bench.batches import (
 )
 from study.bench.machine import available_backends, machine_info
 from study.bench.scaling import knob_values, scaling_rows
-from study.bench.timing import FRAME, QUERIES, Exact, mitsuba_variant, rate_row, time_method
+from study.bench.timing import FRAME, QUERIES, Exact, mean_lookups, mitsuba_variant, rate_row, time_method
 from study.errors import StudyError
 from study.harness import budget
 from study.measure.case import env_info
@@ -222,6 +223,9 @@ def run_bench(
                         t,
                         len(x),
                     )
+                    if path == paths[0]:  # what the rays read: the same on every path
+                        spent = mean_lookups(m, B, tex, x, R, info=info_env)
+                    row.update(carry.cost_columns(spent, m.lookup_bound(opt.cube_res)))
                     rows.append(with_floor(with_ratios(row, exact, b, nm), m, floors.get(nm), b))
             log(f"methods on {nm}, {b.name} timed")
 

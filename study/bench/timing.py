@@ -112,6 +112,19 @@ def time_method(m, B, tex_np, x, R, *, frozen: bool, repeats: int, info: dict | 
         gc.enable()
 
 
+def mean_lookups(m, B, tex_np, x, R, *, info: dict | None = None) -> float:
+    """The distance lookups per ray the method spent on these rays, on average (one plain trace, as timed)."""
+    env = EnvMap(tex_np, B)
+    layer = copy.copy(env) if m.layers_needed() > 1 else None
+    views = Captured(
+        impostor=env, layers=(layer,) * m.layers_needed() if layer else (), fallback=True, **(info or {})
+    )
+    with np.errstate(divide="ignore", invalid="ignore"):  # numpy evaluates both sides of every select
+        t = m.trace(B, views, B.vec(x), B.vec(R))
+    spent = np.asarray(B.numpy(t.lookups), np.float64)
+    return float(spent.mean()) if spent.size else 0.0
+
+
 # ---------------------------------------------------------------------------------------------- exact tracers
 def time_embree(tracer: Tracer, x, R, *, repeats: int) -> float:
     o, d = np.ascontiguousarray(x, np.float32), np.ascontiguousarray(R, np.float32)

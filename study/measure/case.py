@@ -230,13 +230,27 @@ def run_case(
     visible = mask & (rays.per_pixel(occluded.astype(float), fill=1.0) == 0)  # pixels whose hits o sees
     sigma = truth.noise_rms(ref.noise, mask)  # the truth's own noise (debiased columns)
 
-    def image_columns(img, reference=False, fmap=None):  # one image against every reference
+    against = scene.render.flip_against  # the references FLIP is measured against (the others: NaN)
+
+    def image_columns(
+        img, reference=False, fmap=None
+    ):  # one image against every reference (fmap: its FLIP map)
         cols = {
-            **metrics.image_errors(oracle_img, img, mask=mask, suffix="oracle", backend=backend),  # fmap: its
             **metrics.image_errors(
-                ref.image, img, mask=mask, suffix="truth", flip_emap=fmap, backend=backend
+                oracle_img, img, mask=mask, suffix="oracle", backend=backend, with_flip="oracle" in against
             ),
-            **metrics.image_errors(mitsuba, img, mask=mask, suffix="mitsuba", backend=backend),  # ↑ FLIP map
+            **metrics.image_errors(
+                ref.image,
+                img,
+                mask=mask,
+                suffix="truth",
+                flip_emap=fmap,
+                backend=backend,
+                with_flip="truth" in against,
+            ),
+            **metrics.image_errors(
+                mitsuba, img, mask=mask, suffix="mitsuba", backend=backend, with_flip="mitsuba" in against
+            ),
             **truth.columns(img, oracle_img, ref, mitsuba, mask=mask, visible=visible),
             **stats.pixel_columns(  # intervals over pixels, robust variants
                 img, ref.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS, emap=fmap

@@ -134,13 +134,16 @@ def image_errors(
     suffix: str,
     flip_emap: np.ndarray | None = None,
     backend: str = "numpy",
+    with_flip: bool = True,
 ) -> dict[str, float]:
     """``rmse_<suffix>``, ``psnr_<suffix>``, ``ssim_<suffix>`` and ``flip_<suffix>`` of ``test`` against ``ref``
     over ``mask`` (``flip_emap``: the FLIP map of the two images, if already computed; ``backend``: where FLIP
-    runs, :func:`flip_map`)."""
+    runs, :func:`flip_map`; ``with_flip`` False: ``flip_<suffix>`` is NaN, not measured)."""
     return {
         f"rmse_{suffix}": rmse(ref, test, mask=mask),
         f"psnr_{suffix}": psnr(ref, test, mask=mask),
         f"ssim_{suffix}": ssim(ref, test, mask=mask),
-        f"flip_{suffix}": flip(ref, test, mask=mask, emap=flip_emap, backend=backend),
+        f"flip_{suffix}": flip(ref, test, mask=mask, emap=flip_emap, backend=backend)
+        if with_flip
+        else np.nan,
     }
