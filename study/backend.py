@@ -66,6 +66,10 @@ class Backend:
     def isfinite(self, a): ...
     def floor(self, a): ...
     def power(self, a, b): ...
+    def acos(self, a): ...
+    def array64(self, a: np.ndarray):
+        """A 1-D float64 array of this backend (measurements that must agree with numpy's to rounding)."""
+
     def shifted(self, a, width: int, height: int, k: int, axis: int):
         """The image ``a`` (a flat row-major ``height × width`` array) moved by ``k`` pixels along ``axis`` (1: x,
         0: y), edges clamped: pixel (y, x) of the result holds ``a[y, clip(x + k)]`` (axis 1)."""
@@ -133,6 +137,12 @@ class NumpyBackend(Backend):
 
     def power(self, a, b):
         return np.power(a, np.float32(b) if np.isscalar(b) else b)
+
+    def acos(self, a):
+        return np.arccos(a)
+
+    def array64(self, a):
+        return np.asarray(a, np.float64)
 
     def shifted(self, a, width, height, k, axis):
         img = np.asarray(a).reshape(height, width)
@@ -240,6 +250,12 @@ class DrJitBackend(Backend):
 
     def power(self, a, b):
         return self.dr.power(a, b)
+
+    def acos(self, a):
+        return self.dr.acos(a)
+
+    def array64(self, a):
+        return self.m.Float64(np.ascontiguousarray(a, dtype=np.float64))
 
     def shifted(self, a, width, height, k, axis):
         dr, m = self.dr, self.m

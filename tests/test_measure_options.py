@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 import study
+from study.api import load_scene
 from study.cache import Cache
 from study.impostor import probes
 from study.impostor.capture import impostor_key
 from study.impostor.views import ProbeSpec
 from study.reference.tracer import make_tracer
-from study.api import load_scene
 from tests.conftest import small_scene_dict
 
 TINY = {"render.cube_res": 16, "camera.width": 32, "camera.height": 32}

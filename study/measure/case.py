@@ -285,8 +285,10 @@ def run_case(
     )
     eps = outcomes.tolerance(o, exact, scene.render.cube_res)  # per ray: max(1 cm, one texel at the hit)
 
-    def classify(shown):  # outcome classes against the exact hits
-        return outcomes.classify(rays.x, rays.R, shown, exact, eps=eps, exact_origin=rays.exact_x)
+    def classify(shown):  # outcome classes against the exact hits, on the methods' backend
+        if backend == "numpy":
+            return outcomes.classify(rays.x, rays.R, shown, exact, eps=eps, exact_origin=rays.exact_x)
+        return outcomes.classify_on(B, rays.x, rays.R, shown, exact, eps=eps, exact_origin=rays.exact_x)
 
     for name, img in (
         ("oracle_map", oracle_img),
