@@ -10,7 +10,7 @@ import pytest
 
 import study
 from study.measure import metrics
-from study.measure.flip import feature_filter, flip_map_numpy, spatial_filters
+from study.measure.flip import feature_filter, ldr_flip_image, spatial_filters
 from tests.conftest import BACKENDS, small_scene_dict
 
 TOL = 1e-4
@@ -24,7 +24,7 @@ def reference(ref, test):
 
 
 def assert_matches(ref, test, backend):
-    want, got = reference(ref, test), flip_map_numpy(ref, test, backend)
+    want, got = reference(ref, test), ldr_flip_image(ref, test, backend)
     assert got.shape == want.shape
     assert abs(got.mean() - want.mean()) <= TOL, (got.mean(), want.mean())
     assert abs(np.percentile(got, 99) - np.percentile(want, 99)) <= TOL

@@ -13,7 +13,7 @@ mean and in the per-pixel 99th percentile, on study images and synthetic ones. H
 study measures LDR images only (:mod:`study.measure.metrics`).
 
 Images are :class:`~study.backend.V3` of flat row-major arrays (``height × width``) on one backend;
-:func:`flip_map_numpy` is the (H, W, 3) numpy front.
+:func:`ldr_flip_image` is the (H, W, 3) numpy front.
 """
 
 from __future__ import annotations
@@ -144,7 +144,7 @@ def _max_distance() -> float:
 
 
 # ---------------------------------------------------------------------------------------------- the map
-def flip_map(B: Backend, ref: V3, test: V3, width: int, height: int, ppd: float = PPD):
+def ldr_flip(B: Backend, ref: V3, test: V3, width: int, height: int, ppd: float = PPD):
     """Per-pixel LDR-FLIP error of ``test`` against ``ref`` on backend ``B``.
 
     Parameters
@@ -199,9 +199,9 @@ def flip_map(B: Backend, ref: V3, test: V3, width: int, height: int, ppd: float 
     return err
 
 
-def flip_map_numpy(ref: np.ndarray, test: np.ndarray, backend: str = "numpy") -> np.ndarray:
-    """:func:`flip_map` of two (H, W, 3) sRGB LDR numpy images on ``backend``, as an (H, W) float32 numpy map."""
+def ldr_flip_image(ref: np.ndarray, test: np.ndarray, backend: str = "numpy") -> np.ndarray:
+    """:func:`ldr_flip` of two (H, W, 3) sRGB LDR numpy images on ``backend``, as an (H, W) float32 numpy map."""
     B = get_backend(backend)
     h, w = np.shape(ref)[:2]
     v = [B.vec(np.asarray(a, np.float32).reshape(-1, 3)) for a in (ref, test)]
-    return np.asarray(B.numpy(flip_map(B, v[0], v[1], w, h)), np.float32).reshape(h, w)
+    return np.asarray(B.numpy(ldr_flip(B, v[0], v[1], w, h)), np.float32).reshape(h, w)

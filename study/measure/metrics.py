@@ -97,9 +97,9 @@ def flip_map(ref: np.ndarray, test: np.ndarray, backend: str = "numpy") -> np.nd
     """
     a, b = (np.ascontiguousarray(to_ldr(x), np.float32) for x in (ref, test))
     if backend != "numpy":
-        from study.measure.flip import flip_map_numpy
+        from study.measure.flip import ldr_flip_image
 
-        return flip_map_numpy(a, b, backend)
+        return ldr_flip_image(a, b, backend)
     import flip_evaluator
 
     emap, _, _ = flip_evaluator.evaluate(a, b, "LDR", applyMagma=False)
