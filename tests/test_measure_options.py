@@ -61,3 +61,22 @@ def test_probes_render_at_probe_spp(tmp_path, monkeypatch, probe_spp):
     at = sc.with_updates({"reference.point": [float(c) for c in centres[1]]})
     if probe_spp is None:  # unset: the key an impostor taken there has always had
         assert impostor_key(at, spp=want) == impostor_key(at)
+
+
+def test_the_hardly_visible_claim_skips_a_table_without_flip_against_mitsuba():
+    """With render.flip_against leaving Mitsuba out, flip_mitsuba is NaN: the claim is not judged on that table
+    (None), rather than failing on NaN; with numbers it is judged (0.004 − 0.001 ≤ 0.01: holds)."""
+    from study.methods import make
+    from study.outputs.claims import hardly_visible
+
+    loc = make("localized").label
+
+    def rows(a, b):
+        return [
+            {"case": "c", "label": loc, "flip_mitsuba": a, "occluded_fraction": 0.0},
+            {"case": "c", "label": "oracle_map", "flip_mitsuba": b, "occluded_fraction": 0.0},
+        ]
+
+    assert hardly_visible(rows(float("nan"), float("nan"))) is None
+    v = hardly_visible(rows(0.004, 0.001))
+    assert v is not None and bool(v.ok) is True

@@ -170,7 +170,7 @@ def hardly_visible(rows):
         a = _get(rows, c, _default("localized"), "flip_mitsuba")
         b = _get(rows, c, "oracle_map", "flip_mitsuba")
         f = _get(rows, c, "oracle_map", "occluded_fraction")
-        if a is not None and b is not None and f == 0:
+        if _finite(a) and _finite(b) and f == 0:  # a table without FLIP against Mitsuba: not judged
             diffs.append((a - b, c))
     if not diffs:
         return None
