@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The GPU measurements of reports/performance.md (issue 15), run on a lent GPU machine from the repository root:
 #
-#   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3] [hier]   (default: bench studies)
+#   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3] [hier] [fig4paper]
+#                                                                                   (default: bench studies)
 #
 #   bench   : `study bench --backends cuda` — methods, exact queries (ray_intersect, _preliminary, ray_test) and
 #             the measured floors (texture fetch rates, copy bandwidth) → perf/
@@ -16,6 +17,9 @@
 #   fig4x3  : fig4 cold, with a warm kernel cache, and with every cache warm (what compiling kernels costs)
 #   hier    : scripts/hier_bench.py --backend cuda: linear_secant(1) and layered(1), hierarchical search against the
 #             texel march, and localized(10), on the close-up batch: ms, × floor, lookups per ray → perf/hier-cuda.*
+#   fig4paper: fig4 at paper quality (--quality paper: 1024² camera) with --backend cuda, so FLIP and the metrics run
+#             on the GPU (study/measure/flip.py): cold (fresh study and kernel caches; target ≤ 20 s), then with
+#             the kernel cache warm → results-fig4paper.tgz (the paper-resolution figure, reports/paper/fig4)
 #
 # Wheels: the machine has Python 3.12 without mitsuba/drjit/embreex/pydantic/dask; cp312 wheels are installed
 # from $WHEELS/a and $WHEELS/b (default .devcarry; how to make them: ../shared/field-notes.md, "Device (GPU) runs"),
@@ -131,6 +135,13 @@ print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' 
     timed hier python3 scripts/hier_bench.py --backend cuda --scene-res 1024 --repeats 5 --out "$W/perf" 2>&1 \
       | tee "$OUT/log-hier.txt"
     tar czf "$OUT/results-hier.tgz" -C "$W" perf ;;
+  fig4paper)
+    export HOME=$W/home-paper; mkdir -p "$HOME"                               # a fresh Dr.Jit kernel cache
+    timed fig4-paper-cold $S figure fig4 --quality paper --backend cuda --cache "$W/pc1" --out "$W/paper/fig4" \
+      2>&1 | tail -30
+    timed fig4-paper-kernels-warm $S figure fig4 --quality paper --backend cuda --cache "$W/pc2" \
+      --out "$W/paper-warm/fig4" > /dev/null 2>&1
+    tar czf "$OUT/results-fig4paper.tgz" -C "$W" paper ;;
   *) echo "unknown part $part"; exit 2 ;;
   esac
 done

@@ -68,6 +68,17 @@ class Backend:
     def sin(self, a): ...
     def cos(self, a): ...
     def gather(self, data, index): ...
+
+    def power(self, a, b): ...
+    def acos(self, a): ...
+    def array64(self, a: np.ndarray):
+        """A 1-D float64 array of this backend (measurements that must agree with numpy's to rounding)."""
+
+    def shifted(self, a, width: int, height: int, k: int, axis: int):
+        """The image ``a`` (a flat row-major ``height × width`` array) moved by ``k`` pixels along ``axis`` (1: x,
+        0: y), edges clamped: pixel (y, x) of the result holds ``a[y, clip(x + k)]`` (axis 1)."""
+
+    def total(self, a) -> float: ...
     def texture(self, texels: np.ndarray): ...
     def sample(self, tex, face, u, v) -> list: ...
     def eval(self, *arrays) -> None: ...
@@ -139,6 +150,24 @@ class NumpyBackend(Backend):
     def gather(self, data, index):
         """data[index] (``index`` a float array of integer values)."""
         return data[np.asarray(index).astype(np.int64)]
+
+    def power(self, a, b):
+        return np.power(a, np.float32(b) if np.isscalar(b) else b)
+
+    def acos(self, a):
+        return np.arccos(a)
+
+    def array64(self, a):
+        return np.asarray(a, np.float64)
+
+    def shifted(self, a, width, height, k, axis):
+        img = np.asarray(a).reshape(height, width)
+        n = img.shape[axis]
+        idx = np.clip(np.arange(n) + k, 0, n - 1)
+        return np.take(img, idx, axis=axis).reshape(-1)
+
+    def total(self, a):
+        return float(np.sum(np.asarray(a, np.float64)))
 
     def eval(self, *arrays):
         pass
@@ -263,6 +292,29 @@ class DrJitBackend(Backend):
 
     def gather(self, data, index):
         return self.dr.gather(self.m.Float, data, self.m.UInt32(index))
+
+    def power(self, a, b):
+        return self.dr.power(a, b)
+
+    def acos(self, a):
+        return self.dr.acos(a)
+
+    def array64(self, a):
+        return self.m.Float64(np.ascontiguousarray(a, dtype=np.float64))
+
+    def shifted(self, a, width, height, k, axis):
+        dr, m = self.dr, self.m
+        w, h = dr.opaque(m.Int32, width), dr.opaque(m.Int32, height)  # one kernel for every image size
+        i = dr.arange(m.Int32, width * height)
+        x, y = i % w, i // w
+        if axis == 1:
+            x = dr.clip(x + k, 0, w - 1)
+        else:
+            y = dr.clip(y + k, 0, h - 1)
+        return dr.gather(type(a), a, m.UInt32(y * w + x))
+
+    def total(self, a):
+        return float(self.dr.sum(self.m.Float64(a))[0]) if self.dr.width(a) else 0.0
 
     def eval(self, *arrays):
         self.dr.eval(*arrays)

@@ -269,7 +269,7 @@ def test_camera_outside_the_room_sees_the_object_and_a_wall_hides_it(tmp_path):
 
 
 def test_proxies_use_the_bounds_or_the_given_box():
-    from study.measure.case import env_info
+    from study.measure.inputs import env_info
 
     scene = scene_from_dict(CORNELL)
     lo, hi = env_info(scene)["room"]

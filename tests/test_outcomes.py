@@ -5,7 +5,7 @@ methods."""
 
 import numpy as np
 import pytest
-from conftest import BOX_HI, BOX_LO
+from conftest import BACKENDS, BOX_HI, BOX_LO
 
 from study import backend as backends
 from study import methods
@@ -95,8 +95,9 @@ def test_exact_origin_defines_the_exact_ray():
     assert oc.cls[0] == WRONG_DEPTH and oc.depth_error[0] == pytest.approx(1.0)
 
 
-@pytest.mark.parametrize("with_origin", [False, True])
-def test_classify_agrees_with_its_ref_twin(with_origin):
+def mixed_rays(with_origin, far=False):
+    """Rays in the analytic box with shown points near the hit, on the ray, off it and missing (and, with ``far``,
+    exact hits and shown points at infinity for a quarter of them, as in an open environment)."""
     rng = np.random.default_rng(3)
     n = 400
     x, R = analytic.random_rays(n, extent=0.8, seed=4)
@@ -113,14 +114,42 @@ def test_classify_agrees_with_its_ref_twin(with_origin):
         ),
     )
     shown[kind == 3] = np.nan
+    if far:  # at infinity: exact, shown or both, along the ray or not
+        k = rng.integers(0, 4, n)
+        exact[k == 0] = x[k == 0] + R[k == 0] * cubemap.FAR
+        shown[k == 1] = x[k == 1] + R[k == 1] * cubemap.FAR
+        exact[k == 2] = x[k == 2] + R[k == 2] * cubemap.FAR
+        shown[k == 2] = (
+            x[k == 2] + (R[k == 2] + rng.normal(scale=0.002, size=(int((k == 2).sum()), 3))) * cubemap.FAR
+        )
     eps = outcomes.tolerance(np.zeros(3), exact, 64)
     origin = x + rng.normal(scale=0.01, size=(n, 3)) if with_origin else None
+    return x, R, shown, exact, eps, origin
+
+
+@pytest.mark.parametrize("with_origin", [False, True])
+def test_classify_agrees_with_its_ref_twin(with_origin):
+    x, R, shown, exact, eps, origin = mixed_rays(with_origin)
     a = outcomes.classify(x, R, shown, exact, eps=eps, exact_origin=origin)
     b = outcomes.classify_ref(x, R, shown, exact, eps=eps, exact_origin=origin)
     assert set(np.unique(a.cls)) == {CORRECT, WRONG_DEPTH, WRONG_SURFACE, NO_HIT}
     np.testing.assert_array_equal(a.cls, b.cls)
     np.testing.assert_allclose(a.dist, b.dist, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(a.depth_error, b.depth_error, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("far", [False, True])
+@pytest.mark.parametrize("with_origin", [False, True])
+@pytest.mark.skipif("llvm" not in BACKENDS, reason="needs Dr.Jit's LLVM backend")
+def test_the_device_classes_are_numpys(with_origin, far):
+    """classify_on (one kernel on the backend, float64) gives classify's classes, distances and depth errors."""
+    x, R, shown, exact, eps, origin = mixed_rays(with_origin, far)
+    a = outcomes.classify(x, R, shown, exact, eps=eps, exact_origin=origin)
+    b = outcomes.classify_on(backends.get("llvm"), x, R, shown, exact, eps=eps, exact_origin=origin)
+    assert set(np.unique(a.cls)) == {CORRECT, WRONG_DEPTH, WRONG_SURFACE, NO_HIT}
+    np.testing.assert_array_equal(a.cls, b.cls)
+    np.testing.assert_allclose(a.dist, b.dist, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(a.depth_error, b.depth_error, rtol=1e-9, atol=1e-9)
 
 
 def test_texel_footprint_is_the_gnomonic_texel_size():

@@ -1,8 +1,10 @@
 """The bench's files: ``bench-<tag>.csv`` / ``.md`` (the main table) and ``scaling-<tag>.csv`` / ``.png``.
 
-Columns of the main table: ms_per_call, mrays_per_s, ms_per_frame (a 1024² frame = 1 048 576 rays at the measured
-rate), x_vs_embree / x_vs_mitsuba (the exact tracer's time for the same rays over the method's; > 1: the method is
-faster). The Markdown file starts with the machine and the package versions.
+Columns of the main table: lookups_mean and bytes_per_ray (what a ray reads, :mod:`study.bench.carry`), ms_per_call,
+mrays_per_s, ms_per_frame (a 1024² frame = 1 048 576 rays at the measured rate), x_vs_embree / x_vs_mitsuba (the
+exact tracer's time for the same rays over the method's; > 1: the method is faster). The Markdown file starts with
+the machine and the package versions; on a GPU without RT cores it has a projection to GPUs with them
+(``projection-<tag>.csv``).
 
 The main table (CSV + Markdown) and the scaling study (CSV + plot) are two output sets (:func:`study.io.output_set`),
 each replaced whole or not at all: the main table is kept when the scaling studies fail after it.
@@ -13,6 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from study import methods as registry
+from study.bench.carry import PROJECTION_COLS, projection_rows, projection_title
 from study.io import atomic_savefig, png_bytes, write_set
 from study.tables import markdown, to_csv
 
@@ -22,6 +25,8 @@ BENCH_COLS = [
     "path",
     "label",
     "rays",
+    "lookups_mean",
+    "bytes_per_ray",
     "ms_per_call",
     "mrays_per_s",
     "ms_per_frame",
@@ -36,6 +41,8 @@ HEADLINE_COLS = [
     "batch",
     "backend",
     "label",
+    "lookups_mean",
+    "bytes_per_ray",
     "ms_per_frame",
     "floor_ms_per_frame",
     "x_floor",
@@ -73,18 +80,32 @@ def bench_table(rows: list[dict]) -> str:
     return markdown(rows, BENCH_COLS, digits=4)
 
 
+def projection_section(proj: list[dict]) -> str:
+    """The Markdown section of the RT-core projection (:mod:`study.bench.carry`); '' without rows."""
+    if not proj:
+        return ""
+    return (
+        f"## Cost that carries: a projection to GPUs with RT cores\n\n{projection_title()}\n\n"
+        f"{markdown(proj, PROJECTION_COLS, digits=3)}\n\n"
+    )
+
+
 def write_bench_files(rows, info, out: Path, *, lock: bool = True) -> list[Path]:
     """Replace the main table (``bench-<tag>.csv`` and ``.md``) in ``out``; the paths."""
     tag = info["tag"]
     fl = info.get("floors") or []
+    proj = projection_rows(bench_headline(rows)) if "no RT cores" in info.get("rt_cores", "") else []
     md = (
         f"# study bench ({tag})\n\n{header(info)}\n\n## Headline: ms per 1024² frame, floor, ratios\n\n"
         f"x_floor = time / floor (1 = at the floor); x_vs_* = the exact query's time / the method's "
         f"(> 1: the method is faster)\n\n{markdown(bench_headline(rows), HEADLINE_COLS, digits=3)}\n\n"
         f"## Measured floors\n\n{markdown(fl, FLOOR_COLS, digits=4) if fl else '(none measured)'}\n\n"
+        f"{projection_section(proj)}"
         f"## Every row\n\n{bench_table(rows)}\n"
     )
     files = {f"bench-{tag}.csv": to_csv(rows), f"bench-{tag}.md": md}
+    if proj:
+        files[f"projection-{tag}.csv"] = to_csv(proj)
     if fl:
         files[f"floors-{tag}.csv"] = to_csv(fl)
     return write_set(out, files, lock=lock)

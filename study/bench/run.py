@@ -25,6 +25,7 @@ import numpy as np
 
 from study import backend as backends
 from study import methods as registry
+from study.bench import carry
 from study.bench import floors as floor_model
 from study.bench.batches import (
     Batch,
@@ -40,7 +41,7 @@ from study.bench.scaling import knob_values, scaling_rows
 from study.bench.timing import FRAME, QUERIES, Exact, mitsuba_variant, rate_row, time_method
 from study.errors import StudyError
 from study.harness import budget
-from study.measure.case import env_info
+from study.measure.inputs import env_info
 from study.methods import Method
 from study.scene import Scene
 
@@ -236,6 +237,7 @@ def run_bench(
                         len(x),
                     )
                     row["lookups_per_ray"] = spent[-1]  # measured mean (Trace.lookups)
+                    row.update(carry.cost_columns(spent[-1], m.lookup_bound(opt.cube_res)))  # bytes per ray
                     rows.append(with_floor(with_ratios(row, exact, b, nm), m, floors.get(nm), b))
             log(f"methods on {nm}, {b.name} timed")
 

@@ -17,7 +17,7 @@ from study import backend as backends
 from study import methods as registry
 from study.bench.batches import closeup_rays, distance_texels, room_triangles, synthetic_rays
 from study.bench.timing import Exact, mitsuba_variant, rate_row, time_method
-from study.measure.case import env_info
+from study.measure.inputs import env_info
 
 #: ``opt`` below: the bench's options, a :class:`study.bench.run.BenchOptions` (not imported: ``run`` imports this
 #: module, and study's import graph has no cycle, not even through a type annotation).

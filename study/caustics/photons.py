@@ -121,7 +121,7 @@ def build_caustic_map(
     scene: Scene, method: Method, env: Captured | EnvMap, uvmap: UVMap, *, res: int = 64
 ) -> CausticMap:
     """The caustic map of ``scene``'s sphere lit by its point light, photon hits localized by ``method`` in the
-    views ``env`` (:class:`~study.impostor.views.Captured`, as :func:`study.measure.case.capture_views` makes them;
+    views ``env`` (:class:`~study.impostor.views.Captured`, as :func:`study.measure.inputs.capture_views` makes them;
     a bare impostor: the methods' fallbacks) on their backend (which must be the backend of ``uvmap`` too).
     ``seconds`` holds the phase times."""
     if scene.object.material.type != "dielectric":

@@ -32,7 +32,8 @@ from study.caustics import photons as caustics
 from study.errors import StudyError
 from study.harness.config import MethodSpecs, configured_scene, expand_methods
 from study.impostor.analytic import angle_deg
-from study.measure.case import capture_views, impostor, knob_columns
+from study.measure.case import knob_columns
+from study.measure.inputs import capture_views, impostor
 from study.methods import Method
 from study.optics import interfaces as optics
 from study.reference.embree import Tracer

@@ -62,16 +62,18 @@ def capture_probes(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Texels (N, 6, R, R, 4) and world centres (N, 3) of the probe set ``spec`` of ``scene``: probe 0 the
     reference impostor (``texels0``), then one probe per :func:`probe_points` (``bounds``: the environment's),
-    its radiance rendered by Mitsuba from there and its distances traced, both cached like an impostor taken there."""
+    its radiance rendered by Mitsuba from there (``render.probe_spp`` samples per texel, by default ``cube_spp``) and
+    its distances traced, both cached like an impostor taken there."""
     r = scene.render
+    spp = r.probe_spp or r.cube_spp  # the probes' own sample count (render.probe_spp), else the impostor's
     pts = probe_points(spec, bounds if bounds is not None else scene.bounds(), tracer)
     maps, centres = [np.asarray(texels0, np.float32)], [np.asarray(scene.reference.point, float)]
     for p in pts:
         at = scene.with_updates({"reference.point": [float(c) for c in p]})
         rad = cache.get(
             "radiance",
-            impostor_key(at),
-            lambda at=at: render_cube(at, r.cube_res, r.cube_spp),
+            impostor_key(at, spp=spp),
+            lambda at=at: render_cube(at, r.cube_res, spp),
             code=render_cube,
         )
         dist = cache.get(

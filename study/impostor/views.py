@@ -18,7 +18,7 @@ view                            depth, radiance, projection
 A method says which views it searches with :meth:`study.methods.base.Method.views_needed`, a :class:`Views`
 request; the caller merges the requests of every method (:meth:`Views.merge`), captures what was asked and hands
 the methods one :class:`Captured`: the impostor, the views captured besides it and the scene knowledge (reference
-point, room box, open environment). Callers: :func:`study.measure.case.capture_views` (cases and caustic maps) and
+point, room box, open environment). Callers: :func:`study.measure.inputs.capture_views` (cases and caustic maps) and
 :func:`study.bench.timing.method_runner` (the bench: copies of the impostor as layers, nothing else).
 """
 

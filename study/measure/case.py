@@ -16,24 +16,17 @@ import numpy as np
 
 from study import backend as backends
 from study import progress
-from study.cache import Cache, content_key
+from study.cache import Cache
 from study.errors import StudyError
-from study.impostor import prefilter, probes, screen
-from study.impostor.capture import Impostor, capture_distance, impostor_key, render_cube
-from study.impostor.cubemap import FAR, FAR_MIN
+from study.impostor.cubemap import FAR
 from study.impostor.envmap import EnvMap
-from study.impostor.layers import layered_impostor
-from study.impostor.sdf import SdfGrid, sdf_grid
-from study.impostor.views import Captured, Lobe, Views
+from study.impostor.views import Lobe
 from study.measure import metrics, outcomes, split, stats, truth
+from study.measure.inputs import camera_render, capture_views, impostor, second_captures
 from study.methods import Method
 from study.optics import shading
-from study.reference.embree import Tracer
-from study.reference.mitsuba import radiance_along, render_camera
 from study.reference.tracer import make_tracer
 from study.scene import Scene
-from study.scene.environment import env_key
-from study.scene.sources import key_fields
 
 
 @dataclass
@@ -57,145 +50,6 @@ class CaseOutput:
 
 
 # ---------------------------------------------------------------------------------------------- cached inputs
-def impostor(scene: Scene, cache: Cache, tracer: Tracer | None = None) -> Impostor:
-    r = scene.render
-    key = impostor_key(scene)
-    rad = cache.get("radiance", key, lambda: render_cube(scene, r.cube_res, r.cube_spp), code=render_cube)
-    dist = cache.get(
-        "distance", key, lambda: capture_distance(scene, r.cube_res, tracer), code=capture_distance
-    )
-    return Impostor(
-        np.asarray(scene.reference.point, float),
-        rad.reshape(6, r.cube_res, r.cube_res, 3),
-        dist.reshape(6, r.cube_res, r.cube_res),
-    )
-
-
-def camera_render(scene: Scene, cache: Cache, *, with_object: bool) -> np.ndarray:
-    s = scene
-    parts = [
-        env_key(s),
-        s.light.model_dump(),
-        s.camera.model_dump(),
-        s.render.spp,
-        s.render.max_depth,
-        s.render.seed,
-        "v2",
-    ]
-    if with_object:
-        parts.append(key_fields(s.object))  # a mesh file by its bytes
-        if s.object.material.type == "dielectric":
-            parts.append("dielectric depth +2")  # see mitsuba.scene_dict
-    key = content_key(*parts)
-    img = cache.get(
-        "mitsuba" if with_object else "background",
-        key,
-        lambda: render_camera(scene, with_object=with_object),
-        code=render_camera,
-    )
-    return img.reshape(s.camera.height, s.camera.width, 3)
-
-
-def prefiltered(scene: Scene, cache: Cache, imp: Impostor, B) -> prefilter.MipChain:
-    """The impostor's GGX-prefiltered mip chain (:mod:`study.impostor.prefilter`), cached like the impostor (its
-    key, the chain's settings and the code)."""
-    r = scene.render
-    sizes = [prefilter.level_res(r.cube_res, prefilter.level_alpha(m)) for m in range(prefilter.LEVELS)]
-    key = content_key(impostor_key(scene), prefilter.LEVELS, prefilter.SAMPLES, "prefiltered-v1")
-    flat = cache.get(
-        "prefiltered",
-        key,
-        lambda: np.concatenate([t.ravel() for t in prefilter.prefilter(imp.texels())]),
-        code=prefilter.prefilter,
-    )
-    ends = np.cumsum([6 * s * s * 4 for s in sizes])
-    levels = [a.reshape(6, s, s, 4) for a, s in zip(np.split(flat, ends[:-1]), sizes)]
-    return prefilter.MipChain(levels, B)
-
-
-def env_info(scene: Scene) -> dict:
-    """The scene knowledge methods may use (fields of :class:`~study.impostor.views.Captured`): reference point,
-    room (the proxy box: ``reference.box`` where given, else the environment's bounds)."""
-    box = scene.reference.box or tuple(tuple(map(float, b)) for b in scene.bounds())
-    return {"reference": tuple(map(float, scene.reference.point)), "room": box}
-
-
-def capture_views(
-    scene: Scene,
-    methods: list[Method],
-    imp: Impostor,
-    B,
-    *,
-    cache: Cache,
-    tracer: Tracer,
-    background: np.ndarray | None = None,
-    lobe: Lobe | None = None,
-) -> Captured:
-    """What ``methods`` search, captured for ``scene``: the impostor ``imp`` on backend ``B``, the views their
-    :meth:`~study.methods.base.Method.views_needed` ask for (depth layers, probe sets, the camera's buffer, whose
-    colour is ``background``: the camera's render without the object, rendered here when not given, the
-    prefiltered impostor) and the scene knowledge, with ``lobe`` (the rays' roughness and normals); a method
-    asking for a view that is missing is then an error, not a fallback."""
-    o = np.asarray(scene.reference.point, float)
-    views = Views.merge(*(m.views_needed() for m in methods))
-    layers, probe_sets, scr = (), {}, None
-    if views.layers > 1:  # depth layers for the methods that search them
-        tex = layered_impostor(scene, cache, views.layers, imp.radiance, tracer)
-        layers = tuple(EnvMap(t, B) for t in tex)
-    for spec in views.probes:  # cube maps at several points (probe 0: the impostor)
-        texels, centres = probes.capture_probes(scene, spec, cache, imp.texels(), tracer)
-        probe_sets[spec] = probes.ProbeSet.around(texels, centres, o, B)
-    if views.screen:  # the camera's depth + colour (no object)
-        if background is None:
-            background = camera_render(scene, cache, with_object=False)
-        scr = screen.ScreenView.of_scene(scene, background, tracer, B)
-    fields = {spec: SdfGrid(*sdf_grid(scene, spec, cache), o, B) for spec in views.sdfs}  # distance fields
-
-    def shade(
-        origins, dirs
-    ):  # exact shading: Mitsuba along the rays, as truth_at_hit, with a seed of its own
-        seed = scene.render.seed + 2 * truth.SEED_OFFSET  # not the truth's two seeds: its noise is not shared
-        return radiance_along(scene, origins, dirs, spp=scene.render.spp, seed=seed)
-
-    pre = prefiltered(scene, cache, imp, B) if views.prefiltered else None
-    return Captured(
-        impostor=EnvMap(imp.texels(), B),
-        layers=layers,
-        probes=probe_sets,
-        screen=scr,
-        sdfs=fields,
-        shade=shade if views.shade else None,
-        open=open_environment(imp),
-        prefiltered=pre,
-        lobe=lobe,
-        **env_info(scene),
-    )
-
-
-def second_captures(scene: Scene, cache: Cache, imp: Impostor) -> tuple[np.ndarray, np.ndarray]:
-    """The impostor's radiance once more, (6, R, R, 4) texels (distance channel 0, unused by the oracle): captured
-    with a second seed (``render.seed + SEED_OFFSET``) and 1/:data:`~study.measure.split.SEED_SPP_DIVISOR` of the
-    samples per texel (a fraction of the capture's cost), and at half the resolution (2 × 2 texel means of the
-    map: the same as a capture at R/2 with four times the samples, texels being box-filtered pixel means). The
-    representation term of :mod:`study.measure.split` is measured from them."""
-    r = scene.render
-    other = scene.with_updates({"render.seed": r.seed + truth.SEED_OFFSET})
-    spp = max(1, r.cube_spp // split.SEED_SPP_DIVISOR)
-    seed2 = cache.get(
-        "radiance",
-        impostor_key(other, spp=spp),
-        lambda: render_cube(other, r.cube_res, spp),
-        code=render_cube,
-    ).reshape(6, r.cube_res, r.cube_res, 3)
-    coarse = split.coarser(imp.radiance)
-    return tuple(np.concatenate([c, np.zeros(c.shape[:-1] + (1,), c.dtype)], -1) for c in (seed2, coarse))
-
-
-def open_environment(imp: Impostor) -> bool:
-    """Whether some texels of the impostor see no surface (distance FAR: an open environment)."""
-    return bool(np.any(imp.distance >= FAR_MIN))
-
-
 def checked_lookups(m: Method, spent: np.ndarray, res: int) -> tuple[float, float]:
     """(mean, bound) of the lookups the rays of one trace spent; a ray over ``m.lookups_per_ray(res)`` is an
     error of the method (its bound is what budgets and floors count)."""
@@ -291,13 +145,30 @@ def run_case(
     on_held = mask & held_px  # the pixels whose every hit the views hold: where the oracle has a value
     sigma = truth.noise_rms(ref.noise, mask)  # the truth's own noise (debiased columns)
 
+    against = scene.render.flip_against  # the references FLIP is measured against (the others: NaN)
+
     def image_columns(img, reference=False, fmap=None, over=mask):  # one image against every reference
         cols = {
             **metrics.image_errors(  # on held pixels; unheld ones take img's value (FLIP and SSIM filter
-                np.where((held_px | ~mask)[..., None], oracle_img, img), img, mask=on_held, suffix="oracle"
-            ),  # across pixels: a marked neighbour must not count); fmap: its
-            **metrics.image_errors(ref.image, img, mask=over, suffix="truth", flip_emap=fmap),  # FLIP map
-            **metrics.image_errors(mitsuba, img, mask=over, suffix="mitsuba"),
+                np.where((held_px | ~mask)[..., None], oracle_img, img),
+                img,
+                mask=on_held,
+                suffix="oracle",
+                backend=backend,
+                with_flip="oracle" in against,
+            ),  # across pixels: a marked neighbour must not count); fmap: its FLIP map
+            **metrics.image_errors(
+                ref.image,
+                img,
+                mask=over,
+                suffix="truth",
+                flip_emap=fmap,
+                backend=backend,
+                with_flip="truth" in against,
+            ),
+            **metrics.image_errors(
+                mitsuba, img, mask=over, suffix="mitsuba", backend=backend, with_flip="mitsuba" in against
+            ),
             **truth.columns(img, ref, mitsuba, mask=over),
             **stats.pixel_columns(  # intervals over pixels, robust variants
                 img, ref.image, mask=over, sigma=sigma, rel_eps=truth.REL_EPS, emap=fmap
@@ -345,8 +216,10 @@ def run_case(
     )
     eps = outcomes.tolerance(o, exact, scene.render.cube_res)  # per ray: max(1 cm, one texel at the hit)
 
-    def classify(shown):  # outcome classes against the exact hits
-        return outcomes.classify(rays.x, rays.R, shown, exact, eps=eps, exact_origin=rays.exact_x)
+    def classify(shown):  # outcome classes against the exact hits, on the methods' backend
+        if backend == "numpy":
+            return outcomes.classify(rays.x, rays.R, shown, exact, eps=eps, exact_origin=rays.exact_x)
+        return outcomes.classify_on(B, rays.x, rays.R, shown, exact, eps=eps, exact_origin=rays.exact_x)
 
     # ------------------------------------------------------------------ every method on the same rays
     mark("methods")
@@ -415,7 +288,7 @@ def run_case(
         img = shading.composite(rays, np.nan_to_num(rad) * F, background)
         ang = metrics.angular_error(rays.x, shown, exact)
         oc = classify(shown)
-        fmap = metrics.flip_map(ref.image, img) if keep_images else None
+        fmap = metrics.flip_map(ref.image, img, backend) if keep_images else None
         row = {
             **base,
             "method": m.name,

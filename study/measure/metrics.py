@@ -79,34 +79,42 @@ def ssim(ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray) -> float:
     return float(smap.mean(axis=-1)[mask].mean())
 
 
-def flip_map(ref: np.ndarray, test: np.ndarray) -> np.ndarray:
-    """Per-pixel LDR-FLIP error map (flip-evaluator) of two linear-radiance images.
+def flip_map(ref: np.ndarray, test: np.ndarray, backend: str = "numpy") -> np.ndarray:
+    """Per-pixel LDR-FLIP error map of two linear-radiance images.
 
     Parameters
     ----------
     test, ref : (H, W, 3) array
         Linear RGB radiance; both are turned into sRGB LDR images first (:func:`to_ldr`).
+    backend : str
+        'numpy': flip-evaluator (NVIDIA's C++ code, the reference); 'llvm' or 'cuda': the array implementation
+        :mod:`study.measure.flip` on that Dr.Jit backend (within 1e-4 of the reference, ``tests/test_flip.py``).
 
     Returns
     -------
     (H, W) float32 array
         FLIP error per pixel, in [0, 1] (0: indistinguishable).
     """
+    a, b = (np.ascontiguousarray(to_ldr(x), np.float32) for x in (ref, test))
+    if backend != "numpy":
+        from study.measure.flip import ldr_flip_image
+
+        return ldr_flip_image(a, b, backend)
     import flip_evaluator
 
-    emap, _, _ = flip_evaluator.evaluate(
-        np.ascontiguousarray(to_ldr(ref), np.float32),
-        np.ascontiguousarray(to_ldr(test), np.float32),
-        "LDR",
-        applyMagma=False,
-    )
+    emap, _, _ = flip_evaluator.evaluate(a, b, "LDR", applyMagma=False)
     return np.asarray(emap, np.float32)[..., 0]
 
 
 def flip_values(
-    ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray, emap: np.ndarray | None = None
+    ref: np.ndarray,
+    test: np.ndarray,
+    *,
+    mask: np.ndarray,
+    emap: np.ndarray | None = None,
+    backend: str = "numpy",
 ) -> np.ndarray:
-    """LDR-FLIP error (flip-evaluator) of each masked pixel, (P,); inputs are the sRGB LDR images.
+    """LDR-FLIP error (:func:`flip_map` on ``backend``) of each masked pixel of two linear-radiance images, (P,).
 
     ``emap``: the (H, W) map of :func:`flip_map` for these two images, when the caller already has it (it is then
     not computed again)."""
@@ -114,23 +122,38 @@ def flip_values(
         return np.zeros(0, np.float32)
     if emap is None:  # only the mask's bounding box + 24 px: FLIP's filters reach < 12 px (67 ppd), so the
         mask, test, ref = _crop(mask, 24, test, ref)  # masked pixels' errors are bit-identical
-        emap = flip_map(ref, test)
+        emap = flip_map(ref, test, backend)
     return np.asarray(emap)[mask]
 
 
-def flip(ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray, emap: np.ndarray | None = None) -> float:
+def flip(
+    ref: np.ndarray,
+    test: np.ndarray,
+    *,
+    mask: np.ndarray,
+    emap: np.ndarray | None = None,
+    backend: str = "numpy",
+) -> float:
     """Mean LDR-FLIP error over the masked pixels (:func:`flip_values`; NaN without pixels)."""
-    v = flip_values(ref, test, mask=mask, emap=emap)
+    v = flip_values(ref, test, mask=mask, emap=emap, backend=backend)
     return float(v.mean()) if v.size else np.nan
 
 
 def image_errors(
-    ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray, suffix: str, flip_emap: np.ndarray | None = None
+    ref: np.ndarray,
+    test: np.ndarray,
+    *,
+    mask: np.ndarray,
+    suffix: str,
+    flip_emap: np.ndarray | None = None,
+    backend: str = "numpy",
+    with_flip: bool = True,
 ) -> dict[str, float]:
     """``rmse_<suffix>``, ``psnr_<suffix>``, ``ssim_<suffix>``, ``flip_<suffix>`` (mean) and ``flip_<suffix>_p95``
     (the 95th percentile over the pixels: the tail a viewer notices) of ``test`` against ``ref`` over ``mask``
-    (``flip_emap``: the FLIP map of the two images, if already computed)."""
-    fv = flip_values(ref, test, mask=mask, emap=flip_emap)
+    (``flip_emap``: the FLIP map of the two images, if already computed; ``backend``: where FLIP runs,
+    :func:`flip_map`; ``with_flip`` False: the FLIP columns are NaN, not measured)."""
+    fv = flip_values(ref, test, mask=mask, emap=flip_emap, backend=backend) if with_flip else np.zeros(0)
     return {
         f"rmse_{suffix}": rmse(ref, test, mask=mask),
         f"psnr_{suffix}": psnr(ref, test, mask=mask),

@@ -35,7 +35,8 @@ the exact ray) and ``(exact − exact_origin)/|…|`` otherwise (dielectric obje
 get from the object's own distance map: :meth:`study.optics.shading.ObjectRays.exact_rays`). Shown points on
 the method's own, slightly wrong ray then count as WRONG_SURFACE unless they are also on the exact ray.
 
-:func:`classify` is vectorised; :func:`classify_ref` is its slow, obvious twin (one ray at a time) for tests.
+:func:`classify` is vectorised (numpy); :func:`classify_on` the same on a Dr.Jit backend (LLVM, CUDA: where the
+rays are); :func:`classify_ref` is their slow, obvious twin (one ray at a time) for tests.
 :func:`outcome_columns` turns the classes into the columns of a results table.
 """
 
@@ -167,6 +168,54 @@ def classify(x, R, shown, exact, *, eps, exact_origin=None) -> Outcomes:
     finite = ~missing & ~far_e & ~far_s
     cls = np.where(missing, NO_HIT, cls).astype(np.int8)
     return Outcomes(cls, np.where(finite, dist, np.nan), np.where(finite, t_shown - t_exact, np.nan), eps)
+
+
+def classify_on(B, x, R, shown, exact, *, eps, exact_origin=None) -> Outcomes:
+    """:func:`classify` on the backend ``B`` (Dr.Jit's LLVM or CUDA: one kernel over the rays, in float64 so that
+    the classes are numpy's to rounding; ``tests/test_outcomes.py`` compares them). Same parameters and result;
+    on the numpy backend it is :func:`classify`."""
+    if B.name == "numpy":  # numpy's select is float32 (as the methods compute): classify is the numpy path
+        return classify(x, R, shown, exact, eps=eps, exact_origin=exact_origin)
+    shown, exact = np.asarray(shown, float), np.asarray(exact, float)
+    x0, d = _exact_ray(x, R, exact, exact_origin)
+    n = len(shown)
+    S, E, X0, D = ([B.array64(a[:, k]) for k in range(3)] for a in (shown, exact, x0, d))
+    ep = B.array64(np.broadcast_to(np.asarray(eps, float), (n,)))
+    rel = [S[k] - X0[k] for k in range(3)]
+    t_shown = rel[0] * D[0] + rel[1] * D[1] + rel[2] * D[2]
+    to_e = [E[k] - X0[k] for k in range(3)]
+    t_exact = to_e[0] * D[0] + to_e[1] * D[1] + to_e[2] * D[2]
+    off = [rel[k] - t_shown * D[k] for k in range(3)]
+    off_line = B.sqrt(off[0] * off[0] + off[1] * off[1] + off[2] * off[2])
+    de = [S[k] - E[k] for k in range(3)]
+    dist = B.sqrt(de[0] * de[0] + de[1] * de[1] + de[2] * de[2])
+    missing = ~(B.isfinite(S[0]) & B.isfinite(S[1]) & B.isfinite(S[2]))
+    c = B.select(
+        dist <= ep,
+        float(CORRECT),
+        B.select((off_line <= ep) & (t_shown > 0), float(WRONG_DEPTH), float(WRONG_SURFACE)),
+    )
+    # ------------------------------------------------------- at infinity (open environments): by direction
+    r_shown = B.sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2])
+    r_exact = B.sqrt(to_e[0] * to_e[0] + to_e[1] * to_e[1] + to_e[2] * to_e[2])
+    far_e, far_s = r_exact >= FAR_MIN, ~missing & (r_shown >= FAR_MIN)
+    tol = ep / r_exact
+    along = B.acos(B.minimum(B.maximum(t_shown / r_shown, -1.0), 1.0)) <= tol
+    reach = tol * r_shown
+    near_line = (off_line <= B.select(reach > EPS_FIXED, reach, EPS_FIXED)) & (t_shown > 0)  # fmax: NaN → ε
+    good, bad = float(CORRECT), float(WRONG_SURFACE)
+    c = B.select(far_e & far_s, B.select(along, good, bad), c)
+    c = B.select(far_e & ~far_s, B.select(near_line, float(WRONG_DEPTH), bad), c)
+    c = B.select(~far_e & far_s, B.select(along, float(WRONG_DEPTH), bad), c)
+    finite = ~missing & ~far_e & ~far_s
+    c = B.select(missing, float(NO_HIT), c)
+    nan = float("nan")
+    dist, depth = B.select(finite, dist, nan), B.select(finite, t_shown - t_exact, nan)
+    B.eval(c, dist, depth)
+    out = [np.asarray(B.numpy(a), np.float64) for a in (c, dist, depth)]
+    return Outcomes(
+        out[0].astype(np.int8), out[1], out[2], np.broadcast_to(np.asarray(eps, float), (n,)).copy()
+    )
 
 
 def classify_ref(x, R, shown, exact, *, eps, exact_origin=None) -> Outcomes:

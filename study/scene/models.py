@@ -220,3 +220,11 @@ class Render(_Strict):
         8  # total internal reflections followed, then dropped
     )
     object_res: Annotated[Int, Field(ge=4, le=2048)] = 128  # face resolution of the object's own distance map
+    probe_spp: Annotated[Int, Field(ge=1, le=MAX_SAMPLES)] | None = (
+        None  # probes' samples per texel (cube_spp)
+    )
+    flip_against: tuple[Literal["oracle", "truth", "mitsuba"], ...] = (
+        "oracle",
+        "truth",
+        "mitsuba",
+    )  # FLIP refs
