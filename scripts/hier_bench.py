@@ -26,7 +26,7 @@ from study.bench import floors as floor_model
 from study.bench.batches import closeup_rays, distance_texels, room_triangles
 from study.bench.timing import FRAME, time_method
 from study.harness.config import load_figure_config
-from study.measure.case import env_info
+from study.measure.inputs import env_info
 from study.reference.embree import Tracer
 from study.tables import columns_of, markdown, write_csv
 

@@ -745,5 +745,5 @@ def test_methods_by_bare_name_and_a_misspelt_one():
     with pytest.raises(StudyError) as e:
         expand_methods(["all", "clasical"], source="c.toml")
     assert str(e.value).startswith(
-        "c.toml: methods[1]: unknown method 'clasical'; allowed: \"all\", classical"
+        'c.toml: methods[1]: unknown method \'clasical\'; allowed: "all", "glossy", classical'
     )

@@ -95,7 +95,19 @@ def test_lookups_per_ray_of_the_new_methods():
     assert methods.make("proxy_box").lookups_per_ray() == 1
     assert methods.make("proxy_sphere").lookups_per_ray() == 1
     # before any search: the bound at max_steps (the march's length follows the cube resolution it meets)
-    assert methods.make("linear_secant", max_steps=100, secant_steps=2).lookups_per_ray() == 1 + 100 + 2 + 1
-    assert methods.make("layered", layers=3, iterations=10, max_steps=100).lookups_per_ray() == 3 * (
-        1 + 100 + 10 + 1
+    texel = {"hierarchical": False}  # the texel march: every sample read once
+    assert (
+        methods.make("linear_secant", max_steps=100, secant_steps=2, **texel).lookups_per_ray()
+        == 1 + 100 + 2 + 1
+    )
+    # per layer g(0) and the march; the secant steps and the shown point on the kept layer alone
+    assert methods.make("layered", layers=3, iterations=10, max_steps=100, **texel).lookups_per_ray() == (
+        3 * (1 + 100) + 10 + 1
+    )
+    # the hierarchical march: at worst a failed pyramid read before each sample, and the bracket's start re-read
+    from study.methods.march import iterations
+
+    assert iterations(100) >= 2 * 100
+    assert methods.make("linear_secant", max_steps=100, secant_steps=2).lookups_per_ray() == (
+        1 + iterations(100) + 1 + 2 + 1
     )
