@@ -369,3 +369,24 @@ def test_binary_hidden_map_is_two_classes():
         assert hidden["display"]["type"] == kind
         if binary:
             assert hidden["display"]["names"] == list(viewer.HIDDEN_NAMES)
+
+
+def test_a_figure_with_an_error_split_shows_it(tmp_path):
+    """A figure folder with ``split.csv`` beside its table (the glossy figure's, scripts/glossy_split.py) gets an
+    'Error split' heading and the split as a table; one without gets neither."""
+    from study.outputs.sections import figure_section
+
+    d = tmp_path / "fig_x"
+    d.mkdir()
+    (d / "metadata.json").write_text("{}")
+    assert not any(b[0] == "h" and b[2] == "Error split" for b in figure_section(tmp_path, d, [], []))
+    (d / "split.csv").write_text("alpha,where,prefiltering,localization\n0.05,near,0.047,0.609\n")
+    blocks = figure_section(tmp_path, d, [], [])
+    assert ("h", 3, "Error split") in blocks
+    table = [b for b in blocks if b[0] == "table"][-1]
+    assert table[1][0]["localization"] == 0.609 and table[2] == [
+        "alpha",
+        "where",
+        "prefiltering",
+        "localization",
+    ]

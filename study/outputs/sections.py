@@ -60,7 +60,25 @@ def figure_section(reports: Path, d: Path, rows: list[dict], cols: list[str]) ->
         ("p", html.SHADOW_NOTE),
         ("viewer", d.name),
     ]
-    return out + [("table", rows, ["case", "label", *cols])]
+    return out + [("table", rows, ["case", "label", *cols])] + _split_tables(d)
+
+
+def _split_tables(d: Path) -> list[tuple]:
+    """A figure's error split where one was written beside it (``split.csv``: ``scripts/glossy_split.py`` for
+    the glossy figure): a heading, the source and the table."""
+    f = d / "split.csv"
+    if not f.is_file():
+        return []
+    rows = read_csv(f)
+    return [
+        ("h", 3, "Error split"),
+        (
+            "p",
+            f"Prefiltering, localization, visibility and noise with 95 % intervals over pixels "
+            f"({link(f'{d.name}/split.csv', f'{d.name}/split.csv')}; scripts/glossy_split.py).",
+        ),
+        ("table", rows, list(rows[0]) if rows else []),
+    ]
 
 
 def run_section(reports: Path, d: Path, rows: list[dict], cols: list[str]) -> list[tuple]:
