@@ -71,3 +71,17 @@ def test_the_grid_title_states_the_exposure(monkeypatch):
     ev = figures.figure_exposure(cases)
     assert said[0]["exposure"] == ev
     assert said[0]["title"] == f"f: room, exposure {ev:+.2f} EV (object's p99 → 0.8)"
+
+
+def test_a_long_title_wraps_inside_a_narrow_figure(tmp_path):
+    """The exposure statement lengthens every title: on a figure narrower than its title the title wraps, so no
+    text touches the image's left or right edge (it was cut there on fig5's image grid)."""
+    title = (
+        "fig5: (-2, 0, -2)..(2, 3, 2) room, 1 column(s), reference point [0.0, 1.5, 0.0], cube 256², backend "
+    )
+    figures.image_grid(
+        [fake_case(1)], LABELS, tmp_path / "g.png", part="images", title=title + "numpy, exposure −2.78 EV"
+    )
+    top = np.asarray(Image.open(tmp_path / "g.png").convert("L"), float)[:60]
+    assert top[:, :4].min() > 200 and top[:, -4:].min() > 200  # white margins: nothing cut
+    assert top.min() < 100  # … and a title is there
