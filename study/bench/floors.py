@@ -78,17 +78,7 @@ def fetch_rate(
         _, acc = dr.while_loop((m.UInt32(0), m.Float(0.0)), lambda j, acc: j < k, body)
         return acc
 
-    def timed(k):
-        return median_time(
-            lambda: kernel(k),
-            lambda out: dr.sync_thread() if out is None else dr.eval(out),
-            repeats=repeats,
-            warmup=2,
-        )
-
-    lo, hi = max(1, fetches // 4), fetches
-    t_lo, t_hi = timed(lo), timed(hi)
-    return n_lanes * (hi - lo) / max(t_hi - t_lo, 1e-9)
+    return _per_second(dr, kernel, n_lanes, fetches, repeats)
 
 
 def fetch3d_rate(
@@ -123,6 +113,13 @@ def fetch3d_rate(
 
         _, acc = dr.while_loop((m.UInt32(0), m.Float(0.0)), lambda j, acc: j < k, body)
         return acc
+
+    return _per_second(dr, kernel, n_lanes, fetches, repeats)
+
+
+def _per_second(dr, kernel, n_lanes: int, fetches: int, repeats: int) -> float:
+    """Fetches per second of ``kernel(k)`` (each of ``n_lanes`` lanes fetching k times): the difference quotient
+    between k = ``fetches`` and k = ``fetches``/4, so the launch and the output write cancel."""
 
     def timed(k):
         return median_time(
