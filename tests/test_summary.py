@@ -224,3 +224,22 @@ def test_layered_radiance_on_hidden_pixels_fails_plainly():
     assert claims.layered_radiance([row | {"unheld_pixels": 10}]) is None  # too few pixels to judge
     ok = row | {"rmse_truth_unheld": 0.09, "rmse_truth_unheld_lo": 0.08, "rmse_truth_unheld_hi": 0.1}
     assert claims.layered_radiance([ok]).ok
+
+
+def test_tables_of_rough_objects_stay_out_of_the_wrong_hit_headline():
+    """A glossy method shows a lobe, not a hit: a table with object_alpha > 0 is not ranked by wrong hits."""
+    from study.outputs.summary import headline_blocks
+
+    rows = [
+        {
+            "case": c,
+            "label": lab,
+            "method": lab,
+            "wrong_fraction": w,
+            "lookups_per_ray": 1.0,
+            "object_alpha": 0.2,
+        }
+        for c in ("a", "b")
+        for lab, w in (("prefiltered", 0.8), ("stochastic(samples=4)", 0.01))
+    ]
+    assert headline_blocks({"fig_glossy": rows}) == []

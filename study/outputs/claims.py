@@ -305,10 +305,15 @@ def layered_radiance(rows):
         gap <= 0,
         "pixels with a hit the views do not hold vs the others, cases with ≥ 50 of them",
         f"{len(found)} cases, {sum(f[2]['unheld_pixels'] for f in found):.0f} such pixels",
-        f"worst case {c}: RMSE on those pixels {r['rmse_truth_unheld']:.3g} [{r['rmse_truth_unheld_lo']:.3g}–"
-        f"{r['rmse_truth_unheld_hi']:.3g}] vs {r['rmse_truth_held']:.3g} [{r['rmse_truth_held_lo']:.3g}–"
-        f"{r['rmse_truth_held_hi']:.3g}] on the others",
+        f"worst case {c}: RMSE on those pixels {r['rmse_truth_unheld']:.3g}{_ci_of(r, 'rmse_truth_unheld')} vs "
+        f"{r['rmse_truth_held']:.3g}{_ci_of(r, 'rmse_truth_held')} on the others",
     )
+
+
+def _ci_of(r: dict, col: str) -> str:
+    """' [lo–hi]' of a column's interval where the table has it (a sweep's table holds the values alone)."""
+    lo, hi = r.get(f"{col}_lo", np.nan), r.get(f"{col}_hi", np.nan)
+    return f" [{lo:.3g}–{hi:.3g}]" if _finite(lo) and _finite(hi) else " (no interval in a sweep's table)"
 
 
 CLAIMS = [

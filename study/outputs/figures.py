@@ -215,7 +215,9 @@ def image_grid(
         axes[r * len(tpl), 0].set_ylabel(
             row_labels[r] if row_labels else f"({cx:g}, {cy:g}, {cz:g})", fontsize=fs
         )
-    tfs = 10 if side >= 1.6 else 8  # the title wrapped to the figure's width (≈ 0.6 em a character): never cut
+    tfs = (
+        10 if side >= 1.6 else 8
+    )  # the title wrapped to the figure's width (≈ 0.6 em a character): never cut
     per_line = max(30, int(fig.get_figwidth() * 72 / (0.6 * tfs)))
     fig.suptitle(textwrap.fill(title + ("" if part == "all" else f" ({part})"), per_line), fontsize=tfs)
     w = fig.get_figwidth()  # the colour bar and its label: 1.1 in on the right, any width

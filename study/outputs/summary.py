@@ -358,7 +358,10 @@ def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
 
 
 def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
-    """The report blocks of the headline: a heading, the headline paragraph and one sentence per table."""
+    """The report blocks of the headline: a heading, the headline paragraph and one sentence per table. Tables of
+    rough objects (``object_alpha`` > 0) are left out: a glossy method shows a lobe, not a hit, so wrong hits do
+    not rank it; their error split and claims judge them (the glossy figure's section)."""
+    tables = {n: t for n, t in tables.items() if not any((r.get("object_alpha") or 0) > 0 for r in t)}
     head = headline(tables)
     if head is None:
         return []
