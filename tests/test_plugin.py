@@ -81,8 +81,8 @@ def test_plugin_method_reaches_sweep_figure_check_report_bench(tmp_path, plugin)
     assert set(by) == {
         "oracle_map",
         "truth_at_hit",
-        *methods.names(),
-    }  # every registered method, the plugin's too
+        *(m.name for m in methods.all_methods()),
+    }  # every registered mirror method ("all"), the plugin's too
     assert by["throwaway_probe"]["angle_median_deg"] == pytest.approx(by["classical"]["angle_median_deg"])
     assert by["throwaway_probe"]["angle_median_deg"] > 1.0  # off the reference point: clearly wrong
 
