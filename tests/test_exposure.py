@@ -23,7 +23,7 @@ def fake_case(seed: int, scale: float = 1.0):
     mask[8:24, 8:24] = True
     img = lambda: (rng.random((H, W, 3)) * 0.3 * scale).astype(np.float32)  # noqa: E731
     return SimpleNamespace(
-        scene=SimpleNamespace(object=SimpleNamespace(center=(0.0, 1.0, 0.0))),
+        scene=SimpleNamespace(object=SimpleNamespace(center=(0.0, 1.0, 0.0), alpha=0.0)),
         images={lab: img() for lab in LABELS},
         mitsuba=img(),
         angle_maps={lab: np.where(mask, rng.random((H, W)) * 10, np.nan) for lab in LABELS},

@@ -325,7 +325,7 @@ def _fake_case(labels, rng, binary_hidden=True):
     img = lambda: rng.random((H, W, 3)).astype(np.float32)  # noqa: E731
     amap = lambda: np.where(mask, rng.random((H, W)) * 10, np.nan)  # noqa: E731
     return SimpleNamespace(
-        scene=SimpleNamespace(object=SimpleNamespace(center=(0.0, 1.0, 0.0))),
+        scene=SimpleNamespace(object=SimpleNamespace(center=(0.0, 1.0, 0.0), alpha=0.0)),
         images={lab: img() for lab in labels},
         truth=img(),
         oracle=img(),

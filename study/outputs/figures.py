@@ -85,7 +85,7 @@ def _hidden_legend(fig, ax, binary: bool, im) -> None:
 
 def _rough(case: CaseOutput) -> bool:
     """A case whose object is rough (``object.alpha`` > 0): its reference panel is the lobe's truth_at_hit."""
-    return getattr(case.scene.object, "alpha", 0.0) > 0  # scenes made before the key: mirrors
+    return case.scene.object.alpha > 0
 
 
 def _template(labels: list[str], part: str, outcome_panel: bool, occlusion_panel: bool) -> list[list[tuple]]:
