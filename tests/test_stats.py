@@ -2,6 +2,8 @@
 find a planted difference and not a null one, fixed tolerances keep their meaning across cube resolutions, and no
 statistic drops rays silently."""
 
+import math
+
 import numpy as np
 from conftest import BOX_HI, BOX_LO
 from scipy import stats as sps
@@ -156,3 +158,54 @@ def test_a_real_case_carries_counts_and_intervals(tmp_path):
                 continue
             assert lo - 1e-12 <= r[col] <= hi + 1e-12, (r["label"], col, lo, r[col], hi)
         assert r["angle_dropped"] == 0 and r["wrong_fraction_1cm"] <= r["wrong_fraction_1cm_hi"]
+
+
+def test_pixel_intervals_mean_the_same_at_every_resolution():
+    """The same image at 4× the resolution (each pixel a 4×4 patch of equal values, as a finer render of smooth
+    error would be) has the same error, and the block bootstrap gives nearly the same interval; resampled pixel by
+    pixel the interval would shrink about 4×, claiming a precision the finer frame does not have."""
+    rng = np.random.default_rng(1)
+    ref = rng.uniform(0.2, 0.8, (64, 64, 3))
+    img = ref + rng.normal(0, 0.05, ref.shape)
+    mask = np.zeros((64, 64), bool)
+    mask[8:56, 8:56] = True
+    up = [np.repeat(np.repeat(a, 4, 0), 4, 1) for a in (img, ref, mask)]
+    c1 = stats.pixel_columns(img, ref, mask=mask, sigma=0.0, rel_eps=1e-2)
+    c4 = stats.pixel_columns(*up[:2], mask=up[2], sigma=0.0, rel_eps=1e-2)
+    w1, w4 = (c["rmse_truth_hi"] - c["rmse_truth_lo"] for c in (c1, c4))
+    assert c4["n_pixels"] == 16 * c1["n_pixels"]
+    assert (
+        c1["n_blocks"] == c4["n_blocks"] == 48 * 48
+    )  # 1×1-pixel tiles at 64² (64 / BLOCK_GRID), 4×4 at 256²
+    assert 0.7 < w4 / w1 < 1.4, (w1, w4)
+    se = np.mean((up[0] - up[1]) ** 2, -1)[up[2]]
+    ((plo, phi),) = stats.mean_cis(se)  # pixel by pixel: too narrow
+    assert (math.sqrt(phi) - math.sqrt(plo)) < 0.5 * w4
+
+
+def test_block_bootstrap_is_scipys_bootstrap_of_the_mean_for_single_units():
+    """Every unit its own block: the interval is scipy.stats.bootstrap's percentile interval of the mean (same
+    seed, same resamples), so the block code adds nothing of its own to the statistics."""
+    x = np.random.default_rng(3).exponential(1.0, 500)
+    ((lo, hi),) = stats.mean_cis(x, blocks=np.arange(500)[::-1])
+    ref = sps.bootstrap(
+        (x[::-1],),
+        np.mean,
+        n_resamples=stats.N_RESAMPLES,
+        method="percentile",
+        random_state=np.random.default_rng(stats.SEED),
+    ).confidence_interval
+    assert abs(lo - ref.low) < 0.02 * (ref.high - ref.low) and abs(hi - ref.high) < 0.02 * (
+        ref.high - ref.low
+    )
+
+
+def test_pixel_blocks_tile_the_frame():
+    """4×4 tiles at 256², 16×16 at 1024²; labels follow the mask's pixel order and are numbered densely."""
+    m = np.zeros((256, 256), bool)
+    m[0:8, 0:8] = True
+    b = stats.pixel_blocks(m)
+    assert b.shape == (64,) and sorted(set(b.tolist())) == [0, 1, 2, 3]
+    assert b[0] == b[3] and b[0] != b[4]  # row 0: pixels 0–3 one tile, 4–7 the next
+    big = np.ones((1024, 1024), bool)
+    assert stats.pixel_blocks(big).max() + 1 == 64 * 64

@@ -36,13 +36,13 @@ held, u = 1 − h:
                               resolution explains (view-dependent radiance, bounce budget, …)
 ============================  ===========================================================================
 
-Each term has a 95 % percentile-bootstrap interval over pixels (``scipy.stats.bootstrap``, paired: one draw of
-pixels for all terms, :func:`study.measure.stats.mean_cis`), written ``dec_<term>_lo``/``_hi``. ``dec_sums`` is 1
-when the parts add up to the total within their intervals: the parts' summed interval [Σ lo, Σ hi] meets the
-total's. ``dec_residual``'s own interval is the stricter, paired check (it excludes 0 where the map misses more than
-seed and resolution explain, e.g. at the edge of an emitter, where texel filtering errs more than first order).
-No term is defined from another: the representation is measured against O₂ and O_c, not against T, so the sum is
-a test, not an identity.
+Each term has a 95 % percentile-bootstrap interval over blocks of pixels (``scipy.stats.bootstrap``, paired: one draw of
+blocks for all terms, :func:`study.measure.stats.mean_cis` on :func:`study.measure.stats.pixel_blocks`), written
+``dec_<term>_lo``/``_hi``. ``dec_sums`` is 1 when the parts add up to the total within their intervals: the parts'
+summed interval [Σ lo, Σ hi] meets the total's. ``dec_residual``'s own interval is the stricter, paired check (it
+excludes 0 where the map misses more than seed and resolution explain, e.g. at the edge of an emitter, where texel
+filtering errs more than first order). No term is defined from another: the representation is measured against O₂ and
+O_c, not against T, so the sum is a test, not an identity.
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ import math
 
 import numpy as np
 
-from study.measure.stats import mean_cis
+from study.measure.stats import mean_cis, pixel_blocks
 
 #: The colour of oracle_map pixels whose hits the views do not hold (linear RGB).
 MARK = (1.0, 0.0, 1.0)
@@ -157,7 +157,11 @@ def split_columns(
             | {"dec_sums": math.nan}
         )
     parts = {**{f"dec_{k}": t[k] for k in names}, "held": t["total"] * h, "unheld": t["total"] * ~h}
-    cis = dict(zip(parts, mean_cis(*parts.values()))) if intervals else dict.fromkeys(parts, nan2)
+    cis = (
+        dict(zip(parts, mean_cis(*parts.values(), blocks=pixel_blocks(mask))))
+        if intervals
+        else dict.fromkeys(parts, nan2)
+    )
     for k in names:
         out[f"dec_{k}"], (out[f"dec_{k}_lo"], out[f"dec_{k}_hi"]) = float(t[k].mean()), cis[f"dec_{k}"]
     lo, hi = sum(out[f"dec_{k}_lo"] for k in TERMS), sum(out[f"dec_{k}_hi"] for k in TERMS)

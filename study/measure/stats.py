@@ -1,5 +1,5 @@
-"""Numbers with their uncertainty: intervals per case (over rays, over pixels), intervals over a table's cases,
-paired comparisons of two methods, and the wrong fraction at tolerances with one meaning.
+"""Numbers with their uncertainty: intervals per case (over rays, over blocks of pixels), intervals over a table's
+cases, paired comparisons of two methods, and the wrong fraction at tolerances with one meaning.
 
 Resampling units (each an independent draw of the quantity a column averages):
 
@@ -7,8 +7,12 @@ Resampling units (each an independent draw of the quantity a column averages):
   case. Fractions get a Wilson score interval (:func:`fraction_ci`: ``scipy.stats.binomtest(k, n).proportion_ci``;
   it is what a bootstrap of a Bernoulli mean approximates and stays honest at 0 % and 100 %); percentiles get a
   distribution-free order-statistic interval over the rays (:func:`quantile_ci`, exact and cheap).
-* **pixels** for image columns (``rmse_*``, ``relmse_*``, ``flip_*``): the object's pixels of one case, each
-  pixel's error (mean over channels) resampled (:func:`pixel_columns`).
+* **blocks of pixels** for image columns (``rmse_*``, ``relmse_*``, ``flip_*``, the error split's ``dec_*``): the
+  object's pixels of one case, grouped into the tiles of a :data:`BLOCK_GRID` × :data:`BLOCK_GRID` grid over the
+  frame (:func:`pixel_blocks`), each tile's summed error and pixel count resampled together (a block bootstrap of
+  the mean: neighbouring pixels see the same surfaces, so their errors are correlated, and a wrong reflection is a
+  blob of pixels, not independent evidence per pixel). The tiles are a fixed share of the frame, so the interval
+  means the same at 256² and at 1024², and its cost does not grow with the resolution (:func:`pixel_columns`).
 * **cases** for a table's summary: the median over cases with a bootstrap interval (:func:`over_cases`), and
   paired comparisons of two methods over the same cases (:func:`paired`: Wilcoxon signed-rank).
 
@@ -40,32 +44,59 @@ TOLERANCES_CI = ("1cm", "3cm", "10cm")
 ANGLE_TOL_DEG = 0.5
 #: The share of worst pixels ``*_trim`` columns leave out (0.1 %, at least one pixel).
 TRIM = 0.001
+#: Pixel intervals resample the tiles of a BLOCK_GRID × BLOCK_GRID grid over the frame (:func:`pixel_blocks`):
+#: 4×4-pixel tiles at 256², 16×16 at 1024².
+BLOCK_GRID = 64
 
 
 # ---------------------------------------------------------------------------------------------- intervals
-def mean_cis(*samples, level: float = LEVEL, n_resamples: int = N_RESAMPLES, seed: int = SEED):
+def pixel_blocks(mask) -> np.ndarray:
+    """(P,) int: the block (tile of the :data:`BLOCK_GRID` × :data:`BLOCK_GRID` grid over the frame; square tiles
+    of round(max(H, W) / BLOCK_GRID) ≥ 1 pixels) of each of the P True pixels of ``mask`` (H, W), in the order of
+    ``mask``'s True pixels (``img[mask]``), numbered 0 … (blocks used − 1)."""
+    mask = np.asarray(mask, bool)
+    h, w = mask.shape
+    t = max(1, round(max(h, w) / BLOCK_GRID))
+    ys, xs = np.nonzero(mask)
+    return np.unique((ys // t) * (-(-w // t)) + xs // t, return_inverse=True)[1].reshape(-1)
+
+
+def mean_cis(*samples, blocks=None, level: float = LEVEL, n_resamples: int = N_RESAMPLES, seed: int = SEED):
     """[(lo, hi), …]: percentile-bootstrap intervals of the means of several samples of the same units (e.g. one
     value per pixel each), resampled together (``scipy.stats.bootstrap``, ``paired=True``: one draw of units for
-    all, so one pass). Units where any sample is NaN are dropped; fewer than two units give (mean, mean)."""
+    all, so one pass). Units where any sample is NaN are dropped; fewer than two resampled units give (mean, mean).
+
+    ``blocks``: (P,) int, the block of each unit (e.g. :func:`pixel_blocks`): blocks are resampled, not units (a
+    block bootstrap: each block's sum and count drawn together, the statistic the ratio of the drawn sums to the
+    drawn counts, which is the mean over the drawn units). None: every unit its own block."""
     xs = np.asarray(samples, float).reshape(len(samples), -1)
-    xs = xs[:, ~np.isnan(xs).any(axis=0)]
-    if xs.shape[1] < 2:
-        return [(float(v), float(v)) for v in (xs.mean(axis=1) if xs.shape[1] else [math.nan] * len(samples))]
+    keep = ~np.isnan(xs).any(axis=0)
+    xs = xs[:, keep]
+    mean = xs.mean(axis=1) if xs.shape[1] else np.full(len(samples), math.nan)
+    b = np.arange(xs.shape[1]) if blocks is None else np.asarray(blocks).reshape(-1)[keep]
+    _, b = np.unique(b, return_inverse=True)
+    nb = int(b.max()) + 1 if b.size else 0
+    if nb < 2:
+        return [(float(v), float(v)) for v in mean]
+    counts = np.bincount(b.reshape(-1), minlength=nb).astype(float)
+    sums = np.stack([np.bincount(b.reshape(-1), weights=x, minlength=nb) for x in xs])
     res = sps.bootstrap(
-        tuple(xs),
-        lambda *a, axis=-1: np.stack([np.mean(v, axis=axis) for v in a]),
+        (counts, *sums),
+        lambda n, *s, axis=-1: np.stack([np.sum(v, axis=axis) / np.sum(n, axis=axis) for v in s]),
         vectorized=True,
         paired=True,
         axis=-1,
         n_resamples=n_resamples,
-        batch=max(1, min(n_resamples, int(2e7 // xs.size))),
+        batch=max(1, min(n_resamples, int(2e7 // (sums.size + nb)))),
         method="percentile",
         confidence_level=level,
         random_state=np.random.default_rng(seed),
     )
     lo, hi = np.atleast_1d(res.confidence_interval.low), np.atleast_1d(res.confidence_interval.high)
-    mean = xs.mean(axis=1)  # a constant sample has a degenerate bootstrap (NaN): its interval is its value
-    return [(float(m if np.isnan(a) else a), float(m if np.isnan(b) else b)) for m, a, b in zip(mean, lo, hi)]
+    # a constant sample has a degenerate bootstrap (NaN): its interval is its value
+    return [
+        (float(m if np.isnan(a) else a), float(m if np.isnan(b_) else b_)) for m, a, b_ in zip(mean, lo, hi)
+    ]
 
 
 def bootstrap_ci(data, statistic, *, level: float = LEVEL, n_resamples: int = N_RESAMPLES, seed: int = SEED):
@@ -222,9 +253,10 @@ def trimmed_mean(values, trim: float = TRIM) -> float:
 
 
 def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str = "truth", emap=None) -> dict:
-    """Intervals and robust variants of one image's errors against ``ref`` over ``mask`` (unit: pixels).
+    """Intervals and robust variants of one image's errors against ``ref`` over ``mask`` (unit: blocks of pixels,
+    :func:`pixel_blocks`).
 
-    Returns ``n_pixels``; ``rmse_<suffix>_lo``/``_hi`` (bootstrap over pixels of the mean squared error, then
+    Returns ``n_pixels``, ``n_blocks``; ``rmse_<suffix>_lo``/``_hi`` (block bootstrap of the mean squared error, then
     √), ``rmse_<suffix>_debiased_lo``/``_hi`` (the same bounds debiased by the reference's noise σ, taken as
     known: √max(0, b² − σ²)), ``relmse_<suffix>_lo``/``_hi`` (relMSE with ε = ``rel_eps``), ``flip_<suffix>_lo``/
     ``_hi`` (when the FLIP map ``emap`` is given); ``rmse_<suffix>_trim`` / ``rmse_<suffix>_debiased_trim``: the
@@ -234,12 +266,13 @@ def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str =
     d, r = (img - ref)[mask], ref[mask]
     se = np.mean(d * d, axis=-1)  # per pixel, mean over channels: mean(se) = RMSE²
     rel = np.mean(d * d / (r * r + rel_eps), axis=-1)
-    out = {"n_pixels": int(se.size)}
+    blocks = pixel_blocks(mask)
+    out = {"n_pixels": int(se.size), "n_blocks": int(blocks.max()) + 1 if blocks.size else 0}
     names, samples = [f"rmse_{suffix}", f"relmse_{suffix}"], [se, rel]
     if emap is not None:
         names.append(f"flip_{suffix}")
         samples.append(np.asarray(emap, float)[mask])
-    cis = dict(zip(names, mean_cis(*samples)))
+    cis = dict(zip(names, mean_cis(*samples, blocks=blocks)))
     lo, hi = cis.pop(f"rmse_{suffix}")
     out[f"rmse_{suffix}_lo"], out[f"rmse_{suffix}_hi"] = math.sqrt(lo), math.sqrt(hi)
     for k, b in (("lo", lo), ("hi", hi)):

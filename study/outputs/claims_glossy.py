@@ -8,7 +8,7 @@ from study.outputs.verdicts import _cases, _default, _finite, _get, _verdict
 def glossy_localized(rows):
     """Beyond the paper, rough objects: ``localized_prefiltered`` (the lobe localized, then the roughness mip) has
     a lower noise-debiased RMSE against the lobe's truth than the engines' ``prefiltered`` lookup in every case;
-    sure where the 95 % intervals over pixels do not overlap."""
+    sure where the 95 % intervals over blocks of pixels do not overlap."""
     a_lab, b_lab, m = _default("localized_prefiltered"), _default("prefiltered"), "rmse_truth_debiased"
     pairs = [(c, _get(rows, c, a_lab, m), _get(rows, c, b_lab, m)) for c in _cases(rows)]
     pairs = [(c, a, b) for c, a, b in pairs if _finite(a) and _finite(b)]

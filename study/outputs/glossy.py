@@ -2,7 +2,8 @@
 
 Per case (an ``object.alpha`` × object position of ``configs/fig_glossy.toml``), over the object's pixels
 (``mask``), each part is an RMSE between two images of the case's EXR, with a 95 % percentile-bootstrap interval
-over pixels (:func:`study.measure.stats.mean_cis` on the per-pixel squared errors, the interval's ends square-rooted):
+over blocks of pixels (:func:`study.measure.stats.mean_cis` on the per-pixel squared errors, blocks
+:func:`study.measure.stats.pixel_blocks`, the interval's ends square-rooted):
 
 ==============  =======================================  ===================================================
 part            images                                   what differs
@@ -32,7 +33,7 @@ import numpy as np
 import pandas as pd
 
 from study.io import file_stem, read_exr_layers
-from study.measure.stats import mean_cis
+from study.measure.stats import mean_cis, pixel_blocks
 
 #: (part, first image, second image, pixels): image names are file stems of labels (``study.io.file_stem``)
 PARTS = (
@@ -71,7 +72,7 @@ def case_split(exr: Path) -> dict:
     for part, a, b, where in PARTS:
         px = mask if where == "all" else hidden
         sq = np.mean((layers[names[a]] - layers[names[b]]) ** 2, axis=-1)[px]
-        ((lo, hi),) = mean_cis(sq) if sq.size else [(np.nan, np.nan)]
+        ((lo, hi),) = mean_cis(sq, blocks=pixel_blocks(px)) if sq.size else [(np.nan, np.nan)]
         out[part] = float(np.sqrt(sq.mean())) if sq.size else np.nan
         out[f"{part}_lo"], out[f"{part}_hi"] = float(np.sqrt(lo)), float(np.sqrt(hi))
         out[f"{part}_pixels"] = int(px.sum())

@@ -74,7 +74,7 @@ def _split_tables(d: Path) -> list[tuple]:
         ("h", 3, "Error split"),
         (
             "p",
-            f"Prefiltering, localization, visibility and noise with 95 % intervals over pixels "
+            f"Prefiltering, localization, visibility and noise with 95 % intervals over blocks of pixels "
             f"({link(f'{d.name}/split.csv', f'{d.name}/split.csv')}; scripts/glossy_split.py).",
         ),
         ("table", rows, list(rows[0]) if rows else []),

@@ -395,9 +395,9 @@ def column_notes() -> list[str]:
         "distance at every resolution; *wrong_fraction_0p5deg*: |shown − exact| subtends > 0.5° seen from the "
         "shading point. A ray with no hit is wrong at every tolerance.",
         "*_lo / _hi*: 95 % interval of the column within its case: over the rays (fractions: Wilson; angle and "
-        "dist percentiles: order-statistic interval) or over the pixels (rmse, relmse, flip: bootstrap of the "
-        "per-pixel error, 1000 resamples, fixed seed). *n_rays*, *n_hidden*, *n_wrong*, *n_pixels*: the counts "
-        "behind them.",
+        "dist percentiles: order-statistic interval) or over blocks of pixels (rmse, relmse, flip: bootstrap over "
+        "the tiles of a 64 × 64 grid on the frame, 1000 resamples, fixed seed). *n_rays*, *n_hidden*, *n_wrong*, "
+        "*n_pixels*, *n_blocks*: the counts behind them.",
         "*angle_dropped* / *dist_dropped*: the share of rays that angle_* / dist_* leave out (no hit; for dist "
         "also points at infinity): angle_* and dist_* describe only the rays that remain. "
         "*angle_p95_all_deg* counts the dropped rays as infinite error instead.",
