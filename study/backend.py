@@ -209,18 +209,22 @@ class NumpyBackend(Backend):
         return np.ascontiguousarray(texels, dtype=np.float32)
 
     def sample(self, tex, face, u, v):
-        R = tex.shape[1]
+        R, C = tex.shape[1], tex.shape[-1]
         cj = np.clip(u * R - 0.5, 0, R - 1)
         ci = np.clip(v * R - 0.5, 0, R - 1)
         j0 = np.minimum(cj.astype(np.int32), max(R - 2, 0))
         i0 = np.minimum(ci.astype(np.int32), max(R - 2, 0))
         fj, fi = (cj - j0)[:, None], (ci - i0)[:, None]
-        f = face.astype(np.int32)
-        j1, i1 = np.minimum(j0 + 1, R - 1), np.minimum(i0 + 1, R - 1)
-        out = (1 - fi) * ((1 - fj) * tex[f, i0, j0] + fj * tex[f, i0, j1]) + fi * (
-            (1 - fj) * tex[f, i1, j0] + fj * tex[f, i1, j1]
-        )
-        return [out[:, c].astype(np.float32) for c in range(tex.shape[-1])]
+        # the four texels by flat index (np.take on one axis is ~5× faster than indexing three axes)
+        flat = tex.reshape(-1, C)
+        t00 = (face.astype(np.int32) * R + i0) * R + j0
+        dj, di = (
+            (j0 + 1 <= R - 1).astype(np.int32),
+            (i0 + 1 <= R - 1).astype(np.int32) * R,
+        )  # clamped at R − 1
+        a, b, c, d = (np.take(flat, t00 + k, axis=0) for k in (0, dj, di, di + dj))
+        out = (1 - fi) * ((1 - fj) * a + fj * b) + fi * ((1 - fj) * c + fj * d)
+        return [out[:, k].astype(np.float32) for k in range(C)]
 
 
 class DrJitBackend(Backend):
