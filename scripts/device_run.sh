@@ -137,8 +137,10 @@ print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' 
     tar czf "$OUT/results-hier.tgz" -C "$W" perf ;;
   fig4paper)
     export HOME=$W/home-paper; mkdir -p "$HOME"                               # a fresh Dr.Jit kernel cache
-    timed fig4-paper-cold $S figure fig4 --quality paper --backend cuda --cache "$W/pc1" --out "$W/paper/fig4" \
-      2>&1 | tail -30
+    timed fig4-paper-cold python3 -m cProfile -o "$OUT/fig4paper-cold.prof" -m study.cli figure fig4 --quality paper \
+      --backend cuda --cache "$W/pc1" --out "$W/paper/fig4" 2>&1 | tail -30          # profiled: where the time goes
+    python3 -c "import pstats,sys; pstats.Stats(sys.argv[1]).sort_stats('cumulative').print_stats(60)" \
+      "$OUT/fig4paper-cold.prof" > "$OUT/profile-fig4paper.txt" 2>&1
     timed fig4-paper-kernels-warm $S figure fig4 --quality paper --backend cuda --cache "$W/pc2" \
       --out "$W/paper-warm/fig4" > /dev/null 2>&1
     tar czf "$OUT/results-fig4paper.tgz" -C "$W" paper ;;

@@ -120,3 +120,15 @@ def test_a_case_measured_on_llvm_matches_numpy(study_images, tmp_path):
         "localized(iterations=3)",
     ):  # the methods: float32 searches, same images to 1e-4
         assert b.loc[label, "flip_truth"] == pytest.approx(a.loc[label, "flip_truth"], abs=1e-3)
+
+
+@pytest.mark.parametrize("backend", [b for b in BACKENDS if b != "numpy"])
+def test_linear_images_are_encoded_on_the_device(backend):
+    """flip_map on a device takes linear radiance and encodes it to sRGB there (float32): it matches
+    flip-evaluator on the CPU's float64 encoding, with values above 1 (clipped) and about the encoding's knee."""
+    rng = np.random.default_rng(11)
+    ref = rng.uniform(0, 2.0, (36, 44, 3)) * (rng.random((36, 44, 1)) < 0.5) + 0.003 * rng.random((36, 44, 3))
+    test = np.abs(ref + rng.normal(0, 0.05, ref.shape))
+    want = reference(metrics.to_ldr(ref), metrics.to_ldr(test))
+    got = metrics.flip_map(ref, test, backend)
+    assert abs(got.mean() - want.mean()) <= TOL and np.abs(got - want).max() <= 1e-3

@@ -199,9 +199,21 @@ def ldr_flip(B: Backend, ref: V3, test: V3, width: int, height: int, ppd: float 
     return err
 
 
-def ldr_flip_image(ref: np.ndarray, test: np.ndarray, backend: str = "numpy") -> np.ndarray:
-    """:func:`ldr_flip` of two (H, W, 3) sRGB LDR numpy images on ``backend``, as an (H, W) float32 numpy map."""
+def _linear_to_srgb(B: Backend, c):
+    """Linear radiance → sRGB-encoded [0, 1] on backend ``B`` (clip at 1, exposure 1): the encoding of
+    :func:`study.measure.metrics.to_ldr`, in float32 where the images are."""
+    c = B.minimum(B.maximum(c, 0.0), 1.0)
+    return B.select(c <= 0.0031308, 12.92 * c, 1.055 * B.power(B.maximum(c, 1e-30), 1 / 2.4) - 0.055)
+
+
+def ldr_flip_image(
+    ref: np.ndarray, test: np.ndarray, backend: str = "numpy", *, linear: bool = False
+) -> np.ndarray:
+    """:func:`ldr_flip` of two (H, W, 3) sRGB LDR numpy images on ``backend``, as an (H, W) float32 numpy map.
+    ``linear``: the images are linear radiance, encoded to sRGB on ``backend`` before FLIP (:func:`_linear_to_srgb`)."""
     B = get_backend(backend)
     h, w = np.shape(ref)[:2]
     v = [B.vec(np.asarray(a, np.float32).reshape(-1, 3)) for a in (ref, test)]
+    if linear:
+        v = [V3(*(_linear_to_srgb(B, c) for c in (a.x, a.y, a.z))) for a in v]
     return np.asarray(B.numpy(ldr_flip(B, v[0], v[1], w, h)), np.float32).reshape(h, w)

@@ -95,11 +95,11 @@ def flip_map(ref: np.ndarray, test: np.ndarray, backend: str = "numpy") -> np.nd
     (H, W) float32 array
         FLIP error per pixel, in [0, 1] (0: indistinguishable).
     """
-    a, b = (np.ascontiguousarray(to_ldr(x), np.float32) for x in (ref, test))
-    if backend != "numpy":
+    if backend != "numpy":  # the sRGB encoding on the device too (float32; within 1e-4, tests/test_flip.py)
         from study.measure.flip import ldr_flip_image
 
-        return ldr_flip_image(a, b, backend)
+        return ldr_flip_image(ref, test, backend, linear=True)
+    a, b = (np.ascontiguousarray(to_ldr(x), np.float32) for x in (ref, test))
     import flip_evaluator
 
     emap, _, _ = flip_evaluator.evaluate(a, b, "LDR", applyMagma=False)
