@@ -17,9 +17,10 @@
 #   fig4x3  : fig4 cold, with a warm kernel cache, and with every cache warm (what compiling kernels costs)
 #   hier    : scripts/hier_bench.py --backend cuda: linear_secant(1) and layered(1), hierarchical search against the
 #             texel march, and localized(10), on the close-up batch: ms, × floor, lookups per ray → perf/hier-cuda.*
-#   fig4paper: fig4 at paper quality (--quality paper: 1024² camera) with --backend cuda, so FLIP and the metrics run
-#             on the GPU (study/measure/flip.py): cold (fresh study and kernel caches; target ≤ 20 s), then with
-#             the kernel cache warm → results-fig4paper.tgz (the paper-resolution figure, reports/paper/fig4)
+#   fig4paper: fig4, fig5, fig6 at paper quality (--quality paper: 1024² camera) with --backend cuda, so FLIP runs
+#             on the GPU (study/measure/flip.py): each cold (fresh study caches, fresh kernel cache; fig4's target
+#             ≤ 20 s; fig4 under cProfile → profile-fig4paper.txt), then fig4 with the kernel cache warm
+#             → results-paper.tgz (reports/paper/fig4, fig5, fig6 without EXRs and viewer)
 #
 # Wheels: the machine has Python 3.12 without mitsuba/drjit/embreex/pydantic/dask; cp312 wheels are installed
 # from $WHEELS/a and $WHEELS/b (default .devcarry; how to make them: ../shared/field-notes.md, "Device (GPU) runs"),
@@ -135,15 +136,19 @@ print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' 
     timed hier python3 scripts/hier_bench.py --backend cuda --scene-res 1024 --repeats 5 --out "$W/perf" 2>&1 \
       | tee "$OUT/log-hier.txt"
     tar czf "$OUT/results-hier.tgz" -C "$W" perf ;;
-  fig4paper)
+  fig4paper)  # fig4 profiled, then fig5 and fig6, at paper quality, each cold (fresh study cache; one fresh kernel cache)
     export HOME=$W/home-paper; mkdir -p "$HOME"                               # a fresh Dr.Jit kernel cache
     timed fig4-paper-cold python3 -m cProfile -o "$OUT/fig4paper-cold.prof" -m study.cli figure fig4 --quality paper \
       --backend cuda --cache "$W/pc1" --out "$W/paper/fig4" 2>&1 | tail -30          # profiled: where the time goes
     python3 -c "import pstats,sys; pstats.Stats(sys.argv[1]).sort_stats('cumulative').print_stats(60)" \
       "$OUT/fig4paper-cold.prof" > "$OUT/profile-fig4paper.txt" 2>&1
+    for f in fig5 fig6; do
+      timed "$f-paper-cold" $S figure $f --quality paper --backend cuda --cache "$W/pc-$f" --out "$W/paper/$f" \
+        2>&1 | tail -3
+    done
     timed fig4-paper-kernels-warm $S figure fig4 --quality paper --backend cuda --cache "$W/pc2" \
       --out "$W/paper-warm/fig4" > /dev/null 2>&1
-    tar czf "$OUT/results-fig4paper.tgz" -C "$W" paper ;;
+    tar czf "$OUT/results-paper.tgz" -C "$W" --exclude=exr --exclude=viewer paper ;;
   *) echo "unknown part $part"; exit 2 ;;
   esac
 done
