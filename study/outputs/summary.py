@@ -372,8 +372,8 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
         ("list", items),
         (
             "p",
-            "Intervals: 95 %; per case over the rays (Wilson) or pixels (bootstrap), over cases a bootstrap of "
-            "the median (study/measure/stats.py); *wrong hits* use the texel-relative tolerance "
+            "Intervals: 95 %; per case over the rays (Wilson) or blocks of pixels (bootstrap), over cases a "
+            "bootstrap of the median (study/measure/stats.py); *wrong hits* use the texel-relative tolerance "
             "ε = max(1 cm, one texel); the fixed-tolerance columns (wrong_fraction_1cm, _3cm, _10cm) keep one "
             "meaning at every cube resolution. The table: per table and method (best first), the medians over "
             "the cases with their 95 % bootstrap intervals over the cases, the worst case, the cases where the "
