@@ -220,3 +220,13 @@ def test_figure_with_cases_runs_and_names_rows(tmp_path):
     cfg.write_text("positions = [[0.0, 1.5, 0.0]]\n" + base + cases)
     res = runner.invoke(app, ["figure", "fig6", "--config", str(cfg), "--out", str(tmp_path / "o2")])
     assert res.exit_code == 2 and "either positions or cases" in res.output
+
+
+def test_metadata_names_the_command_however_study_was_started():
+    """The study script, ``python -m study.cli`` (also under cProfile) give the command; pytest's own __main__
+    (``python -m pytest``) does not pass for study."""
+    from study.harness.runner import _is_study_cli
+
+    assert _is_study_cli("/usr/bin/study") and _is_study_cli("/repo/study/cli/__main__.py")
+    assert not _is_study_cli("/venv/lib/python3.11/site-packages/pytest/__main__.py")
+    assert not _is_study_cli("/venv/bin/pytest")

@@ -139,9 +139,7 @@ def metadata(config: str | Path, *, backend: str, seed: int, methods: list[str],
         "python": platform.python_version(),
         "machine": platform.machine(),
         "cpus": os.cpu_count(),
-        "command": "study " + " ".join(sys.argv[1:])
-        if Path(sys.argv[0]).name in ("study", "cli.py")
-        else None,
+        "command": "study " + " ".join(sys.argv[1:]) if _is_study_cli(sys.argv[0]) else None,
         "cases": cases,
         "methods": methods,
         **extra,
@@ -446,3 +444,10 @@ def _first_of_each_impostor(todo: list[Case]) -> tuple[list[Case], list[Case]]:
         (rest if k in seen else first).append(c)
         seen.add(k)
     return first, rest
+
+
+def _is_study_cli(argv0: str) -> bool:
+    """Whether this process is the ``study`` command: its script, or ``python -m study.cli`` (also under
+    ``python -m cProfile -m study.cli``), whose argv[0] is study/cli/__main__.py."""
+    p = Path(argv0)
+    return p.name in ("study", "cli.py") or (p.name == "__main__.py" and p.parent.name == "cli")

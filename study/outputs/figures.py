@@ -316,6 +316,7 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) 
     store = Cache(cache)
     job.total = len(scenes)
     with locked(out):  # one command at a time here; the files are written together at the end
+        t_start = time.perf_counter()
         cases, rows = [], []
         for i, (case_id, sc) in enumerate(scenes):
             t0 = time.perf_counter()
@@ -343,6 +344,9 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) 
             quality=quality,
             exposure_ev=round(exposure, 4),  # of the grid's images (figure_exposure)
             exposure_rule=EXPOSURE_RULE,
+            seconds=round(
+                time.perf_counter() - t_start, 1
+            ),  # the cases: inputs, references, methods, metrics
         )
         pngs = image_grids(
             name,

@@ -207,12 +207,18 @@ def paper_section(reports: Path) -> list[tuple]:
                 "p",
                 Md(
                     f"**{md_esc(d.name)}**: {code(m.get('command') or '?')}, {m.get('seconds', '?')} s on "
-                    f"{md_esc(m.get('machine_note', '?'))}; table: {link('metrics.csv', f'paper/{d.name}/metrics.csv')}"
+                    f"{md_esc(m.get('machine_note') or _machine(m))}; "
+                    f"table: {link('metrics.csv', f'paper/{d.name}/metrics.csv')}"
                 ),
             )
         )
         out += [("img", f"paper/{d.name}/{p.name}", f"{d.name} at 1024²") for p in shown(d.glob("*.png"))]
     return out
+
+
+def _machine(m: dict) -> str:
+    """A run's machine in words, from its metadata: cores, Python and backend."""
+    return f"{m.get('cpus', '?')} cores, Python {m.get('python', '?')}, backend {m.get('backend', '?')}"
 
 
 def versions_section(dirs: list[Path]) -> list[tuple]:
