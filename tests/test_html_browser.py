@@ -316,3 +316,19 @@ def test_no_script_from_a_name_runs(browser, tmp_path):
     pg.wait_for_timeout(300)
     assert not dialogs and not errors, (dialogs, errors)
     pg.close()
+
+
+def test_viewers_start_at_the_figures_exposure(page):
+    """A viewer first shows its case at the exposure of the figure's grid PNG (manifest ``exposure_ev``, written
+    by study figure from the object's 99th-percentile luminance), not at 0 EV, so it looks like the figure."""
+    import json
+
+    pg, reports, errors = page
+    manifest = json.loads(next(reports.glob("*/viewer/index.json")).read_text())
+    want = manifest["cases"][0]["exposure_ev"]
+    assert want != 0  # the small scene's exposure rule gives a non-zero value: the test can fail
+    pg.locator(".viewer").first.scroll_into_view_if_needed()
+    _settle(pg)
+    assert pg.evaluate("window.studyViewers[0].exposure") == pytest.approx(want)
+    assert float(pg.locator(".viewer input.exposure").first.input_value()) == pytest.approx(want)
+    assert not errors, errors

@@ -370,7 +370,9 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) 
         stems = file_stems(cid for cid, _ in scenes)
         entries = []
         for (cid, _), case, t in zip(scenes, cases, titles):
-            more, entry = viewer.case_files(name, stems[cid], case, every, title=t or "", case_id=cid)
+            more, entry = viewer.case_files(
+                name, stems[cid], case, every, title=t or "", case_id=cid, exposure_ev=exposure
+            )
             files.update(more)
             entries.append(entry)
         files[viewer.MANIFEST] = viewer.manifest_text(name, entries)

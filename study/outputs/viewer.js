@@ -81,7 +81,8 @@
       this.layerIds = [...new Set(c.layers.map(l => l.layer))];
       const first = this.sources.findIndex(s => !REFS.includes(s));
       this.src = first < 0 ? 0 : first;             // the first method (the references come first)
-      this.want = "image"; this.mode = "normal"; this.exposure = 0; this.zoom = null; this.pan = [0, 0];
+      this.want = "image"; this.mode = "normal"; this.zoom = null; this.pan = [0, 0];
+      this.exposure = typeof c.exposure_ev === "number" ? c.exposure_ev : 0;  // the figure's grid exposure
       this.digits = ""; this.lastDigit = 0;
       this.decoded = new Map();
       (byFig[fig] = byFig[fig] || []).push(this);
@@ -118,7 +119,7 @@
       zb("−", () => this.zoomBy(1 / 1.5)); zb("+", () => this.zoomBy(1.5)); zb("fit", () => this.fit());
       add("span", "", trow).textContent = " exposure";
       this.slider = add("input", "exposure", trow);
-      Object.assign(this.slider, {type: "range", min: -8, max: 8, step: 0.25, value: 0});
+      Object.assign(this.slider, {type: "range", min: -8, max: 8, step: 0.01, value: String(this.exposure)});
       this.expLabel = add("span", "", trow);
       this.slider.addEventListener("input", () => this.setExposure(parseFloat(this.slider.value)));
       this.shownLabel = add("div", "shown");

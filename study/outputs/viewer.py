@@ -191,11 +191,19 @@ def _display(layer: str, a: np.ndarray) -> dict:
 
 
 def case_files(
-    name: str, stem: str, case, labels: list[str], *, title: str = "", case_id: str = ""
+    name: str,
+    stem: str,
+    case,
+    labels: list[str],
+    *,
+    title: str = "",
+    case_id: str = "",
+    exposure_ev: float = 0.0,
 ) -> tuple[dict[str, bytes | str], dict]:
     """One case's files, made in memory (relative path → bytes, for :func:`study.io.write_set`): its multi-layer
     EXR ``exr/<stem>.exr`` and its viewer script ``viewer/<stem>.js``; and its manifest entry. ``stem``: the
-    case's file name (distinct among the figure's cases, :func:`study.io.file_stems`)."""
+    case's file name (distinct among the figure's cases, :func:`study.io.file_stems`). ``exposure_ev``: the
+    exposure the viewer starts at (the figure's grid exposure, so the viewer first shows what the PNG shows)."""
     layers = case_layers(case, labels)
     occ = getattr(case, "occluded", None)
     sy, sx = (
@@ -246,6 +254,7 @@ def case_files(
         "script": script,
         "exr": exr,
         "layers": entries,
+        "exposure_ev": round(float(exposure_ev), 2),
     }
     return {exr: layers_exr_bytes(named), script: text}, entry
 
