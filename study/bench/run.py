@@ -236,8 +236,8 @@ def run_bench(
                         t,
                         len(x),
                     )
-                    row["lookups_per_ray"] = spent[-1]  # measured mean (Trace.lookups)
-                    row.update(carry.cost_columns(spent[-1], m.lookup_bound(opt.cube_res)))  # bytes per ray
+                    # lookups_mean: the measured mean (Trace.lookups); bytes per ray from it
+                    row.update(carry.cost_columns(spent[-1], m.lookup_bound(opt.cube_res)))
                     rows.append(with_floor(with_ratios(row, exact, b, nm), m, floors.get(nm), b))
             log(f"methods on {nm}, {b.name} timed")
 
@@ -268,12 +268,12 @@ def batch_pattern(b: Batch) -> str:
 
 def with_floor(row: dict, m: Method, floors: dict | None, b: Batch) -> dict:
     """``row`` plus floor_ms_per_frame (:func:`study.bench.floors.method_floor` of a 1024² frame, at the row's
-    measured ``lookups_per_ray``) and x_floor (the method's time over its floor; 1 = at the floor); empty where no
+    measured ``lookups_mean``) and x_floor (the method's time over its floor; 1 = at the floor); empty where no
     floor was measured (numpy)."""
     if not floors:
         return {**row, "floor_ms_per_frame": "", "x_floor": ""}
     fl = floor_model.method_floor(
-        m, floors, batch_pattern(b), FRAME, int(row["cube_res"]), row.get("lookups_per_ray")
+        m, floors, batch_pattern(b), FRAME, int(row["cube_res"]), row.get("lookups_mean")
     )
     fl *= 1e3
     return {**row, "floor_ms_per_frame": fl, "x_floor": row["ms_per_frame"] / fl}
