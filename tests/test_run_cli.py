@@ -155,3 +155,16 @@ def test_a_local_config_still_wins(tmp_path, monkeypatch):
     res = run(app, ["figure", "fig4", "--config", "configs/fig4.toml"])
     assert res.exit_code == 2
     one_line_error(res, "nowhere.toml", "scene file not found")
+
+
+def test_a_commands_limits_end_with_it(tmp_path, monkeypatch):
+    """--max-minutes holds for its own command only: after a command refused by it, the next command or API call
+    in the same process (tests, notebooks, one CliRunner after another) runs under the default limits again. Seen
+    as a flaky failure: a sweep test on the same pytest worker was refused at 0.0001 min."""
+    from study.harness import budget
+
+    monkeypatch.chdir(tmp_path)
+    res = run(app, ["--max-minutes", "0.0001", "figure", "fig4", "--cache", str(tmp_path / "cache")])
+    assert res.exit_code == 2 and "--max-minutes" in res.output
+    assert budget.LIMITS.max_minutes == budget.DEFAULT_MAX_MINUTES
+    assert budget.LIMITS.max_memory_gib == budget.DEFAULT_MAX_MEMORY_GIB

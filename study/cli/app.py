@@ -55,6 +55,7 @@ QUIET = {"on": False}
 
 @app.callback()
 def _options(
+    ctx: typer.Context,
     plugin: list[str] = typer.Option(
         [],
         "--plugin",
@@ -90,6 +91,7 @@ def _options(
     _wide_when_logged()
     try:
         budget.set_limits(max_memory, max_minutes)
+        ctx.call_on_close(budget.set_limits)  # this command's limits end with it (one process, many commands)
         methods.load_plugins(plugin)
     except StudyError as err:
         _fail(err)
