@@ -18,7 +18,8 @@ for i in $(seq 1 "$n"); do
   .venv/bin/python -m pytest -q -n 2 -p no:cacheprovider -rf > "$dir/run-$i.log" 2>&1
   rc=$?
   t=$(( $(date +%s) - t0 ))
-  grep -E '^FAILED ' "$dir/run-$i.log" | sed 's/^FAILED \([^ ]*\).*/\1/' | tee -a "$dir/failed.txt" > /dev/null
+  grep -E '^(FAILED|ERROR) ' "$dir/run-$i.log" | sed 's/^\(FAILED\|ERROR\) \([^ ]*\).*/\2/' \
+    | tee -a "$dir/failed.txt" > /dev/null                                  # errors in set-up count too
   echo "run $i: exit $rc in ${t} s — $(tail -n 1 "$dir/run-$i.log")" | tee -a "$dir/runs.txt"
 done
 echo "tests that failed at least once (count):"
