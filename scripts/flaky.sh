@@ -15,7 +15,7 @@ bash scripts/setup.sh > "$dir/setup.log" 2>&1 || { echo "set-up failed: $dir/set
 for i in $(seq 1 "$n"); do
   git clean -qxdf -e .venv
   t0=$(date +%s)
-  .venv/bin/python -m pytest -q -n 2 -p no:cacheprovider -rf > "$dir/run-$i.log" 2>&1
+  .venv/bin/python -m pytest -q -n 2 -p no:cacheprovider -rfE > "$dir/run-$i.log" 2>&1
   rc=$?
   t=$(( $(date +%s) - t0 ))
   grep -E '^(FAILED|ERROR) ' "$dir/run-$i.log" | sed 's/^\(FAILED\|ERROR\) \([^ ]*\).*/\2/' \
