@@ -223,9 +223,17 @@ def test_number_keys_reach_every_image_reference_first(page):
 
 
 def test_viewers_of_a_figure_share_exposure_and_zoom(page):
-    pg, _, errors = page
+    import json
+
+    pg, reports, errors = page
     pg.locator(".viewer").first.scroll_into_view_if_needed()
     _settle(pg)
+    # they start at the exposure of the figure's grid PNG (manifest exposure_ev), not at 0 EV
+    manifest = json.loads(next(reports.glob("*/viewer/index.json")).read_text())
+    want = manifest["cases"][0]["exposure_ev"]
+    assert want != 0  # the small scene's exposure rule gives a non-zero value: this can fail
+    assert pg.evaluate("window.studyViewers[0].exposure") == pytest.approx(want)
+    assert float(pg.locator(".viewer input.exposure").first.input_value()) == pytest.approx(want)
     before = _pixels(pg, 1)
     pg.evaluate("""() => { const s = document.querySelector('.viewer input.exposure'); s.value = '3';
                            s.dispatchEvent(new Event('input')); }""")
@@ -316,19 +324,3 @@ def test_no_script_from_a_name_runs(browser, tmp_path):
     pg.wait_for_timeout(300)
     assert not dialogs and not errors, (dialogs, errors)
     pg.close()
-
-
-def test_viewers_start_at_the_figures_exposure(page):
-    """A viewer first shows its case at the exposure of the figure's grid PNG (manifest ``exposure_ev``, written
-    by study figure from the object's 99th-percentile luminance), not at 0 EV, so it looks like the figure."""
-    import json
-
-    pg, reports, errors = page
-    manifest = json.loads(next(reports.glob("*/viewer/index.json")).read_text())
-    want = manifest["cases"][0]["exposure_ev"]
-    assert want != 0  # the small scene's exposure rule gives a non-zero value: the test can fail
-    pg.locator(".viewer").first.scroll_into_view_if_needed()
-    _settle(pg)
-    assert pg.evaluate("window.studyViewers[0].exposure") == pytest.approx(want)
-    assert float(pg.locator(".viewer input.exposure").first.input_value()) == pytest.approx(want)
-    assert not errors, errors
