@@ -254,6 +254,11 @@ def locked(out: str | Path):
                 f = None
             yield
         finally:
+            if (
+                f is None
+            ):  # interrupted between creating the lock file and holding it: remove it if no one holds it
+                with contextlib.suppress(OSError):
+                    f = open(path)
             if f is not None:
                 with contextlib.suppress(OSError):
                     fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)  # a no-op if held; if free, ours now
