@@ -254,9 +254,8 @@ def locked(out: str | Path):
                 f = None
             yield
         finally:
-            if (
-                f is None
-            ):  # interrupted between creating the lock file and holding it: remove it if no one holds it
+            # interrupted between creating the lock file and holding it: remove it if no one holds it
+            if f is None:
                 with contextlib.suppress(OSError):
                     f = open(path)
             if f is not None:

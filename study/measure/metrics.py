@@ -44,9 +44,8 @@ def to_ldr(img: np.ndarray) -> np.ndarray:
 
 def rmse(ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray) -> float:
     """Root mean squared error of linear radiance over the masked pixels (all channels)."""
-    d = np.asarray(test)[mask].astype(float) - np.asarray(ref)[mask].astype(
-        float
-    )  # masked first: 1024² frames
+    # the masked pixels first, then float64 (not whole 1024² frames)
+    d = np.asarray(test)[mask].astype(float) - np.asarray(ref)[mask].astype(float)
     return float(np.sqrt(np.mean(d * d))) if d.size else np.nan
 
 

@@ -78,8 +78,8 @@ def mean_cis(*samples, blocks=None, level: float = LEVEL, n_resamples: int = N_R
     nb = int(b.max()) + 1 if b.size else 0
     if nb < 2:
         return [(float(v), float(v)) for v in mean]
-    counts = np.bincount(b.reshape(-1), minlength=nb).astype(float)
-    sums = np.stack([np.bincount(b.reshape(-1), weights=x, minlength=nb) for x in xs])
+    counts = np.bincount(b, minlength=nb).astype(float)
+    sums = np.stack([np.bincount(b, weights=x, minlength=nb) for x in xs])
     res = sps.bootstrap(
         (counts, *sums),
         lambda n, *s, axis=-1: np.stack([np.sum(v, axis=axis) / np.sum(n, axis=axis) for v in s]),
