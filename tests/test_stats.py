@@ -209,3 +209,27 @@ def test_pixel_blocks_tile_the_frame():
     assert b[0] == b[3] and b[0] != b[4]  # row 0: pixels 0–3 one tile, 4–7 the next
     big = np.ones((1024, 1024), bool)
     assert stats.pixel_blocks(big).max() + 1 == 64 * 64
+
+
+def test_block_bootstrap_equals_scipys_paired_bootstrap_of_the_block_sums():
+    """Several samples over uneven blocks: the matrix-product statistic gives the intervals of the obvious twin,
+    ``scipy.stats.bootstrap(paired=True)`` gathering each block's count and sums (same seed, so the same draws), to
+    1e-12; a wrong block weight or a sample paired with another's draw would move them by far more."""
+    rng = np.random.default_rng(7)
+    blocks = rng.integers(0, 300, 4000)
+    xs = [rng.gamma(2.0, 1.0, 4000), rng.normal(0, 1, 4000) ** 2, rng.uniform(0, 1, 4000)]
+    got = stats.mean_cis(*xs, blocks=blocks)
+    _, b = np.unique(blocks, return_inverse=True)
+    counts = np.bincount(b).astype(float)
+    sums = [np.bincount(b, weights=x) for x in xs]
+    ref = sps.bootstrap(
+        (counts, *sums),
+        lambda n, *s, axis=-1: np.stack([np.sum(v, axis=axis) / np.sum(n, axis=axis) for v in s]),
+        vectorized=True,
+        paired=True,
+        n_resamples=stats.N_RESAMPLES,
+        method="percentile",
+        random_state=np.random.default_rng(stats.SEED),
+    ).confidence_interval
+    np.testing.assert_allclose(np.array(got), np.stack([ref.low, ref.high], 1), rtol=0, atol=1e-12)
+    assert got[0] != got[1]
