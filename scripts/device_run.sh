@@ -112,7 +112,7 @@ print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' 
     CUDA_VISIBLE_DEVICES=0 timed single timeout "${LIMIT_S:-200}" $S sweep configs/sweep_large_subset.toml \
       --backend cuda --cache "$W/scache" --out "$W/single" --no-plots 2>&1 | tail -2
     tar czf "$OUT/results-single.tgz" -C "$W" --exclude=cases single ;;
-  profile)  # where the main sweep's heaviest case (cube 512², big columns) and fig4 spend their time on the GPU:
+  profile)  # where the main sweep's last case (its finest cube, big columns) and fig4 spend their time on the GPU:
             # each run twice under cProfile in one process (scripts/profile_case.py), on an empty cache, then warm
     export HOME=$W/home-prof; mkdir -p "$HOME"
     timed profile python3 scripts/profile_case.py configs/sweep.toml cuda "${PROFILE_CASE:--1}" "$W/pcache" \
