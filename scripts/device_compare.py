@@ -26,7 +26,7 @@ COLUMNS = [
     "angle_median_deg",
     "rmse_oracle",
     "rmse_mitsuba",
-    "flip_mitsuba",
+    "flip_truth",
     "rmse_truth",
 ]
 

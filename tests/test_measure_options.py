@@ -20,7 +20,8 @@ TINY = {"render.cube_res": 16, "camera.width": 32, "camera.height": 32}
 
 def test_flip_against_the_truth_alone(tmp_path):
     cache = tmp_path / "cache"
-    full = study.evaluate(small_scene_dict(), ["classical"], overrides=TINY, cache=cache).table
+    every = {**TINY, "render.flip_against": ["oracle", "truth", "mitsuba"]}
+    full = study.evaluate(small_scene_dict(), ["classical"], overrides=every, cache=cache).table
     only = study.evaluate(
         small_scene_dict(), ["classical"], overrides={**TINY, "render.flip_against": ["truth"]}, cache=cache
     ).table

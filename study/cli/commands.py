@@ -72,7 +72,7 @@ def _print_table(rows: list[dict]) -> None:
         "angle_p95_deg",
         "rmse_oracle",
         "rmse_mitsuba",
-        "flip_mitsuba",
+        "flip_truth",
         "occluded_fraction",
     ]
     for c in cols:

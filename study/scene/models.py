@@ -226,5 +226,4 @@ class Render(_Strict):
     flip_against: tuple[Literal["oracle", "truth", "mitsuba"], ...] = (
         "oracle",
         "truth",
-        "mitsuba",
-    )  # FLIP refs
+    )  # FLIP refs (add "mitsuba" for FLIP against Mitsuba's camera render)

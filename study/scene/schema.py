@@ -49,7 +49,8 @@ A scene is a TOML file (or dict) validated on load; y is up, units are metres. E
     internal_bounces = 8                 # total internal reflections followed before a ray is dropped (counted)
     object_res = 128                     # face resolution of the object's own distance map
     # probe_spp = 16                     # samples per texel of multi_probe's probes (default: cube_spp)
-    flip_against = ["oracle", "truth", "mitsuba"]  # the references FLIP is measured against (others: NaN)
+    flip_against = ["oracle", "truth"]   # the references FLIP is measured against (the others: NaN); "mitsuba"
+                                         # adds FLIP against Mitsuba's camera render
 
 The environment is the box ``[room]`` with its ``[[columns]]`` unless ``[environment]`` names another source
 (:mod:`study.scene.sources`): ``type = "mesh"`` with ``file = "rooms/l_room.ply"`` (any format trimesh reads; its
