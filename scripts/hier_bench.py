@@ -3,8 +3,9 @@
     PYTHONPATH=. python scripts/hier_bench.py [--backend llvm|cuda] [--scene-res 1024] [--repeats 5] [--out DIR]
 
 For linear_secant(1), layered(1) (each with ``hierarchical`` False: the texel march, and True: the min-pyramid
-march) and localized(10): ms per 1024² frame (frozen path, as ``study bench`` times it), the measured floor and the
-time over it (:func:`study.bench.floors.method_floor` at the measured mean lookups per ray), mean lookups per ray
+march, with its blocks cut at the cube's face edges and, as before that cut, without) and localized(10): ms per
+1024² frame (frozen path, as ``study bench`` times it), the measured floor and the time over it
+(:func:`study.bench.floors.method_floor` at the measured mean lookups per ray), mean lookups per ray
 (``Trace.lookups``), and the time over localized(10)'s. The fig4 scene's object at the bench's default position
 (configs/fig4.toml, position 2), the close-up batch of :func:`study.bench.batches.closeup_rays` at ``--scene-res``²
 rays, the impostor's distances exact from Embree at cube resolution 256. Writes ``hier-<backend>.csv`` and
@@ -15,6 +16,7 @@ rays, the impostor's distances exact from Embree at cube resolution 256. Writes 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import time
 from pathlib import Path
 
@@ -27,16 +29,39 @@ from study.bench.batches import closeup_rays, distance_texels, room_triangles
 from study.bench.timing import FRAME, time_method
 from study.harness.config import load_figure_config
 from study.measure.inputs import env_info
+from study.methods import layered, linear_secant
 from study.reference.embree import Tracer
 from study.tables import columns_of, markdown, write_csv
 
-ROWS = [
-    ("localized", {"iterations": 10}),
-    ("linear_secant", {"steps_per_texel": 1.0, "hierarchical": False}),
-    ("linear_secant", {"steps_per_texel": 1.0, "hierarchical": True}),
-    ("layered", {"steps_per_texel": 1.0, "hierarchical": False}),
-    ("layered", {"steps_per_texel": 1.0, "hierarchical": True}),
+ROWS = [  # (method, params, blocks cut at the cube's face edges)
+    ("localized", {"iterations": 10}, True),
+    ("linear_secant", {"steps_per_texel": 1.0, "hierarchical": False}, True),
+    ("linear_secant", {"steps_per_texel": 1.0, "hierarchical": True}, False),
+    ("linear_secant", {"steps_per_texel": 1.0, "hierarchical": True}, True),
+    ("layered", {"steps_per_texel": 1.0, "hierarchical": False}, True),
+    ("layered", {"steps_per_texel": 1.0, "hierarchical": True}, False),
+    ("layered", {"steps_per_texel": 1.0, "hierarchical": True}, True),
 ]
+
+
+@contextlib.contextmanager
+def edges_cut(cut: bool):
+    """The hierarchical march with its blocks cut at face edges (the default, Skip.edge), or without the cut (the
+    march before it: a block across an edge is tried, fails and is halved)."""
+    plain = linear_secant.skipper
+
+    def uncut(*a):
+        s = plain(*a)
+        if s is not None:
+            s.edge = None
+        return s
+
+    if not cut:
+        linear_secant.skipper = layered.skipper = uncut
+    try:
+        yield
+    finally:
+        linear_secant.skipper = layered.skipper = plain
 
 
 def main() -> None:
@@ -67,16 +92,17 @@ def main() -> None:
     )
     info = env_info(scene)
     rows = []
-    for name, params in ROWS:
+    for name, params, cut in ROWS:
         m = methods.make(name, **params)
         spent: list = []
-        t = time_method(m, B, tex, x, R, frozen=True, repeats=a.repeats, info=info, spent=spent)
+        with edges_cut(cut):
+            t = time_method(m, B, tex, x, R, frozen=True, repeats=a.repeats, info=info, spent=spent)
         ms = t / len(x) * FRAME * 1e3
         floor = floor_model.method_floor(m, floors, "coherent", FRAME, a.cube_res, spent[0]) * 1e3
         rows.append(
             {
                 "method": name,
-                "search": "hierarchical"
+                "search": ("hierarchical" if cut else "hierarchical, blocks not cut at face edges")
                 if params.get("hierarchical")
                 else "texel march"
                 if "hierarchical" in params
@@ -99,7 +125,7 @@ def main() -> None:
     print(f"{batch.name}, {len(x)} rays, {a.backend}, {time.perf_counter() - t_start:.0f} s")
     for r in rows:
         print(
-            f"{r['method']:14s} {r['search']:13s} {r['ms_per_frame']:9.3f} ms  ×floor {r['x_floor']:6.2f}  "
+            f"{r['method']:14s} {r['search'][:24]:24s} {r['ms_per_frame']:9.3f} ms  ×floor {r['x_floor']:6.2f}  "
             f"lookups {r['lookups_per_ray']:7.1f}  ×localized(10) {r['x_localized10']:6.2f}"
         )
 

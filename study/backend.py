@@ -71,6 +71,7 @@ class Backend:
 
     def power(self, a, b): ...
     def acos(self, a): ...
+    def atan2(self, y, x): ...
     def array64(self, a: np.ndarray):
         """A 1-D float64 array of this backend (measurements that must agree with numpy's to rounding)."""
 
@@ -156,6 +157,9 @@ class NumpyBackend(Backend):
 
     def acos(self, a):
         return np.arccos(a)
+
+    def atan2(self, y, x):
+        return np.arctan2(y, x).astype(np.result_type(y, x, np.float32))
 
     def array64(self, a):
         return np.asarray(a, np.float64)
@@ -302,6 +306,9 @@ class DrJitBackend(Backend):
 
     def acos(self, a):
         return self.dr.acos(a)
+
+    def atan2(self, y, x):
+        return self.dr.atan2(y, x)
 
     def array64(self, a):
         return self.m.Float64(np.ascontiguousarray(a, dtype=np.float64))

@@ -181,3 +181,58 @@ def test_random_rays_in_a_room_with_a_column_linear_secant_and_layered(column_ro
     for name in ("linear_secant", "layered"):
         flat, hier = _same_as_texel_march(name, B, env, x, d)
         assert hier[2].mean() * 4 <= flat[2].mean(), name
+
+
+# ---------------------------------------------------------------------------------------------- face edges
+def test_exit_angle_is_where_a_dense_walk_along_the_circle_changes_face():
+    """cubemap.exit_angle against its slow twin: 300 random great circles and start angles, walked in steps of
+    π/20000 from the start; the first step on another face (cubemap.face_uv) lies within a step of the computed
+    angle (float32 trigonometry: 2e-4 rad), never before it."""
+    from study import backend
+
+    nb = backend.get("numpy")
+    rng = np.random.default_rng(11)
+    e1 = rng.normal(size=(300, 3))
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = rng.normal(size=(300, 3))
+    e2 -= e1 * (e1 * e2).sum(1, keepdims=True)
+    e2 /= np.linalg.norm(e2, axis=1, keepdims=True)
+    phi = rng.uniform(0, np.pi, 300)
+    got = cubemap.exit_angle(nb, nb.vec(e1), nb.vec(e2), phi.astype(np.float32)).astype(float)
+    walk = phi[:, None] + np.linspace(0, np.pi, 20001)[None, :]  # (300, 20001)
+    d = np.cos(walk)[..., None] * e1[:, None] + np.sin(walk)[..., None] * e2[:, None]
+    face = cubemap.face_uv(nb, d[..., 0], d[..., 1], d[..., 2])[0]
+    first = np.argmax(face != face[:, :1], axis=1)  # every half turn changes face at least once
+    assert (first > 0).all()
+    true = walk[np.arange(300), first]
+    assert np.all(got <= true + 2e-4), np.max(got - true)
+    assert np.all(got >= walk[np.arange(300), first - 1] - 2e-4), np.min(got - true)
+
+
+def test_blocks_cut_at_face_edges_give_the_same_points_from_fewer_lookups(column_room, B, monkeypatch):
+    """The march with blocks cut at the cube's face edges (Skip.edge) against the same march without the cut (the
+    pyramid never clears a block across an edge; it halves the block instead): the same shown points on the random
+    rays of the column room, and fewer lookups on average for linear_secant and layered (measured: 37 against 46
+    on fig4's close-up batch)."""
+    from study.methods import layered, linear_secant
+
+    o, tracer, tex = column_room
+    x, d = analytic.random_rays(2000, extent=0.5, seed=4)
+    imp = tex[0][..., [0, 1, 2, 4]]
+    env = Captured(impostor=EnvMap(imp, B), reference=o, layers=tuple(EnvMap(t, B) for t in tex))
+    cut = {n: _trace(n, B, env, x, d, hierarchical=True) for n in ("linear_secant", "layered")}
+    plain = linear_secant.skipper
+
+    def uncut(*a):
+        s = plain(*a)
+        s.edge = None
+        return s
+
+    monkeypatch.setattr(linear_secant, "skipper", uncut)
+    monkeypatch.setattr(layered, "skipper", uncut)
+    for name, (shown, valid, lookups, bound) in cut.items():
+        u_shown, u_valid, u_lookups, _ = _trace(name, B, env, x, d, hierarchical=True)
+        np.testing.assert_array_equal(valid, u_valid)
+        np.testing.assert_allclose(shown[valid], u_shown[valid], rtol=1e-5, atol=1e-6)
+        assert lookups.max() <= bound
+        assert lookups.mean() < 0.95 * u_lookups.mean(), (name, lookups.mean(), u_lookups.mean())

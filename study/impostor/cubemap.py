@@ -35,6 +35,7 @@ These functions are backend-generic: ``xp`` is a :class:`study.backend.Backend`,
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
@@ -93,6 +94,35 @@ def face_uv(xp, dx, dy, dz):
     u = 0.5 * (sc / ma + 1.0)
     v = 0.5 * (1.0 - tc / ma)
     return face, u, v
+
+
+def exit_angle(xp, e1, e2, phi):
+    """Where the great circle d(φ) = cos φ e₁ + sin φ e₂ (e₁, e₂ orthonormal V3s) leaves the face of d(``phi``):
+    the least φ' ≥ ``phi`` with |d_i(φ')| = |d_j(φ')|, i the major axis of d(``phi``) (:func:`face_uv`) and j one
+    of the other two (a face changes only there; a tangent touch gives a φ' too early, never too late), at most
+    ``phi`` + π. Each of d_i = ±d_j is A cos φ + B sin φ = 0, with roots atan2(−A, B) + mπ."""
+    c, s = xp.cos(phi), xp.sin(phi)
+    dx, dy, dz = (e1.x * c + e2.x * s), (e1.y * c + e2.y * s), (e1.z * c + e2.z * s)
+    ax, ay, az = xp.abs(dx), xp.abs(dy), xp.abs(dz)
+    is_x = (ax >= ay) & (ax >= az)
+    is_y = ~is_x & (ay >= az)
+
+    def pick(v, a, b, c_):  # the component of v on axis a (is_x), b (is_y) or c_
+        return xp.select(is_x, getattr(v, a), xp.select(is_y, getattr(v, b), getattr(v, c_)))
+
+    major = (pick(e1, "x", "y", "z"), pick(e2, "x", "y", "z"))
+    others = [
+        (pick(e1, "y", "x", "x"), pick(e2, "y", "x", "x")),
+        (pick(e1, "z", "z", "y"), pick(e2, "z", "z", "y")),
+    ]
+    best = phi + math.pi
+    for o1, o2 in others:
+        for sign in (1.0, -1.0):
+            r0 = xp.atan2(sign * o1 - major[0], major[1] - sign * o2)  # a root of d_i − sign·d_j
+            off = r0 - phi
+            off = off - math.pi * xp.floor(off * (1.0 / math.pi))  # the next root: in [0, π)
+            best = xp.minimum(best, phi + off)
+    return best
 
 
 def face_uv_to_direction(face: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:

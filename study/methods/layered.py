@@ -139,7 +139,7 @@ class Layered(TracingMethod):
 
         # ------------------------------------------------------------- march: the first entry that is not skin
         # (hierarchical: blocks in front of the nearest layer skipped; g_0 ≥ g_k, so in front of every layer)
-        skip = skipper(B, getattr(maps[0], "pyramid", None), x, R, a) if p.hierarchical else None
+        skip = skipper(B, getattr(maps[0], "pyramid", None), x, R, a, n) if p.hierarchical else None
         br, e = first_entry(
             B,
             gs if skip is None else gs_lazy,

@@ -35,10 +35,12 @@ class Skip:
     texel march does (and tries w = 2 next). A ray stops at its crossing (its kept entry). Only cleared blocks are
     skipped, so the bracket is the texel march's (the samples come from :meth:`Samples.direct`, equal to the
     march's up to rounding); the bracket's start, when skipped, is read once after the march.
+    ``edge(k)`` (optional) → (N,) the last sample on the face of sample k + 1: a block is cut there, as the
+    pyramid bounds one face at a time (a block across an edge is never cleared, so cutting it loses nothing).
     At most 2·steps + log₂(steps) + 2 iterations, each one lookup per function at most."""
 
-    def __init__(self, clear: Callable):
-        self.clear, self.lookups = clear, None
+    def __init__(self, clear: Callable, edge: Callable | None = None):
+        self.clear, self.edge, self.lookups = clear, edge, None
 
 
 def iterations(steps: int) -> int:
@@ -77,6 +79,8 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
 
     def coarse(k, w, spent, *s):  # a block of w samples in one pyramid read
         kb = B.minimum(k + w, float(n))
+        if skip.edge is not None:  # not across a face's edge
+            kb = B.minimum(kb, skip.edge(k))
         t_b = t_at(kb)
         ok = skip.clear(t_at(k + 1.0), t_b)
         w = B.select(ok, B.minimum(w * 2.0, top), w * 0.5)
