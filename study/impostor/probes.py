@@ -17,6 +17,7 @@ from study.backend import V3, Backend
 from study.cache import Cache
 from study.impostor import cubemap
 from study.impostor.capture import distances_from, impostor_key, render_cube
+from study.impostor.pyramid import MinPyramid
 from study.impostor.views import ProbeSpec
 from study.reference.embree import Tracer
 from study.scene import Scene, placement
@@ -102,6 +103,7 @@ class ProbeSet:
         flat = texels.reshape(n * six, res, res, texels.shape[-1])
         self.tex = B.texture(flat[..., :-1])
         self.dist = B.texture(flat[..., -1:])
+        self.pyramid = MinPyramid(flat[..., -1], B)  # of the 6N faces: probe k's face f is face 6k + f
 
     @classmethod
     def around(cls, texels: np.ndarray, centres_world: np.ndarray, reference, B: Backend) -> ProbeSet:

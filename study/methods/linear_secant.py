@@ -72,10 +72,11 @@ class TexelMarchParams(BaseModel):
 EDGES = 3
 
 
-def skipper(B, pyramid, x, R, a, n: int) -> Skip | None:
+def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
     """The :class:`~study.methods.search.Skip` of a march of ``n`` samples (:func:`arc_samples`) along
     p(t) = (1 − t) x + t a R over a distance map with a min pyramid (:class:`study.impostor.pyramid.MinPyramid`),
-    its blocks cut at the cube's face edges; None without a pyramid (an analytic environment)."""
+    its blocks cut at the cube's face edges; None without a pyramid (an analytic environment). ``base``: the
+    map's first face in a stack of maps (:meth:`~study.impostor.pyramid.MinPyramid.clear`)."""
     if pyramid is None:
         return None
 
@@ -106,7 +107,7 @@ def skipper(B, pyramid, x, R, a, n: int) -> Skip | None:
             out = B.select(k + 1.0 <= e, e, out)
         return out
 
-    return Skip(lambda ta, tb: pyramid.clear(point(ta), 1.0 - ta, point(tb), 1.0 - tb), edge)
+    return Skip(lambda ta, tb: pyramid.clear(point(ta), 1.0 - ta, point(tb), 1.0 - tb, base), edge)
 
 
 def march_bound(res: int | None, p: TexelMarchParams) -> int:

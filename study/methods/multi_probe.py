@@ -12,9 +12,11 @@ Per ray x + R d (relative to o), starting at d₀ = 0 in the *nearest probe that
 
 1. **march** the segment from x + R d₀ on probe k as ``linear_secant`` does on the impostor (the t = d/(d + a)
    parameterization about the probe's centre c_k, samples in equal angles no farther apart than
-   1/``steps_per_texel`` texels, n = ⌈π res steps_per_texel⌉ for a half turn, at most ``max_steps``): the first step
-   from in front of probe k's surface to behind it, then ``secant_steps`` Illinois steps → the crossing l
-   (relative to c_k), r = |l|.
+   1/``steps_per_texel`` texels, n = ⌈π res steps_per_texel⌉ for a half turn, at most ``max_steps``; with
+   ``hierarchical``, the default, blocks of samples that probe k's min pyramid proves in front of its surface are
+   skipped, :class:`study.methods.march.Skip`, the same bracket from fewer lookups): the first step from in front
+   of probe k's surface to behind it, then ``secant_steps`` Illinois steps → the crossing l (relative to c_k),
+   r = |l|.
 2. **classify** the crossing by the texels of probe k whose centres are nearest to l and to l̂ turned by ±6/res
    radians along the arc (3 texels at a face's centre, up to 6 at its corners; distances D, D_lo, D_hi, no
    interpolation), τ = ``thickness`` + r·``slack``/res: **UNKNOWN** where the depth *drops* across the crossing
@@ -34,10 +36,11 @@ In a config, ``grid`` and ``points`` are lists and so must be wrapped once more 
 Shown point of a hit: the point probe k holds in the crossing's direction, c_k + l̂·|l|'_k; its radiance is probe
 k's (:meth:`MultiProbe.search`). The origin check of :meth:`~study.methods.base.Method.trace` is generalized
 (:meth:`MultiProbe.sees_origin`): with it, rays whose origin no probe sees are invalid. Cost, counted per ray for
-the rounds it takes (``Trace.lookups``; a GPU thread stops when its ray is resolved; the vectorized march spends all
-n steps per round): N (choice of the first probe) + per round 1 + n + ``secant_steps`` + 3 (g(0), march, secant, the
-three nearest texels) + N per switch + 1 (the shown point); :meth:`MultiProbe.lookups_per_ray` bounds it with N
-rounds, N the grid's cells (or points) and probe 0.
+the rounds it takes (``Trace.lookups``; a GPU thread stops when its ray is resolved): N (choice of the first probe)
++ per round 1 + the march's lookups (n for the texel march, ``hierarchical=False``; what each ray spent for the
+hierarchical one) + ``secant_steps`` + 3 (g(0), march, secant, the three nearest texels) + N per switch + 1 (the
+shown point); :meth:`MultiProbe.lookups_per_ray` bounds it with N rounds, N the grid's cells (or points) and
+probe 0.
 """
 
 from __future__ import annotations
@@ -51,7 +54,7 @@ from study.backend import V3
 from study.impostor import cubemap
 from study.impostor.views import ProbeSpec, Views
 from study.methods.base import Found, Knob, TracingMethod, register
-from study.methods.linear_secant import TexelMarchParams, march_steps
+from study.methods.linear_secant import TexelMarchParams, march_bound, march_steps, skipper
 from study.methods.search import arc_samples, first_crossing, refine, secant_point
 
 Vec3 = tuple[float, float, float]
@@ -81,6 +84,9 @@ class _Single:
     def __init__(self, env):
         self.env, self.B, self.n, self.res = env, env.B, 1, getattr(env, "res", 0)
         self.centres = np.zeros((1, 3))
+        self.pyramid = getattr(
+            getattr(env, "impostor", env), "pyramid", None
+        )  # None: an analytic environment
 
     def distance(self, k, v):
         return self.env.distance(v)
@@ -179,6 +185,8 @@ class MultiProbe(TracingMethod):
                 return B.length(pt) - (1.0 - t) * P.distance(kk, pt)
 
             g0 = g(zero)
+            pyr = P.pyramid if p.hierarchical else None  # probe k's faces: 6k … 6k + 5 of the stack
+            skip = skipper(B, pyr, xs, R, a, n, base=kk * 6.0) if pyr is not None else None
             br = first_crossing(
                 B,
                 g,
@@ -188,7 +196,9 @@ class MultiProbe(TracingMethod):
                 n,
                 t_max=1.0,
                 default=(zero, g0, zero + 1.0, a),
+                skip=skip,
             )
+            marched = zero + float(n) if skip is None else skip.lookups  # the texel march: all n samples
             br = refine(B, g, br, p.secant_steps, rising=True)
             t = secant_point(br)
             t_ok = B.isfinite(t)
@@ -208,7 +218,7 @@ class MultiProbe(TracingMethod):
             ok = cross & ~step & (B.abs(r - d_at) <= tol + 0.25 * B.abs(d_hi - d_lo))
             hit = active & ok
             unknown = active & cross & ~ok
-            spent = spent + B.select(active, zero + float(n + p.secant_steps + 4), zero)
+            spent = spent + B.select(active, marched + float(p.secant_steps + 4), zero)
             found = found | hit
             hit_l, hit_k = _sel(B, hit, l + c, hit_l), B.select(hit, k, hit_k)
             first = unknown & ~have_first
@@ -237,4 +247,4 @@ class MultiProbe(TracingMethod):
         # N rounds (module docstring), N = probe 0 + the grid's cells or the points (probes inside geometry dropped)
         p = self.params
         N = 1 + (len(p.points) if p.points is not None else int(np.prod(p.grid)))
-        return N + N * (march_steps(res, p) + p.secant_steps + 4 + N) + 1
+        return N + N * (march_bound(res, p) + p.secant_steps + 4 + N) + 1
