@@ -5,13 +5,13 @@
 For linear_secant(1), layered(1) and multi_probe(1) on probe 0 alone (each with ``hierarchical`` False: the texel
 march, and True: the min-pyramid march, with its blocks cut at the cube's face edges and, for the first two, as
 before that cut, without) and localized(10): ms per 1024² frame (frozen path, as ``study bench`` times it), the
-measured floor and the time over it
-(:func:`study.bench.floors.method_floor` at the measured mean lookups per ray), mean lookups per ray
-(``Trace.lookups``), and the time over localized(10)'s. The fig4 scene's object at the bench's default position
-(configs/fig4.toml, position 2), the close-up batch of :func:`study.bench.batches.closeup_rays` at ``--scene-res``²
-rays, the impostor's distances exact from Embree at cube resolution 256. Writes ``hier-<backend>.csv`` and
-``.md`` to ``--out`` (default reports/performance) and prints the table. Targets (on one H200, ``--backend cuda``):
-≤ 60 lookups per ray and ≤ 3× localized(10)'s time for linear_secant and layered, linear_secant ≤ 1.5× its floor.
+measured floor and the time over it (:func:`study.bench.floors.method_floor` at the measured mean lookups per ray),
+mean lookups per ray (``Trace.lookups``), and the time over localized(10)'s. The fig4 scene's object at the
+bench's default position (configs/fig4.toml, position 2), the close-up batch of
+:func:`study.bench.batches.closeup_rays` at ``--scene-res``² rays, the impostor's distances exact from Embree at cube
+resolution 256. Writes ``hier-<backend>.csv`` and ``.md`` to ``--out`` (default reports/performance) and prints the
+table. Targets (on one H200, ``--backend cuda``): ≤ 60 lookups per ray and ≤ 3× localized(10)'s time for
+linear_secant and layered, linear_secant ≤ 1.5× its floor.
 """
 
 from __future__ import annotations
@@ -42,11 +42,8 @@ ROWS = [  # (method, params, blocks cut at the cube's face edges)
     ("layered", {"steps_per_texel": 1.0, "hierarchical": False}, True),
     ("layered", {"steps_per_texel": 1.0, "hierarchical": True}, False),
     ("layered", {"steps_per_texel": 1.0, "hierarchical": True}, True),
-    (
-        "multi_probe",
-        {"steps_per_texel": 1.0, "hierarchical": False},
-        True,
-    ),  # probe 0 alone (no probe set here)
+    # multi_probe on probe 0 alone (no probe set here)
+    ("multi_probe", {"steps_per_texel": 1.0, "hierarchical": False}, True),
     ("multi_probe", {"steps_per_texel": 1.0, "hierarchical": True}, True),
 ]
 

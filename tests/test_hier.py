@@ -212,7 +212,7 @@ def test_exit_angle_is_where_a_dense_walk_along_the_circle_changes_face():
 def test_blocks_cut_at_face_edges_give_the_same_points_from_fewer_lookups(column_room, B, monkeypatch):
     """The march with blocks cut at the cube's face edges (Skip.edge) against the same march without the cut (the
     pyramid never clears a block across an edge; it halves the block instead): the same shown points on the random
-    rays of the column room, and fewer lookups on average for linear_secant and layered (measured: 37 against 46
+    rays of the column room, and fewer lookups on average for linear_secant and layered (measured: 35 against 46
     on fig4's close-up batch)."""
     from study.methods import layered, linear_secant
 

@@ -103,7 +103,15 @@ class ProbeSet:
         flat = texels.reshape(n * six, res, res, texels.shape[-1])
         self.tex = B.texture(flat[..., :-1])
         self.dist = B.texture(flat[..., -1:])
-        self.pyramid = MinPyramid(flat[..., -1], B)  # of the 6N faces: probe k's face f is face 6k + f
+        self._dist_np, self._pyramid = flat[..., -1], None
+
+    @property
+    def pyramid(self) -> MinPyramid:
+        """The min pyramid of the 6N faces' distances (probe k's face f is face 6k + f), built on first use and
+        kept, as :attr:`study.impostor.envmap.EnvMap.pyramid`."""
+        if self._pyramid is None:
+            self._pyramid = MinPyramid(self._dist_np, self.B)
+        return self._pyramid
 
     @classmethod
     def around(cls, texels: np.ndarray, centres_world: np.ndarray, reference, B: Backend) -> ProbeSet:

@@ -84,9 +84,10 @@ class _Single:
     def __init__(self, env):
         self.env, self.B, self.n, self.res = env, env.B, 1, getattr(env, "res", 0)
         self.centres = np.zeros((1, 3))
-        self.pyramid = getattr(
-            getattr(env, "impostor", env), "pyramid", None
-        )  # None: an analytic environment
+
+    @property
+    def pyramid(self):  # the impostor's (built on first use); None: an analytic environment
+        return getattr(getattr(self.env, "impostor", self.env), "pyramid", None)
 
     def distance(self, k, v):
         return self.env.distance(v)
@@ -185,8 +186,8 @@ class MultiProbe(TracingMethod):
                 return B.length(pt) - (1.0 - t) * P.distance(kk, pt)
 
             g0 = g(zero)
-            pyr = P.pyramid if p.hierarchical else None  # probe k's faces: 6k … 6k + 5 of the stack
-            skip = skipper(B, pyr, xs, R, a, n, base=kk * 6.0) if pyr is not None else None
+            # hierarchical: probe k's faces are 6k … 6k + 5 of the stacked pyramid (None: an analytic environment)
+            skip = skipper(B, P.pyramid, xs, R, a, n, base=kk * 6.0) if p.hierarchical else None
             br = first_crossing(
                 B,
                 g,
