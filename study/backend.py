@@ -67,6 +67,9 @@ class Backend:
     def floor(self, a): ...
     def sin(self, a): ...
     def cos(self, a): ...
+    def exponent(self, a):
+        """⌊log₂ a⌋ for a ≥ 1, exactly: the float's binary exponent."""
+
     def gather(self, data, index): ...
 
     def power(self, a, b): ...
@@ -147,6 +150,9 @@ class NumpyBackend(Backend):
 
     def cos(self, a):
         return np.cos(a).astype(np.float32)
+
+    def exponent(self, a):
+        return (np.frexp(a)[1] - 1).astype(np.float32)
 
     def gather(self, data, index):
         """data[index] (``index`` a float array of integer values)."""
@@ -297,6 +303,10 @@ class DrJitBackend(Backend):
 
     def cos(self, a):
         return self.dr.cos(a)
+
+    def exponent(self, a):
+        bits = self.dr.reinterpret_array(self.m.UInt32, self.m.Float(a))
+        return self.m.Float(self.m.Int32(bits >> 23) - 127)
 
     def gather(self, data, index):
         return self.dr.gather(self.m.Float, data, self.m.UInt32(index))

@@ -91,6 +91,27 @@ def test_pyramid_levels_hold_the_minimum_of_their_texels():
     assert offsets[-1][1] == 1
 
 
+def test_the_bound_reads_the_lowest_level_that_covers_its_box(B):
+    """Boxes of every whole width 2..R − 4 texels along one row (R = 256 and an odd 13; the bilinear lookups of a
+    segment from column 3.25 to 3.25 + width − 2 touch columns 3 … width + 2, rows 5 and 6): the bound equals the
+    dilated level q = the least with width ≤ 2^q + 1 (brute force) at the box's first texel, on a map whose texels
+    all differ, so a level one too low or too high, or a wrong texel, shows (Backend.exponent picks q)."""
+    for res in (256, 13):
+        dist = np.linspace(2.0, 1.0, 6 * res * res, dtype=np.float32).reshape(6, res, res)
+        flat, offsets = min_pyramid(dist)
+        pyr = MinPyramid(dist, B)
+        width = np.arange(2, res - 3)
+        u0, u1 = np.full(len(width), 3.75 / res), (3.75 + width - 2) / res  # coordinates c = u R − 0.5
+        v = np.full(len(width), 5.75 / res)
+        f = B.array(np.full(len(width), 2.0, np.float32))
+        got = B.numpy(pyr.bound(f, B.array(u0), B.array(v), f, B.array(u1), B.array(v)))
+        for w, g in zip(width, got):
+            q = next(q for q in range(len(offsets)) if w <= 2**q + 1)
+            o, s = offsets[q]
+            want = flat[o : o + 6 * s * s].reshape(6, s, s)[2, 5 >> q, 3 >> q] * (1 - 1e-5)
+            assert g == pytest.approx(want, rel=1e-7), (res, w)
+
+
 # ---------------------------------------------------------------------------------------------- thin crossings
 def _pillar(res=64, near=0.5):
     """A box impostor with a pillar one texel wide: on face +x, texel column j0 holds ``near`` of the wall's

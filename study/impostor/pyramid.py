@@ -67,7 +67,10 @@ class MinPyramid:
 
     def __init__(self, dist: np.ndarray, B: Backend):
         flat, self.offsets = min_pyramid(dist)
-        self.B, self.res, self.data = B, dist.shape[1], B.array(flat)
+        # after the levels, per level q: (offset, side, 2^−q), read by level (one array: one frozen argument)
+        levels = np.array([(o, s, 2.0**-q) for q, (o, s) in enumerate(self.offsets)], np.float32)
+        self.B, self.res, self.levels_at = B, dist.shape[1], float(flat.size)
+        self.data = B.array(np.concatenate([flat, levels.ravel()]))
 
     def bound(self, face0, u0, v0, face1, u1, v1):
         """A lower bound of the bilinear lookups on the segment (u₀, v₀)–(u₁, v₁) of face ``face0`` (−∞ where
@@ -85,13 +88,11 @@ class MinPyramid:
         j0, j1 = texels(u0, u1)  # columns
         i0, i1 = texels(v0, v1)  # rows
         width = B.maximum(j1 - j0, i1 - i0) + 1.0  # texels along the wider axis
-        # the lowest level q with width ≤ 2^q + 1: its dilated texel at the box's start covers the box
-        off, side, size = i0 * 0.0, i0 * 0.0 + float(self.offsets[0][1]), i0 * 0.0 + 1.0
-        for q, (o, s) in enumerate(self.offsets[1:], start=1):
-            up = width > float(2 ** (q - 1)) + 1.0  # level q − 1 covers ≤ 2^(q−1) + 1 texels
-            off, side = B.select(up, o + 0.0 * off, off), B.select(up, s + 0.0 * side, side)
-            size = B.select(up, float(2**q) + 0.0 * size, size)
-        i, j = B.floor(i0 / size), B.floor(j0 / size)
+        # the lowest level q with width ≤ 2^q + 1 (its dilated texel at the box's start covers the box):
+        # q = ⌈log₂(width − 1)⌉ = ⌊log₂(2 width − 3)⌋ for whole width ≥ 2, and 0 at width 1
+        q = B.minimum(B.exponent(B.maximum(2.0 * width - 3.0, 1.0)), len(self.offsets) - 1.0)
+        off, side, scale = (B.gather(self.data, self.levels_at + q * 3.0 + c) for c in (0.0, 1.0, 2.0))
+        i, j = B.floor(i0 * scale), B.floor(j0 * scale)
         value = B.gather(self.data, off + (face0 * side + i) * side + j)
         same = face0 == face1
         return B.select(same, value * (1.0 - MARGIN), value * 0.0 - 1.0)

@@ -30,22 +30,29 @@ class Skip:
     lookups the march spent: pyramid reads, samples read × functions, and the re-read of the bracket's start
     (g0 not included).
 
-    The march (Hi-Z style): a block of w samples after the last one read is tried in one pyramid read; cleared,
-    the march jumps over it and doubles w; not cleared, it halves w; at w = 1 it reads the next sample as the
-    texel march does (and tries w = 2 next). A ray stops at its crossing (its kept entry). Only cleared blocks are
-    skipped, so the bracket is the texel march's (the samples come from :meth:`Samples.direct`, equal to the
-    march's up to rounding); the bracket's start, when skipped, is read once after the march.
+    The march (Hi-Z style): a block of w samples after the last one read (first :data:`FIRST`) is tried in one
+    pyramid read; cleared, the march jumps over it and doubles w; not cleared, it halves w; at w = 1 it reads
+    the next sample as the texel march does (and tries w = 2 next). A ray stops at its crossing (its kept
+    entry). Only cleared blocks are skipped, so the bracket is the texel march's (the samples come from
+    :meth:`Samples.direct`, equal to the march's up to rounding); the bracket's start, when skipped, is read once
+    after the march.
     ``edge(k)`` (optional) → (N,) the last sample on the face of sample k + 1: a block is cut there, as the
     pyramid bounds one face at a time (a block across an edge is never cleared, so cutting it loses nothing).
-    At most 2·steps + log₂(steps) + 2 iterations, each one lookup per function at most."""
+    At most :func:`iterations` iterations, each one lookup per function at most."""
 
     def __init__(self, clear: Callable, edge: Callable | None = None):
         self.clear, self.edge, self.lookups = clear, edge, None
 
 
+#: The first block a march tries, in samples: most rays start far in front of every surface (a camera ray's first
+#: stretch), so they skip it at once rather than doubling up from 2 (−10 % lookups on fig4's close-up).
+FIRST = 64
+
+
 def iterations(steps: int) -> int:
-    """The most iterations of the hierarchical march over ``steps`` samples."""
-    return 2 * steps + max(steps - 1, 0).bit_length() + 2
+    """The most iterations of the hierarchical march over ``steps`` samples: a sample read or a block jumped at
+    most ``steps`` times, each followed by at most one halving, and the halvings of the first block."""
+    return 2 * steps + max(steps - 1, FIRST).bit_length() + 2
 
 
 def every(masks):
@@ -91,7 +98,7 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         return B.branch(fine_now, (k, w, spent, *s), fine, coarse)
 
     out = B.while_loop(
-        (zero, zero + 2.0, zero, *state),
+        (zero, zero + float(min(FIRST, top)), zero, *state),
         lambda k, w, spent, *s: (k < float(n)) & ~done(*s),
         body,
         limit=iterations(n),
