@@ -6,7 +6,9 @@ For linear_secant(1), layered(1) and multi_probe(1) on probe 0 alone (each with 
 march, and True: the min-pyramid march, with its blocks cut at the cube's face edges and, for the first two, as
 before that cut, without) and localized(10): ms per 1024² frame (frozen path, as ``study bench`` times it), the
 measured floor and the time over it (:func:`study.bench.floors.method_floor` at the measured mean lookups per ray),
-mean lookups per ray (``Trace.lookups``), and the time over localized(10)'s. The fig4 scene's object at the
+mean lookups per ray (``Trace.lookups``), and the time over localized(10)'s; the same for the time the device spent
+in the kernels (``kernel_*``: Dr.Jit's kernel history, CUDA events, without the host's share of a call, which
+bounds localized(10)'s wall time on the GPU: :func:`study.bench.timing.kernel_seconds`). The fig4 scene's object at the
 bench's default position (configs/fig4.toml, position 2), the close-up batch of
 :func:`study.bench.batches.closeup_rays` at ``--scene-res``² rays, the impostor's distances exact from Embree at cube
 resolution 256. Writes ``hier-<backend>.csv`` and ``.md`` to ``--out`` (default reports/performance) and prints the
@@ -99,8 +101,11 @@ def main() -> None:
     for name, params, cut in ROWS:
         m = methods.make(name, **params)
         spent: list = []
+        kernel: list = []
         with edges_cut(cut):
-            t = time_method(m, B, tex, x, R, frozen=True, repeats=a.repeats, info=info, spent=spent)
+            t = time_method(
+                m, B, tex, x, R, frozen=True, repeats=a.repeats, info=info, spent=spent, kernel=kernel
+            )
         ms = t / len(x) * FRAME * 1e3
         floor = floor_model.method_floor(m, floors, "coherent", FRAME, a.cube_res, spent[0]) * 1e3
         rows.append(
@@ -112,6 +117,7 @@ def main() -> None:
                 if "hierarchical" in params
                 else "",
                 "ms_per_frame": ms,
+                "kernel_ms_per_frame": kernel[0] / len(x) * FRAME * 1e3,
                 "floor_ms": floor,
                 "x_floor": ms / floor,
                 "lookups_per_ray": spent[0],
@@ -119,9 +125,10 @@ def main() -> None:
             }
         )
         print(f"{m.label}: {ms:.3f} ms/frame, {spent[0]:.1f} lookups/ray", flush=True)
-    base = rows[0]["ms_per_frame"]
+    base, kbase = rows[0]["ms_per_frame"], rows[0]["kernel_ms_per_frame"]
     for r in rows:
         r["x_localized10"] = r["ms_per_frame"] / base
+        r["kernel_x_localized10"] = r["kernel_ms_per_frame"] / kbase
     a.out.mkdir(parents=True, exist_ok=True)
     stem = a.out / f"hier-{a.backend}"
     write_csv(rows, stem.with_suffix(".csv"))
@@ -130,7 +137,8 @@ def main() -> None:
     for r in rows:
         print(
             f"{r['method']:14s} {r['search'][:24]:24s} {r['ms_per_frame']:9.3f} ms  ×floor {r['x_floor']:6.2f}  "
-            f"lookups {r['lookups_per_ray']:7.1f}  ×localized(10) {r['x_localized10']:6.2f}"
+            f"lookups {r['lookups_per_ray']:7.1f}  ×localized(10) {r['x_localized10']:6.2f}  "
+            f"kernels {r['kernel_ms_per_frame']:7.3f} ms ×localized(10) {r['kernel_x_localized10']:6.2f}"
         )
 
 

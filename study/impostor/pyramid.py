@@ -97,20 +97,16 @@ class MinPyramid:
         same = face0 == face1
         return B.select(same, value * (1.0 - MARGIN), value * 0.0 - 1.0)
 
-    def clear(self, pa, wa, pb, wb, base=None):
-        """True where the ray points p/w between p_a/w_a and p_b/w_b (on a line: the points p(t)/(1 − t) of a
-        ray, p a V3 of directions, w > 0 or 0 at the point at infinity) are all nearer to o than the surface that
-        any bilinear lookup along the arc between p̂_a and p̂_b reads: |p| < w · bound at both ends. A point's
-        distance from o along a line is convex, so the ends are the farthest points; the lookups between them read
-        at least the bound. ``base`` (per ray, or None: 0): the first face of the cube map read, for maps stacked
-        six faces each (probe k of a :class:`study.impostor.probes.ProbeSet`: 6k)."""
-        B = self.B
-        fa, ua, va = cubemap.face_uv(B, pa.x, pa.y, pa.z)
-        fb, ub, vb = cubemap.face_uv(B, pb.x, pb.y, pb.z)
+    def bound_along(self, pa, pb, base=None):
+        """A lower bound of every bilinear lookup along the arc between directions p̂_a and p̂_b (V3s, any length;
+        −1 where they are on different faces): :meth:`bound` on their face coordinates. ``base`` (per ray, or
+        None: 0): the first face of the cube map read, for maps stacked six faces each (probe k of a
+        :class:`study.impostor.probes.ProbeSet`: 6k)."""
+        fa, ua, va = cubemap.face_uv(self.B, pa.x, pa.y, pa.z)
+        fb, ub, vb = cubemap.face_uv(self.B, pb.x, pb.y, pb.z)
         if base is not None:
             fa, fb = fa + base, fb + base
-        bound = self.bound(fa, ua, va, fb, ub, vb)
-        return (B.length(pa) < wa * bound) & (B.length(pb) < wb * bound)
+        return self.bound(fa, ua, va, fb, ub, vb)
 
 
 def bound_ref(dist: np.ndarray, face: int, uv0, uv1, samples: int = 2000) -> float:

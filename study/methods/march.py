@@ -24,24 +24,25 @@ class Direct:
 
 
 class Skip:
-    """How a search skips samples: ``clear(t_a, t_b)`` → (N,) bool, true where every function searched is proven
-    < 0 at every t in [t_a, t_b] (in front of every surface: no crossing, no entry), from one read of a min
-    pyramid (:meth:`study.impostor.pyramid.MinPyramid.bound`). After the search, ``lookups`` holds per ray the
-    lookups the march spent: pyramid reads, samples read × functions, and the re-read of the bracket's start
-    (g0 not included).
+    """How a search skips samples: ``reach(k, k_b, t_a, t_b)`` → (N,) the last sample of k + 1 … k_b (at t_a …
+    t_b) up to which every function searched is proven < 0 (in front of every surface: no crossing, no entry),
+    from one read of a min pyramid (:meth:`study.impostor.pyramid.MinPyramid.bound`); k where none is, k_b where
+    the whole block is. After the search, ``lookups`` holds per ray the lookups the march spent: pyramid reads,
+    samples read × functions, and the re-read of the bracket's start (g0 not included).
 
     The march (Hi-Z style): a block of w samples after the last one read (first :data:`FIRST`) is tried in one
-    pyramid read; cleared, the march jumps over it and doubles w; not cleared, it halves w; at w = 1 it reads
-    the next sample as the texel march does (and tries w = 2 next). A ray stops at its crossing (its kept
-    entry). Only cleared blocks are skipped, so the bracket is the texel march's (the samples come from
-    :meth:`Samples.direct`, equal to the march's up to rounding); the bracket's start, when skipped, is read once
-    after the march.
+    pyramid read; cleared, the march jumps over it and doubles w; cleared part of the way (the bound holds the ray
+    off the surface up to a point inside the block), it jumps there and tries w = 2 next; not cleared at all, it
+    halves w; at w = 1 it reads the next sample as the texel march does (and tries w = 2 next). A ray stops at its
+    crossing (its kept entry). Only cleared samples are skipped, so the bracket is the texel march's (the samples
+    come from :meth:`Samples.direct`, equal to the march's up to rounding); the bracket's start, when skipped, is
+    read once after the march.
     ``edge(k)`` (optional) → (N,) the last sample on the face of sample k + 1: a block is cut there, as the
     pyramid bounds one face at a time (a block across an edge is never cleared, so cutting it loses nothing).
     At most :func:`iterations` iterations, each one lookup per function at most."""
 
-    def __init__(self, clear: Callable, edge: Callable | None = None):
-        self.clear, self.edge, self.lookups = clear, edge, None
+    def __init__(self, reach: Callable, edge: Callable | None = None):
+        self.reach, self.edge, self.lookups = reach, edge, None
 
 
 #: The first block a march tries, in samples: most rays start far in front of every surface (a camera ray's first
@@ -50,8 +51,9 @@ FIRST = 64
 
 
 def iterations(steps: int) -> int:
-    """The most iterations of the hierarchical march over ``steps`` samples: a sample read or a block jumped at
-    most ``steps`` times, each followed by at most one halving, and the halvings of the first block."""
+    """The most iterations of the hierarchical march over ``steps`` samples: a sample read or a jump (the whole
+    block or part of it) at most ``steps`` times, each followed by at most one halving, and the halvings of the
+    first block."""
     return 2 * steps + max(steps - 1, FIRST).bit_length() + 2
 
 
@@ -88,10 +90,12 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         kb = B.minimum(k + w, float(n))
         if skip.edge is not None:  # not across a face's edge
             kb = B.minimum(kb, skip.edge(k))
-        t_b = t_at(kb)
-        ok = skip.clear(t_at(k + 1.0), t_b)
-        w = B.select(ok, B.minimum(w * 2.0, top), w * 0.5)
-        return (B.select(ok, kb, k), w, spent + 1.0, *jumped(ok, t_b, *s))
+        kn = skip.reach(
+            k, kb, t_at(k + 1.0), t_at(kb)
+        )  # the last sample proven in front: k (none) … kb (all)
+        whole, part = kn >= kb, kn > k
+        w = B.select(whole, B.minimum(w * 2.0, top), B.select(part, w * 0.0 + 2.0, w * 0.5))
+        return (kn, w, spent + 1.0, *jumped(part, t_at(kn), *s))
 
     def body(k, w, spent, *s):
         fine_now = (w <= 1.0) | busy(*s) if busy is not None else w <= 1.0
