@@ -82,6 +82,11 @@ def test_bench_cli_tiny_writes_tables(tmp_path):
         assert r["ms_per_call"] > 0 and math.isclose(
             r["ms_per_frame"], r["ms_per_call"] / r["rays"] * 1024**2, rel_tol=1e-6
         )
+    for r in timed:  # the device's time in its kernels (Dr.Jit's kernel history): on Dr.Jit only
+        if r["backend"] == "numpy":
+            assert not math.isfinite(r["kernel_ms_per_frame"])
+        else:
+            assert 0 < r["kernel_ms_per_frame"] and math.isfinite(r["kernel_x_floor"]), r["label"]
     for r in timed:  # what a ray reads (study.bench.carry): within the method's bound, bytes from lookups
         assert 0 <= r["lookups_mean"] <= r["lookups_bound"] * (1 + 1e-6)
         assert r["bytes_per_ray"] == pytest.approx((r["lookups_mean"] + 1) * 16 + 64 + 53)

@@ -30,8 +30,10 @@ BENCH_COLS = [
     "ms_per_call",
     "mrays_per_s",
     "ms_per_frame",
+    "kernel_ms_per_frame",
     "floor_ms_per_frame",
     "x_floor",
+    "kernel_x_floor",
     "x_vs_embree",
     "x_vs_mitsuba",
     "x_vs_preliminary",
@@ -44,8 +46,10 @@ HEADLINE_COLS = [
     "lookups_mean",
     "bytes_per_ray",
     "ms_per_frame",
+    "kernel_ms_per_frame",
     "floor_ms_per_frame",
     "x_floor",
+    "kernel_x_floor",
     "x_vs_preliminary",
     "x_vs_ray_test",
     "x_vs_mitsuba",
@@ -97,7 +101,8 @@ def write_bench_files(rows, info, out: Path, *, lock: bool = True) -> list[Path]
     proj = projection_rows(bench_headline(rows)) if "no RT cores" in info.get("rt_cores", "") else []
     md = (
         f"# study bench ({tag})\n\n{header(info)}\n\n## Headline: ms per 1024² frame, floor, ratios\n\n"
-        f"x_floor = time / floor (1 = at the floor); x_vs_* = the exact query's time / the method's "
+        f"x_floor = time / floor (1 = at the floor); kernel_* = the device's time in the kernels alone (Dr.Jit's "
+        f"kernel history), without the host's share of a call; x_vs_* = the exact query's time / the method's "
         f"(> 1: the method is faster)\n\n{markdown(bench_headline(rows), HEADLINE_COLS, digits=3)}\n\n"
         f"## Measured floors\n\n{markdown(fl, FLOOR_COLS, digits=4) if fl else '(none measured)'}\n\n"
         f"{projection_section(proj)}"

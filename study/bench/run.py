@@ -204,6 +204,7 @@ def run_bench(
                 extra = ["plain"] if nm != "numpy" and m.label == plain_too else []
                 for path in paths + extra:
                     spent: list = []
+                    kernel: list = []
                     try:
                         t = time_method(
                             m,
@@ -215,6 +216,7 @@ def run_bench(
                             repeats=opt.repeats,
                             info=info_env,
                             spent=spent,
+                            kernel=kernel,
                         )
                     except Exception as err:  # e.g. a method whose arrays a frozen function cannot see
                         log(f"{m.label} on {nm} ({path}) failed: {str(err).splitlines()[0][:160]}")
@@ -222,7 +224,16 @@ def run_bench(
                             raise
                         path = "plain"
                         t = time_method(
-                            m, B, tex, x, R, frozen=False, repeats=opt.repeats, info=info_env, spent=spent
+                            m,
+                            B,
+                            tex,
+                            x,
+                            R,
+                            frozen=False,
+                            repeats=opt.repeats,
+                            info=info_env,
+                            spent=spent,
+                            kernel=kernel,
                         )
                     row = rate_row(
                         {
@@ -238,6 +249,10 @@ def run_bench(
                     )
                     # lookups_mean: the measured mean (Trace.lookups); bytes per ray from it
                     row.update(carry.cost_columns(spent[-1], m.lookup_bound(opt.cube_res)))
+                    # the device's share alone (Dr.Jit's kernel history; none on numpy): a short kernel's wall
+                    # time is the host's (tracing or replaying, launching) on a fast GPU
+                    kern = kernel[-1] if kernel and kernel[-1] is not None else float("nan")
+                    row["kernel_ms_per_frame"] = kern / len(x) * FRAME * 1e3
                     rows.append(with_floor(with_ratios(row, exact, b, nm), m, floors.get(nm), b))
             log(f"methods on {nm}, {b.name} timed")
 
@@ -268,12 +283,13 @@ def batch_pattern(b: Batch) -> str:
 
 def with_floor(row: dict, m: Method, floors: dict | None, b: Batch) -> dict:
     """``row`` plus floor_ms_per_frame (:func:`study.bench.floors.method_floor` of a 1024² frame, at the row's
-    measured ``lookups_mean``) and x_floor (the method's time over its floor; 1 = at the floor); empty where no
-    floor was measured (numpy)."""
+    measured ``lookups_mean``), x_floor (the method's time over its floor; 1 = at the floor) and kernel_x_floor
+    (the kernels' device time over it); empty where no floor was measured (numpy)."""
     if not floors:
-        return {**row, "floor_ms_per_frame": "", "x_floor": ""}
+        return {**row, "floor_ms_per_frame": "", "x_floor": "", "kernel_x_floor": ""}
     fl = floor_model.method_floor(
         m, floors, batch_pattern(b), FRAME, int(row["cube_res"]), row.get("lookups_mean")
     )
     fl *= 1e3
-    return {**row, "floor_ms_per_frame": fl, "x_floor": row["ms_per_frame"] / fl}
+    kern = row.get("kernel_ms_per_frame", float("nan"))
+    return {**row, "floor_ms_per_frame": fl, "x_floor": row["ms_per_frame"] / fl, "kernel_x_floor": kern / fl}
