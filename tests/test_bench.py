@@ -107,6 +107,8 @@ def test_bench_cli_tiny_writes_tables(tmp_path):
                 ("ray_test", "x_vs_ray_test"),
             ]:
                 assert math.isclose(r[col], mit[q]["ms_per_frame"] / r["ms_per_frame"], rel_tol=1e-6)
+            pre = mit["ray_intersect_preliminary"]["kernel_ms_per_frame"]  # the device's time alone
+            assert pre > 0 and (r["backend"] == "numpy" or r["kernel_x_vs_preliminary"] > 0)
         if r["backend"] == "llvm":  # a measured floor: positive, ratio = time / floor
             assert r["floor_ms_per_frame"] > 0
             assert math.isclose(r["x_floor"], r["ms_per_frame"] / r["floor_ms_per_frame"], rel_tol=1e-6)

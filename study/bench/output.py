@@ -38,6 +38,7 @@ BENCH_COLS = [
     "x_vs_mitsuba",
     "x_vs_preliminary",
     "x_vs_ray_test",
+    "kernel_x_vs_preliminary",
 ]
 HEADLINE_COLS = [
     "batch",
@@ -53,6 +54,7 @@ HEADLINE_COLS = [
     "x_vs_preliminary",
     "x_vs_ray_test",
     "x_vs_mitsuba",
+    "kernel_x_vs_preliminary",
 ]
 FLOOR_COLS = ["backend", "cube_res", "quantity", "value", "unit"]
 

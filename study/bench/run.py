@@ -18,6 +18,7 @@ against ``--max-memory`` (:mod:`study.harness.budget`).
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 
@@ -159,20 +160,20 @@ def run_bench(
             for q in QUERIES:  # full SurfaceInteraction, then the cheapest exact queries
                 t = exact.mitsuba(b, v, q)
                 if np.isfinite(t):
-                    rows.append(
-                        rate_row(
-                            {
-                                "batch": b.name,
-                                "backend": dev,
-                                "path": q,
-                                "label": f"exact: Mitsuba {v}",
-                                "triangles": len(F),
-                                "cube_res": "",
-                            },
-                            t,
-                            n,
-                        )
+                    row = rate_row(
+                        {
+                            "batch": b.name,
+                            "backend": dev,
+                            "path": q,
+                            "label": f"exact: Mitsuba {v}",
+                            "triangles": len(F),
+                            "cube_res": "",
+                        },
+                        t,
+                        n,
                     )
+                    row["kernel_ms_per_frame"] = exact.mitsuba_kernels(b, v, q) / n * FRAME * 1e3
+                    rows.append(row)
         log(f"exact ray casting of {b.name} timed")
 
     # ------------------------------------------------------------------ measured floors (Dr.Jit backends)
@@ -263,7 +264,9 @@ def run_bench(
 
 
 def with_ratios(row: dict, exact: Exact, b: Batch, backend: str) -> dict:
-    """``row`` plus x_vs_embree and x_vs_mitsuba: the exact tracer's time per ray over the method's."""
+    """``row`` plus x_vs_embree, x_vs_mitsuba, x_vs_preliminary and x_vs_ray_test: the exact query's time per ray
+    over the method's (wall times), and kernel_x_vs_preliminary: the same for the cheapest exact query on the
+    kernels' device time alone (NaN where the method has none: numpy)."""
     per_ray = row["ms_per_call"] / row["rays"]
     n = len(b.x)
     row["x_vs_embree"] = exact.embree(b) * 1e3 / n / per_ray
@@ -272,6 +275,9 @@ def with_ratios(row: dict, exact: Exact, b: Batch, backend: str) -> dict:
         exact.mitsuba(b, mitsuba_variant(backend), "ray_intersect_preliminary") * 1e3 / n / per_ray
     )
     row["x_vs_ray_test"] = exact.mitsuba(b, mitsuba_variant(backend), "ray_test") * 1e3 / n / per_ray
+    # the same on the device's time alone: the kernels of the cheapest exact query over the method's kernels
+    kern = exact.mitsuba_kernels(b, mitsuba_variant(backend), "ray_intersect_preliminary") / n * FRAME * 1e3
+    row["kernel_x_vs_preliminary"] = kern / row.get("kernel_ms_per_frame", math.nan)
     return row
 
 

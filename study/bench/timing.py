@@ -113,13 +113,13 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
     return (lambda: fn(tex, dist, pyr, X, RR, vol)), finish
 
 
-def kernel_seconds(B, call, finish, *, repeats: int) -> float | None:
+def kernel_seconds(dr, call, finish, *, repeats: int) -> float | None:
     """Median seconds per ``call()`` that the device spent in Dr.Jit's kernels (its kernel history: CUDA events
-    on the GPU), without the host's share (tracing or replaying, launching); None on numpy. A short kernel's wall
-    time is bound by the host: localized(10)'s 0.04 ms on one H200 measured 0.05–0.14 ms by the clock."""
-    if B.name == "numpy":
+    on the GPU; Mitsuba's ray queries are Dr.Jit kernels too), without the host's share (tracing or replaying,
+    launching); None where ``dr`` is None (numpy). A short kernel's wall time is bound by the host: localized(10)'s
+    0.05 ms on one H200 measured 0.05–0.14 ms by the clock."""
+    if dr is None:
         return None
-    dr = B.dr
     finish(call())
     finish(None)
     flag = dr.flag(dr.JitFlag.KernelHistory)
@@ -172,7 +172,7 @@ def time_method(
 
         seconds = median_time(kept, finish, repeats=repeats)
         if kernel is not None:
-            kernel.append(kernel_seconds(B, kept, finish, repeats=repeats))
+            kernel.append(kernel_seconds(getattr(B, "dr", None), kept, finish, repeats=repeats))
         if spent is not None:
             spent.append(float(np.mean(B.numpy(last[0][4]))))
         return seconds
@@ -191,7 +191,11 @@ def time_embree(tracer: Tracer, x, R, *, repeats: int) -> float:
 QUERIES = ("ray_intersect", "ray_intersect_preliminary", "ray_test")
 
 
-def time_mitsuba(m, scene, x, R, *, repeats: int, query: str = "ray_intersect") -> float:
+def time_mitsuba(
+    m, scene, x, R, *, repeats: int, query: str = "ray_intersect", kernel: list | None = None
+) -> float:
+    """Median seconds per ``query`` of the rays; with ``kernel``, the kernels' device time per query is appended
+    to it (:func:`kernel_seconds`)."""
     import drjit as dr  # optional: only where Mitsuba is timed
 
     ray = m.Ray3f(
@@ -210,7 +214,10 @@ def time_mitsuba(m, scene, x, R, *, repeats: int, query: str = "ray_intersect") 
         else:
             dr.eval(out)
 
-    return median_time(lambda: fn(ray), finish, repeats=repeats)
+    seconds = median_time(lambda: fn(ray), finish, repeats=repeats)
+    if kernel is not None:
+        kernel.append(kernel_seconds(dr, lambda: fn(ray), finish, repeats=repeats))
+    return seconds
 
 
 def mitsuba_variant(backend: str) -> str:
@@ -228,6 +235,7 @@ class Exact:
         self.tracer = Tracer.from_triangles(V, F)
         self.scenes: dict[str, tuple] = {}
         self.t: dict[tuple, float] = {}
+        self.kernel_t: dict[tuple, float] = {}  # the same queries' kernel time (Mitsuba's only)
 
     def embree(self, batch) -> float:
         key = ("embree", batch.name)
@@ -245,8 +253,17 @@ class Exact:
                     self.scenes[variant] = mitsuba_ref.triangle_scene(self.V, self.F, variant)
                 m, sc = self.scenes[variant]
                 mitsuba_ref.mi(variant)  # the variant current while its scene is timed
-                self.t[key] = time_mitsuba(m, sc, batch.x, batch.R, repeats=self.repeats, query=query)
+                kern: list = []
+                self.t[key] = time_mitsuba(
+                    m, sc, batch.x, batch.R, repeats=self.repeats, query=query, kernel=kern
+                )
+                self.kernel_t[key] = kern[0] if kern[0] is not None else math.nan
             except Exception as err:  # a variant missing on this machine: no number, say why
                 self.log(f"mitsuba {variant} unavailable: {str(err).splitlines()[0][:120]}")
-                self.t[key] = math.nan
+                self.t[key] = self.kernel_t[key] = math.nan
         return self.t[key]
+
+    def mitsuba_kernels(self, batch, variant: str, query: str = "ray_intersect") -> float:
+        """Seconds per ``query`` spent in the device's kernels (:func:`kernel_seconds`); NaN where missing."""
+        self.mitsuba(batch, variant, query)
+        return self.kernel_t[(variant, batch.name, query)]
