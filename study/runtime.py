@@ -40,12 +40,12 @@ def _version(path: str) -> int:
 def candidates() -> list[str]:
     """Usable libLLVM files, best first: the environment's own (karellen-llvm-core), then the system's."""
     found = []
-    for root in dict.fromkeys([sys.prefix, sys.base_prefix]):
-        found += sorted(
-            glob.glob(os.path.join(root, "lib", "**", "libLLVM*.so*"), recursive=True),
-            key=_version,
-            reverse=True,
-        )
+    for root in dict.fromkeys([sys.prefix, sys.base_prefix]):  # lib/ and one level below, not the whole tree:
+        here = glob.glob(
+            os.path.join(root, "lib", "libLLVM*.so*")
+        )  # a recursive walk of /usr/lib took 1 s of
+        here += glob.glob(os.path.join(root, "lib", "*", "libLLVM*.so*"))  # every start on the GPU machine
+        found += sorted(here, key=_version, reverse=True)
     found += sorted(
         glob.glob("/usr/lib/*/libLLVM*.so*") + glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*"),
         key=_version,

@@ -138,3 +138,22 @@ def test_gpu_cluster_pins_one_worker_per_gpu(cpu_device):
         client.wait_for_workers(4, timeout=60)
         env = client.run(lambda: (os.environ["CUDA_VISIBLE_DEVICES"], os.environ["STUDY_RENDER_DEVICE"]))
     assert sorted(env.values()) == [("0", "cpu"), ("0", "cpu"), ("1", "cpu"), ("1", "cpu")]
+
+
+def test_libllvm_candidates_are_the_environments_lib_first(tmp_path, monkeypatch):
+    """The environment's own libLLVM (the PyPI wheel karellen-llvm-core puts it in <prefix>/lib/) comes before the
+    system's; lib/ and one folder below are read, a deeper one is not (a recursive walk of /usr/lib took 1 s of
+    every process start on the GPU machine); a libLLVM older than 16 is never a candidate."""
+    for rel in (
+        "lib/libLLVM.so.21.1",
+        "lib/llvm/libLLVM-20.so",
+        "lib/a/b/libLLVM-22.so",
+        "lib/libLLVM-15.so",
+    ):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_bytes(b"")
+    monkeypatch.setattr(runtime.sys, "prefix", str(tmp_path))
+    found = runtime.candidates()
+    ours = [p for p in found if p.startswith(str(tmp_path))]
+    assert ours == [str(tmp_path / "lib/libLLVM.so.21.1"), str(tmp_path / "lib/llvm/libLLVM-20.so")]
+    assert found[: len(ours)] == ours
