@@ -39,3 +39,27 @@ def test_fresnel_conductor_matches_mitsuba():
     for c in range(3):
         theirs = np.array(m.fresnel_conductor(m.Float(cos), m.Complex2f(float(n[c]), float(k[c]))))
         np.testing.assert_allclose(ours[:, c], theirs, rtol=2e-5)
+
+
+@pytest.mark.parametrize("S", [1, 4])
+@pytest.mark.parametrize("reduce", ["mean", "max"])
+def test_per_pixel_is_the_nan_mean_of_each_pixels_rays(S, reduce):
+    """ObjectRays.per_pixel against a brute-force loop over pixels: the mean (or max) of the finite values of the
+    sub-pixel rays that hit, ``fill`` where none does or all are NaN; one ray per pixel (S = 1, paper quality:
+    its own shortcut) as several (S = 4); vector values (M, 4) too."""
+    rng = np.random.default_rng(S)
+    H, W = 7, 5
+    hit = rng.random((H, W, S)) < 0.6
+    M = int(hit.sum())
+    vals = rng.random((M, 4))
+    vals[rng.random(M) < 0.2, 1] = np.nan  # some rays without a value
+    rays = shading.ObjectRays(hit, *(np.zeros((M, 3)),) * 4)
+    got = rays.per_pixel(vals, fill=-1.0, reduce=reduce)
+    idx = np.full(hit.shape, -1)
+    idx[hit] = np.arange(M)
+    for i in range(H):
+        for j in range(W):
+            for c in range(4):
+                v = [vals[k, c] for k in idx[i, j] if k >= 0 and np.isfinite(vals[k, c])]
+                want = (np.mean(v) if reduce == "mean" else np.max(v)) if v else -1.0
+                assert got[i, j, c] == pytest.approx(want), (i, j, c)

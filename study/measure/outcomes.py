@@ -335,9 +335,13 @@ def class_fractions(outcomes: Outcomes) -> np.ndarray:
 def majority(fractions: np.ndarray) -> np.ndarray:
     """(H, W, 4) class fractions → (H, W) float: the most frequent class (ties to the worse, i.e. the
     higher code), NaN where a pixel has no rays (all fractions NaN or zero)."""
-    f = np.nan_to_num(np.asarray(fractions, float))
-    best = 3 - np.argmax(f[..., ::-1], axis=-1)
-    return np.where(f.sum(-1) > 0, best.astype(float), np.nan)
+    f = np.asarray(fractions, float)
+    best, top = np.full(f.shape[:-1], 3.0), np.nan_to_num(f[..., 3])
+    for c in (2, 1, 0):  # a better class must be strictly more frequent: ties stay with the worse
+        v = np.nan_to_num(f[..., c])
+        best[v > top] = c
+        top = np.maximum(top, v)
+    return np.where(top > 0, best, np.nan)  # fractions are ≥ 0: none > 0 means no rays
 
 
 def off_screen(camera, points) -> np.ndarray:

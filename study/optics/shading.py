@@ -80,6 +80,10 @@ class ObjectRays:
         """Scatter per-ray values (M, ...) to pixels (H, W, ...), averaging the sub-pixel rays that hit."""
         H, W, S = self.hit.shape
         values = self.per_camera_ray(values)
+        if S == 1:  # one ray per pixel (paper quality): its value; a NaN mean over one sample costs 10× more
+            out = np.full((H, W) + values.shape[1:], np.nan)
+            out[self.hit[..., 0]] = values
+            return np.where(np.isnan(out), fill, out)
         out = np.full((H, W, S) + values.shape[1:], np.nan)
         out[self.hit] = values
         with np.errstate(invalid="ignore"), warnings.catch_warnings():
