@@ -99,9 +99,8 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
     h = a * sin  # the ray's closest approach to o
     turning = sin > 1e-6  # the ray is not along x̂ (no plane of its own: only whole blocks are cleared)
 
-    def reach(
-        k, kb, ta, tb
-    ):  # the last sample of k + 1 … kb proven in front of every lookup the pyramid bounds
+    def reach(k, kb, ta, tb):
+        # the last sample of k + 1 … kb (at t_a … t_b) proven in front of every lookup the pyramid bounds
         pa, pb = point(ta), point(tb)
         b = pyramid.bound_along(pa, pb, base)
         near_a = B.length(pa) < (1.0 - ta) * b  # |p|/(1 − t) < b: the ray point nearer than every lookup
