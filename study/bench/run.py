@@ -252,8 +252,7 @@ def run_bench(
                     row.update(carry.cost_columns(spent[-1], m.lookup_bound(opt.cube_res)))
                     # the device's share alone (Dr.Jit's kernel history; none on numpy): a short kernel's wall
                     # time is the host's (tracing or replaying, launching) on a fast GPU
-                    kern = kernel[-1] if kernel and kernel[-1] is not None else float("nan")
-                    row["kernel_ms_per_frame"] = kern / len(x) * FRAME * 1e3
+                    row["kernel_ms_per_frame"] = kernel[-1] / len(x) * FRAME * 1e3
                     rows.append(with_floor(with_ratios(row, exact, b, nm), m, floors.get(nm), b))
             log(f"methods on {nm}, {b.name} timed")
 

@@ -113,13 +113,13 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
     return (lambda: fn(tex, dist, pyr, X, RR, vol)), finish
 
 
-def kernel_seconds(dr, call, finish, *, repeats: int) -> float | None:
+def kernel_seconds(dr, call, finish, *, repeats: int) -> float:
     """Median seconds per ``call()`` that the device spent in Dr.Jit's kernels (its kernel history: CUDA events
     on the GPU; Mitsuba's ray queries are Dr.Jit kernels too), without the host's share (tracing or replaying,
-    launching); None where ``dr`` is None (numpy). A short kernel's wall time is bound by the host: localized(10)'s
+    launching); NaN where ``dr`` is None (numpy). A short kernel's wall time is bound by the host: localized(10)'s
     0.05 ms on one H200 measured 0.05–0.14 ms by the clock."""
     if dr is None:
-        return None
+        return math.nan
     finish(call())
     finish(None)
     flag = dr.flag(dr.JitFlag.KernelHistory)
@@ -257,7 +257,7 @@ class Exact:
                 self.t[key] = time_mitsuba(
                     m, sc, batch.x, batch.R, repeats=self.repeats, query=query, kernel=kern
                 )
-                self.kernel_t[key] = kern[0] if kern[0] is not None else math.nan
+                self.kernel_t[key] = kern[0]
             except Exception as err:  # a variant missing on this machine: no number, say why
                 self.log(f"mitsuba {variant} unavailable: {str(err).splitlines()[0][:120]}")
                 self.t[key] = self.kernel_t[key] = math.nan

@@ -90,9 +90,8 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         kb = B.minimum(k + w, float(n))
         if skip.edge is not None:  # not across a face's edge
             kb = B.minimum(kb, skip.edge(k))
-        kn = skip.reach(
-            k, kb, t_at(k + 1.0), t_at(kb)
-        )  # the last sample proven in front: k (none) … kb (all)
+        # the last sample proven in front: k (none) … kb (all)
+        kn = skip.reach(k, kb, t_at(k + 1.0), t_at(kb))
         whole, part = kn >= kb, kn > k
         w = B.select(whole, B.minimum(w * 2.0, top), B.select(part, w * 0.0 + 2.0, w * 0.5))
         return (kn, w, spent + 1.0, *jumped(part, t_at(kn), *s))
