@@ -5,11 +5,21 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
+export PIP_NO_CACHE_DIR=1  # a cache would keep the downloaded wheels (about 3 GB) for good
 if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
 stamp=.venv/.study-installed
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+  # The environment takes about 7 GB (PyTorch with its CUDA libraries, for the video extra, is 5.5 GB of it), and
+  # pip holds the downloaded wheels (about 3 GB) until it has installed them. Refuse in one line
+  # where not even the environment fits, rather than fail half-way with pip's OSError.
+  need_gb=7
+  free_gb=$(df -Pk .venv | awk 'NR==2 {print int($4 / 1048576)}')
+  if [ "$(du -sk .venv | cut -f1)" -lt 1048576 ] && [ "$free_gb" -lt "$need_gb" ]; then
+    echo "set-up: $(pwd)/.venv needs about $need_gb GB free on its disk, $free_gb GB are (df -h $(pwd))" >&2
+    exit 1
+  fi
   .venv/bin/python -m pip install -q --upgrade pip
   .venv/bin/python -m pip install -q -e '.[test,video]'
   touch "$stamp"
