@@ -20,6 +20,7 @@ from study.bench.output import write_outputs
 from study.bench.run import BenchOptions, bench_methods, run_bench
 from study.bench.timing import median_time, method_runner
 from study.cli import app
+from study.codehash import code_hash
 from study.impostor import analytic
 from study.impostor.envmap import EnvMap
 from study.reference.embree import Tracer
@@ -63,6 +64,8 @@ def test_bench_cli_tiny_writes_tables(tmp_path):
     rows = read_csv(tmp_path / "bench-cpu.csv")
     md = (tmp_path / "bench-cpu.md").read_text()
     assert "drjit" in md and "| batch | backend |" in md
+    made_by = code_hash(run_bench, *{type(m) for m in methods.all_methods()})
+    assert f"code: {made_by} (" in md  # the numbers name the code that made them (study.codehash)
     batches = {r["batch"] for r in rows}
     assert len(batches) == 4  # fig4, close-up, synthetic, synthetic sorted by direction
     assert sum(r["label"] == "exact: Embree" for r in rows) == 4

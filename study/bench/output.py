@@ -65,6 +65,7 @@ def header(info: dict) -> str:
         f"machine: {info['cpu']}, {info['cores']} cores; GPU: {gpu}\n\n"
         f"versions: Python {info['python']}, numpy {info['numpy']}, drjit {info['drjit']}, "
         f"mitsuba {info['mitsuba']}, embreex {info['embreex']}; libLLVM {info['libllvm'] or '-'}\n\n"
+        f"code: {info.get('code', '-')} (study.codehash of the bench and of every method timed)\n\n"
         f"{info.get('rt_cores', '')}"
     )
 

@@ -40,6 +40,7 @@ from study.bench.batches import (
 from study.bench.machine import available_backends, machine_info
 from study.bench.scaling import knob_values, scaling_rows
 from study.bench.timing import FRAME, QUERIES, Exact, mitsuba_variant, rate_row, time_method
+from study.codehash import code_hash
 from study.errors import StudyError
 from study.harness import budget
 from study.measure.inputs import env_info
@@ -126,6 +127,7 @@ def run_bench(
         knob_values(opt)  # invalid knob values: StudyError now
     info = machine_info()
     info["tag"] = opt.tag or ("gpu" if "cuda" in names else "cpu")
+    info["code"] = code_hash(run_bench, *{type(m) for m in methods})  # the code that makes these numbers
     o = np.asarray(scene.reference.point, float)
     V, F = room_triangles(scene)
     exact = Exact(V, F, opt.repeats, log)
