@@ -40,11 +40,11 @@ def _version(path: str) -> int:
 def candidates() -> list[str]:
     """Usable libLLVM files, best first: the environment's own (karellen-llvm-core), then the system's."""
     found = []
-    for root in dict.fromkeys([sys.prefix, sys.base_prefix]):  # lib/ and one level below, not the whole tree:
-        here = glob.glob(
-            os.path.join(root, "lib", "libLLVM*.so*")
-        )  # a recursive walk of /usr/lib took 1 s of
-        here += glob.glob(os.path.join(root, "lib", "*", "libLLVM*.so*"))  # every start on the GPU machine
+    for root in dict.fromkeys([sys.prefix, sys.base_prefix]):
+        # lib/ and one level below (karellen-llvm-core's place), not the whole tree: a recursive walk of /usr/lib
+        # took 1 s of every start on the GPU machine
+        here = glob.glob(os.path.join(root, "lib", "libLLVM*.so*"))
+        here += glob.glob(os.path.join(root, "lib", "*", "libLLVM*.so*"))
         found += sorted(here, key=_version, reverse=True)
     found += sorted(
         glob.glob("/usr/lib/*/libLLVM*.so*") + glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*"),

@@ -39,7 +39,7 @@ from study.bench.batches import (
 )
 from study.bench.machine import available_backends, machine_info
 from study.bench.scaling import knob_values, scaling_rows
-from study.bench.timing import FRAME, QUERIES, Exact, mitsuba_variant, rate_row, time_method
+from study.bench.timing import FRAME, QUERIES, Exact, mitsuba_variant, ms_per_frame, rate_row, time_method
 from study.codehash import code_hash
 from study.errors import StudyError
 from study.harness import budget
@@ -174,7 +174,7 @@ def run_bench(
                         t,
                         n,
                     )
-                    row["kernel_ms_per_frame"] = exact.mitsuba_kernels(b, v, q) / n * FRAME * 1e3
+                    row["kernel_ms_per_frame"] = ms_per_frame(exact.mitsuba_kernels(b, v, q), n)
                     rows.append(row)
         log(f"exact ray casting of {b.name} timed")
 
@@ -254,7 +254,7 @@ def run_bench(
                     row.update(carry.cost_columns(spent[-1], m.lookup_bound(opt.cube_res)))
                     # the device's share alone (Dr.Jit's kernel history; none on numpy): a short kernel's wall
                     # time is the host's (tracing or replaying, launching) on a fast GPU
-                    row["kernel_ms_per_frame"] = kernel[-1] / len(x) * FRAME * 1e3
+                    row["kernel_ms_per_frame"] = ms_per_frame(kernel[-1], len(x))
                     rows.append(with_floor(with_ratios(row, exact, b, nm), m, floors.get(nm), b))
             log(f"methods on {nm}, {b.name} timed")
 
@@ -277,7 +277,7 @@ def with_ratios(row: dict, exact: Exact, b: Batch, backend: str) -> dict:
     )
     row["x_vs_ray_test"] = exact.mitsuba(b, mitsuba_variant(backend), "ray_test") * 1e3 / n / per_ray
     # the same on the device's time alone: the kernels of the cheapest exact query over the method's kernels
-    kern = exact.mitsuba_kernels(b, mitsuba_variant(backend), "ray_intersect_preliminary") / n * FRAME * 1e3
+    kern = ms_per_frame(exact.mitsuba_kernels(b, mitsuba_variant(backend), "ray_intersect_preliminary"), n)
     row["kernel_x_vs_preliminary"] = kern / row.get("kernel_ms_per_frame", math.nan)
     return row
 

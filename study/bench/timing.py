@@ -51,6 +51,11 @@ def median_time(call, finish, *, repeats: int, warmup: int = 2, min_repeat_s: fl
     return float(np.median(ts))
 
 
+def ms_per_frame(seconds: float, rays: int) -> float:
+    """Milliseconds for a 1024² frame at the rate of ``rays`` in ``seconds``."""
+    return seconds / rays * FRAME * 1e3
+
+
 def rate_row(base: dict, seconds: float, rays: int) -> dict:
     """``base`` plus rays, ms_per_call, mrays_per_s and ms_per_frame (a 1024² frame at the measured rate)."""
     return {
@@ -58,7 +63,7 @@ def rate_row(base: dict, seconds: float, rays: int) -> dict:
         "rays": rays,
         "ms_per_call": seconds * 1e3,
         "mrays_per_s": rays / seconds / 1e6,
-        "ms_per_frame": seconds / rays * FRAME * 1e3,
+        "ms_per_frame": ms_per_frame(seconds, rays),
     }
 
 
