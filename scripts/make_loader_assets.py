@@ -190,7 +190,7 @@ def write_draco() -> None:
 WALLS = """<scene version="3.0.0">
   <bsdf type="diffuse" id="grey"><rgb name="reflectance" value="0.6, 0.6, 0.6"/></bsdf>
   <bsdf type="diffuse" id="tiles"><texture type="bitmap" name="reflectance">
-    <string name="filename" value="../wall.png"/></texture></bsdf>
+    <string name="filename" value="tex/wall.png"/></texture></bsdf>
   <shape type="rectangle" id="floor"><transform name="to_world"><rotate x="1" angle="-90"/><translate y="-1"/>
     </transform><ref id="tiles"/></shape>
   <shape type="rectangle" id="back"><transform name="to_world"><translate z="-1"/></transform><ref id="grey"/></shape>
@@ -220,6 +220,8 @@ def write_xml() -> None:
     d.mkdir(exist_ok=True)
     (d / "walls.xml").write_text(WALLS)
     (d / "main.xml").write_text(MAIN)
+    (d / "tex").mkdir(exist_ok=True)  # files a scene names lie in its folder (study.scene.paths)
+    (d / "tex" / "wall.png").write_bytes((OUT / "wall.png").read_bytes())
     c = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
     faces = [(1, 3, 4, 2), (5, 6, 8, 7), (1, 2, 6, 5), (3, 7, 8, 4), (1, 5, 7, 3), (2, 4, 8, 6)]
     (d / "block.obj").write_text(

@@ -222,9 +222,18 @@ def test_open_environment_methods_on_a_half_open_box():
             "intersects the environment",
         ),
         (
-            {"environment": {"type": "mitsuba", "scene": {"type": "scene", "ball": {"type": "sphere"}}}},
+            {
+                "environment": {
+                    "type": "mitsuba",
+                    "scene": {
+                        "type": "scene",
+                        "g": {"type": "shapegroup", "r": {"type": "rectangle"}},
+                        "i": {"type": "instance", "shapegroup": {"type": "ref", "id": "g"}},
+                    },
+                }
+            },
             "environment",
-            "analytic",
+            "shape 'i' (Instance) is not a triangle mesh",
         ),
         ({"environment": {"type": "mitsuba"}}, "environment", "exactly one"),
         ({"environment": {"type": "mesh", "file": "no/such.obj"}}, "environment.file", "no such file"),

@@ -1,134 +1,269 @@
 """glTF 2.0 (``.gltf`` + buffers, or ``.glb``), read as the specification defines it (not through trimesh).
 
-* Geometry: every node of the default scene (``scene``, else the first) with its mesh, placed by the node's
-  ``matrix`` or translation · rotation · scale, parents first; triangle lists, strips and fans (points and lines
-  are ignored, counted); accessors of any component type (normalized integers scaled as the spec says); a node
-  whose transform mirrors (negative determinant) has its winding reversed.
+* Structure first: the JSON's top-level members are checked for their types (arrays of objects, ``asset`` an
+  object, ``scene`` an index) and every index for its range before use; nodes are walked as the trees the spec
+  says they are (a node reached twice, through a cycle or a second parent, is refused). A GLB's header and chunks
+  are checked against the file's length, an accessor against its buffer view and buffer (a truncated file is one
+  line).
+* Files: buffer and image URIs are relative to the file and must stay in its folder
+  (:func:`study.scene.paths.named_file`; ``data:`` URIs are the file's own bytes, base64 or percent-encoded).
+* Geometry: every node of the default scene (``scene``, else the first; other scenes counted as ignored) with its
+  mesh, placed by the node's ``matrix`` or translation · rotation · scale, parents first; triangle lists, strips
+  and fans (points and lines are ignored, counted); accessors of any component type (normalized integers scaled as
+  the spec says), sparse accessors (their values written over the base, or over zeros); a node whose transform
+  mirrors (negative determinant) has its winding reversed. ``KHR_draco_mesh_compression`` is decoded by DracoPy
+  (Google's decoder), the attributes taken by the unique ids the extension names.
 * Materials: ``baseColorFactor`` and ``COLOR_0`` are linear; ``baseColorTexture`` is sRGB (converted, times the
-  factor); ``emissiveFactor`` (linear) × ``KHR_materials_emissive_strength`` is the emitted radiance of an area
-  light (an ``emissiveTexture`` contributes its mean, counted as ignored); transmission, alpha (``BLEND`` /
-  ``MASK``), metal and other material extensions are not rendered (two-sided diffuse): counted as ignored.
+  factor), its ``KHR_texture_transform`` (offset, rotation, scale, texCoord) applied to the uv;
+  ``emissiveFactor`` (linear) × ``KHR_materials_emissive_strength`` is the emitted radiance of an area light (an
+  ``emissiveTexture`` contributes its mean, counted as ignored); transmission, alpha (``BLEND`` / ``MASK``), metal
+  and other material extensions are not rendered (two-sided diffuse): counted as ignored. Colour factors outside
+  [0, 1] and negative strengths are refused, naming the material.
 * ``KHR_lights_punctual``: photometric → radiometric at 683 lm/W, the luminous efficacy at 555 nm that the
   Khronos exporters (Blender's among them) use both ways: point and spot ``intensity`` in candela (lm/sr) →
   W/sr = cd / 683 × ``color``; directional in lux (lm/m²) → W/m² = lx / 683 × ``color``. A spot's cone angles
-  (radians, outer default π/4) become Mitsuba's ``cutoff_angle`` (outer) and ``beam_width`` (inner), in degrees.
-  Lights shine along the node's −z. ``range`` is ignored (counted): Mitsuba's lights fall off as 1/r².
-* ``KHR_draco_mesh_compression`` and ``EXT_meshopt_compression`` are refused in one line (no decoder here), as is
-  any other required extension that is not read; sparse accessors likewise.
+  (radians, outer default π/4; 0 ≤ inner < outer ≤ π/2, as the spec says) become Mitsuba's ``cutoff_angle``
+  (outer) and ``beam_width`` (inner), in degrees. Lights shine along the node's −z. ``range`` is ignored
+  (counted): Mitsuba's lights fall off as 1/r². A negative intensity is refused, naming the light.
+* ``EXT_meshopt_compression`` is refused in one line (no maintained Python decoder), as is any other required
+  extension that is not read.
 """
 
 from __future__ import annotations
 
 import base64
-import io
+import binascii
 import json
 import struct
 from collections import Counter
 from pathlib import Path
-from urllib.parse import unquote
+from urllib.parse import unquote_to_bytes
 
 import numpy as np
 
 from study.errors import StudyError
-from study.scene.parts import Loaded, Piece, image_linear
+from study.scene.parts import Loaded, Piece, read_image
+from study.scene.paths import named_file
 
 LUMENS_PER_WATT = 683.0
-COMPRESSION = {
-    "KHR_draco_mesh_compression": "Draco-compressed geometry",
-    "EXT_meshopt_compression": "meshopt-compressed buffers",
+COMPRESSION = {"EXT_meshopt_compression": "meshopt-compressed buffers"}
+READ = {
+    "KHR_lights_punctual",
+    "KHR_materials_emissive_strength",
+    "KHR_mesh_quantization",
+    "KHR_texture_transform",
+    "KHR_draco_mesh_compression",
 }
-READ = {"KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization"}
 _CT = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 _NC = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+#: top-level members that are arrays of objects (glTF 2.0 schema, glTF.schema.json)
+_ARRAYS = ("accessors", "animations", "buffers", "bufferViews", "cameras", "images", "materials", "meshes",
+           "nodes", "samplers", "scenes", "skins", "textures")  # fmt: skip
+_GLB_JSON, _GLB_BIN = 0x4E4F534A, 0x004E4942
+
+
+def _is_index(i) -> bool:
+    return isinstance(i, int) and not isinstance(i, bool)
 
 
 class _File:
+    """A glTF's JSON (type-checked at the top level) and its buffers, read on demand."""
+
     def __init__(self, path: Path, src: str):
         self.path, self.src = path, src
         data = path.read_bytes()
         self.bin = None
         try:
             if data[:4] == b"glTF":
-                n, _ = struct.unpack_from("<II", data, 12)
-                self.g = json.loads(data[20 : 20 + n])
-                off = 20 + n
-                if off + 8 <= len(data):
-                    m, kind = struct.unpack_from("<II", data, off)
-                    if kind == 0x004E4942:
-                        self.bin = data[off + 8 : off + 8 + m]
+                text = self._glb(data)
             else:
-                self.g = json.loads(data)
-        except (ValueError, struct.error) as err:
-            raise StudyError(f"not a glTF 2.0 file ({err})", key=src) from None
+                text = data
+            self.g = json.loads(text)
+        except RecursionError:
+            self.fail("not a glTF 2.0 file (its JSON is nested too deeply)")
+        except (ValueError, UnicodeDecodeError) as err:
+            self.fail(f"not a glTF 2.0 file ({' '.join(str(err).split())[:120]})")
+        self._check_types()
         self._buffers: dict[int, bytes] = {}
         self.images_used: set[int] = set()
 
     def fail(self, msg: str):
         raise StudyError(msg, key=self.src)
 
-    def buffer(self, i: int) -> bytes:
+    def _glb(self, data: bytes) -> bytes:
+        """The JSON chunk of a GLB (and its BIN chunk in ``self.bin``), checked against the file's length."""
+        if len(data) < 20:
+            self.fail(f"a GLB of {len(data)} bytes is shorter than its 20-byte header (truncated?)")
+        version, length = struct.unpack_from("<II", data, 4)
+        if version != 2:
+            self.fail(f"GLB version {version}; study reads glTF 2.0")
+        if length > len(data):
+            self.fail(f"the GLB header says {length} bytes, the file has {len(data)} (truncated?)")
+        n, kind = struct.unpack_from("<II", data, 12)
+        if kind != _GLB_JSON or 20 + n > len(data):
+            self.fail("the GLB's first chunk is not a whole JSON chunk (truncated or not a GLB)")
+        off = 20 + n + (-n % 4 if 20 + n + (-n % 4) + 8 <= len(data) else 0)
+        if off + 8 <= len(data):
+            m, kind = struct.unpack_from("<II", data, off)
+            if kind == _GLB_BIN:
+                if off + 8 + m > len(data):
+                    self.fail(f"the GLB's binary chunk says {m} bytes, the file holds {len(data) - off - 8} "
+                              "(truncated?)")  # fmt: skip
+                self.bin = data[off + 8 : off + 8 + m]
+        return data[20 : 20 + n]
+
+    def _check_types(self) -> None:
+        g = self.g
+        if not isinstance(g, dict):
+            self.fail(f"not a glTF 2.0 file (its JSON is a {type(g).__name__}, not an object)")
+        for k in _ARRAYS:
+            v = g.get(k, [])
+            if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
+                self.fail(f"'{k}' must be an array of objects (glTF 2.0), got {_kind(v)}")
+        for k in ("asset", "extensions", "extras"):
+            if not isinstance(g.get(k, {}), dict):
+                self.fail(f"'{k}' must be an object (glTF 2.0), got {_kind(g[k])}")
+        for k in ("extensionsUsed", "extensionsRequired"):
+            v = g.get(k, [])
+            if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+                self.fail(f"'{k}' must be an array of strings (glTF 2.0), got {_kind(v)}")
+        if "scene" in g and not _is_index(g["scene"]):
+            self.fail(f"'scene' must be an index, got {_kind(g['scene'])}")
+
+    def get(self, kind: str, i, where: str) -> dict:
+        """Element ``i`` of the top-level array ``kind``; an index that is not one: a StudyError naming ``where``."""
+        arr = self.g.get(kind, [])
+        if not _is_index(i) or not 0 <= i < len(arr):
+            self.fail(f"{where}: {kind} index {i!r} is out of range ({len(arr)} {kind})")
+        return arr[i]
+
+    # ------------------------------------------------------------------------------------------ bytes
+    def buffer(self, i: int, where: str) -> bytes:
         if i not in self._buffers:
-            b = self.g["buffers"][i]
+            b = self.get("buffers", i, where)
             uri = b.get("uri")
             if uri is None:
                 if self.bin is None:
                     self.fail(f"buffer {i} has no uri and the file has no binary chunk")
-                self._buffers[i] = self.bin
+                data = self.bin
             else:
-                self._buffers[i] = self._uri(uri)
+                data = self._uri(uri, f"buffer {i}")
+            need = b.get("byteLength", 0)
+            if not _is_index(need) or need > len(data):
+                self.fail(
+                    f"buffer {i} holds {len(data)} bytes, fewer than its byteLength {need!r} (truncated?)"
+                )
+            self._buffers[i] = data
         return self._buffers[i]
 
-    def _uri(self, uri: str) -> bytes:
+    def _uri(self, uri, what: str) -> bytes:
+        if not isinstance(uri, str):
+            self.fail(f"{what}: uri must be a string, got {_kind(uri)}")
         if uri.startswith("data:"):
-            return base64.b64decode(uri.split(",", 1)[1])
-        p = self.path.parent / unquote(uri)
+            head, _, body = uri.partition(",")
+            try:
+                return (
+                    base64.b64decode(body, validate=True)
+                    if head.endswith(";base64")
+                    else unquote_to_bytes(body)
+                )
+            except (binascii.Error, ValueError):
+                self.fail(f"{what}: its data URI is not valid base64")
+        p = named_file(self.path.parent, uri, what=what, src=self.src, uri=True)
         if not p.is_file():
-            self.fail(f"the file it references is missing: {p}")
+            self.fail(f"{what}: the file it references is missing: {p}")
         return p.read_bytes()
 
-    def view(self, i: int) -> tuple[bytes, int, int | None]:
-        v = self.g["bufferViews"][i]
-        return self.buffer(v["buffer"]), v.get("byteOffset", 0), v.get("byteStride")
+    def view(self, i: int, where: str) -> tuple[bytes, int, int, int | None]:
+        """(buffer, start, end, byteStride) of buffer view ``i``, checked against its buffer."""
+        v = self.get("bufferViews", i, where)
+        buf = self.buffer(v.get("buffer"), f"bufferView {i}")
+        off, n = v.get("byteOffset", 0), v.get("byteLength")
+        if not (_is_index(off) and _is_index(n)) or off + n > len(buf):
+            self.fail(f"bufferView {i} (bytes {off!r}..+{n!r}) lies outside its buffer of {len(buf)} bytes")
+        return buf, off, off + n, v.get("byteStride")
 
-    def accessor(self, i: int) -> np.ndarray:
-        a = self.g["accessors"][i]
-        if "sparse" in a:
-            self.fail(
-                f"accessor {i} is sparse, which study does not read; re-export without sparse accessors"
-            )
-        dt, nc, count = np.dtype(_CT[a["componentType"]]).newbyteorder("<"), _NC[a["type"]], a["count"]
-        if "bufferView" not in a:
+    def _rows(self, view: int, offset, dt: np.dtype, nc: int, count: int, where: str) -> np.ndarray:
+        """``count`` elements of ``nc`` components of type ``dt`` from buffer view ``view`` at ``offset``."""
+        buf, start, end, stride = self.view(view, where)
+        if not _is_index(offset) or offset < 0:
+            self.fail(f"{where}: byteOffset {offset!r} is not an offset")
+        off = start + offset
+        size = dt.itemsize * nc
+        stride = stride or size
+        if count and off + (count - 1) * stride + size > end:
+            self.fail(f"{where}: {count} elements read past the end of bufferView {view} (truncated?)")
+        raw = np.frombuffer(buf, np.uint8, count=(count - 1) * stride + size if count else 0, offset=off)
+        rows = (
+            np.lib.stride_tricks.as_strided(raw, (count, size), (stride, 1))
+            if count
+            else raw.reshape(0, size)
+        )
+        return np.ascontiguousarray(rows).view(dt).reshape(count, nc)
+
+    def accessor(self, i: int, where: str, draco: np.ndarray | None = None) -> np.ndarray:
+        """Accessor ``i`` as (count, components), sparse values applied and normalized integers scaled;
+        ``draco``: the decoded attribute that stands for its data (KHR_draco_mesh_compression)."""
+        a = self.get("accessors", i, where)
+        where = f"accessor {i}"
+        if a.get("componentType") not in _CT or a.get("type") not in _NC:
+            self.fail(f"{where}: componentType {a.get('componentType')!r} / type {a.get('type')!r} is not "
+                      f"one of glTF's ({sorted(_CT)} / {sorted(_NC)})")  # fmt: skip
+        dt, nc, count = np.dtype(_CT[a["componentType"]]).newbyteorder("<"), _NC[a["type"]], a.get("count")
+        if not _is_index(count) or count < 0:
+            self.fail(f"{where}: count {count!r} is not a count")
+        if draco is not None:
+            out = np.asarray(draco).reshape(len(draco), -1)[:, :nc].astype(dt)
+        elif "bufferView" not in a:
             out = np.zeros((count, nc), dt)
         else:
-            buf, off, stride = self.view(a["bufferView"])
-            off += a.get("byteOffset", 0)
-            size = dt.itemsize * nc
-            stride = stride or size
-            raw = np.frombuffer(buf, np.uint8, count=(count - 1) * stride + size if count else 0, offset=off)
-            rows = (
-                np.lib.stride_tricks.as_strided(raw, (count, size), (stride, 1))
-                if count
-                else raw.reshape(0, size)
-            )
-            out = np.ascontiguousarray(rows).view(dt).reshape(count, nc)
+            out = self._rows(a["bufferView"], a.get("byteOffset", 0), dt, nc, count, where)
+        if "sparse" in a:
+            out = self._sparse(a["sparse"], out, dt, nc, where)
         if a.get("normalized") and dt.kind in "iu":
             out = np.maximum(out / np.iinfo(dt).max, -1.0)
         return out
 
-    def image(self, i: int):
-        from PIL import Image
-
-        im = self.g["images"][i]
-        if "uri" in im:
-            data = self._uri(im["uri"])
-        else:
-            buf, off, _ = self.view(im["bufferView"])
-            v = self.g["bufferViews"][im["bufferView"]]
-            data = buf[off : off + v["byteLength"]]
+    def _sparse(self, s: dict, base: np.ndarray, dt: np.dtype, nc: int, where: str) -> np.ndarray:
+        """The base with ``s["count"]`` elements replaced, at ``s["indices"]``, by ``s["values"]`` (spec 3.6.2.3)."""
         try:
-            return Image.open(io.BytesIO(data))
-        except OSError as err:
-            self.fail(f"image {i} cannot be read ({err})")
+            n, ind, val = s["count"], s["indices"], s["values"]
+            it = np.dtype(_CT[ind["componentType"]]).newbyteorder("<")
+        except (KeyError, TypeError):
+            self.fail(
+                f"{where}: sparse needs count, indices (bufferView, componentType) and values (bufferView)"
+            )
+        if not _is_index(n) or n < 1 or it.kind != "u":
+            self.fail(f"{where}: sparse count {n!r} / index type {ind.get('componentType')!r} is not valid")
+        idx = self._rows(ind.get("bufferView"), ind.get("byteOffset", 0), it, 1, n, f"{where} sparse indices")
+        idx = idx.ravel().astype(np.int64)
+        if idx.max() >= len(base):
+            self.fail(f"{where}: sparse index {int(idx.max())} is past the accessor's count ({len(base)})")
+        vals = self._rows(
+            val.get("bufferView"), val.get("byteOffset", 0), dt, nc, n, f"{where} sparse values"
+        )
+        out = base.copy()
+        out[idx] = vals
+        return out
+
+    def image(self, i: int, where: str) -> np.ndarray:
+        """Image ``i`` as linear RGB (sRGB decoded)."""
+        im = self.get("images", i, where)
+        what = f"image {i}"
+        if "uri" in im:
+            data = self._uri(im["uri"], what)
+        elif "bufferView" in im:
+            buf, start, end, _ = self.view(im["bufferView"], what)
+            data = buf[start:end]
+        else:
+            self.fail(f"{what} has neither a uri nor a bufferView")
+        return read_image(data, what=what, src=self.src)
+
+
+def _kind(v) -> str:
+    return {list: "an array", dict: "an object", str: "a string", bool: "a boolean", type(None): "null"}.get(
+        type(v), "a number"
+    )
 
 
 def _node_matrix(n: dict) -> np.ndarray:
@@ -151,12 +286,12 @@ def _node_matrix(n: dict) -> np.ndarray:
 def _triangles(idx: np.ndarray, mode: int) -> np.ndarray:
     if mode == 4:
         return idx[: len(idx) // 3 * 3].reshape(-1, 3)
-    k = np.arange(len(idx) - 2)
+    k = np.arange(max(len(idx) - 2, 0))
     if mode == 5:  # strip: every other triangle reversed to keep the winding
         t = np.stack([idx[k], idx[k + 1], idx[k + 2]], 1)
         t[1::2] = t[1::2][:, [1, 0, 2]]
         return t
-    return np.stack([np.full(len(k), idx[0]), idx[k + 1], idx[k + 2]], 1)  # fan
+    return np.stack([np.full(len(k), idx[0] if len(idx) else 0), idx[k + 1], idx[k + 2]], 1)  # fan
 
 
 def _check_extensions(f: _File) -> None:
@@ -164,40 +299,73 @@ def _check_extensions(f: _File) -> None:
     for ext, what in COMPRESSION.items():
         if ext in used:
             f.fail(f"uses {ext} ({what}), which study cannot decode; re-export it uncompressed")
-    other = sorted(set(f.g.get("extensionsRequired", [])) - READ - {"KHR_texture_transform"})
+    other = sorted(set(f.g.get("extensionsRequired", [])) - READ)
     if other:
         f.fail(f"requires {', '.join(other)}, which study does not read")
     if str(f.g.get("asset", {}).get("version", "2.0")).split(".")[0] != "2":
         f.fail(f"glTF version {f.g['asset']['version']}; study reads glTF 2.0")
 
 
+def _factor(f: _File, v, n: int, default: tuple, what: str, hi: float | None = 1.0) -> np.ndarray:
+    """A colour factor of ``n`` numbers in [0, hi] (glTF's schema), as floats; anything else is refused."""
+    if v is None:
+        v = default
+    ok = isinstance(v, list | tuple) and len(v) == n and all(isinstance(x, int | float) for x in v)
+    a = np.asarray(v, float) if ok else None
+    if a is None or not np.isfinite(a).all() or (a < 0).any() or (hi is not None and (a > hi).any()):
+        rng = f"[0, {hi:g}]" if hi is not None else "≥ 0"
+        f.fail(f"{what} must be {n} number(s) in {rng} (glTF 2.0), got {v!r}")
+    return a
+
+
+def _uv_transform(t: dict) -> np.ndarray | None:
+    """KHR_texture_transform as a 3 × 3 matrix on (u, v, 1): translation · rotation · scale (the spec's order)."""
+    ext = t.get("extensions", {}).get("KHR_texture_transform")
+    if not isinstance(ext, dict):
+        return None
+    (ox, oy), r, (sx, sy) = ext.get("offset", (0, 0)), ext.get("rotation", 0.0), ext.get("scale", (1, 1))
+    c, s = np.cos(r), np.sin(r)
+    T = np.array([[1, 0, ox], [0, 1, oy], [0, 0, 1]], float)
+    R = np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]], float)
+    S = np.diag([sx, sy, 1.0])
+    return T @ R @ S
+
+
 def _material(f: _File, i: int | None, out: Loaded, cache: dict, default: tuple) -> dict:
-    """{"color", "texture", "texcoord", "emission"} of material ``i`` (counted once in ``out``)."""
+    """{"color", "texture", "texcoord", "uv_transform", "emission", "name"} of material ``i`` (counted once)."""
     if i in cache:
         return cache[i]
     if i is None:
-        cache[i] = {"color": np.asarray(default, float), "texture": None, "texcoord": 0, "emission": None}
+        cache[i] = {"color": np.asarray(default, float), "texture": None, "texcoord": 0, "emission": None,
+                    "uv_transform": None}  # fmt: skip
         return cache[i]
-    m = f.g["materials"][i]
-    pbr = m.get("pbrMetallicRoughness", {})
-    ext = m.get("extensions", {})
-    color = np.asarray(pbr.get("baseColorFactor", (1, 1, 1, 1))[:3], float)  # linear, as the spec says
-    tex, texcoord = None, 0
+    m = f.get("materials", i, "a primitive's material")
+    what = f"material {i} ({m.get('name') or 'unnamed'})"
+    pbr, ext = m.get("pbrMetallicRoughness", {}), m.get("extensions", {})
+    if not isinstance(pbr, dict) or not isinstance(ext, dict):
+        f.fail(f"{what}: pbrMetallicRoughness and extensions must be objects")
+    color = _factor(f, pbr.get("baseColorFactor"), 4, (1, 1, 1, 1), f"{what} baseColorFactor")[:3]  # linear
+    tex, texcoord, uvt = None, 0, None
     if "baseColorTexture" in pbr:
-        t = f.g["textures"][pbr["baseColorTexture"]["index"]]
+        info = pbr["baseColorTexture"]
+        t = f.get("textures", info.get("index"), f"{what} baseColorTexture")
         if "source" in t:
-            tex = image_linear(f.image(t["source"])) * color.astype(np.float32)  # sRGB image × linear factor
-            texcoord = pbr["baseColorTexture"].get("texCoord", 0)
+            tex = f.image(t["source"], f"texture {info.get('index')}") * color.astype(
+                np.float32
+            )  # sRGB × linear
+            texcoord = info.get("texCoord", 0)
+            uvt = _uv_transform(info)
+            if uvt is not None:
+                texcoord = info["extensions"]["KHR_texture_transform"].get("texCoord", texcoord)
             f.images_used.add(t["source"])
             out.textures = len(f.images_used)
-            if "KHR_texture_transform" in pbr["baseColorTexture"].get("extensions", {}):
-                out.ignored["texture transform"] += 1
-    emission = np.asarray(m.get("emissiveFactor", (0, 0, 0)), float)
-    emission = emission * ext.get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1.0)
+    emission = _factor(f, m.get("emissiveFactor"), 3, (0, 0, 0), f"{what} emissiveFactor")
+    strength = ext.get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1.0)
+    emission = emission * _factor(f, [strength], 1, (1,), f"{what} emissiveStrength", hi=None)[0]
     if "emissiveTexture" in m and emission.max() > 0:
-        t = f.g["textures"][m["emissiveTexture"]["index"]]
+        t = f.get("textures", m["emissiveTexture"].get("index"), f"{what} emissiveTexture")
         if "source" in t:
-            emission = emission * image_linear(f.image(t["source"])).reshape(-1, 3).mean(0)
+            emission = emission * f.image(t["source"], f"{what} emissiveTexture").reshape(-1, 3).mean(0)
             out.ignored["emissive texture (its mean used)"] += 1
     if m.get("alphaMode", "OPAQUE") != "OPAQUE":
         out.ignored["alpha"] += 1
@@ -212,15 +380,21 @@ def _material(f: _File, i: int | None, out: Loaded, cache: dict, default: tuple)
         "color": color,
         "texture": tex,
         "texcoord": texcoord,
+        "uv_transform": uvt,
         "emission": tuple(emission.tolist()) if emission.max() > 0 else None,
         "name": m.get("name") or f"material{i}",
     }
     return cache[i]
 
 
-def _light(f: _File, i: int, M: np.ndarray, out: Loaded) -> None:
-    li = f.g.get("extensions", {}).get("KHR_lights_punctual", {}).get("lights", [])[i]
-    rgb = np.asarray(li.get("color", (1, 1, 1)), float) * li.get("intensity", 1.0) / LUMENS_PER_WATT
+def _light(f: _File, i, M: np.ndarray, out: Loaded) -> None:
+    lights = f.g.get("extensions", {}).get("KHR_lights_punctual", {}).get("lights", [])
+    if not isinstance(lights, list) or not _is_index(i) or not 0 <= i < len(lights):
+        f.fail(f"KHR_lights_punctual: light index {i!r} is out of range ({len(lights)} lights)")
+    li = lights[i]
+    what = f"KHR_lights_punctual light {i} ({li.get('name') or li.get('type')})"
+    intensity = _factor(f, [li.get("intensity", 1.0)], 1, (1,), f"{what} intensity", hi=None)[0]
+    rgb = _factor(f, li.get("color"), 3, (1, 1, 1), f"{what} color") * intensity / LUMENS_PER_WATT
     pos, d = M[:3, 3], M[:3, :3] @ np.array([0.0, 0.0, -1.0])
     d = d / (np.linalg.norm(d) or 1)
     if "range" in li:
@@ -230,14 +404,19 @@ def _light(f: _File, i: int, M: np.ndarray, out: Loaded) -> None:
         out.lights.append({"type": "point", "position": pos.tolist(), "intensity": rgb.tolist()})
     elif kind == "spot":
         s = li.get("spot", {})
+        inner, outer = s.get("innerConeAngle", 0.0), s.get("outerConeAngle", np.pi / 4)
+        ok = all(isinstance(x, int | float) for x in (inner, outer))
+        if not ok or not 0 <= inner < outer <= np.pi / 2 + 1e-9:
+            f.fail(f"{what}: cone angles must satisfy 0 ≤ innerConeAngle < outerConeAngle ≤ π/2 (glTF), got "
+                   f"{inner!r}, {outer!r}")  # fmt: skip
         out.lights.append(
             {
                 "type": "spot",
                 "position": pos.tolist(),
                 "direction": d.tolist(),
                 "intensity": rgb.tolist(),
-                "cutoff_angle": float(np.degrees(s.get("outerConeAngle", np.pi / 4))),
-                "beam_width": float(np.degrees(s.get("innerConeAngle", 0.0))),
+                "cutoff_angle": float(np.degrees(outer)),
+                "beam_width": float(np.degrees(inner)),
             }
         )
     elif kind == "directional":
@@ -246,22 +425,83 @@ def _light(f: _File, i: int, M: np.ndarray, out: Loaded) -> None:
         out.ignored[f"light of type {kind!r}"] += 1
 
 
-def _camera(f: _File, i: int, M: np.ndarray, out: Loaded) -> dict | None:
+def _camera(f: _File, i, M: np.ndarray, out: Loaded) -> dict | None:
     """A perspective camera: at the node's origin, looking along its −z, up its +y; ``yfov`` (radians) and
     ``aspectRatio`` (width / height, default 1) → horizontal field of view in degrees."""
-    cam = f.g["cameras"][i]
+    cam = f.get("cameras", i, "a node's camera")
     if cam.get("type") != "perspective":
         out.ignored["orthographic camera"] += 1
         return None
     p = cam.get("perspective", {})
-    aspect = p.get("aspectRatio") or 1.0
-    fov = float(np.degrees(2 * np.arctan(np.tan(p["yfov"] / 2) * aspect)))
+    yfov, aspect = p.get("yfov"), p.get("aspectRatio") or 1.0
+    if (
+        not isinstance(yfov, int | float)
+        or not 0 < yfov < np.pi
+        or not isinstance(aspect, int | float)
+        or aspect <= 0
+    ):
+        f.fail(f"camera {i}: yfov must be in (0, π) and aspectRatio > 0, got {yfov!r}, {aspect!r}")
+    fov = float(np.degrees(2 * np.arctan(np.tan(yfov / 2) * aspect)))
     eye = M[:3, 3]
     fwd, up = M[:3, :3] @ [0.0, 0.0, -1.0], M[:3, :3] @ [0.0, 1.0, 0.0]
     fwd, up = fwd / np.linalg.norm(fwd), up / np.linalg.norm(up)
     w = 512
     return {"eye": eye.tolist(), "target": (eye + fwd).tolist(), "up": up.tolist(), "fov": min(fov, 179.0),
             "width": w, "height": max(8, round(w / aspect))}  # fmt: skip
+
+
+def _nodes(f: _File, out: Loaded):
+    """(node index, world matrix) of every node of the default scene, parents first; each node once."""
+    scenes = f.g.get("scenes", [])
+    if scenes:
+        si = f.g.get("scene", 0)
+        roots = f.get("scenes", si, "'scene'").get("nodes", [])
+        if len(scenes) > 1:
+            out.ignored["other scene"] += len(scenes) - 1
+    else:  # no scene: every node that is nobody's child
+        kids = {c for n in f.g.get("nodes", []) for c in n.get("children", []) if _is_index(c)}
+        roots = [i for i in range(len(f.g.get("nodes", []))) if i not in kids]
+    if not isinstance(roots, list):
+        f.fail("a scene's nodes must be an array of indices")
+    seen: set[int] = set()
+    stack = [(i, np.eye(4), "scene") for i in reversed(roots)]
+    while stack:
+        ni, parent, by = stack.pop()
+        node = f.get("nodes", ni, f"{by}'s children" if by != "scene" else "the scene's nodes")
+        if ni in seen:
+            f.fail(f"node {ni} is reached twice (from {by}): glTF's nodes form trees, this graph has a cycle "
+                   "or a node with two parents")  # fmt: skip
+        seen.add(ni)
+        M = parent @ _node_matrix(node)
+        if not np.isfinite(M).all():
+            f.fail(f"node {ni}: its transform is not finite")
+        kids = node.get("children", [])
+        if not isinstance(kids, list):
+            f.fail(f"node {ni}: children must be an array of indices")
+        stack += [(c, M, f"node {ni}") for c in reversed(kids)]
+        yield ni, node, M
+
+
+def _draco(f: _File, prim: dict, where: str) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+    """(triangle indices, unique id → attribute data) of a KHR_draco_mesh_compression primitive, decoded by
+    DracoPy."""
+    ext = prim["extensions"]["KHR_draco_mesh_compression"]
+    try:
+        import DracoPy
+    except ImportError:
+        f.fail(f"{where} is Draco-compressed and DracoPy is not installed (pip install DracoPy)")
+    buf, start, end, _ = f.view(ext.get("bufferView"), f"{where} KHR_draco_mesh_compression")
+    try:
+        mesh = DracoPy.decode(bytes(buf[start:end]))
+    except Exception as err:  # noqa: BLE001 - the decoder's own errors are bad input
+        f.fail(f"{where}: its Draco stream does not decode ({type(err).__name__}: {err})")
+    attrs = {}
+    for sem, uid in ext.get("attributes", {}).items():
+        a = mesh.get_attribute_by_unique_id(uid) if _is_index(uid) else None
+        if a is None:
+            f.fail(f"{where}: the Draco stream has no attribute {uid!r} (for {sem})")
+        attrs[uid] = np.asarray(a["data"])
+    return np.asarray(mesh.faces, np.int64).ravel(), attrs
 
 
 def read_gltf(path: Path, src: str, default_color: tuple) -> Loaded:
@@ -271,18 +511,7 @@ def read_gltf(path: Path, src: str, default_color: tuple) -> Loaded:
     out = Loaded([], ignored=Counter())
     mats: dict = {}
     groups: dict = {}  # material index → lists of V, F, uv, colours
-    scenes = f.g.get("scenes", [])
-    if scenes:
-        roots = scenes[f.g.get("scene", 0)].get("nodes", [])
-    else:  # no scene: every node that is nobody's child
-        kids = {c for n in f.g.get("nodes", []) for c in n.get("children", [])}
-        roots = [i for i in range(len(f.g.get("nodes", []))) if i not in kids]
-    stack = [(i, np.eye(4)) for i in roots]
-    while stack:
-        ni, parent = stack.pop()
-        node = f.g["nodes"][ni]
-        M = parent @ _node_matrix(node)
-        stack += [(c, M) for c in node.get("children", [])]
+    for ni, node, M in _nodes(f, out):
         if (
             "camera" in node and out.sensor is None
         ):  # the first camera of the scene: where the user looks from
@@ -292,29 +521,45 @@ def read_gltf(path: Path, src: str, default_color: tuple) -> Loaded:
             _light(f, light, M, out)
         if "mesh" not in node:
             continue
-        for prim in f.g["meshes"][node["mesh"]]["primitives"]:
+        mesh = f.get("meshes", node["mesh"], f"node {ni}")
+        for k, prim in enumerate(mesh.get("primitives", [])):
+            where = f"mesh {node['mesh']} primitive {k}"
             mode = prim.get("mode", 4)
             if mode not in (4, 5, 6):
                 out.ignored["points or lines primitive"] += 1
                 continue
-            attrs = prim["attributes"]
-            P = f.accessor(attrs["POSITION"]).astype(float)
-            idx = (
-                f.accessor(prim["indices"]).ravel().astype(np.int64)
-                if "indices" in prim
-                else np.arange(len(P))
-            )
+            attrs = prim.get("attributes", {})
+            if "POSITION" not in attrs:
+                f.fail(f"{where} has no POSITION attribute")
+            draco = {}
+            if "KHR_draco_mesh_compression" in prim.get("extensions", {}):
+                idx, by_id = _draco(f, prim, where)
+                draco = {
+                    s: by_id[u]
+                    for s, u in prim["extensions"]["KHR_draco_mesh_compression"]["attributes"].items()
+                }
+            P = f.accessor(attrs["POSITION"], where, draco.get("POSITION")).astype(float)
+            if not draco:
+                idx = (f.accessor(prim["indices"], where).ravel().astype(np.int64) if "indices" in prim
+                       else np.arange(len(P)))  # fmt: skip
             F = _triangles(idx, mode)
+            if len(F) and (F.min() < 0 or F.max() >= len(P)):
+                f.fail(f"{where}: an index ({int(F.max())}) is past its {len(P)} vertices")
             if np.linalg.det(M[:3, :3]) < 0:
                 F = F[:, ::-1]
             mat = _material(f, prim.get("material"), out, mats, default_color)
             uv_key = f"TEXCOORD_{mat['texcoord']}"
-            uv = (
-                f.accessor(attrs[uv_key]).astype(float)
-                if mat["texture"] is not None and uv_key in attrs
-                else None
-            )
-            col = f.accessor(attrs["COLOR_0"])[:, :3].astype(float) if "COLOR_0" in attrs else None
+            uv = None
+            if mat["texture"] is not None and uv_key in attrs:
+                uv = f.accessor(attrs[uv_key], where, draco.get(uv_key)).astype(float)[:, :2]
+                if mat["uv_transform"] is not None:
+                    uv = uv @ mat["uv_transform"][:2, :2].T + mat["uv_transform"][:2, 2]
+            col = None
+            if "COLOR_0" in attrs:
+                col = f.accessor(attrs["COLOR_0"], where, draco.get("COLOR_0"))[:, :3].astype(float)
+            for name, a in (("uv", uv), ("COLOR_0", col)):
+                if a is not None and len(a) != len(P):
+                    f.fail(f"{where}: {name} has {len(a)} elements for {len(P)} positions")
             g = groups.setdefault(prim.get("material"), {"V": [], "F": [], "uv": [], "col": [], "n": 0})
             g["V"].append(P @ M[:3, :3].T + M[:3, 3])
             g["F"].append(F + g["n"])

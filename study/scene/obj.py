@@ -1,16 +1,25 @@
 """Wavefront OBJ and its MTL materials, read as the format defines them (not through trimesh).
 
+* Whitespace: any run of spaces and tabs separates tokens, lines may be indented, end in CR LF, and continue on
+  the next line after a ``\\``; ``o``, ``g``, ``s``, ``vn``, ``vp`` and unknown statements are skipped.
+* ``v`` takes 3 numbers, or 4 (``w``, ignored: study's vertices are points) or 6 (x y z r g b: vertex colours,
+  counted as ignored: the MTL's colours are used).
 * Face indices start at 1; a negative index counts back from the end of the vertex (or texture-coordinate) list
-  read so far (−1 is the last one); index 0 or one past the end is refused, naming the line.
-* Polygons are split into fans of triangles; ``l`` and ``p`` elements are ignored (counted).
-* One part per material (``usemtl``); MTL ``Kd`` is a linear albedo, ``map_Kd`` an sRGB texture (multiplied by
-  ``Kd``, as the MTL spec says), ``Ke`` a linear emitted radiance (an area light). ``d`` < 1 / ``Tr`` > 0 (alpha),
-  transmission (``illum`` 4, 6, 7, ``Tf`` other than 1), specular ``Ks`` > 0, ``map_Kd`` options and the other
-  maps are not rendered (two-sided diffuse): counted as ignored, once per material.
+  read so far (−1 is the last one); index 0 or one past the end is refused, naming the line. Corners may be
+  ``v``, ``v/t``, ``v//n`` or ``v/t/n``, mixed freely.
+* Polygons of any size are split into fans of triangles; ``l`` and ``p`` elements are ignored (counted).
+* ``mtllib`` names one or more libraries (a name with spaces is taken whole where that file exists); every file the
+  OBJ or its MTL names must lie in the OBJ's (or the MTL's) folder (:func:`study.scene.paths.named_file`).
+* One part per material (``usemtl``); MTL ``Kd`` is a linear albedo in [0, 1], ``map_Kd`` an sRGB texture
+  (multiplied by ``Kd``, as the MTL spec says; its options ``-o``, ``-s``, ``-clamp`` … are skipped, counted),
+  ``Ke`` (≥ 0) a linear emitted radiance (an area light). ``d`` < 1 / ``Tr`` > 0 (alpha), transmission (``illum``
+  4, 6, 7, ``Tf`` other than 1), specular ``Ks`` > 0 and the other maps are not rendered (two-sided diffuse):
+  counted as ignored, once per material.
 """
 
 from __future__ import annotations
 
+import re
 from collections import Counter
 from operator import methodcaller
 from pathlib import Path
@@ -18,9 +27,15 @@ from pathlib import Path
 import numpy as np
 
 from study.errors import StudyError
-from study.scene.parts import Loaded, Piece, image_linear
+from study.scene.parts import Loaded, Piece, read_image
+from study.scene.paths import named_file
 
 _OTHER_MAPS = ("map_ks", "map_ns", "map_d", "map_bump", "bump", "disp", "decal", "refl", "norm", "map_ke")
+
+
+#: map statement options and how many arguments each takes at most (the MTL spec; numbers are counted as read)
+_MAP_OPTIONS = {"-blendu": 1, "-blendv": 1, "-boost": 1, "-cc": 1, "-clamp": 1, "-imfchan": 1, "-mm": 2,
+                "-o": 3, "-s": 3, "-t": 3, "-texres": 1, "-bm": 1, "-type": 1}  # fmt: skip
 
 
 def _num(x: str) -> float:
@@ -31,31 +46,78 @@ def _num(x: str) -> float:
         return 1.0
 
 
-def read_mtl(path: Path, ignored: Counter) -> dict[str, dict]:
-    """Materials of an MTL file: name → {"Kd", "Ke", "map_Kd" (Path), "ignored" (kinds)}."""
+def _map_file(tok: list[str]) -> tuple[str, bool]:
+    """(file name, whether options were given) of a map statement's arguments: options first, each with its
+    arguments (numbers, or one word), then the name, which may hold spaces."""
+    i, opts = 0, False
+    while i < len(tok) and tok[i].lower() in _MAP_OPTIONS:
+        n, i, opts = _MAP_OPTIONS[tok[i].lower()], i + 1, True
+        for _ in range(n):
+            if i < len(tok) - 1 and (
+                tok[i].lower() in ("on", "off", "r", "g", "b", "m", "l", "z") or _isnum(tok[i])
+            ):
+                i += 1
+    return " ".join(tok[i:]), opts
+
+
+def _isnum(x: str) -> bool:
+    try:
+        float(x)
+        return True
+    except ValueError:
+        return False
+
+
+def _colour(tok: list[str], what: str, hi: float | None) -> tuple | None:
+    """An MTL colour statement's r g b (one number: grey); ``spectral`` / ``xyz`` forms: None (not read)."""
+    if tok[1].lower() in ("spectral", "xyz"):
+        return None
+    try:
+        vals = [float(x) for x in tok[1:4]]
+    except ValueError:
+        raise StudyError(f"{what}: {' '.join(tok[1:4])!r} is not a colour") from None
+    vals = vals * 3 if len(vals) == 1 else vals
+    if len(vals) != 3 or not all(np.isfinite(vals)) or min(vals) < 0 or (hi is not None and max(vals) > hi):
+        rng = f"[0, {hi:g}]" if hi is not None else "≥ 0"
+        raise StudyError(f"{what}: {' '.join(tok[1:4])!r} must be 1 or 3 numbers in {rng}")
+    return tuple(vals)
+
+
+def read_mtl(path: Path, ignored: Counter, src: str = "", root: Path | None = None) -> dict[str, dict]:
+    """Materials of an MTL file: name → {"Kd", "Ke", "map_Kd" (Path), "ignored" (kinds)}; the maps it names must
+    lie in ``root`` (the OBJ's folder; default: the MTL's)."""
     mats: dict[str, dict] = {}
     cur: dict | None = None
-    for line in path.read_text(errors="replace").splitlines():
+    text = path.read_text(errors="replace").replace("\\\r\n", " ").replace("\\\n", " ")
+    for no, line in enumerate(text.splitlines(), 1):
         tok = line.split()
         if not tok or tok[0].startswith("#"):
             continue
         key = tok[0].lower()
+        what = f"{path.name} line {no}: {tok[0]}"
         if key == "newmtl":
             cur = mats.setdefault(" ".join(tok[1:]), {"ignored": set()})
         elif cur is None:
             continue
         elif key in ("kd", "ke") and len(tok) >= 2:
-            vals = [float(x) for x in tok[1:4]]
-            cur[tok[0].capitalize()] = tuple(vals * 3 if len(vals) == 1 else vals)
+            try:
+                c = _colour(tok, what, 1.0 if key == "kd" else None)
+            except StudyError as err:
+                raise StudyError(err.detail, key=src) from None
+            if c is None:
+                cur["ignored"].add(f"{tok[1].lower()} {tok[0]}")
+            else:
+                cur[tok[0].capitalize()] = c
         elif key == "map_kd" and len(tok) >= 2:
-            cur["map_Kd"] = path.parent / tok[-1]
-            if len(tok) > 2:
+            name, opts = _map_file(tok[1:])
+            cur["map_Kd"] = named_file(path.parent, name, what=what, src=src, root=root)
+            if opts:
                 cur["ignored"].add("texture option")  # -s, -o, -clamp, …: the texture is used plain
         elif key == "ks" and len(tok) >= 2 and any(_num(x) > 0 for x in tok[1:4]):
             cur["ignored"].add("specular (Ks)")
-        elif key == "d" and len(tok) >= 2 and float(tok[-1]) < 1:
+        elif key == "d" and len(tok) >= 2 and _num(tok[-1]) < 1:
             cur["ignored"].add("alpha")
-        elif key == "tr" and len(tok) >= 2 and float(tok[-1]) > 0:
+        elif key == "tr" and len(tok) >= 2 and _num(tok[-1]) > 0:
             cur["ignored"].add("alpha")
         elif key == "illum" and len(tok) >= 2 and tok[1] in ("4", "6", "7"):
             cur["ignored"].add("transmission")
@@ -92,7 +154,7 @@ def _corners(tokens: list[str], line_of: np.ndarray, src: str) -> tuple[np.ndarr
             text = " ".join(tokens).replace("//", "/0/").replace("/", " ")
             a = np.fromiter(map(int, text.split()), np.int64).reshape(len(tokens), k + 1)
             return a[:, 0], a[:, 1] if k >= 1 else np.zeros(len(tokens), np.int64)
-        except ValueError:
+        except (ValueError, OverflowError):
             pass  # the loop below names the corner
     v, t = np.zeros(len(tokens), np.int64), np.zeros(len(tokens), np.int64)
     for i, tok in enumerate(tokens):
@@ -102,6 +164,8 @@ def _corners(tokens: list[str], line_of: np.ndarray, src: str) -> tuple[np.ndarr
             t[i] = int(parts[1]) if len(parts) > 1 and parts[1] else 0
         except ValueError:
             raise StudyError(f"line {int(line_of[i])}: not a face corner: {tok!r}", key=src) from None
+        except OverflowError:
+            raise StudyError(f"line {int(line_of[i])}: index {tok!r} is too large", key=src) from None
     return v, t
 
 
@@ -109,7 +173,15 @@ def read_obj(path: Path, src: str, default_color: tuple) -> Loaded:
     """The OBJ at ``path`` as parts (one per material), with their MTL colours, textures and emission."""
     mtllibs: list[Path] = []
     ignored: Counter = Counter()
-    lines = path.read_text(errors="replace").replace("\\\n", " ").splitlines()
+    text = path.read_text(errors="replace")
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    text = text.replace("\\\n", " ")  # a line continued on the next
+    if "\t" in text or "\v" in text or "\f" in text:  # any run of blanks separates: one kind of blank
+        text = text.replace("\t", " ").replace("\v", " ").replace("\f", " ")
+    if "\n " in text or text.startswith(" "):  # indented lines
+        text = re.sub(r"(?m)^ +", "", text)
+    lines = text.splitlines()
     head = [ln[:2] for ln in lines]
     is_v = np.fromiter((h == "v " for h in head), bool, len(lines))
     is_vt = np.fromiter(
@@ -124,9 +196,10 @@ def read_obj(path: Path, src: str, default_color: tuple) -> Loaded:
         if not tok or tok[0].startswith("#"):
             continue
         k = tok[0]
-        if k in ("v", "vt", "f"):  # separated by a tab: the slow path below is not needed, refuse plainly
+        if k in ("v", "vt", "f"):  # a statement without its numbers
             raise StudyError(
-                f"line {i + 1}: {k} elements separated by tabs are not read; use spaces", key=src
+                f"line {i + 1}: {k} without its {'x y z' if k == 'v' else 'u v' if k == 'vt' else 'vertices'}",
+                key=src,
             )
         if k == "usemtl":
             name = " ".join(tok[1:])
@@ -134,7 +207,10 @@ def read_obj(path: Path, src: str, default_color: tuple) -> Loaded:
                 materials.append(name)
             mat_at.append((i, materials.index(name)))
         elif k == "mtllib":
-            mtllibs += [path.parent / n for n in tok[1:]]
+            rest = lines[i].split(None, 1)[1].strip() if len(tok) > 1 else ""
+            whole = named_file(path.parent, rest, what=f"line {i + 1}: mtllib", src=src) if rest else None
+            names = [rest] if whole is not None and whole.is_file() else tok[1:]
+            mtllibs += [named_file(path.parent, n, what=f"line {i + 1}: mtllib", src=src) for n in names]
         elif k in ("l", "p"):
             ignored["line" if k == "l" else "point"] += 1
     vlines = [lines[i][2:] for i in np.flatnonzero(is_v)]
@@ -201,7 +277,7 @@ def read_obj(path: Path, src: str, default_color: tuple) -> Loaded:
         if not lib.is_file():
             ignored[f"missing material library {lib.name}"] += 1
             continue
-        mats.update(read_mtl(lib, ignored))
+        mats.update(read_mtl(lib, ignored, src, root=path.parent))
     out = Loaded([], ignored=ignored)
     textures = set()
     for name, c in faces.items():
@@ -214,13 +290,12 @@ def read_obj(path: Path, src: str, default_color: tuple) -> Loaded:
         tex = m.get("map_Kd")
         albedo = None
         if tex is not None and (c[..., 1] >= 0).all():
-            try:
-                from PIL import Image
-
-                albedo = image_linear(Image.open(tex)) * np.asarray(m.get("Kd", (1, 1, 1)), np.float32)
+            if tex.is_file():
+                albedo = read_image(tex, what=f"map_Kd {tex.name}", src=src)
+                albedo = albedo * np.asarray(m.get("Kd", (1, 1, 1)), np.float32)
                 textures.add(tex)
-            except OSError:
-                ignored[f"unreadable texture {tex.name}"] += 1
+            else:
+                ignored[f"missing texture {tex.name}"] += 1
         elif tex is not None:
             ignored["texture without uv"] += 1
         if albedo is not None:  # unshare (vertex, uv) pairs: uv per vertex, v running down (Mitsuba's)

@@ -67,6 +67,34 @@ def image_linear(img) -> np.ndarray:
     return srgb_to_linear(np.asarray(img.convert("RGB"), float) / 255).astype(np.float32)
 
 
+def read_image(source, *, what: str, src: str) -> np.ndarray:
+    """An sRGB colour texture (a path or the file's bytes) as (H, W, 3) float32 linear RGB.
+
+    An image larger than Pillow's decompression-bomb limit (``PIL.Image.MAX_IMAGE_PIXELS``, 89 M pixels) is refused
+    from its header, before it is decoded; one that cannot be decoded is refused too: a StudyError naming ``what``.
+    """
+    import io
+    import warnings
+
+    from PIL import Image
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            img = Image.open(io.BytesIO(source) if isinstance(source, bytes | bytearray) else source)
+            return image_linear(img)
+    except (Image.DecompressionBombError, Image.DecompressionBombWarning):
+        raise StudyError(
+            f"{what}: the image is larger than {Image.MAX_IMAGE_PIXELS:,} pixels (Pillow's decompression-bomb "
+            "limit); study refuses it",
+            key=src,
+        ) from None
+    except (OSError, SyntaxError, ValueError) as err:
+        raise StudyError(
+            f"{what}: the image cannot be read ({' '.join(str(err).split())[:120]})", key=src
+        ) from None
+
+
 def clean(loaded: Loaded, src: str) -> Loaded:
     """Refuse indices out of range and non-finite vertices that faces use (one StudyError on ``src``); drop
     degenerate triangles (a repeated index or zero area) and empty parts, counted in ``loaded.dropped``."""

@@ -19,7 +19,8 @@ from __future__ import annotations
 import json
 import struct
 from pathlib import Path
-from urllib.parse import unquote
+
+from study.scene.paths import inside
 
 MTL_MAPS = ("map_", "bump", "disp", "decal", "refl", "norm")
 
@@ -40,40 +41,50 @@ def _gltf(path: Path) -> list[Path]:
         g = gltf_json(path)
     except (ValueError, struct.error, UnicodeDecodeError):
         return []  # not readable: the loader says so; the key still hashes the bytes
-    uris = [b.get("uri") for b in g.get("buffers", [])] + [i.get("uri") for i in g.get("images", [])]
-    return [path.parent / unquote(u) for u in uris if isinstance(u, str) and not u.startswith("data:")]
-
-
-def _mtl_file(line: str) -> str:
-    """The file name of an MTL map statement: the last token (options such as ``-s 1 1 1`` come first)."""
-    return line.split()[-1]
+    if not isinstance(g, dict):
+        return []
+    items = [
+        x for k in ("buffers", "images") if isinstance(g.get(k), list) for x in g[k] if isinstance(x, dict)
+    ]
+    uris = [x.get("uri") for x in items]
+    found = [
+        inside(path.parent, u, uri=True) for u in uris if isinstance(u, str) and not u.startswith("data:")
+    ]
+    return [p for p in found if p is not None]
 
 
 def _obj(path: Path) -> list[Path]:
     import re
 
+    from study.scene.obj import _map_file
+
     out = []
-    for line in re.findall(r"^mtllib[ \t]+(.*)$", path.read_text(errors="replace"), re.M):
-        for name in line.split():
-            mtl = path.parent / name
+    for line in re.findall(r"^[ \t]*mtllib[ \t]+(.*?)[ \t]*\r?$", path.read_text(errors="replace"), re.M):
+        whole = inside(path.parent, line)
+        names = [line] if whole is not None and whole.is_file() else line.split()
+        for mtl in (inside(path.parent, n) for n in names):
+            if mtl is None:
+                continue  # outside the folder: the loader refuses it, nothing is read for the key either
             out.append(mtl)
             if mtl.is_file():
                 for ml in mtl.read_text(errors="replace").splitlines():
-                    ml = ml.strip()
-                    if ml.lower().startswith(MTL_MAPS) and len(ml.split()) > 1:
-                        out.append(mtl.parent / _mtl_file(ml))
+                    tok = ml.split()
+                    if tok and tok[0].lower().startswith(MTL_MAPS) and len(tok) > 1:
+                        tex = inside(mtl.parent, _map_file(tok[1:])[0], root=path.parent)
+                        if tex is not None:
+                            out.append(tex)
     return out
 
 
-def _xml(path: Path, seen: set, top: Path, defaults: dict) -> list[Path]:
-    """Files a Mitsuba XML names: relative to the naming file and, where that differs, to the top scene file's
-    folder (Mitsuba's file resolver), both hashed where both exist; ``$name`` takes its ``<default>`` value."""
+def _xml_names(path: Path, defaults: dict):
+    """(element, file name) of every ``filename`` a Mitsuba XML names (an attribute, as ``<include filename>``,
+    or ``<string name="filename">``), ``$name`` through its ``<default>``; and the defaults in force."""
     import xml.etree.ElementTree as ET
 
     try:
         root = ET.parse(path).getroot()
-    except (ET.ParseError, OSError):
-        return []
+    except (ET.ParseError, OSError, RecursionError):
+        return [], defaults
     defaults = {**defaults, **{d.get("name"): d.get("value") for d in root.iter("default") if d.get("name")}}
     out = []
     for el in root.iter():
@@ -83,18 +94,47 @@ def _xml(path: Path, seen: set, top: Path, defaults: dict) -> list[Path]:
         for n in names:
             if n and n.startswith("$"):
                 n = defaults.get(n[1:])
-            if not n:
-                continue
-            cands = list(dict.fromkeys([(path.parent / n).resolve(), (top / n).resolve()]))
-            found = [c for c in cands if c.is_file()] or cands[:1]
-            for p in found:
-                out.append(p)
-                if p.suffix.lower() == ".xml" and p.is_file() and p not in seen:
-                    seen.add(p)
-                    out += _xml(p, seen, top, defaults)
-                elif p.suffix.lower() in (".obj", ".gltf", ".glb") and p.is_file():
-                    out += referenced(p)
+            if n:
+                out.append((el, n))
+    return out, defaults
+
+
+def _xml(path: Path, seen: set, top: Path, defaults: dict) -> list[Path]:
+    """Files a Mitsuba XML names: relative to the naming file and, where that differs, to the top scene file's
+    folder (Mitsuba's file resolver), both hashed where both exist; names outside the top folder are skipped (the
+    loader refuses them: :func:`xml_outside`)."""
+    names, defaults = _xml_names(path, defaults)
+    out = []
+    for _, n in names:
+        cands = [c for c in dict.fromkeys([inside(path.parent, n, root=top), inside(top, n, root=top)]) if c]
+        found = [c for c in cands if c.is_file()] or cands[:1]
+        for p in found:
+            out.append(p)
+            if p.suffix.lower() == ".xml" and p.is_file() and p.resolve() not in seen:
+                seen.add(p.resolve())
+                out += _xml(p, seen, top, defaults)
+            elif p.suffix.lower() in (".obj", ".gltf", ".glb") and p.is_file():
+                out += referenced(p)
     return out
+
+
+def xml_outside(path: str | Path) -> str | None:
+    """The first file name a Mitsuba XML (or an XML it includes) names that lies outside the scene file's folder,
+    as one line naming the file and the element; None if every name stays inside. Nothing outside is read."""
+    top = Path(path).resolve().parent
+    todo, seen, defaults = [Path(path).resolve()], set(), {}
+    while todo:
+        f = todo.pop()
+        seen.add(f)
+        names, defaults = _xml_names(f, defaults)
+        for el, n in names:
+            c = inside(f.parent, n, root=top) or inside(top, n, root=top)
+            if c is None:
+                return (f"{f.name}: <{el.tag}> names {n!r}, which lies outside the scene's folder ({top}); "
+                        "files a scene names must lie in it")  # fmt: skip
+            if c.suffix.lower() == ".xml" and c.is_file() and c.resolve() not in seen:
+                todo.append(c.resolve())
+    return None
 
 
 def referenced(path: str | Path) -> list[Path]:
