@@ -62,8 +62,15 @@ def _read(path: Path, src: str, color: tuple) -> Loaded:
             loaded = read_gltf(path, src, color)
         else:
             loaded = _trimesh(path, src, color)
-    except (ValueError, KeyError, IndexError, TypeError) as err:
-        raise StudyError(f"cannot read {path.name} ({type(err).__name__}: {err})", key=src) from None
+    except (
+        ValueError,
+        KeyError,
+        IndexError,
+        TypeError,
+        AttributeError,
+    ) as err:  # structure the reader did not name
+        detail = " ".join(str(err).split())[:200]
+        raise StudyError(f"cannot read {path.name} ({type(err).__name__}: {detail})", key=src) from None
     return clean(loaded, src)
 
 

@@ -39,7 +39,7 @@ def gltf_json(path: Path) -> dict:
 def _gltf(path: Path) -> list[Path]:
     try:
         g = gltf_json(path)
-    except (ValueError, struct.error, UnicodeDecodeError):
+    except (ValueError, struct.error, UnicodeDecodeError, RecursionError):
         return []  # not readable: the loader says so; the key still hashes the bytes
     if not isinstance(g, dict):
         return []

@@ -25,7 +25,14 @@ def resolve(v: Any, info: ValidationInfo) -> Any:
     if not p.is_absolute():
         base = (info.context or {}).get("base") if info.context else None
         p = Path(base or ".") / p
-    p = p.resolve()
+    try:
+        p = p.resolve(strict=True)
+    except RuntimeError:  # Python < 3.13: a symlink loop
+        raise PydanticCustomError("file", "a symlink loop: {path}", {"path": str(p)}) from None
+    except OSError as err:
+        if err.errno == 40:  # ELOOP
+            raise PydanticCustomError("file", "a symlink loop: {path}", {"path": str(p)}) from None
+        raise PydanticCustomError("file", "no such file: {path}", {"path": str(p)}) from None
     if not p.is_file():
         raise PydanticCustomError("file", "no such file: {path}", {"path": str(p)})
     return str(p)
