@@ -143,6 +143,18 @@ def test_obj_structure_errors_name_the_line(tmp_path, text, words):
     assert words in str(e.value) and "\n" not in str(e.value), str(e.value)
 
 
+def test_trimesh_counts_negative_indices_from_the_end_of_the_file(tmp_path):
+    """The OBJ spec: a negative index counts back from the vertices read *so far*. trimesh 4 (the second reader)
+    counts from the end of the file when objects follow, so two triangles at z = 0 and z = 5 both land at z = 5
+    (the tinyobjloader Cornell box of the corpus loses its ceiling so). If this test fails, trimesh has been fixed."""
+    (tmp_path / "n.obj").write_text(
+        "o a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\no b\nv 0 0 5\nv 1 0 5\nv 0 1 5\nf -3 -2 -1\n"
+    )
+    env = mesh(tmp_path / "n.obj")
+    assert sorted(env.mesh.vertices[env.mesh.faces][:, 0, 2]) == [0, 5]
+    assert trimesh_of(tmp_path / "n.obj").bounds[0][2] == 5  # trimesh: both at z = 5
+
+
 @pytest.mark.parametrize("kd", ["-1 0 0", "5 5 5", "nan 0 0"])
 def test_mtl_colours_outside_their_range_are_refused_naming_the_line(tmp_path, kd):
     (tmp_path / "m.mtl").write_text(f"newmtl a\nKd {kd}\n")
