@@ -364,3 +364,19 @@ def test_random_obj_lines_never_crash_or_hang(tmp_path):
         _only_study_errors(tmp_path / "r.obj", {"type": "mesh", "file": str(tmp_path / "r.obj")})
 
     check()
+
+
+def test_a_mitsuba_path_element_cannot_bring_in_a_file_from_outside(layout):
+    """``<path value="../secret"/>`` adds a folder to Mitsuba's search: a name that is not in the scene's folder
+    would be found there. Such a name is refused before Mitsuba reads; a ``<path>`` that brings nothing is harmless."""
+    scene, secret = layout
+    (secret / "b.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (scene / "s.xml").write_text('<scene version="3.0.0"><path value="../secret"/><shape type="cube"/>'
+                                 '<shape type="obj" filename="b.obj"/></scene>')  # fmt: skip
+    refused(
+        {"type": "mitsuba", "file": str(scene / "s.xml")}, "s.xml: <shape> names 'b.obj'", "not in the scene"
+    )
+    (scene / "s.xml").write_text(
+        '<scene version="3.0.0"><path value="../secret"/><shape type="cube"/></scene>'
+    )
+    assert len(geometry({"type": "mitsuba", "file": str(scene / "s.xml")}).mesh.faces) == 12

@@ -120,7 +120,8 @@ def _xml(path: Path, seen: set, top: Path, defaults: dict) -> list[Path]:
 
 def xml_outside(path: str | Path) -> str | None:
     """The first file name a Mitsuba XML (or an XML it includes) names that lies outside the scene file's folder,
-    as one line naming the file and the element; None if every name stays inside. Nothing outside is read."""
+    or is missing from it (Mitsuba would then search the folders of ``<path>`` elements, which may lie outside), as
+    one line naming the file and the element; None if every name stays inside. Nothing outside is read."""
     top = Path(path).resolve().parent
     todo, seen, defaults = [Path(path).resolve()], set(), {}
     while todo:
@@ -128,10 +129,13 @@ def xml_outside(path: str | Path) -> str | None:
         seen.add(f)
         names, defaults = _xml_names(f, defaults)
         for el, n in names:
-            c = inside(f.parent, n, root=top) or inside(top, n, root=top)
-            if c is None:
+            cands = [c for c in (inside(f.parent, n, root=top), inside(top, n, root=top)) if c is not None]
+            if not cands:
                 return (f"{f.name}: <{el.tag}> names {n!r}, which lies outside the scene's folder ({top}); "
                         "files a scene names must lie in it")  # fmt: skip
+            c = next((c for c in cands if c.exists()), None)
+            if c is None:  # Mitsuba would search its <path> folders, which may lie outside: refused here
+                return f"{f.name}: <{el.tag}> names {n!r}, which is not in the scene's folder ({top})"
             if c.suffix.lower() == ".xml" and c.is_file() and c.resolve() not in seen:
                 todo.append(c.resolve())
     return None
