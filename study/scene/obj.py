@@ -19,9 +19,9 @@
 
 from __future__ import annotations
 
+import operator
 import re
 from collections import Counter
-from operator import methodcaller
 from pathlib import Path
 
 import numpy as np
@@ -145,17 +145,24 @@ def _resolve(raw: np.ndarray, n_before: np.ndarray, lines: np.ndarray, what: str
     return j
 
 
-def _corners(tokens: list[str], line_of: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]:
-    """(vertex, texture coordinate) OBJ indices of face corners ``v``, ``v/t``, ``v//n`` or ``v/t/n`` (t = 0
-    where none is given)."""
-    k = tokens[0].count("/") if tokens else 0
-    if set(map(methodcaller("count", "/"), tokens)) <= {k}:  # one layout throughout: parsed at once
+def _corners(body: bytes, ntok: int, line_of: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]:
+    """(vertex, texture coordinate) OBJ indices of the face corners in ``body`` (the faces' bodies, one per line,
+    single-spaced): ``v``, ``v/t``, ``v//n`` or ``v/t/n`` (t = 0 where none is given). One layout throughout is
+    parsed at once; anything else, corner by corner (naming the line of a bad one)."""
+    a = np.frombuffer(body, np.uint8)
+    first = np.r_[0, np.flatnonzero((a == 32) | (a == 10)) + 1]  # where each token starts
+    slashes = np.add.reduceat(a == 47, first, dtype=np.int64) if len(a) and len(first) == ntok else None
+    k = int(slashes[0]) if slashes is not None and ntok else 0
+    longest = int(np.diff(np.r_[first, len(a) + 1]).max()) - 1 if ntok else 0
+    if slashes is not None and ntok and (slashes == k).all() and k <= 2 and longest <= 18 + 2 * k:
         try:
-            text = " ".join(tokens).replace("//", "/0/").replace("/", " ")
-            a = np.fromiter(map(int, text.split()), np.int64).reshape(len(tokens), k + 1)
-            return a[:, 0], a[:, 1] if k >= 1 else np.zeros(len(tokens), np.int64)
-        except (ValueError, OverflowError):
-            pass  # the loop below names the corner
+            ints = np.fromstring(body.replace(b"//", b"/0/").replace(b"/", b" "), np.int64, sep=" ")
+        except ValueError:
+            ints = None
+        if ints is not None and len(ints) == ntok * (k + 1):
+            ints = ints.reshape(ntok, k + 1)
+            return ints[:, 0], ints[:, 1] if k >= 1 else np.zeros(ntok, np.int64)
+    tokens = body.decode("utf-8", "replace").split()
     v, t = np.zeros(len(tokens), np.int64), np.zeros(len(tokens), np.int64)
     for i, tok in enumerate(tokens):
         parts = tok.split("/")
@@ -169,30 +176,90 @@ def _corners(tokens: list[str], line_of: np.ndarray, src: str) -> tuple[np.ndarr
     return v, t
 
 
+def _normalised(raw: bytes) -> bytes:
+    """The file with one kind of line end and one kind of blank, continuations joined and indentation removed."""
+    if b"\r" in raw:
+        raw = raw.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    raw = raw.replace(b"\\\n", b" ")  # a line continued on the next
+    if b"\t" in raw or b"\v" in raw or b"\f" in raw:  # any run of blanks separates: one kind of blank
+        raw = raw.replace(b"\t", b" ").replace(b"\v", b" ").replace(b"\f", b" ")
+    if b"\n " in raw or raw.startswith(b" "):
+        raw = re.sub(rb"(?m)^ +", b"", raw)
+    return raw
+
+
+def _bodies(lines: list[bytes], idx: np.ndarray, head: bytes) -> tuple[bytes, np.ndarray]:
+    """The statements ``head`` (``b"v"``, ``b"f"`` …) at line indices ``idx``: their bodies, single-spaced, one per
+    line, and the number of tokens of each (in file order)."""
+    if not len(idx):
+        return b"", np.zeros(0, np.int64)
+    picked = operator.itemgetter(*idx)(lines)
+    body = b"\n".join(picked) if len(idx) > 1 else picked
+    body = body.replace(b"\n" + head + b" ", b"\n")[len(head) + 1 :]
+    if b"  " in body:
+        body = re.sub(rb" +", b" ", body)
+    if body.startswith(b" ") or body.endswith(b" ") or b"\n " in body or b" \n" in body:
+        body = re.sub(rb"(?m)^ | $", b"", body)
+    a = np.frombuffer(body, np.uint8)
+    nl = np.flatnonzero(a == 10)
+    lo, hi = np.r_[0, nl + 1], np.r_[nl, len(a)]
+    spaces = (
+        np.add.reduceat(a == 32, np.minimum(lo, len(a) - 1), dtype=np.int64) if len(a) else np.zeros(len(lo))
+    )
+    return body, np.where(hi > lo, spaces + 1, 0).astype(np.int64)
+
+
+def _numbers(body: bytes, n: np.ndarray, cols: int, lines_no: np.ndarray, what: str, src: str) -> np.ndarray:
+    """The first ``cols`` numbers of each line of ``body`` (float64; pandas' C parser), missing ones 0."""
+    import io
+
+    import pandas as pd
+
+    if not len(n):
+        return np.zeros((0, cols))
+    try:
+        df = pd.read_csv(io.BytesIO(body), sep=" ", header=None, names=range(max(int(n.max()), cols)),
+                         dtype=np.float64, engine="c", skip_blank_lines=False)  # fmt: skip
+    except ValueError:
+        for i, ln in enumerate(body.split(b"\n")):  # name the line
+            for x in ln.split()[:cols]:
+                try:
+                    float(x)
+                except ValueError:
+                    raise StudyError(f"line {int(lines_no[i])}: {what} {x.decode(errors='replace')!r} is not a "
+                                     "number", key=src) from None  # fmt: skip
+        raise StudyError(f"a {what} is not a number", key=src) from None
+    out = df.to_numpy()[:, :cols]
+    out[np.arange(cols)[None, :] >= n[:, None]] = 0.0
+    return out
+
+
+def _lines(raw: bytes) -> dict[str, np.ndarray]:
+    """Each line's start and end offset in ``raw`` and what it holds (``v``, ``vt``, ``f``, or ``other``), from its
+    first bytes, for the whole file at once."""
+    a = np.frombuffer(raw, np.uint8)
+    nl = np.flatnonzero(a == 10)
+    start, end = np.r_[0, nl + 1], np.r_[nl, len(a)]
+    p = np.r_[a, np.zeros(3, np.uint8)]
+    c0, c1, c2 = p[start], p[start + 1], p[start + 2]
+    v, f = (c0 == ord("v")) & (c1 == 32), (c0 == ord("f")) & (c1 == 32)
+    vt = (c0 == ord("v")) & (c1 == ord("t")) & (c2 == 32)
+    quiet = (c0 == ord("#")) | (start == end) | ((c0 == ord("v")) & (c1 == ord("n")))  # normals: not used
+    return {"start": start, "end": end, "v": v, "vt": vt, "f": f, "other": ~(v | vt | f | quiet)}
+
+
 def read_obj(path: Path, src: str, default_color: tuple) -> Loaded:
     """The OBJ at ``path`` as parts (one per material), with their MTL colours, textures and emission."""
     mtllibs: list[Path] = []
     ignored: Counter = Counter()
-    text = path.read_text(errors="replace")
-    if "\r" in text:
-        text = text.replace("\r\n", "\n").replace("\r", "\n")
-    text = text.replace("\\\n", " ")  # a line continued on the next
-    if "\t" in text or "\v" in text or "\f" in text:  # any run of blanks separates: one kind of blank
-        text = text.replace("\t", " ").replace("\v", " ").replace("\f", " ")
-    if "\n " in text or text.startswith(" "):  # indented lines
-        text = re.sub(r"(?m)^ +", "", text)
-    lines = text.splitlines()
-    head = [ln[:2] for ln in lines]
-    is_v = np.fromiter((h == "v " for h in head), bool, len(lines))
-    is_vt = np.fromiter(
-        (h == "vt" and ln[2:3] in (" ", "\t") for h, ln in zip(head, lines)), bool, len(lines)
-    )
-    is_f = np.fromiter((h == "f " for h in head), bool, len(lines))
+    raw = _normalised(path.read_bytes())
+    L = _lines(raw)
+    lines = raw.split(b"\n")
     materials: list[str] = [""]
     mat_at = [(0, 0)]  # (line index, material) from that line on
-    skip = np.fromiter((h in ("vn", "# ") for h in head), bool, len(lines))  # normals: not used
-    for i in np.flatnonzero(~(is_v | is_vt | is_f | skip)):
-        tok = lines[i].split()
+    for i in np.flatnonzero(L["other"]):
+        line = raw[L["start"][i] : L["end"][i]].decode("utf-8", "replace")
+        tok = line.split()
         if not tok or tok[0].startswith("#"):
             continue
         k = tok[0]
@@ -207,49 +274,37 @@ def read_obj(path: Path, src: str, default_color: tuple) -> Loaded:
                 materials.append(name)
             mat_at.append((i, materials.index(name)))
         elif k == "mtllib":
-            rest = lines[i].split(None, 1)[1].strip() if len(tok) > 1 else ""
+            rest = line.split(None, 1)[1].strip() if len(tok) > 1 else ""
             whole = named_file(path.parent, rest, what=f"line {i + 1}: mtllib", src=src) if rest else None
             names = [rest] if whole is not None and whole.is_file() else tok[1:]
             mtllibs += [named_file(path.parent, n, what=f"line {i + 1}: mtllib", src=src) for n in names]
         elif k in ("l", "p"):
             ignored["line" if k == "l" else "point"] += 1
-    vlines = [lines[i][2:] for i in np.flatnonzero(is_v)]
-    vtok = " ".join(vlines).split()
-    try:
-        if len(vtok) == 3 * len(vlines):
-            Va = np.array(vtok, float).reshape(-1, 3)
-        else:  # w or vertex colours on some lines
-            rows = [ln.split() for ln in vlines]
-            if any(len(r) < 3 for r in rows):
-                i = next(j for j, r in enumerate(rows) if len(r) < 3)
-                raise StudyError(f"line {int(np.flatnonzero(is_v)[i]) + 1}: a vertex needs x y z", key=src)
-            ignored["vertex colour"] += sum(len(r) >= 6 for r in rows)
-            Va = np.array([r[:3] for r in rows], float).reshape(-1, 3)
-        VTa = np.array(
-            [(ln.split()[1:3] + ["0"])[:2] for ln in (lines[i] for i in np.flatnonzero(is_vt))], float
-        )
-        VTa = VTa.reshape(-1, 2)
-    except ValueError as err:
-        raise StudyError(f"a vertex is not a number ({err})", key=src) from None
-    fidx = np.flatnonzero(is_f)
-    fbody = [lines[i][2:].strip() for i in fidx]
-    tokens = " ".join(fbody).split()
-    counts = [b.count(" ") + 1 for b in fbody]  # single spaces (the usual): corners = spaces + 1
-    if sum(counts) != len(tokens):
-        counts = [len(b.split()) for b in fbody]
-    if counts and min(counts) < 3:
+    # ------------------------------------------------------------------ vertices and texture coordinates
+    vbody, vn = _bodies(lines, np.flatnonzero(L["v"]), b"v")
+    vlines_no = np.flatnonzero(L["v"]) + 1
+    if len(vn) and vn.min() < 3:
+        raise StudyError(f"line {int(vlines_no[np.argmin(vn)])}: a vertex needs x y z", key=src)
+    if (vn >= 6).any():
+        ignored["vertex colour"] += int((vn >= 6).sum())
+    Va = _numbers(vbody, vn, 3, vlines_no, "vertex coordinate", src)
+    tbody, tn = _bodies(lines, np.flatnonzero(L["vt"]), b"vt")
+    VTa = _numbers(tbody, tn, 2, np.flatnonzero(L["vt"]) + 1, "texture coordinate", src)
+    # ------------------------------------------------------------------ faces
+    fidx = np.flatnonzero(L["f"])
+    fbody, counts_a = _bodies(lines, fidx, b"f")
+    if len(counts_a) and counts_a.min() < 3:
         raise StudyError(
-            f"line {int(fidx[counts.index(min(counts))]) + 1}: a face needs at least 3 vertices", key=src
+            f"line {int(fidx[np.argmin(counts_a)]) + 1}: a face needs at least 3 vertices", key=src
         )
-    nv = np.cumsum(is_v)[fidx]  # vertices defined before each face
-    nvt = np.cumsum(is_vt)[fidx]
-    lines_no = fidx + 1
+    nv = np.cumsum(L["v"])[fidx]  # vertices defined before each face
+    nvt = np.cumsum(L["vt"])[fidx]
     starts = np.array([m[0] for m in mat_at])
     fmat = np.array([m[1] for m in mat_at])[np.searchsorted(starts, fidx, side="right") - 1]
-    counts_a = np.asarray(counts, np.int64)
+    counts_a = counts_a.astype(np.int64)
     per_corner = lambda a: np.repeat(np.asarray(a, np.int64), counts_a)  # noqa: E731
-    line_of = per_corner(lines_no)
-    rv, rt = _corners(tokens, line_of, src)
+    line_of = per_corner(fidx + 1)
+    rv, rt = _corners(fbody, int(counts_a.sum()), line_of, src)
     vi = _resolve(rv, per_corner(nv), line_of, "vertex", src)
     has_t = rt != 0
     ti = np.full(len(rt), -1, np.int64)
