@@ -121,6 +121,10 @@ def test_motion_jod_table_and_claim(tiny):
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["video_metric"] == f"ColorVideoVDP (cvvdp {video.VERSION})"
     assert len(meta["motion_claim"]) == 2 and all("the claim" in c for c in meta["motion_claim"])
+    from study.outputs.sections import motion_claim_section
+
+    text = " ".join(str(p) for block in motion_claim_section(out, out / "motion.csv") for p in block)
+    assert f"measured with the extra study[video] installed: ColorVideoVDP (cvvdp {video.VERSION})" in text
 
 
 def test_without_cvvdp_the_jod_columns_say_so(tiny, monkeypatch):

@@ -19,9 +19,10 @@ E_warp of one step: over the pixels both seen and on the object in the current f
 mean of ‖I_t − Ŵ(I_{t−1})‖² over the sRGB channels in [0, 1] (Lai's L2) and the mean LDR-FLIP of Ŵ(I_{t−1})
 against I_t (:func:`study.measure.metrics.flip_map`). The warp interpolates the linear radiance bilinearly; a
 frame warped onto itself with no motion reads every pixel back exactly (E_warp 0). A sequence's value is the mean
-over its steps. It rises with everything that changes along the motion: a reflection that slides over the moving
-object changes truly, so the truth's own E_warp (``truth_at_hit``) is the floor a method is compared with; a method
-whose hits jump between frames flickers above it.
+over its steps. It counts every change along the motion, wanted or not: the truth's own (``truth_at_hit``) holds
+the reflection's true slide over the moving object and its Monte Carlo noise, drawn anew each frame. A method far
+above it flickers (hits that jump between frames); one below it changes less than the truth does — steadier, not
+closer (a reflection that lags the motion, as environment mapping's, is steady too).
 """
 
 from __future__ import annotations

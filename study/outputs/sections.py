@@ -179,7 +179,8 @@ def motion_claim_section(d: Path, table: Path) -> list[tuple]:
     with_jod = "not installed" not in used and any(isinstance(r.get("jod"), float) for r in rows)
     if with_jod:
         first = (
-            f"{used} scores each method's frame sequence against Mitsuba's in JOD (10: no visible difference; "
+            f"These frames were measured with the extra study[video] installed: {used} scores each method's frame "
+            "sequence against Mitsuba's in JOD (10: no visible difference; "
             f"1 JOD less: about 75 % of viewers prefer the reference) on its {m.get('jod_display', 'standard_fhd')}"
             " display (24-inch Full HD, 200 cd/m², office light, 0.6 m); truth_at_hit is the noise floor (exact "
             "hits, Mitsuba's shading). Intervals: bootstrap over 4 runs of consecutive frames. The claim holds "
@@ -197,7 +198,9 @@ def motion_claim_section(d: Path, table: Path) -> list[tuple]:
             "E_warp (study/measure/temporal.py): the frame before warped onto each frame along the exact motion "
             "(the renderer's exact hits moved by the object's step), masked where that point was hidden a frame "
             "earlier or lies off the object; ewarp_l2 is the mean squared sRGB difference, ewarp_flip the FLIP "
-            "of the two. truth_at_hit's E_warp is what the moving reflection truly changes: the floor."
+            "of the two. E_warp counts every change along the motion, wanted or not: truth_at_hit's holds the "
+            "reflection's true slide and its Monte Carlo noise, drawn anew each frame; a method far above it "
+            "flickers, one below it changes less than the truth does (steadier, not closer)."
         )
     cols = ["label", "flip_truth", "ewarp_l2", "ewarp_flip", "jod", "jod_lo", "jod_hi", "frames", "display"]
     return [
