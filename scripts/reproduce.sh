@@ -3,9 +3,11 @@
 # Finished work is cached (.cache/, reports/sweep-*/cases/): a second run only rebuilds what changed.
 # The commands are independent (each writes its own folder under reports/; the cache is shared safely), so two run
 # at a time, longest first, to keep both cores busy; each output line is prefixed by its command. The report last.
+# `bash scripts/reproduce.sh --video` sets up with the video extra first (cvvdp, PyTorch: the motion figure's JOD
+# columns; the committed report was made so), without it those columns say "cvvdp not installed".
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+bash scripts/setup.sh "$@"
 S=.venv/bin/study
 commands=(
   "sweep configs/sweep.toml --jobs 2"          # the main sweep: position × cube resolution × occlusion

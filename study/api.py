@@ -6,6 +6,7 @@
     res.table                    # pandas DataFrame: one row per method, and the oracle_map / truth_at_hit rows
     res.images["classical"]      # (H, W, 3) linear RGB; also "oracle_map", "truth_at_hit", "mitsuba"
     res.error_maps["classical"]  # (H, W) per-pixel RMS radiance error against truth_at_hit (NaN off the object)
+    res.images["localized"]      # the name will do where one parameterisation ran; a wrong key names the keys
     res.save("reports/my-run")   # table, one multi-layer EXR, image grid, viewer page: written as one set
 
 :func:`load_scene` reads a scene TOML, a mesh file (the environment: OBJ/PLY/GLB/STL/OFF), a Mitsuba XML file, a
@@ -180,6 +181,62 @@ def _methods_of(s: Any, expand_methods) -> list:
 
 
 # ---------------------------------------------------------------------------------------------- results
+class MissingKey(KeyError):
+    """A key none of a result's mappings hold: its message names the keys that are (not KeyError's bare repr)."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
+
+
+class Maps(dict):
+    """A result's label → array mapping that also takes the keys a person would type: the method's name
+    (``"localized"``) where one parameterisation of it ran (the label is ``"localized(iterations=3)"``), and a
+    label spelled with other spaces (``"localized( iterations = 3 )"``). A key it cannot resolve raises a
+    :class:`KeyError` that names the keys it holds; one that fits several labels names those."""
+
+    what = "maps"  # the attribute's name, for messages
+
+    def _label(self, key: Any) -> Any:
+        """The stored label ``key`` stands for; :class:`MissingKey` where none or several."""
+        if dict.__contains__(self, key):
+            return key
+        if isinstance(key, str):
+            bare = re.sub(r"\s+", "", key)
+            same = [k for k in self if isinstance(k, str) and re.sub(r"\s+", "", k) == bare]
+            if len(same) == 1:
+                return same[0]
+            runs = [k for k in self if isinstance(k, str) and "(" not in bare and k.split("(", 1)[0] == bare]
+            if len(runs) == 1:
+                return runs[0]
+            if len(runs) > 1:
+                raise MissingKey(
+                    f"{self.what}[{key!r}]: {key} ran with {len(runs)} parameterisations; name one: "
+                    + ", ".join(map(repr, runs))
+                )
+        raise MissingKey(
+            f"{self.what}[{key!r}]: no such key; valid keys: {', '.join(map(repr, self)) or 'none'}"
+        )
+
+    def __getitem__(self, key: Any) -> np.ndarray:
+        return dict.__getitem__(self, self._label(key))
+
+    def __contains__(self, key: Any) -> bool:
+        try:
+            self._label(key)
+        except KeyError:
+            return False
+        return True
+
+    def get(self, key: Any, default: Any = None) -> Any:
+        return self[key] if key in self else default
+
+
+def _maps(what: str, data: Mapping | None) -> Maps:
+    out = Maps(data or {})
+    out.what = what
+    return out
+
+
 @dataclass(eq=False)
 class Result:
     """What :func:`evaluate` measured on one scene.
@@ -204,6 +261,12 @@ class Result:
     mask: np.ndarray | None = None
     backend: str = "numpy"
     occluded: np.ndarray | None = None
+
+    def __post_init__(
+        self,
+    ) -> None:  # keys a person would type (:class:`Maps`), for every mapping of the result
+        for name in ("images", "error_maps", "flip_maps", "angle_maps", "outcome_maps"):
+            setattr(self, name, _maps(name, getattr(self, name)))
 
     @property
     def labels(self) -> list[str]:

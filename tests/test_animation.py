@@ -90,19 +90,65 @@ def test_animation_files_decode_with_the_right_frames(tiny):
     assert (out / "motion.png").stat().st_size > 0 and (out / "metadata.json").exists()
 
 
+def test_motion_table_has_the_temporal_error_of_every_sequence(tiny):
+    """Torch-free, with or without study[video]: motion.csv has per-frame FLIP and E_warp for each method and the
+    noise floor, frames.csv each step's E_warp (none for the first frame, which has no frame before it)."""
+    out = tiny / "out"
+    rows = {r["label"]: r for r in read_csv(out / "motion.csv")}
+    assert set(rows) == {"classical", "localized(iterations=10)", "truth_at_hit"}
+    for r in rows.values():
+        assert r["frames"] == 3 and r["ewarp_l2"] >= 0 and 0 <= r["ewarp_flip"] <= 1, r
+    assert rows["truth_at_hit"]["flip_truth"] == 0 and rows["classical"]["flip_truth"] > 0
+    steps = [r for r in read_csv(out / "frames.csv") if r["label"] == "classical"]
+    assert np.isnan(steps[0]["ewarp_l2"]) and all(r["ewarp_pixels"] > 0 for r in steps[1:])
+    assert np.mean([r["ewarp_l2"] for r in steps[1:]]) == pytest.approx(rows["classical"]["ewarp_l2"])
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["temporal_metric"] == animation.TEMPORAL_METRIC
+    assert not (out / "jod.csv").exists()  # one table
+
+
 def test_motion_jod_table_and_claim(tiny):
     """With study[video]: a JOD row per method and the noise floor (truth_at_hit), each within (0, 10] with its
     interval around it (or none for a sequence too short to split), and the motion claim's verdicts."""
     from study.measure import video
 
     if not video.available():
-        pytest.skip("needs the extra study[video]")
+        pytest.skip("needs the extra study[video] (cvvdp, PyTorch): bash scripts/setup.sh --video")
     out = tiny / "out"
-    rows = {r["label"]: r for r in read_csv(out / "jod.csv")}
+    rows = {r["label"]: r for r in read_csv(out / "motion.csv")}
     assert set(rows) == {"classical", "localized(iterations=10)", "truth_at_hit"}
     assert all(0 < r["jod"] <= 10 and r["display"] == video.DISPLAY for r in rows.values())
     meta = json.loads((out / "metadata.json").read_text())
+    assert meta["video_metric"] == f"ColorVideoVDP (cvvdp {video.VERSION})"
     assert len(meta["motion_claim"]) == 2 and all("the claim" in c for c in meta["motion_claim"])
+    from study.outputs.sections import motion_claim_section
+
+    text = " ".join(str(p) for block in motion_claim_section(out, out / "motion.csv") for p in block)
+    assert f"measured with the extra study[video] installed: ColorVideoVDP (cvvdp {video.VERSION})" in text
+
+
+def test_without_cvvdp_the_jod_columns_say_so(tiny, monkeypatch):
+    """Without study[video] (made so here where it is installed): the animation still runs, its JOD columns say
+    "cvvdp not installed", no claim is judged in JOD, and the report says which metric was used."""
+    from study.measure import video
+    from study.outputs.sections import media_section
+
+    monkeypatch.setattr(video, "available", lambda: False)
+    reports = tiny / "reports"
+    res = runner.invoke(
+        app,
+        ["animate", "--config", str(tiny / "motion.toml"), "--out", str(reports / "animation"),
+         "--cache", str(tiny / "cache")],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    rows = read_csv(reports / "animation" / "motion.csv")
+    assert all(r[k] == "cvvdp not installed" for r in rows for k in ("jod", "jod_lo", "jod_hi"))
+    assert all(np.isfinite(r["ewarp_flip"]) for r in rows)
+    meta = json.loads((reports / "animation" / "metadata.json").read_text())
+    assert meta["video_metric"] == "cvvdp not installed" and "motion_claim" not in meta
+    text = " ".join(str(p) for block in media_section(reports) for p in block)
+    assert "ColorVideoVDP was not installed when these frames were measured" in text and "E_warp" in text
+    assert "(ColorVideoVDP)" not in text and "cvvdp not installed" in text
 
 
 @pytest.mark.parametrize(

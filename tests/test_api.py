@@ -251,3 +251,33 @@ def test_cuda_backend_renders_on_the_gpu_too(monkeypatch):
     with pytest.raises(Stop):
         study.evaluate(small_scene_dict(), ["classical"], backend="cuda", cache=None)
     assert seen == ["cuda"] and runtime.render_device() == before
+
+
+def test_keys_a_person_would_type(result):
+    """``res.images["localized"]`` where one parameterisation of localized ran, a label with other spaces, and an
+    unknown key: a KeyError naming the valid keys — alike for every mapping of the result."""
+    for name in ("images", "error_maps", "flip_maps", "angle_maps", "outcome_maps"):
+        maps = getattr(result, name)
+        assert maps["localized"] is maps["localized(iterations=3)"] is maps["localized( iterations = 3 )"]
+        assert "localized" in maps and maps.get("localized") is maps["localized(iterations=3)"]
+        assert "nope" not in maps and maps.get("nope", 7) == 7
+        with pytest.raises(KeyError) as err:
+            maps["glossy"]
+        text = str(err.value)
+        assert text.startswith(f"{name}['glossy']: no such key; valid keys: ") and "\n" not in text
+        assert "'classical'" in text and "'localized(iterations=3)'" in text
+    assert result.images["mitsuba"].shape == (32, 32, 3)
+    assert list(result.images)[:3] == ["oracle_map", "truth_at_hit", "mitsuba"]  # iteration: the labels
+
+
+def test_a_name_that_ran_twice_names_its_labels():
+    from study.api import Maps
+
+    maps = Maps({"localized(iterations=1)": 1, "localized(iterations=3)": 3, "localized_prefiltered": 5})
+    with pytest.raises(KeyError) as err:
+        maps["localized"]
+    assert str(err.value) == (
+        "maps['localized']: localized ran with 2 parameterisations; name one: "
+        "'localized(iterations=1)', 'localized(iterations=3)'"
+    )
+    assert maps["localized_prefiltered"] == 5 and maps["localized(iterations=1)"] == 1

@@ -1,12 +1,16 @@
 """ColorVideoVDP (optional extra study[video]) on short sequences with a known perturbation: identical videos score
-10 JOD, a visible perturbation scores clearly less, a larger one less still; the motion claim's verdicts follow."""
+10 JOD, a visible perturbation scores clearly less, a larger one less still (skipped, saying so, without the extra);
+the motion claim's verdicts follow."""
 
 import numpy as np
 import pytest
 
 from study.measure import video
 
-pytestmark = pytest.mark.skipif(not video.available(), reason="needs the extra study[video] (cvvdp, PyTorch)")
+needs_cvvdp = pytest.mark.skipif(
+    not video.available(),
+    reason="needs the extra study[video] (cvvdp, PyTorch): bash scripts/setup.sh --video",
+)
 
 
 def sequence(frames=8, size=48, seed=0):
@@ -20,6 +24,7 @@ def sequence(frames=8, size=48, seed=0):
     return out
 
 
+@needs_cvvdp
 def test_identical_is_10_and_a_perturbation_is_seen():
     ref = sequence()
     m = video._metric()
@@ -33,7 +38,7 @@ def test_identical_is_10_and_a_perturbation_is_seen():
     assert q_small < 9.8 and q_big < q_small - 0.3, (q_small, q_big)
 
 
-def test_motion_claim_verdicts():
+def test_motion_claim_verdicts():  # the verdicts' logic: no cvvdp needed
     rows = [
         {"label": "truth_at_hit", "jod": 9.6, "jod_lo": 9.5, "jod_hi": 9.7},
         {"label": "good", "jod": 9.4, "jod_lo": 9.3, "jod_hi": 9.5},

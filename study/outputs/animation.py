@@ -14,8 +14,14 @@ the methods' images and Mitsuba's render (the truth), bottom row each method's i
 blended over it (:mod:`study.measure.outcomes`: wrong depth orange, wrong surface red, no hit grey; correct
 pixels left as they are) and its wrong-hit fraction. Outputs, one set (:func:`study.io.write_set`: made first, then
 written and swapped in together): ``motion.gif`` and/or ``motion.mp4``, ``frames.csv`` (the cases' rows: one per frame ×
-method, with ``frame`` and ``path_m``, the distance travelled), ``motion.png`` (wrong-hit fraction per method
-along the path) and ``metadata.json``.
+method, with ``frame`` and ``path_m``, the distance travelled, and the step's E_warp from the frame before),
+``motion.png`` (wrong-hit fraction per method along the path), ``motion.csv`` and ``metadata.json``.
+
+``motion.csv`` judges each method's sequence, and the noise floor's (``truth_at_hit``: exact hits, Mitsuba's
+shading), as a sequence: ``flip_truth`` (per-frame FLIP against truth_at_hit, the frames' mean), ``ewarp_l2`` and
+``ewarp_flip`` (the temporal error along the exact motion, torch-free: :mod:`study.measure.temporal`) and the JOD
+of ColorVideoVDP against Mitsuba's sequence (:mod:`study.measure.video`) — where the extra ``study[video]`` is not
+installed, the JOD columns say "cvvdp not installed", and ``metadata.json``'s ``video_metric`` says which it was.
 """
 
 from __future__ import annotations
@@ -36,7 +42,7 @@ from study.harness import budget
 from study.harness.config import MethodSpecs, configured_scene, expand_methods
 from study.harness.runner import metadata
 from study.io import atomic_savefig, locked, write_set
-from study.measure import video
+from study.measure import temporal, video
 from study.measure.case import CaseOutput
 from study.measure.metrics import to_ldr
 from study.measure.outcomes import NAMES as OUTCOME_NAMES
@@ -46,6 +52,10 @@ from study.tables import to_csv
 from study.validation import validate_file
 
 ALPHA = 0.6  # opacity of an outcome colour over the image
+#: what ``metadata.json`` (``video_metric``, ``temporal_metric``) and the report say was measured
+VIDEO_METRIC = f"ColorVideoVDP (cvvdp {video.VERSION})"
+NO_CVVDP = "cvvdp not installed"
+TEMPORAL_METRIC = "E_warp along the exact motion (study.measure.temporal)"
 
 
 class MotionConfig(BaseModel):
@@ -211,7 +221,7 @@ def _animate(config, out, backend, cache, progress, job: pg.Task) -> list[dict]:
     budget.check_cases(scenes, methods, source=str(config))
     store, rows, frames, cases = Cache(cache), [], [], []
     t0 = time.perf_counter()
-    owns = ["motion.gif", "motion.mp4", "motion.png", "frames.csv", "metadata.json", "jod.csv"]
+    owns = ["motion.gif", "motion.mp4", "motion.png", "frames.csv", "metadata.json", "motion.csv", "jod.csv"]
     with locked(out):  # one command at a time here; the files are made first, then written together
         for i, (case_id, sc) in enumerate(scenes):
             with pg.item(case_id):
@@ -252,14 +262,9 @@ def _animate(config, out, backend, cache, progress, job: pg.Task) -> list[dict]:
                 _mp4(d / "motion.mp4", stack, cfg.fps)
             plot(rows, labels, d / "motion.png")
             files.update({p.name: p.read_bytes() for p in d.iterdir() if p.name in owns})
+        table, claim = motion_table(cases, [sc for _, sc in scenes], labels, rows, fps=cfg.fps)
         files["frames.csv"] = to_csv(rows)
-        claim = []
-        if video.available():  # ColorVideoVDP (study[video]): JOD of each method's sequence against Mitsuba's
-            seq = {lab: np.stack([to_ldr(c.images[lab]) for c in cases]) for lab in labels}
-            seq["truth_at_hit"] = np.stack([to_ldr(c.truth) for c in cases])  # the noise floor
-            jods = video.motion_rows(seq, np.stack([to_ldr(c.mitsuba) for c in cases]), fps=cfg.fps)
-            files["jod.csv"] = to_csv(jods)
-            claim = video.motion_claim(jods)
+        files["motion.csv"] = to_csv(table)
         meta = metadata(
             config,
             backend=backend,
@@ -269,12 +274,43 @@ def _animate(config, out, backend, cache, progress, job: pg.Task) -> list[dict]:
             kind="animation",
             seconds=round(time.perf_counter() - t0, 1),
         )
+        meta["video_metric"] = VIDEO_METRIC if video.available() else NO_CVVDP
+        meta["temporal_metric"] = TEMPORAL_METRIC
         if claim:
             meta["motion_claim"] = claim
             meta["jod_display"] = video.DISPLAY
         files["metadata.json"] = json.dumps(meta, indent=2)
         write_set(out, files, owns, lock=False)
     return rows
+
+
+def motion_table(
+    cases: list[CaseOutput], scenes: list, labels: list[str], rows: list[dict], *, fps: float
+) -> tuple[list[dict], list[str]]:
+    """(``motion.csv``'s rows, the motion claim's sentences) of the frames' cases (module docstring); ``rows``
+    (frames.csv's) gain each step's E_warp. The claim needs ColorVideoVDP: none without it."""
+    seqs = {lab: [c.images[lab] for c in cases] for lab in labels}
+    seqs["truth_at_hit"] = [c.truth for c in cases]  # the noise floor
+    flows = temporal.sequence_flows(scenes)
+    table, at = [], {(r["frame"], r["label"]): r for r in rows}
+    for lab, frames in seqs.items():
+        whole, steps = temporal.sequence_ewarp(frames, flows)
+        for i, step in enumerate(steps, start=1):
+            if (i, lab) in at:
+                at[(i, lab)].update(step)
+        flips = [r.get("flip_truth", np.nan) for r in rows if r["label"] == lab]
+        table.append({"label": lab, "frames": len(frames), "flip_truth": float(np.nanmean(flips)), **whole})
+    claim: list[str] = []
+    if video.available():  # ColorVideoVDP (study[video]): JOD of each sequence against Mitsuba's
+        ldr = {lab: np.stack([to_ldr(f) for f in frames]) for lab, frames in seqs.items()}
+        jods = video.motion_rows(ldr, np.stack([to_ldr(c.mitsuba) for c in cases]), fps=fps)
+        claim = video.motion_claim(jods)
+        for t, j in zip(table, jods):
+            t.update({k: v for k, v in j.items() if k not in ("label", "frames")})
+    else:
+        for t in table:
+            t.update({"jod": NO_CVVDP, "jod_lo": NO_CVVDP, "jod_hi": NO_CVVDP, "display": "", "cvvdp": ""})
+    return table, claim
 
 
 def _mp4(path: Path, frames: np.ndarray, fps: float) -> None:
