@@ -1,10 +1,14 @@
-"""One case end to end: capture → shade the object with each method → references → metrics.
+"""One case end to end, as a pipeline of named stages: inputs → exact hits and references → traces → columns → rows.
 
 A reader can follow one ray here: camera ray → object (``shading.object_rays``) → reflected ray (x, R) →
 ``method.trace`` on the chosen backend → shown point and radiance → Fresnel → composited image; the same ray →
 Embree exact hit → outcome class and angular error; the images → image error against the oracle_map, the
 truth_at_hit and Mitsuba (:mod:`study.measure.truth`), and the error split over every object pixel
 (:mod:`study.measure.split`, which also defines the oracle).
+
+The references are traces too (:class:`Traced`): ``oracle_map`` and ``truth_at_hit`` show the exact hit, with the
+impostor's radiance and with the truth's, and their rows come from the same producer as every method's
+(:func:`_row`), so no row is written by hand.
 """
 
 from __future__ import annotations
@@ -74,6 +78,87 @@ def knob_columns(m: Method) -> dict:
     }
 
 
+# ---------------------------------------------------------------------------------------------- stage records
+@dataclass
+class ExactHits:
+    """The exact answers for the object's rays: Embree's hits (escaping rays at ``FAR`` in their direction), which
+    of them the reference point o cannot see, each ray's tolerance and which hits the camera's frame does not show."""
+
+    point: np.ndarray  # (K, 3) exact hit
+    escapes: np.ndarray  # (K,) the ray leaves the scene
+    to_hit: np.ndarray  # (K, 3) exact hit − o
+    occluded: np.ndarray  # (K,) the exact hit is hidden from o
+    eps: np.ndarray  # (K,) outcome tolerance: max(1 cm, one texel at the hit)
+    offscreen: np.ndarray  # (K,) the exact hit lies outside the camera's frame
+
+
+@dataclass
+class Traced:
+    """One row's input: what a method (or a reference) shows for every ray, and its image."""
+
+    method: str
+    label: str
+    knobs: dict  # family, knob, knob_value
+    shown: np.ndarray  # (K, 3) the shown point
+    image: np.ndarray  # (H, W, 3) the composited image
+    ratio: np.ndarray  # (K,) the search's distance ratio at the end (1: converged)
+    valid: np.ndarray  # (K,) rays the method answered
+    lookups: float  # mean lookups per ray
+    bound: float  # the method's lookups_per_ray bound
+    seconds: float = 0.0
+    reference: str = ""  # "oracle_map" / "truth_at_hit" for the references' rows
+    over: np.ndarray | None = None  # pixels its image columns are taken over (None: every object pixel)
+
+
+def _exact(scene: Scene, tracer, rays, o: np.ndarray) -> ExactHits:
+    ex_o, ex_d = rays.exact_rays()  # dielectrics: the exactly traced rays
+    point = tracer.intersect(ex_o, ex_d)["point"]
+    escapes = ~np.all(np.isfinite(point), axis=-1)  # open environments: the ray leaves the scene
+    point[escapes] = ex_o[escapes] + ex_d[escapes] * FAR  # "no surface": at infinity (cubemap.FAR)
+    to_hit = point - o
+    hit_dist = np.linalg.norm(to_hit, axis=-1)
+    seen = tracer.distance(np.broadcast_to(o, to_hit.shape), to_hit / hit_dist[:, None])
+    return ExactHits(
+        point,
+        escapes,
+        to_hit,
+        occluded=seen < hit_dist * (1 - 1e-4) - 1e-5,
+        eps=outcomes.tolerance(o, point, scene.render.cube_res),
+        offscreen=outcomes.off_screen(scene.camera, point),
+    )
+
+
+def _trace(m: Method, B, env, x, R, rays, o: np.ndarray, F: np.ndarray, background, res: int) -> Traced:
+    """``m`` on the case's rays (relative to o) on backend B: one kernel for all its outputs, then numpy."""
+    t0 = time.perf_counter()
+    with np.errstate(divide="ignore", invalid="ignore"):  # numpy evaluates both sides of every select
+        tr = m.trace(B, env, x, R)
+    B.eval(*(getattr(tr.shown, c) for c in "xyz"), *(getattr(tr.radiance, c) for c in "xyz"), tr.ratio, tr.valid,
+           tr.lookups)  # fmt: skip
+    shown = B.to_numpy(tr.shown).astype(np.float64) + o
+    rad = B.to_numpy(tr.radiance).astype(np.float64)
+    ratio, valid = B.numpy(tr.ratio), B.numpy(tr.valid).astype(bool)
+    seconds = time.perf_counter() - t0
+    lookups, bound = checked_lookups(m, B.numpy(tr.lookups), res)
+    if not np.isfinite(shown[valid]).all():
+        raise StudyError(
+            f"method {m.name!r} returned {int((~np.isfinite(shown[valid])).any(-1).sum())} non-finite "
+            "point(s) on rays it marked valid (NaN or inf)",
+            key="method",
+        )
+    image = shading.composite(rays, np.nan_to_num(rad) * F, background)
+    return Traced(m.name, m.label, knob_columns(m), shown, image, ratio, valid, lookups, bound, seconds)
+
+
+def _reference_trace(name: str, image: np.ndarray, exact: ExactHits, over: np.ndarray) -> Traced:
+    """A reference as a trace: the exact hit shown on every ray, one lookup for the oracle (its impostor read)."""
+    K = len(exact.point)
+    knobs = {"family": name, "knob": "", "knob_value": np.nan}
+    n = 1 if name == "oracle_map" else 0
+    return Traced(name, name, knobs, exact.point, image, np.ones(K), np.ones(K, bool), n, n, reference=name,
+                 over=over)  # fmt: skip
+
+
 # ---------------------------------------------------------------------------------------------- the case
 def run_case(
     scene: Scene,
@@ -84,14 +169,16 @@ def run_case(
     case_id: str = "",
     keep_images: bool = True,
 ) -> CaseOutput:
+    """Every method and both references on the same rays of one case: their rows (one per trace, columns of
+    :func:`_row`) and, with ``keep_images``, their images and per-pixel maps."""
     cache = cache or Cache(None)
     B = backends.get(backend)
     mark = progress.Stages()  # load, capture, probes, references, methods, metrics (study.progress)
+
+    # ------------------------------------------------------------------ inputs: rays, impostor, renders, views
     mark("load")
     tracer = make_tracer(scene.mesh())
-    rays = shading.object_rays(
-        scene, occluder=tracer.distance
-    )  # a case that would be empty is refused before rendering
+    rays = shading.object_rays(scene, occluder=tracer.distance)  # an empty case is refused before rendering
     if int(rays.full.sum()) < 4:  # too few object pixels: every image metric would be NaN
         raise StudyError(
             f"the camera sees {int(rays.full.sum())} pixel(s) fully on the object, at least 4 are "
@@ -100,8 +187,6 @@ def run_case(
             key="object.center",
         )
     o = np.asarray(scene.reference.point, float)
-
-    # ------------------------------------------------------------------ inputs: impostor, renders, views
     mark("capture")
     imp = impostor(scene, cache, tracer)
     background = camera_render(scene, cache, with_object=False)
@@ -111,85 +196,93 @@ def run_case(
     lobe = Lobe(scene.object.alpha, B.vec(rays.N)) if rays.src is None else None  # glossy: conductors only
     env = capture_views(scene, methods, imp, B, cache=cache, tracer=tracer, background=background, lobe=lobe)
 
-    # ------------------------------------------------------------------ exact references: Mitsuba, Embree, oracle
+    # ------------------------------------------------------------------ exact hits and references
     mark("references")
-    seeds = [
-        camera_render(sc, cache, with_object=True)  # Mitsuba with the object, two seeds
-        for sc in (scene, scene.with_updates({"render.seed": scene.render.seed + truth.SEED_OFFSET}))
-    ]
+    seeds = [camera_render(sc, cache, with_object=True)  # Mitsuba with the object, two seeds
+             for sc in (scene, scene.with_updates({"render.seed": scene.render.seed + truth.SEED_OFFSET}))]  # fmt: skip
     for img in seeds:
         _finite(scene, "render", img)
     mitsuba = (seeds[0] + seeds[1]) / 2
     F = shading.fresnel(scene, rays)
     mask = rays.full
-    ex_o, ex_d = rays.exact_rays()  # dielectrics: the exactly traced rays
-    exact = tracer.intersect(ex_o, ex_d)["point"]
-    escapes = ~np.all(np.isfinite(exact), axis=-1)  # open environments: the ray leaves the scene
-    exact[escapes] = ex_o[escapes] + ex_d[escapes] * FAR  # "no surface": at infinity (cubemap.FAR)
-    to_hit = exact - o
-    hit_dist = np.linalg.norm(to_hit, axis=-1)
-    seen = tracer.distance(np.broadcast_to(o, to_hit.shape), to_hit / hit_dist[:, None])
-    occluded = seen < hit_dist * (1 - 1e-4) - 1e-5  # the exact hit is hidden from o
-    nb = backends.get("numpy")
+    exact = _exact(scene, tracer, rays, o)
     ref = truth.build(scene, cache, rays, F, background, seeds)  # truth_at_hit and the noise images
-    held = split.held(occluded, escapes)  # hits o's views hold: seen from o, or escaping to the background
-
-    def oracle_of(env):  # oracle_map from one capture (split.oracle_radiance)
-        looked = np.stack([np.asarray(c) for c in env.lookup(nb.vec(to_hit))[:3]], -1)
-        rad = split.oracle_radiance(looked, ref.along, held, escapes)
-        return shading.composite(rays, np.nan_to_num(rad) * F, background)
-
+    held = split.held(exact.occluded, exact.escapes)  # hits o's views hold: seen from o, or escaping
     held_px = split.held_pixels(rays, held)
+    nb = backends.get("numpy")
+    oracle_of = lambda e: _oracle(e, nb, exact, ref, held, rays, F, background)  # noqa: E731
     oracle_img = split.mark(oracle_of(EnvMap(imp.texels(), nb)), held_px | ~mask)  # unheld pixels: MARK
     oracle_seed, oracle_coarse = (oracle_of(EnvMap(t, nb)) for t in second_captures(scene, cache, imp))
     on_held = mask & held_px  # the pixels whose every hit the views hold: where the oracle has a value
-    sigma = truth.noise_rms(ref.noise, mask)  # the truth's own noise (debiased columns)
 
-    against = scene.render.flip_against  # the references FLIP is measured against (the others: NaN)
+    # ------------------------------------------------------------------ traces: the references, every method
+    mark("methods")
+    traces = [_reference_trace("oracle_map", oracle_img, exact, on_held),  # the oracle over the pixels it holds
+              _reference_trace("truth_at_hit", ref.image, exact, mask)]  # fmt: skip
+    x, R = B.vec(rays.x - o), B.vec(rays.R)
+    traces += [_trace(m, B, env, x, R, rays, o, F, background, scene.render.cube_res) for m in methods]
 
-    def image_columns(img, reference=False, fmap=None, over=mask):  # one image against every reference
-        cols = {
-            **metrics.image_errors(  # on held pixels; unheld ones take img's value (FLIP and SSIM filter
-                np.where((held_px | ~mask)[..., None], oracle_img, img),
-                img,
-                mask=on_held,
-                suffix="oracle",
-                backend=backend,
-                with_flip="oracle" in against,
-            ),  # across pixels: a marked neighbour must not count); fmap: its FLIP map
-            **metrics.image_errors(
-                ref.image,
-                img,
-                mask=over,
-                suffix="truth",
-                flip_emap=fmap,
-                backend=backend,
-                with_flip="truth" in against,
-            ),
-            **metrics.image_errors(
-                mitsuba, img, mask=over, suffix="mitsuba", backend=backend, with_flip="mitsuba" in against
-            ),
-            **truth.columns(img, ref, mitsuba, mask=over),
-            **stats.pixel_columns(  # intervals over pixels, robust variants
-                img, ref.image, mask=over, sigma=sigma, rel_eps=truth.REL_EPS, emap=fmap
-            ),
-            **split.split_columns(
-                img,
-                ref.image,
-                ref.noise,
-                oracle_img,
-                oracle_seed,
-                oracle_coarse,
-                mask=over,
-                held_px=held_px,
-                intervals=keep_images,  # figures: with intervals; sweeps: the values only
-            ),
-        }
-        if reference:  # the truth is not split against itself
-            cols.update({k: np.nan for k in cols if k.startswith("dec_")})
-        return cols
+    # ------------------------------------------------------------------ columns and rows
+    mark("metrics")
+    refs = _Refs(ref, mitsuba, oracle_img, oracle_seed, oracle_coarse, held_px, on_held, mask,
+                 sigma=truth.noise_rms(ref.noise, mask), against=scene.render.flip_against)  # fmt: skip
+    base = _base_columns(scene, case_id, backend, rays, exact, o)
+    out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=mitsuba, truth=ref.image, mask=mask, held=held_px,
+                     occluded=rays.per_pixel(exact.occluded.astype(float), fill=0.0))  # fmt: skip
+    for t in traces:
+        ang = metrics.angular_error(rays.x, t.shown, exact.point)
+        oc = _classify(B, backend, rays, t.shown, exact)
+        fmap = metrics.flip_map(ref.image, t.image, backend) if keep_images and not t.reference else None
+        extra = {"held_fraction": float(held.mean()) if len(held) else np.nan} if t.reference else {}
+        cols = _image_columns(t, refs, fmap, backend, keep_images)
+        out.rows.append(_row(t, base, rays.x, ang, oc, exact, cols, extra))
+        if keep_images and not t.reference:
+            out.images[t.label] = t.image
+            out.angle_maps[t.label] = rays.per_pixel(ang, fill=np.nan)
+            out.flip_maps[t.label] = fmap
+            out.outcome_maps[t.label] = outcomes.majority(
+                rays.per_pixel(outcomes.class_fractions(oc), fill=np.nan)
+            )
+    mark.end()
+    return out
 
-    base = {
+
+# ---------------------------------------------------------------------------------------------- producers
+@dataclass
+class _Refs:
+    """What every image is measured against."""
+
+    truth: truth.Truth
+    mitsuba: np.ndarray
+    oracle: np.ndarray
+    oracle_seed: np.ndarray
+    oracle_coarse: np.ndarray
+    held_px: np.ndarray
+    on_held: np.ndarray
+    mask: np.ndarray
+    sigma: float
+    against: tuple
+
+
+def _oracle(env, nb, exact: ExactHits, ref, held, rays, F, background) -> np.ndarray:
+    """oracle_map from one capture (:func:`study.measure.split.oracle_radiance`)."""
+    looked = np.stack([np.asarray(c) for c in env.lookup(nb.vec(exact.to_hit))[:3]], -1)
+    rad = split.oracle_radiance(looked, ref.along, held, exact.escapes)
+    return shading.composite(rays, np.nan_to_num(rad) * F, background)
+
+
+def _classify(B, backend: str, rays, shown: np.ndarray, exact: ExactHits) -> np.ndarray:
+    """Outcome classes against the exact hits, on the methods' backend."""
+    if backend == "numpy":
+        return outcomes.classify(rays.x, rays.R, shown, exact.point, eps=exact.eps, exact_origin=rays.exact_x)
+    return outcomes.classify_on(
+        B, rays.x, rays.R, shown, exact.point, eps=exact.eps, exact_origin=rays.exact_x
+    )
+
+
+def _base_columns(scene: Scene, case_id: str, backend: str, rays, exact: ExactHits, o: np.ndarray) -> dict:
+    """The case's own columns, the same in each of its rows."""
+    return {
         "case": case_id,
         "cube_res": scene.render.cube_res,
         "object_x": scene.object.center[0],
@@ -201,121 +294,57 @@ def run_case(
             np.linalg.norm(np.subtract(scene.object.center, o)) / np.linalg.norm(np.subtract(*scene.bounds()))
         ),
         "rays": len(rays.x),
-        "occluded_fraction": float(occluded.mean()) if len(occluded) else np.nan,
+        "occluded_fraction": float(exact.occluded.mean()) if len(exact.occluded) else np.nan,
         **rays.stats,
     }
-    out = CaseOutput(
-        scene,
-        [],
-        oracle=oracle_img,
-        mitsuba=mitsuba,
-        truth=ref.image,
-        mask=mask,
-        held=held_px,
-        occluded=rays.per_pixel(occluded.astype(float), fill=0.0),
-    )
-    eps = outcomes.tolerance(o, exact, scene.render.cube_res)  # per ray: max(1 cm, one texel at the hit)
 
-    def classify(shown):  # outcome classes against the exact hits, on the methods' backend
-        if backend == "numpy":
-            return outcomes.classify(rays.x, rays.R, shown, exact, eps=eps, exact_origin=rays.exact_x)
-        return outcomes.classify_on(B, rays.x, rays.R, shown, exact, eps=eps, exact_origin=rays.exact_x)
 
-    # ------------------------------------------------------------------ every method on the same rays
-    mark("methods")
-    offscreen = outcomes.off_screen(scene.camera, exact)  # exact hits the camera's frame does not show
-    x, R = B.vec(rays.x - o), B.vec(rays.R)
-    traced = []
-    for m in methods:
-        t0 = time.perf_counter()
-        with np.errstate(divide="ignore", invalid="ignore"):  # numpy evaluates both sides of every select
-            tr = m.trace(B, env, x, R)
-        B.eval(
-            tr.shown.x,
-            tr.shown.y,
-            tr.shown.z,
-            tr.radiance.x,
-            tr.radiance.y,
-            tr.radiance.z,
-            tr.ratio,
-            tr.valid,
-            tr.lookups,
-        )  # one kernel for all outputs, not one per numpy copy
-        shown = B.to_numpy(tr.shown).astype(np.float64) + o
-        rad = B.to_numpy(tr.radiance).astype(np.float64)
-        ratio, valid = B.numpy(tr.ratio), B.numpy(tr.valid).astype(bool)
-        seconds = time.perf_counter() - t0
-        lookups, bound = checked_lookups(m, B.numpy(tr.lookups), scene.render.cube_res)
-        if not np.isfinite(shown[valid]).all():
-            raise StudyError(
-                f"method {m.name!r} returned {int((~np.isfinite(shown[valid])).any(-1).sum())} non-finite "
-                "point(s) on rays it marked valid (NaN or inf)",
-                key="method",
-            )
-        traced.append((m, shown, rad, ratio, valid, seconds, lookups, bound))
+def _image_columns(t: Traced, r: _Refs, fmap, backend: str, keep_images: bool) -> dict:
+    """One image against every reference: the oracle (on held pixels; unheld ones take the image's value, as FLIP
+    and SSIM filter across pixels and a marked neighbour must not count), the truth, Mitsuba; the truth's own
+    columns, pixel intervals and the error split."""
+    over = r.mask if t.over is None else t.over
+    img = t.image
+    cols = {
+        **metrics.image_errors(np.where((r.held_px | ~r.mask)[..., None], r.oracle, img), img, mask=r.on_held,
+                               suffix="oracle", backend=backend, with_flip="oracle" in r.against),
+        **metrics.image_errors(r.truth.image, img, mask=over, suffix="truth", flip_emap=fmap, backend=backend,
+                               with_flip="truth" in r.against),
+        **metrics.image_errors(r.mitsuba, img, mask=over, suffix="mitsuba", backend=backend,
+                               with_flip="mitsuba" in r.against),
+        **truth.columns(img, r.truth, r.mitsuba, mask=over),
+        **stats.pixel_columns(img, r.truth.image, mask=over, sigma=r.sigma, rel_eps=truth.REL_EPS, emap=fmap),
+        **split.split_columns(img, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
+                              mask=over, held_px=r.held_px, intervals=keep_images),  # sweeps: values only
+    }  # fmt: skip
+    if t.reference == "truth_at_hit":  # the truth is not split against itself
+        cols.update({k: np.nan for k in cols if k.startswith("dec_")})
+    return cols
 
-    # ------------------------------------------------------------------ metrics: references' rows, then methods'
-    mark("metrics")
-    for name, img in (
-        ("oracle_map", oracle_img),
-        ("truth_at_hit", ref.image),
-    ):  # the exact hit, two radiances
-        out.rows.append(
-            {
-                **base,
-                "method": name,
-                "label": name,
-                "family": name,
-                "knob": "",
-                "knob_value": np.nan,
-                **metrics.value_stats(np.zeros(len(rays.x)), "angle", "_deg"),
-                "dist_median": 0.0,
-                **outcomes.outcome_columns(classify(exact), occluded, np.zeros(len(rays.x))),  # correct
-                **stats.ray_columns(classify(exact), np.zeros(len(rays.x)), occluded, rays.x, exact),
-                **outcomes.offscreen_columns(classify(exact), outcomes.off_screen(scene.camera, exact)),
-                **image_columns(  # the oracle over the pixels it holds
-                    img, reference=name == "truth_at_hit", over=on_held if name == "oracle_map" else mask
-                ),
-                "held_fraction": float(held.mean()) if len(held) else np.nan,
-                "valid_fraction": 1.0,
-                "ratio_residual_median": 0.0,
-                "lookups_per_ray": 1 if name == "oracle_map" else 0,
-                "lookups_bound": 1 if name == "oracle_map" else 0,
-                "seconds": 0.0,
-            }
-        )
-    for m, shown, rad, ratio, valid, seconds, lookups, bound in traced:
-        img = shading.composite(rays, np.nan_to_num(rad) * F, background)
-        ang = metrics.angular_error(rays.x, shown, exact)
-        oc = classify(shown)
-        fmap = metrics.flip_map(ref.image, img, backend) if keep_images else None
-        row = {
-            **base,
-            "method": m.name,
-            "label": m.label,
-            **knob_columns(m),
-            **metrics.value_stats(ang, "angle", "_deg"),
-            "dist_median": float(np.nanmedian(np.linalg.norm(shown - exact, axis=-1))),
-            **outcomes.outcome_columns(oc, occluded, ang),
-            **stats.ray_columns(oc, ang, occluded, rays.x, exact),  # counts, intervals, fixed tolerances
-            **outcomes.offscreen_columns(oc, offscreen),
-            **image_columns(img, fmap=fmap),
-            "valid_fraction": float(valid.mean()),
-            "ratio_residual_median": float(np.nanmedian(np.abs(ratio - 1))),
-            "lookups_per_ray": lookups,
-            "lookups_bound": bound,
-            "seconds": seconds,
-        }
-        out.rows.append(row)
-        if keep_images:
-            out.images[m.label] = img
-            out.angle_maps[m.label] = rays.per_pixel(ang, fill=np.nan)
-            out.flip_maps[m.label] = fmap
-            out.outcome_maps[m.label] = outcomes.majority(
-                rays.per_pixel(outcomes.class_fractions(oc), fill=np.nan)
-            )
-    mark.end()
-    return out
+
+def _row(
+    t: Traced, base: dict, x: np.ndarray, ang, oc, exact: ExactHits, image_cols: dict, extra: dict
+) -> dict:
+    """One trace's row: the case's columns, the method's knobs, geometry (angle, distance), outcome classes and
+    their intervals, off-screen hits, image columns, then validity, the search's residual and its cost."""
+    return {
+        **base,
+        "method": t.method,
+        "label": t.label,
+        **t.knobs,
+        **metrics.value_stats(ang, "angle", "_deg"),
+        "dist_median": float(np.nanmedian(np.linalg.norm(t.shown - exact.point, axis=-1))),
+        **outcomes.outcome_columns(oc, exact.occluded, ang),
+        **stats.ray_columns(oc, ang, exact.occluded, x, exact.point),  # counts, intervals, fixed tolerances
+        **outcomes.offscreen_columns(oc, exact.offscreen),
+        **image_cols,
+        **extra,
+        "valid_fraction": float(t.valid.mean()),
+        "ratio_residual_median": float(np.nanmedian(np.abs(t.ratio - 1))),
+        "lookups_per_ray": t.lookups,
+        "lookups_bound": t.bound,
+        "seconds": t.seconds,
+    }
 
 
 def _finite(scene: Scene, what: str, img: np.ndarray) -> None:
