@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from study import columns
 from study import methods as registry
 from study.errors import StudyError
 from study.scene import Scene
@@ -43,19 +44,6 @@ from study.scene import Scene
 #: file suffixes that :func:`load_scene` reads as an environment mesh, and as a Mitsuba scene
 MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".stl", ".off")
 MITSUBA_SUFFIXES = (".xml",)
-#: the columns :class:`Result` shows first (``__repr__``, ``_repr_html_``, ``study run``)
-SHOWN = [
-    "label",
-    "wrong_fraction",
-    "wrong_fraction_visible",
-    "wrong_fraction_hidden",
-    "dist_p95",
-    "angle_median_deg",
-    "rmse_truth",
-    "flip_truth",
-    "rmse_mitsuba",
-    "lookups_per_ray",
-]
 REFERENCES = ("oracle_map", "truth_at_hit")
 
 
@@ -283,8 +271,8 @@ class Result:
         )
 
     def shown(self):
-        """The table's leading columns (:data:`SHOWN`) for display."""
-        return self.table[[c for c in SHOWN if c in self.table.columns]]
+        """The table's leading columns (the declared view "run" of :mod:`study.columns`) for display."""
+        return self.table[[c for c in columns.view("run") if c in self.table.columns]]
 
     def __repr__(self) -> str:
         return f"Result({self.summary()})\n" + self.shown().to_string(

@@ -13,57 +13,11 @@ import io
 import math
 from pathlib import Path
 
+from study.columns import LEAD
 from study.io import atomic_write
 
-#: Column order of every results table; extra keys follow in the order first seen.
-COLUMNS = [
-    "case",
-    "method",
-    "label",
-    "family",
-    "knob",
-    "knob_value",
-    "cube_res",
-    "object_x",
-    "object_y",
-    "object_z",
-    "object_alpha",
-    "displacement",
-    "angle_median_deg",
-    "angle_p95_deg",
-    "angle_max_deg",
-    "dist_median",
-    "correct_fraction",
-    "wrong_fraction",
-    "wrong_depth_fraction",
-    "wrong_surface_fraction",
-    "no_hit_fraction",
-    "wrong_fraction_visible",
-    "wrong_fraction_hidden",
-    "hidden_fraction",
-    "dist_p50",
-    "dist_p95",
-    "dist_p99",
-    "depth_error_p95",
-    "angle_p95_visible_deg",
-    "angle_p95_hidden_deg",
-    "rmse_oracle",
-    "psnr_oracle",
-    "ssim_oracle",
-    "flip_oracle",
-    "rmse_mitsuba",
-    "psnr_mitsuba",
-    "ssim_mitsuba",
-    "flip_mitsuba",
-    "occluded_fraction",
-    "valid_fraction",
-    "ratio_residual_median",
-    "lookups_per_ray",
-    "lookups_bound",
-    "rays",
-    "backend",
-    "seconds",
-]
+#: Column order of every results table (:data:`study.columns.LEAD`); extra keys follow in the order first seen.
+COLUMNS = LEAD
 
 
 #: Rows that are references, not methods: the exact hit with the impostor's radiance and with Mitsuba's.

@@ -65,20 +65,13 @@ def _print_table(rows: list[dict]) -> None:
     from rich.table import Table
 
     t = Table(show_lines=False)
-    cols = [
-        "case",
-        "label",
-        "angle_median_deg",
-        "angle_p95_deg",
-        "rmse_oracle",
-        "rmse_mitsuba",
-        "flip_truth",
-        "occluded_fraction",
-    ]
+    from study import columns
+
+    cols = [c for c in columns.view("figure") if any(c in r for r in rows)]
     for c in cols:
         t.add_column(c, justify="right" if c not in ("case", "label") else "left", overflow="fold")
     for r in rows:
-        t.add_row(*(f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in cols))
+        t.add_row(*(f"{r.get(c):.4g}" if isinstance(r.get(c), float) else str(r.get(c, "")) for c in cols))
     console.print(t)
 
 

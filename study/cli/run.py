@@ -19,23 +19,10 @@ from pathlib import Path
 
 import typer
 
-from study import progress
+from study import columns, progress
 from study.cli.app import app, console, guarded
 from study.errors import StudyError
 from study.io import file_stem
-
-#: short headers for the printed table (the files keep the column names)
-HEADERS = {
-    "wrong_fraction": "wrong",
-    "wrong_fraction_visible": "wrong vis.",
-    "wrong_fraction_hidden": "wrong hid.",
-    "dist_p95": "dist p95 m",
-    "angle_median_deg": "angle med. °",
-    "rmse_truth": "RMSE truth",
-    "flip_truth": "FLIP truth",
-    "rmse_mitsuba": "RMSE Mitsuba",
-    "lookups_per_ray": "lookups",
-}
 
 
 def parse_sets(items: list[str]) -> dict:
@@ -103,7 +90,9 @@ def run(
         shown = res.shown()
         t = Table(title=res.summary())
         for c in shown.columns:
-            t.add_column(HEADERS.get(c, c), justify="left" if c == "label" else "right", overflow="fold")
+            t.add_column(
+                columns.headers().get(c, c), justify="left" if c == "label" else "right", overflow="fold"
+            )
         for row in shown.itertuples(index=False):
             t.add_row(*(f"{v:.3g}" if isinstance(v, float) else str(v) for v in row))
         wide = Console(width=max(console.width, 150), highlight=False, markup=False)  # no cell cut to "…"

@@ -1,0 +1,248 @@
+"""The declared columns of a results table, one row per column (in the manner of pyiqa's ``DEFAULT_CONFIGS``):
+name, unit, direction, the printed tables that show it (and under which header), whether a 95 % interval comes with
+it, and what it means.
+
+Everything that lists columns reads this table: the column order of every CSV and Parquet (:mod:`study.tables`),
+the columns :class:`study.api.Result` shows first and ``study run`` prints (view ``"run"``), the table ``study
+figure`` prints (view ``"figure"``), the tolerances of ``study check`` (each must name a declared column). A column
+a producer writes (:func:`study.measure.case.producer`) must be declared here, or with :func:`declare` by the
+plug-in that adds it — then it reaches every output with no other file touched.
+
+Directions: ``lower_is_better`` True for errors and costs, False for scores (PSNR, SSIM, correct fraction), None
+for what describes the case (counts, positions, context). An ``interval`` column has ``<name>_lo`` / ``<name>_hi``
+beside it (its 95 % interval; :mod:`study.measure.stats`), declared with it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+LOW, HIGH, NONE = True, False, None
+
+
+@dataclass(frozen=True)
+class TableColumn:
+    name: str
+    unit: str = (
+        ""  # "fraction", "deg", "m", "linear RGB", "dB", "JND-free [0, 1]", "lookups", "s", "count", …
+    )
+    lower_is_better: bool | None = NONE
+    header: str = ""  # short header in printed tables ("": the name)
+    views: tuple[
+        str, ...
+    ] = ()  # printed tables that show it: "run" (study run, Result), "figure" (study figure)
+    interval: bool = False  # <name>_lo / <name>_hi beside it
+    note: str = ""
+
+
+C = TableColumn
+F = "fraction"
+#: every column of a results table, in the order tables write them (the rest of a row follows in the order first seen)
+TABLE: list[TableColumn] = [
+    # ------------------------------------------------------------------ the case
+    C("case", note="the case's id (a figure's panel, a sweep's point)", views=("figure",)),
+    C("method", note="the method's registered name (or a reference: oracle_map, truth_at_hit)"),
+    C("label", note="the method with its parameters, e.g. localized(iterations=10)", views=("run", "figure")),
+    C("family", note="the label without the knob"),
+    C("knob", note="the parameter that moves the method along its cost/accuracy curve ('' without one)"),
+    C("knob_value", note="the knob's value (NaN without one)"),
+    C("cube_res", "texels", note="cube-map resolution per face"),
+    C("object_x", "m", note="the object's centre"),
+    C("object_y", "m"),
+    C("object_z", "m"),
+    C("object_alpha", note="the object's GGX roughness (rough objects only)"),
+    C("displacement", F, note="|object − reference point| over the scene's diagonal"),
+    # ------------------------------------------------------------------ geometry of the shown point
+    C(
+        "angle_median_deg",
+        "deg",
+        LOW,
+        "angle med. °",
+        ("run", "figure"),
+        True,
+        "angle at the shading point between the shown and the exact hit",
+    ),
+    C("angle_p95_deg", "deg", LOW, views=("figure",), interval=True),
+    C("angle_max_deg", "deg", LOW),
+    C("dist_median", "m", LOW, note="|shown − exact hit|, median over rays"),
+    # ------------------------------------------------------------------ outcome classes (study.measure.outcomes)
+    C(
+        "correct_fraction",
+        F,
+        HIGH,
+        note="rays whose shown point lies within ε = max(1 cm, one texel) of the hit",
+    ),
+    C(
+        "wrong_fraction",
+        F,
+        LOW,
+        "wrong",
+        ("run",),
+        note="1 − correct (texel-relative ε; = wrong_fraction_texel)",
+    ),
+    C("wrong_depth_fraction", F, LOW, note="wrong, on the exact hit's own surface but at another depth"),
+    C("wrong_surface_fraction", F, LOW, note="wrong, on another surface"),
+    C("no_hit_fraction", F, LOW, note="the method answered no point"),
+    C("wrong_fraction_visible", F, LOW, "wrong vis.", ("run",), True, "wrong among rays whose hit o sees"),
+    C(
+        "wrong_fraction_hidden",
+        F,
+        LOW,
+        "wrong hid.",
+        ("run",),
+        True,
+        "wrong among rays whose hit o cannot see",
+    ),
+    C("hidden_fraction", F, note="rays whose exact hit is hidden from the reference point"),
+    C("dist_p50", "m", LOW),
+    C("dist_p95", "m", LOW, "dist p95 m", ("run",), True),
+    C("dist_p99", "m", LOW),
+    C("depth_error_p95", "m", LOW, note="depth error along the ray, p95"),
+    C("angle_p95_visible_deg", "deg", LOW),
+    C("angle_p95_hidden_deg", "deg", LOW),
+    # ------------------------------------------------------------------ image errors (study.measure.metrics)
+    C(
+        "rmse_oracle",
+        "linear RGB",
+        LOW,
+        views=("figure",),
+        note="RMSE against the oracle_map, on held pixels",
+    ),
+    C("psnr_oracle", "dB", HIGH),
+    C("ssim_oracle", "", HIGH),
+    C("flip_oracle", "", LOW),
+    C(
+        "rmse_mitsuba",
+        "linear RGB",
+        LOW,
+        "RMSE Mitsuba",
+        ("run", "figure"),
+        note="RMSE against Mitsuba's render",
+    ),
+    C("psnr_mitsuba", "dB", HIGH),
+    C("ssim_mitsuba", "", HIGH),
+    C("flip_mitsuba", "", LOW),
+    C("occluded_fraction", F, views=("figure",), note="rays whose exact hit is hidden from o (the case's)"),
+    # ------------------------------------------------------------------ the trace and its cost
+    C("valid_fraction", F, HIGH, note="rays the method marked valid"),
+    C("ratio_residual_median", "", LOW, note="|distance ratio − 1| at the search's end, median"),
+    C("lookups_per_ray", "lookups", LOW, "lookups", ("run",), note="mean cube-map lookups a ray spent"),
+    C("lookups_bound", "lookups", LOW, note="the method's bound (what budgets and floors count)"),
+    C("rays", "count", note="the object's secondary rays"),
+    C("backend", note="numpy, llvm or cuda"),
+    C("seconds", "s", LOW, note="wall time of the trace (measured, never in a baseline)"),
+    # ------------------------------------------------------------------ counts and intervals (study.measure.stats)
+    C("n_rays", "count"),
+    C("n_hidden", "count"),
+    C("n_wrong", "count"),
+    C("wrong_fraction_texel", F, LOW, interval=True, note="wrong with ε = max(1 cm, one texel at the hit)"),
+    C("wrong_fraction_1mm", F, LOW, note="wrong with ε = 1 mm (the same at every resolution)"),
+    C("wrong_fraction_3mm", F, LOW),
+    C("wrong_fraction_1cm", F, LOW, interval=True),
+    C("wrong_fraction_3cm", F, LOW, interval=True),
+    C("wrong_fraction_10cm", F, LOW, interval=True),
+    C("wrong_fraction_30cm", F, LOW),
+    C(
+        "wrong_fraction_0p5deg",
+        F,
+        LOW,
+        interval=True,
+        note="|shown − exact| subtends > 0.5° from the shading point",
+    ),
+    C("angle_dropped", F, note="rays without a finite angle (no hit), left out of angle_*"),
+    C("dist_dropped", F, note="rays without a finite distance, left out of dist_*"),
+    C("angle_p95_all_deg", "deg", LOW, note="angle p95 counting rays without a hit as infinite"),
+    C("offscreen_fraction", F, note="rays whose exact hit lies outside the camera's frame"),
+    C("wrong_fraction_offscreen", F, LOW, note="wrong among those (what screen-space methods cannot show)"),
+    C("flip_oracle_p95", "", LOW),
+    C("rmse_truth", "linear RGB", LOW, "RMSE truth", ("run",), True, "RMSE against truth_at_hit"),
+    C("psnr_truth", "dB", HIGH),
+    C("ssim_truth", "", HIGH),
+    C("flip_truth", "", LOW, "FLIP truth", ("run", "figure"), True, "LDR-FLIP against truth_at_hit, mean"),
+    C("flip_truth_p95", "", LOW),
+    C("flip_mitsuba_p95", "", LOW),
+    C(
+        "rmse_truth_debiased",
+        "linear RGB",
+        LOW,
+        interval=True,
+        note="√max(0, RMSE² − σ²): the truth's noise out",
+    ),
+    C("relmse_truth", "", LOW, interval=True, note="relative MSE, (img − ref)² / (ref² + ε)"),
+    C("truth_noise_rmse", "linear RGB", note="the truth's own noise σ"),
+    C("rmse_mitsuba_debiased", "linear RGB", LOW),
+    C("mitsuba_noise_rmse", "linear RGB"),
+    C("n_pixels", "count"),
+    C("n_blocks", "count", note="pixel blocks resampled for the pixel intervals"),
+    C("rmse_truth_trim", "linear RGB", LOW, note="RMSE without the worst 0.1 % of pixels"),
+    C("rmse_truth_debiased_trim", "linear RGB", LOW),
+    C("sqerr_top_share_truth", F, note="share of the squared error the worst 0.1 % of pixels carry"),
+    # ------------------------------------------------------------------ the error split (study.measure.split)
+    C("held_pixels", "count", note="object pixels whose every hit the views hold"),
+    C("unheld_pixels", "count"),
+    C("held_fraction", F, note="rays whose exact hit o's views hold (reference rows)"),
+    C("dec_total", "MSE", LOW, interval=True, note="the split's total: MSE against the truth"),
+    C("dec_search", "MSE", LOW, interval=True, note="the search's share (method vs oracle on held pixels)"),
+    C("dec_visibility", "MSE", LOW, interval=True),
+    C("dec_representation", "MSE", LOW, interval=True),
+    C("dec_noise", "MSE", LOW, interval=True),
+    C("dec_cross", "MSE", interval=True),
+    C("dec_residual", "MSE", interval=True),
+    C("dec_sums", F, note="Σ terms / total"),
+    C("rmse_truth_held", "linear RGB", LOW, interval=True),
+    C("rmse_truth_unheld", "linear RGB", LOW, interval=True),
+]
+#: the leading columns: every results table writes these first, in this order; the rest of a row follows in the order
+#: it first appears (so tables written before a column was declared keep their layout)
+LEAD = [c.name for c in TABLE[: [c.name for c in TABLE].index("seconds") + 1]]
+#: the views a printed table may name, in the order of :data:`TABLE` unless :data:`ORDER` says otherwise
+ORDER = {
+    "run": ["label", "wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95",
+            "angle_median_deg", "rmse_truth", "flip_truth", "rmse_mitsuba", "lookups_per_ray"],
+    "figure": ["case", "label", "angle_median_deg", "angle_p95_deg", "rmse_oracle", "rmse_mitsuba", "flip_truth",
+               "occluded_fraction"],
+}  # fmt: skip
+
+_BY_NAME: dict[str, TableColumn] = {}
+
+
+def declare(*cols: TableColumn) -> None:
+    """Add columns to the table (a plug-in's): a name declared twice is an error."""
+    for c in cols:
+        if c.name in _BY_NAME:
+            raise ValueError(f"column {c.name!r} is declared twice")
+        _BY_NAME[c.name] = c
+        if c not in TABLE:
+            TABLE.append(c)
+        for v in c.views:
+            if c.name not in ORDER.setdefault(v, []):
+                ORDER[v].append(c.name)
+
+
+def declared(name: str) -> TableColumn | None:
+    """The declared column ``name`` (an interval's ``_lo``/``_hi`` resolves to its column), or None."""
+    if name in _BY_NAME:
+        return _BY_NAME[name]
+    for end in ("_lo", "_hi"):
+        base = _BY_NAME.get(name.removesuffix(end)) if name.endswith(end) else None
+        if base is not None and base.interval:
+            return base
+    return None
+
+
+def column_names() -> list[str]:
+    """Every declared name in table order, each interval column followed by its _lo and _hi."""
+    return [n for c in TABLE for n in ((c.name, f"{c.name}_lo", f"{c.name}_hi") if c.interval else (c.name,))]
+
+
+def view(name: str) -> list[str]:
+    """The columns a printed table shows, in its order."""
+    return list(ORDER.get(name, []))
+
+
+def headers() -> dict[str, str]:
+    """Short headers of printed tables: name → header, for the columns that have one."""
+    return {c.name: c.header for c in TABLE if c.header}
+
+
+declare(*list(TABLE))
