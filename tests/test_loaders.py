@@ -248,33 +248,15 @@ def test_the_cli_prints_the_summary_to_stderr(tmp_path):
 
 # ---------------------------------------------------------------------------------------------- by hand, in tmp_path
 def write_glb(path: Path, V: np.ndarray, F: np.ndarray, node: dict | None = None, mode: int = 4) -> Path:
-    """A GLB of one mesh (V, F) written from the glTF 2.0 specification: JSON chunk + binary chunk."""
-    import json
-    import struct
+    """A GLB of one mesh (V, F) written from the glTF 2.0 specification (tests/test_real_files.py's writer), with
+    the node's transform and the primitive's mode."""
+    from test_real_files import gltf_doc
+    from test_real_files import write_glb as glb
 
-    pos = np.ascontiguousarray(V, np.float32).tobytes()
-    idx = np.ascontiguousarray(F, np.uint32).ravel().tobytes()
-    g = {
-        "asset": {"version": "2.0"},
-        "scenes": [{"nodes": [0]}],
-        "nodes": [{"mesh": 0, **(node or {})}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": mode}]}],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": len(V), "type": "VEC3"},
-            {"bufferView": 1, "componentType": 5125, "count": int(np.size(F)), "type": "SCALAR"},
-        ],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": len(pos)},
-            {"buffer": 0, "byteOffset": len(pos), "byteLength": len(idx)},
-        ],
-        "buffers": [{"byteLength": len(pos) + len(idx)}],
-    }
-    js = json.dumps(g).encode()
-    js += b" " * (-len(js) % 4)
-    blob = pos + idx
-    body = struct.pack("<II", len(js), 0x4E4F534A) + js + struct.pack("<II", len(blob), 0x004E4942) + blob
-    path.write_bytes(struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body)
-    return path
+    g, blob = gltf_doc(V, F)
+    g["nodes"][0].update(node or {})
+    g["meshes"][0]["primitives"][0]["mode"] = mode
+    return glb(path, g, blob)
 
 
 def test_glb_node_transforms_and_strips(tmp_path):
