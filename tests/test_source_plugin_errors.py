@@ -42,8 +42,9 @@ class Walls(Source):
         m = room_mesh(room)
         V, F, UV, S = m.vertices.copy(), m.faces.copy(), m.uv.copy(), m.surface.copy()
         parts = tuple(Part(n, albedo=texture(n, 8)) for n in SURFACES)
+        colors = None
 {body}
-        return EnvGeometry(RoomMesh(V, F, UV, S, m.surfaces), parts, kind="walls")
+        return EnvGeometry(RoomMesh(V, F, UV, S, m.surfaces, colors), parts, kind="walls")
 '''
 
 #: (id, lines of build() before it returns, words of the one-line error)
@@ -68,6 +69,26 @@ BAD_BUILDS = [
     ("flat-vertices", "V = V.ravel()", "vertices have shape (72,), not (V, 3)"),
     ("short-surface-ids", "S = S[:-2]", "surface ids for 10 triangles; the mesh has 12"),
     ("nan-uv", 'UV[1, 0] = float("nan")', "uv 1 is not finite"),
+    (
+        "nan-colour",
+        'parts = parts[:2] + (Part("wall_x-", color=(float("nan"), 0.5, 0.5)),) + parts[3:]',
+        "part 2 ('wall_x-'): its colour is not finite (nan, 0.5, 0.5)",
+    ),
+    (
+        "inf-emission",
+        'parts = parts[:2] + (Part("wall_x-", color=(0.5,) * 3, emission=(1.0, float("inf"), 1.0)),) + parts[3:]',
+        "part 2 ('wall_x-'): its emission is not finite (1, inf, 1)",
+    ),
+    (
+        "nan-texture",
+        'parts[3].albedo[4, 5, 1] = float("nan")',
+        "part 3 ('wall_x+'): its texture is not finite (first at row 4, column 5)",
+    ),
+    (
+        "nan-vertex-colour",
+        'colors = np.full((len(V), 3), 0.5, np.float32); colors[6, 0] = float("nan")',
+        "the colour of vertex 6 (part 'ceiling') is not finite (nan, 0.5, 0.5)",
+    ),
     (
         "not-a-part",
         "parts = parts[:-1] + ({'name': 'column'},)",

@@ -196,7 +196,8 @@ def checked_build(source: Source, scene: Any) -> EnvGeometry:
 def geometry_problem(geo: Any) -> str | None:
     """What is wrong with a source's :class:`EnvGeometry` (the first thing found), or None: the arrays of its mesh
     and their shapes, finite vertices and uv, at least one triangle, every vertex index and surface id in range,
-    every part a :class:`~study.scene.parts.Part`, finite bounds."""
+    every part a :class:`~study.scene.parts.Part`, finite colours (vertices', parts', textures'), emissions and
+    bounds. The message names the element: a vertex, a triangle, a part."""
     if not isinstance(geo, EnvGeometry):
         return f"build() returned {_what(geo)}, not an EnvGeometry"
     m = geo.mesh
@@ -237,13 +238,31 @@ def geometry_problem(geo: Any) -> str | None:
     wrong = next((i for i, p in enumerate(geo.parts) if not isinstance(p, Part)), None)
     if wrong is not None:
         return f"part {wrong} is {_what(geo.parts[wrong])}, not a study.scene.parts.Part"
-    if m.colors is not None and (
-        not isinstance(m.colors, np.ndarray) or m.colors.shape != V.shape or not np.isfinite(m.colors).all()
-    ):
-        return "vertex colours are not one finite linear RGB per vertex"
+    if m.colors is not None:
+        if not isinstance(m.colors, np.ndarray) or m.colors.shape != V.shape:
+            return (
+                f"vertex colours are {_what(m.colors)} of shape {np.shape(m.colors)}, not one RGB per vertex"
+            )
+        bad = np.flatnonzero(~np.isfinite(m.colors).all(axis=1))
+        if bad.size:
+            v = int(bad[0])
+            used = np.flatnonzero((F == v).any(axis=1))
+            part = f" (part {geo.parts[S[used[0]]].name!r})" if used.size else ""
+            return f"the colour of vertex {v}{part} is not finite ({_rgb(m.colors[v])})"
+    for i, p in enumerate(geo.parts):
+        for what, value in (("colour", p.color), ("emission", p.emission)):
+            if value is not None and not np.isfinite(np.asarray(value, float)).all():
+                return f"part {i} ({p.name!r}): its {what} is not finite ({_rgb(value)})"
+        if p.albedo is not None and not np.isfinite(np.asarray(p.albedo, float)).all():
+            r, c = np.argwhere(~np.isfinite(np.asarray(p.albedo, float)).all(axis=-1))[0][:2]
+            return f"part {i} ({p.name!r}): its texture is not finite (first at row {r}, column {c})"
     if geo.bounds is None or not all(np.isfinite(np.asarray(b, float)).all() for b in geo.bounds):
         return f"bounds {geo.bounds} are not finite"
     return None
+
+
+def _rgb(v: Any) -> str:
+    return ", ".join(f"{float(x):g}" for x in np.ravel(v))
 
 
 def _what(v: Any) -> str:
