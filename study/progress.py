@@ -12,13 +12,17 @@ one every call here is a no-op: the Python API, tests and worker processes stay 
 
 The elapsed time and the ETA (the mean time per unit finished in this run × the units left) are computed here,
 so every reporter shows the same numbers.
+
+Work stops here too: under a :func:`deadline` (the command's ``--max-minutes``), :func:`checkpoint` raises the
+deadline's error once it has passed. Every stage boundary, unit and item is a checkpoint, and long loops inside a
+stage call it themselves (a method's samples), so a run its estimate got wrong stops soon after its time is up.
 """
 
 from __future__ import annotations
 
 import contextlib
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 #: The stages of one case, in the order they run.
@@ -120,16 +124,18 @@ def task(name: str, total: int | None, done: int = 0) -> Iterator[Task]:
 
 
 def advance(what: str = "") -> None:
-    """One unit of the current task finished."""
+    """One unit of the current task finished (then a :func:`checkpoint`)."""
     t = _current()
     t.done += 1
     if _reporter:
         _reporter.advanced(t, what)
+    checkpoint()
 
 
 @contextlib.contextmanager
 def item(label: str) -> Iterator[None]:
     """One unit (a case) running: the stages inside are reported under its label."""
+    checkpoint()
     t = _current()
     before, t.item = t.item, label
     try:
@@ -141,7 +147,8 @@ def item(label: str) -> Iterator[None]:
 @contextlib.contextmanager
 def stage(name: str) -> Iterator[None]:
     """A stage of the unit now running (:data:`STAGES` for a case); reported when it begins and with its time
-    when it ends (not when it fails: the error says why)."""
+    when it ends (not when it fails: the error says why). Its start is a :func:`checkpoint`."""
+    checkpoint()
     if _reporter is None:
         yield
         return
@@ -162,6 +169,7 @@ class Stages:
 
     def __call__(self, name: str) -> None:
         self.end()
+        checkpoint()
         if _reporter is not None:
             self._name, self._t0 = name, time.perf_counter()
             _reporter.entered(_current(), name)
@@ -170,3 +178,28 @@ class Stages:
         if self._name is not None and _reporter is not None:
             _reporter.stage(_current(), self._name, time.perf_counter() - self._t0)
         self._name = None
+
+
+# ---------------------------------------------------------------------------------------------- the time limit
+_deadlines: list[tuple[float, Callable[[], BaseException]]] = []
+
+
+@contextlib.contextmanager
+def deadline(at: float, error: Callable[[], BaseException]) -> Iterator[None]:
+    """Until the block ends, :func:`checkpoint` raises ``error()`` once the wall clock (``time.time()``, so that
+    worker processes share it) has passed ``at``."""
+    entry = (at, error)
+    _deadlines.append(entry)
+    try:
+        yield
+    finally:
+        _deadlines.remove(entry)
+
+
+def checkpoint() -> None:
+    """A point where work may stop: raises the error of the earliest :func:`deadline` passed (a no-op without
+    one, or before it)."""
+    if _deadlines:
+        at, error = min(_deadlines, key=lambda d: d[0])
+        if time.time() > at:
+            raise error()

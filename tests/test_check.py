@@ -73,3 +73,118 @@ def test_report_from_results(tmp_path):
     text = (tmp_path / "index.md").read_text()
     assert "| Localized lookup is more accurate than classical" in text and "| ✓ |" in text
     assert "sweep-check/results.csv" in text
+
+
+def _planted_baseline(tmp_path, edit) -> tuple[str, str]:
+    """A check file beside a copy of the committed baseline after ``edit(header, rows) -> bytes``: the check's
+    sweep is the real one, the baseline the planted copy."""
+    import csv
+    import io
+    from pathlib import Path
+
+    rows = list(csv.reader(io.StringIO(Path("reports/baseline/results.csv").read_text())))
+    (tmp_path / "results.csv").write_bytes(edit(rows[0], rows[1:]))
+    text = Path("configs/check.toml").read_text()
+    sweep = Path("configs/check_sweep.toml").resolve()
+    text = text.replace('sweep = "check_sweep.toml"', f'sweep = "{sweep}"')
+    (tmp_path / "check.toml").write_text(text.replace('baseline = "../reports/baseline"', 'baseline = "."'))
+    return str(tmp_path / "check.toml"), str(tmp_path / "results.csv")
+
+
+def _csv(rows) -> bytes:
+    import csv
+    import io
+
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerows(rows)
+    return buf.getvalue().encode()
+
+
+def _with_cell(column, value, line=6):
+    def edit(header, rows):
+        rows = [list(r) for r in rows]
+        rows[line - 2][header.index(column)] = value
+        return _csv([header, *rows])
+
+    return edit
+
+
+def _forged_twice(header, rows):
+    """Every row twice, the first copy with its metrics ×10 (the last copy used to win silently)."""
+    forged = [list(r) for r in rows]
+    for r in forged:
+        for c in ("rmse_mitsuba", "angle_median_deg", "dist_p95", "wrong_fraction"):
+            j = header.index(c)
+            r[j] = repr(float(r[j]) * 10) if r[j] else r[j]
+    return _csv([header, *forged, *rows])
+
+
+def _renamed_header(new):
+    def edit(header, rows):
+        return _csv([[new if c == "angle_median_deg" else c for c in header], *rows])
+
+    return edit
+
+
+MALFORMED = {
+    "inf rmse_mitsuba": (
+        _with_cell("rmse_mitsuba", "inf"),
+        "line 6, column 'rmse_mitsuba' (case 'c0000', label 'linear_secant(steps_per_texel=1.0)') holds inf",
+    ),
+    "inf angle_median_deg": (_with_cell("angle_median_deg", "inf"), "line 6, column 'angle_median_deg'"),
+    "-inf dist_p95": (_with_cell("dist_p95", "-inf", line=9), "line 9, column 'dist_p95'"),
+    "1e999 dist_p95": (_with_cell("dist_p95", "1e999"), "line 6, column 'dist_p95'"),
+    "every row twice, the first forged": (
+        _forged_twice,
+        "line 58 repeats case 'c0000', label 'oracle_map' of line 2",
+    ),
+    "NUL in the header": (
+        _renamed_header("angle\0_median_deg"),
+        "line 1, column 12 of the header is 'angle\\x00_median_deg', not a column name",
+    ),
+    "a column twice in the header": (
+        _renamed_header("rmse_mitsuba"),
+        "line 1, column 34: 'rmse_mitsuba' is already column 12",
+    ),
+    "NUL in a cell": (_with_cell("label", "classical\0"), "line 6, column 'label' holds a NUL byte"),
+    "undecodable header": (
+        lambda h, rows: _csv([h, *rows]).replace(b"angle_median", b"angle_\xff\xfemedian", 1),
+        "not UTF-8 text, expected a results table (CSV): line 1 holds byte 0xff",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", MALFORMED)
+def test_malformed_baseline_is_bad_input_naming_the_cell(case, tmp_path, monkeypatch):
+    """A baseline that is not one finite value per (case, label) and metric is refused before the sweep runs:
+    exit 2, one line naming the first offending cell — not a pass (an infinite cell made its tolerance
+    infinite; with a row twice the last copy won) and not 56 regressions (a NUL in the header)."""
+    edit, expected = MALFORMED[case]
+    config, baseline = _planted_baseline(tmp_path, edit)
+    monkeypatch.setattr("study.outputs.check.run_sweep", lambda *a, **k: pytest.fail("the sweep ran"))
+    res = runner.invoke(app, ["check", "--config", config])
+    assert res.exit_code == 2, res.output
+    line = res.output.strip()
+    assert "\n" not in line and line.startswith(f"error: {baseline}: "), line
+    assert expected in line, line
+
+
+def test_the_committed_baseline_is_well_formed(tmp_path):
+    """The control of the cases above: the unmodified baseline passes the same checks."""
+    from study.outputs.check import check_baseline, load_check, read_table
+
+    cfg, _, base_dir = load_check("configs/check.toml")
+    rows = read_table(base_dir / "results.csv", numeric=list(cfg.tolerance))
+    check_baseline(rows, list(cfg.tolerance), base_dir / "results.csv")
+    assert len(rows) == 56
+
+
+def test_an_infinite_baseline_value_is_matched_exactly():
+    """compare() called directly (the API) on an infinite baseline: only the same value passes."""
+    base = [{"case": "c0", "label": "m", "x": float("inf")}]
+    tol = {"x": Tolerance(abs=0.1, rel=0.1)}
+    assert compare([{"case": "c0", "label": "m", "x": float("inf")}], base, tol) == []
+    assert (
+        "x of m in c0 moved from inf to 3"
+        in compare([{"case": "c0", "label": "m", "x": 3.0}], base, tol)[0].message
+    )

@@ -233,3 +233,23 @@ def test_block_bootstrap_equals_scipys_paired_bootstrap_of_the_block_sums():
     ).confidence_interval
     np.testing.assert_allclose(np.array(got), np.stack([ref.low, ref.high], 1), rtol=0, atol=1e-12)
     assert got[0] != got[1]
+
+
+def test_an_unknown_noise_gives_an_unknown_debiased_rmse():
+    """σ = NaN (a reference whose noise is unknown): every debiased RMSE is NaN, not 0.0 (``max(0.0, nan)`` is
+    0.0, which read as "no error left"); a known σ above the error still clips to 0."""
+    from study.measure import truth
+
+    rng = np.random.default_rng(0)
+    ref = rng.uniform(0.2, 0.8, (40, 40, 3))
+    img = ref + rng.normal(0, 0.05, ref.shape)
+    mask = np.ones((40, 40), bool)
+    cols = stats.pixel_columns(img, ref, mask=mask, sigma=math.nan, rel_eps=1e-2)
+    debiased = {k: v for k, v in cols.items() if "debiased" in k}
+    assert set(debiased) == {"rmse_truth_debiased_lo", "rmse_truth_debiased_hi", "rmse_truth_debiased_trim"}
+    assert all(math.isnan(v) for v in debiased.values()), debiased
+    assert cols["rmse_truth_lo"] > 0  # the plain columns are unaffected
+    known = stats.pixel_columns(img, ref, mask=mask, sigma=1.0, rel_eps=1e-2)
+    assert known["rmse_truth_debiased_lo"] == 0.0 == known["rmse_truth_debiased_trim"]
+    assert math.isnan(truth.debiased(0.3, math.nan)) and math.isnan(truth.debiased(math.nan, 0.1))
+    assert truth.debiased(0.1, 0.2) == 0.0 and truth.debiased(0.5, 0.3) == 0.4

@@ -79,7 +79,7 @@ def _options(
         budget.DEFAULT_MAX_MINUTES,
         "--max-minutes",
         metavar="MIN",
-        help="refuse a command estimated to take longer (minutes)",
+        help="refuse a command estimated to take longer, and stop one that runs longer (minutes)",
     ),
     version: bool = typer.Option(
         False, "--version", callback=_version, is_eager=True, help="print the version and exit"
@@ -133,8 +133,8 @@ def guarded(llvm: bool = False):
                 cuda = (
                     "cuda" if kwargs.get("backend") == "cuda" else None
                 )  # renders and exact hits on the GPU too
-                with runtime.using_render_device(cuda), progress.reporting(_reporter()):
-                    return fn(*args, **kwargs)
+                with runtime.using_render_device(cuda), progress.reporting(_reporter()), budget.time_limit():
+                    return fn(*args, **kwargs)  # past --max-minutes: stopped at a checkpoint, exit 3
             except (typer.Exit, typer.Abort, typer.TyperException):
                 raise
             except KeyboardInterrupt:

@@ -14,7 +14,7 @@ from study.bench.run import BenchOptions, check_options, run_bench
 from study.caustics.figure import fig8
 from study.cli.app import app, console, err_console, figures, guarded
 from study.errors import StudyError
-from study.harness.config import load_figure_config, shipped
+from study.harness.config import load_figure_config, plain_name, shipped
 from study.harness.runner import prepare_sweep, run_sweep
 from study.io import file_stem, locked, read_toml
 from study.outputs.check import run_check
@@ -51,7 +51,7 @@ def figure(
     if config is None and name not in known:
         raise StudyError(f"unknown figure {name!r}; allowed: {', '.join(known)}", key="name")
     config = Path(known[name]) if config is None else shipped(config)
-    name = name or file_stem(config.stem)
+    name = plain_name(name) if name else file_stem(config.stem)  # one folder under reports/, never a path
     out = out or (Path("reports") / name if quality == "preview" else Path("reports") / quality / name)
     t0 = time.perf_counter()
     if "caustic" in read_toml(config):  # caustics (fig8): study/caustics/figure.py
@@ -95,7 +95,7 @@ def sweep(
     from study.harness.cluster import check_address
 
     dask = check_address(dask)  # before any work: '' and 'banana' are refused, not run locally
-    out = out or Path("reports") / f"sweep-{config.stem}"
+    out = out or Path("reports") / f"sweep-{config.stem}"  # a stem: one folder under reports/
     ready = prepare_sweep(config, backend=backend, jobs=jobs)  # every case checked before any work
     rows, stats = run_sweep(  # progress by case on stderr (study.cli.progress)
         config,

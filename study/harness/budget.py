@@ -7,16 +7,27 @@ backend, ``configs/sweep.toml``-like cases). The limits are the global options `
 case, times ``--jobs``) and ``study --max-minutes MIN`` (for the whole command); the refusal names the scene key
 whose value drives the estimate. :func:`preflight` also refuses a case whose camera cannot see the object at all
 (its bounding sphere outside the view); :func:`study.measure.case.run_case` counts the object's pixels exactly.
+
+An estimate can still be wrong, so ``--max-minutes`` also holds while the command runs (:func:`time_limit`, armed by
+the command line): past it, the run stops at the next stage boundary (or inside a long stage, at a
+:func:`study.progress.checkpoint`) with exit 3, and the outputs of earlier runs stay as they were (output sets are
+written only at the end). Workers get the deadline with their work (:func:`study.harness.runner.run_cases`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from study import backend as backends
+from study import progress as pg
 from study.errors import EnvironmentProblem, StudyError
 from study.impostor.capture import impostor_key
 from study.impostor.views import Views
@@ -27,6 +38,9 @@ MITSUBA_SAMPLES_PER_S = 1.3e6  # path-traced samples per second (llvm_ad_rgb, ma
 SECONDS_PER_SUBPIXEL = 12e-6  # per camera sub-pixel ray: rays, object hit, compositing, image metrics
 SECONDS_PER_OBJECT_RAY = 1e-6  # per ray leaving the object, per method: exact hit, outcome classes, metrics
 SECONDS_PER_LOOKUP = 0.06e-6  # one cube-map lookup of one ray by a method (numpy; Dr.Jit is faster)
+SECONDS_PER_STEP = (
+    0.5e-3  # one array step of a method over all rays (Method.host_steps; stochastic: 0.36–0.41 ms)
+)
 SECONDS_PER_CASE = 3.0  # fixed: Embree scene, Mitsuba's kernels compiled, tables
 SECONDS_PER_IMPOSTOR = 2.0  # fixed per impostor captured (radiance cube + Embree distances)
 BYTES_BASE = 512 << 20  # Python, Mitsuba, Dr.Jit and Embree loaded
@@ -63,6 +77,76 @@ def set_limits(
                 f"must be a positive number of {'GiB' if 'memory' in key else 'minutes'}, got {v}", key=key
             )
     LIMITS.max_memory_gib, LIMITS.max_minutes = float(max_memory_gib), float(max_minutes)
+
+
+#: The command's deadline for worker processes: ``<time.time() at which it stops> <minutes>``.
+DEADLINE_ENV = "STUDY_DEADLINE"
+
+
+@contextlib.contextmanager
+def time_limit(limits: Limits | None = None) -> Iterator[None]:
+    """``--max-minutes`` held while the block runs (the command line's commands): from now, past the limit, the
+    next :func:`study.progress.checkpoint` raises :func:`over_time` (exit 3); worker processes started meanwhile
+    inherit the deadline (``$STUDY_DEADLINE``, :func:`inherited_time_limit`)."""
+    minutes = (limits or LIMITS).max_minutes
+    at = time.time() + minutes * 60
+    before = os.environ.get(DEADLINE_ENV)
+    os.environ[DEADLINE_ENV] = f"{at!r} {minutes!r}"
+    try:
+        with pg.deadline(at, lambda: over_time(minutes)):
+            yield
+    finally:
+        if before is None:
+            os.environ.pop(DEADLINE_ENV, None)
+        else:
+            os.environ[DEADLINE_ENV] = before
+
+
+def deadline_spec() -> str | None:
+    """The deadline in force (:func:`time_limit`) as text to hand to a worker (:func:`inherited_time_limit`)."""
+    return os.environ.get(DEADLINE_ENV)
+
+
+@contextlib.contextmanager
+def inherited_time_limit(spec: str | None) -> Iterator[None]:
+    """In a worker (a process, a Dask worker): the deadline of the command that gave it work (``spec``, from
+    :func:`deadline_spec`); none without one."""
+    try:
+        at, minutes = (float(v) for v in (spec or "").split())
+    except ValueError:
+        yield
+        return
+    with pg.deadline(at, lambda: over_time(minutes)):
+        yield
+
+
+def bounded(task: Callable[[Any], tuple]) -> Callable[[Any], tuple]:
+    """A runner's ``task`` (case → (function, args)) whose function runs under the deadline in force now
+    (:func:`deadline_spec`) wherever it runs: in this process, a worker process or on a Dask worker."""
+    spec = deadline_spec()
+    if spec is None:
+        return task
+
+    def within_deadline(case) -> tuple:
+        fn, args = task(case)
+        return run_within, (spec, fn, *args)
+
+    return within_deadline
+
+
+def run_within(spec: str, fn: Callable[..., Any], *args) -> Any:
+    """Worker: ``fn(*args)`` under the deadline ``spec`` (module-level, so worker processes can import it)."""
+    with inherited_time_limit(spec):
+        return fn(*args)
+
+
+def over_time(minutes: float) -> EnvironmentProblem:
+    """The error of a run stopped at its time limit: exit 3 (this machine is slower than estimated)."""
+    return EnvironmentProblem(
+        f"stopped: the command ran past its limit of {minutes:g} min, longer than estimated; the outputs of "
+        "earlier runs are kept (finished cases of a sweep resume); raise --max-minutes",
+        key="--max-minutes",
+    )
 
 
 @dataclass
@@ -119,6 +203,7 @@ def estimate(
     layers = max((m.layers_needed() for m in methods), default=1)
     if lookups is None:
         lookups = sum(m.lookup_bound(r.cube_res) for m in methods)  # bounds: no method spends more
+    steps = sum(_host_steps(m, r.cube_res) for m in methods)  # whatever the rays: a loop over samples, …
     sub_key = "render.supersample" if r.supersample > 1 else "camera.width"
     tris = _triangles(scene)
     mem = {
@@ -130,7 +215,7 @@ def estimate(
         "environment": tris * SECONDS_PER_TRIANGLE,
         "render.spp": (3 * c.width * c.height + 2 * rays) * r.spp / rate,
         sub_key: SECONDS_PER_CASE + sub * SECONDS_PER_SUBPIXEL + rays * len(methods) * SECONDS_PER_OBJECT_RAY,
-        "methods": rays * lookups * SECONDS_PER_LOOKUP,
+        "methods": rays * lookups * SECONDS_PER_LOOKUP + steps * SECONDS_PER_STEP,
     }
     if impostor:
         time["render.cube_spp"] = SECONDS_PER_IMPOSTOR + texels * r.cube_spp / rate
@@ -149,6 +234,21 @@ def estimate(
     return Estimate(BYTES_BASE + sum(mem.values()), sum(time.values()), mem, time)
 
 
+def _host_steps(m: Method, res: int) -> float:
+    """:meth:`Method.host_steps` at ``res``, which must be a finite number ≥ 0 (as the lookup bound)."""
+    v = m.host_steps(res)
+    try:
+        steps = float(v)
+    except (TypeError, ValueError):
+        steps = math.nan
+    if not (math.isfinite(steps) and steps >= 0):
+        raise StudyError(
+            f"host_steps() of {m.name!r} gave {v!r}; it must be a finite number of steps ≥ 0 (the budget counts it)",
+            key="method",
+        )
+    return steps
+
+
 def _triangles(scene: Scene) -> float:
     """The environment's triangle count (its mesh is loaded with the scene: placement needed it)."""
     try:
@@ -165,10 +265,12 @@ def _gib(b: float) -> str:
     return f"{b / (1 << 30):.1f} GiB"
 
 
-def _scene_key(key: str, scene: Scene) -> str:
-    """``key = value`` for the message (``methods``: the costliest lookups)."""
+def _scene_key(key: str, scene: Scene, methods: list[Method] = ()) -> str:
+    """``key = value`` for the message (``methods``: the costliest of them)."""
     if key == "methods":
-        return "methods (their lookups per ray)"
+        res = scene.render.cube_res
+        worst = max(methods, key=lambda m: m.lookup_bound(res) + _host_steps(m, res), default=None)
+        return "methods (their lookups per ray" + (f"; the costliest {worst.label})" if worst else ")")
     if key == "environment":
         return f"the environment's {int(_triangles(scene)):,} triangles (environment.file)"
     if key == "method.res":
@@ -219,7 +321,7 @@ def check_cases(
         what = f"{len(ests)} cases" if len(ests) > 1 else f"case {cases[0][0]}"
         raise StudyError(
             f"{what} would take about {_hours(total)} here, over the limit of {limits.max_minutes:g} "
-            f"min (--max-minutes); most of it for {_scene_key(key, cases[i][1])}: lower it or raise "
+            f"min (--max-minutes); most of it for {_scene_key(key, cases[i][1], methods)}: lower it or raise "
             "--max-minutes",
             file=source,
             key=key,

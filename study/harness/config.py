@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from pathlib import Path
 from typing import Any, Literal
 
@@ -202,3 +203,20 @@ def load_figure_config(path: str | Path) -> tuple[FigureConfig, Scene, list[Meth
         )
     methods = expand_methods(cfg.methods, source=str(path))
     return cfg, scene, methods
+
+
+#: A name that becomes one folder or file under ``--out`` / ``reports/``: a word character first, then word
+#: characters, ``.`` and ``-`` (no path separator, no ``..``, nothing a shell reads as an option).
+PLAIN_NAME = re.compile(r"\w[\w.-]{0,99}")
+
+
+def plain_name(name: str, key: str = "name") -> str:
+    """``name`` if it names one folder or file under the output directory (:data:`PLAIN_NAME`, as a config's
+    stem would: no separator, no ``..``); else a StudyError naming ``key`` and what is allowed (exit 2)."""
+    if not isinstance(name, str) or not PLAIN_NAME.fullmatch(name):
+        raise StudyError(
+            f"{str(name)[:80]!r} is not a plain name: letters, digits, '_', '.', '-', starting with a letter, digit "
+            "or '_' (no path separator, no '..'); outputs go under --out or reports/",
+            key=key,
+        )
+    return name

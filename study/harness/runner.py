@@ -313,6 +313,7 @@ def run_cases(
     :func:`~study.harness.cluster.throughput`, also in the metadata)."""
     t0 = time.perf_counter()
     out = Path(out)
+    task = budget.bounded(task)  # workers stop at the command's --max-minutes too
     with locked(out) if into is None else _locked_into(out, into):
         done: dict[int, list[dict]] = {}
         for c in cases:

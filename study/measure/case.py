@@ -396,11 +396,26 @@ def _row(
     }
 
 
+#: A light this strong can overflow Mitsuba's float32 radiance (3.4e38) in a render; a weaker one cannot.
+OVERFLOWING_INTENSITY = 1e30
+
+
 def _finite(scene: Scene, what: str, img: np.ndarray) -> None:
-    """Refuse a render that is not finite: float32 overflow would still give plausible metrics."""
-    if not np.isfinite(img).all():
+    """Refuse a render that is not finite: float32 overflow would still give plausible metrics. The light is
+    blamed only where it is strong enough to overflow; else the environment, whose file or plug-in brought the
+    non-finite value (colours, textures and emissions are checked when it is built: here whatever is left)."""
+    if np.isfinite(img).all():
+        return
+    intensity = max(scene.light.intensity)
+    if intensity >= OVERFLOWING_INTENSITY:
         raise StudyError(
             f"the {what} is not finite (Mitsuba's float32 radiance overflows); lower "
-            f"light.intensity (now {max(scene.light.intensity):g})",
+            f"light.intensity (now {intensity:g})",
             key="light.intensity",
         )
+    raise StudyError(
+        f"the {what} is not finite ({int((~np.isfinite(img)).any(-1).sum())} pixel(s) NaN or inf) with a light "
+        f"of intensity {intensity:g}, which cannot overflow: a non-finite value in the environment "
+        f"({scene.environment.label()}): a colour, texture or emission of its file",
+        key="environment",
+    )

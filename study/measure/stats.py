@@ -264,6 +264,12 @@ def trimmed_mean(values, trim: float = TRIM) -> float:
     return float(v[: v.size - drop].mean()) if v.size > drop else math.nan
 
 
+def _debiased_root(mse: float, sigma: float) -> float:
+    """√max(0, mse − σ²), NaN where either is NaN (``max(0.0, nan)`` is 0.0: a NaN σ would read as no error)."""
+    d = mse - sigma * sigma
+    return math.nan if math.isnan(d) else math.sqrt(max(0.0, d))
+
+
 def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str = "truth", emap=None) -> dict:
     """Intervals and robust variants of one image's errors against ``ref`` over ``mask`` (unit: blocks of pixels,
     :func:`pixel_blocks`).
@@ -288,12 +294,12 @@ def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str =
     lo, hi = cis.pop(f"rmse_{suffix}")
     out[f"rmse_{suffix}_lo"], out[f"rmse_{suffix}_hi"] = math.sqrt(lo), math.sqrt(hi)
     for k, b in (("lo", lo), ("hi", hi)):
-        out[f"rmse_{suffix}_debiased_{k}"] = math.sqrt(max(0.0, b - sigma * sigma)) if b == b else math.nan
+        out[f"rmse_{suffix}_debiased_{k}"] = _debiased_root(b, sigma)
     for name, (a, b) in cis.items():
         out[f"{name}_lo"], out[f"{name}_hi"] = a, b
     tm = trimmed_mean(se)
     out[f"rmse_{suffix}_trim"] = math.sqrt(tm) if tm == tm else math.nan
-    out[f"rmse_{suffix}_debiased_trim"] = math.sqrt(max(0.0, tm - sigma * sigma)) if tm == tm else math.nan
+    out[f"rmse_{suffix}_debiased_trim"] = _debiased_root(tm, sigma)
     total = float(se.sum())
     top = np.sort(se)[::-1][: max(1, math.ceil(TRIM * se.size))].sum() if se.size else math.nan
     out[f"sqerr_top_share_{suffix}"] = float(top / total) if total > 0 else math.nan

@@ -128,8 +128,10 @@ def noise_rms(noise: np.ndarray, mask: np.ndarray) -> float:
 
 
 def debiased(error: float, sigma: float) -> float:
-    """√max(0, error² − σ²): the RMSE the reference's own noise σ does not explain."""
-    return float(np.sqrt(max(0.0, error * error - sigma * sigma)))
+    """√max(0, error² − σ²): the RMSE the reference's own noise σ does not explain; NaN where either is NaN
+    (``max(0.0, nan)`` is 0.0: an unknown σ would read as no error)."""
+    d = error * error - sigma * sigma
+    return float("nan") if np.isnan(d) else float(np.sqrt(max(0.0, d)))
 
 
 def relmse(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:

@@ -190,6 +190,13 @@ class Method(ABC):
             )
         return bound
 
+    def host_steps(self, res: int | None = None) -> float:
+        """Array steps this method takes at cube resolution ``res`` whatever the number of rays: a loop on the
+        host over its iterations or samples, each step a few array operations over every ray. The budget prices
+        each at a fixed cost on top of the lookups (:data:`study.harness.budget.SECONDS_PER_STEP`), which is what
+        a method of many steps on few rays costs; 0 for a method whose cost is its lookups alone."""
+        return 0.0
+
     def volume_lookups(self, res: int | None = None) -> float:
         """How many of :meth:`lookups_per_ray` are 3D texture fetches (a distance field's), which the bench's
         floor prices at the 3D fetch rate; 0 for a method that reads only cube maps and 2D buffers."""

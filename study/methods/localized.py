@@ -75,3 +75,6 @@ class Localized(Method):
 
     def lookups_per_ray(self, res: int | None = None) -> float:
         return 3 + self.params.iterations  # |r|, |x'|, one per iteration, the shown point
+
+    def host_steps(self, res: int | None = None) -> float:
+        return self.lookups_per_ray(res)  # every iteration a step over all rays, in lock-step

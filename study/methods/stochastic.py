@@ -16,6 +16,7 @@ from typing import Annotated
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from study import progress
 from study.backend import V3
 from study.impostor import ggx
 from study.methods.base import Found, Knob, register
@@ -58,6 +59,7 @@ class Stochastic(GlossyMethod):
         # ------------------------------------------------------------- N lobe samples, each localized
         acc, wsum = [x.x * 0.0] * 3, x.x * 0.0
         for _ in range(p.samples):
+            progress.checkpoint()  # samples × iterations can outlast --max-minutes: stop inside the stage
             u = rng.random((2, M))
             h = ggx.half_vectors(lobe.alpha, u[0], u[1])
             l_dir, w = ggx.lobe_directions(B, n, v, tuple(B.array(h[:, i]) for i in range(3)), lobe.alpha)
@@ -81,3 +83,6 @@ class Stochastic(GlossyMethod):
     def lookups_per_ray(self, res: int | None = None) -> float:
         one = self._search().lookups_per_ray(res) if self.params.localize else 1
         return self._search().lookups_per_ray(res) + self.params.samples * one
+
+    def host_steps(self, res: int | None = None) -> float:
+        return self.lookups_per_ray(res)  # samples × the search's iterations, each a step over all rays

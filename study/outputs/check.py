@@ -7,15 +7,18 @@ The check file (``configs/check.toml``) names the sweep, the baseline directory,
 within that interval widened by the same tolerance: a move smaller than the sampling uncertainty of the baseline's
 own rays or pixels is not a regression. Rows are matched by (case, label); a row missing on either side is a
 failure. ``update=True`` rewrites the baseline (results.csv + metadata.json, one output set: both or neither)
-instead of comparing. A malformed baseline is bad input (a StudyError naming the file, exit 2), never a regression
-(exit 1).
+instead of comparing. A malformed baseline is bad input (a StudyError naming the file and its first offending
+cell, exit 2: not UTF-8, a NUL byte, a column or a (case, label) twice, an infinite compared metric, whose
+tolerance would be infinite too), never a regression (exit 1).
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
+import re
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -83,6 +86,9 @@ def compare(new: list[dict], base: list[dict], tolerance: dict[str, Tolerance]) 
             x, y = float(r[metric]), float(b[metric])
             if math.isnan(x) and math.isnan(y) or x == y:
                 continue
+            if math.isinf(y):  # its tolerance would be infinite: only the same value passes
+                fails.append(Failure(f"{metric} of {k[1]} in {k[0]} moved from {y:g} to {x:.6g}"))
+                continue
             allowed = tol.abs + tol.rel * abs(y)
             if abs(x - y) <= allowed:
                 continue
@@ -126,11 +132,21 @@ def run_check(
                 "no baseline yet; create it with `study check --update`", file=str(base_dir / "results.csv")
             )
         base = read_table(base_dir / "results.csv", numeric=list(cfg.tolerance))
+        check_baseline(base, list(cfg.tolerance), base_dir / "results.csv")
     with tempfile.TemporaryDirectory(prefix="study-check-") as tmp:
         rows, stats = run_sweep(sweep_path, Path(tmp) / "run", backend=backend, cache=cache)
         meta = json.loads((Path(tmp) / "run" / "metadata.json").read_text())
     lines = [f"check: {stats['cases']} cases × {len(meta['methods'])} methods in {stats['seconds']:.1f} s"]
-    if update:
+    if update:  # never a baseline that the next check would refuse
+        for r in read_csv_rows(rows):
+            bad = next((m for m in cfg.tolerance if isinstance(r.get(m), float) and math.isinf(r[m])), None)
+            if bad:
+                raise StudyError(
+                    f"the check sweep's {bad} of {r['label']} in {r['case']} is {r[bad]}, which no baseline "
+                    "can hold (its tolerance would be infinite); baseline not written",
+                    file=str(path),
+                    key=f"tolerance.{bad}",
+                )
         write_set(
             base_dir,
             {
@@ -160,15 +176,21 @@ def run_check(
 def read_table(
     path: str | Path, *, required: tuple[str, ...] = ("case", "label"), numeric: list[str] = ()
 ) -> list[dict]:
-    """A results table (:func:`study.tables.read_csv`) that must be well formed: UTF-8 CSV with a header, every
-    row as long as the header, the ``required`` columns, and numbers (or empty cells) in the ``numeric`` columns
-    it has. Anything else is one StudyError naming the file (bad input, exit 2)."""
+    """A results table (:func:`study.tables.read_csv`) that must be well formed: UTF-8 CSV with a header of
+    distinct names without control characters, no NUL byte in any cell, every row as long as the header, the
+    ``required`` columns, and numbers (or empty cells) in the ``numeric`` columns it has. Anything else is one
+    StudyError naming the file and the first offending cell (bad input, exit 2)."""
     path = Path(path)
     try:
-        with open(path, newline="", encoding="utf-8") as f:
-            raw = list(csv.reader(f))
-    except UnicodeDecodeError:
-        raise StudyError("not UTF-8 text, expected a results table (CSV)", file=str(path)) from None
+        data = path.read_bytes()
+        text = data.decode("utf-8")
+        raw = list(csv.reader(io.StringIO(text, newline="")))
+    except UnicodeDecodeError as err:
+        line = data[: err.start].count(b"\n") + 1
+        raise StudyError(
+            f"not UTF-8 text, expected a results table (CSV): line {line} holds byte 0x{data[err.start]:02x}",
+            file=str(path),
+        ) from None
     except IsADirectoryError:
         raise StudyError("is a directory, expected a results table (CSV)", file=str(path)) from None
     except csv.Error as err:
@@ -176,6 +198,19 @@ def read_table(
     except OSError as err:
         raise os_problem(err, "cannot read the results table", path) from None
     header = raw[0] if raw else []
+    for j, name in enumerate(header):
+        if _CONTROL.search(name) or not name:
+            raise StudyError(
+                f"malformed results table: line 1, column {j + 1} of the header is {name[:40]!r}, "
+                "not a column name (empty, or with a NUL or control character)",
+                file=str(path),
+            )
+        if name in header[:j]:
+            raise StudyError(
+                f"malformed results table: line 1, column {j + 1}: {name!r} is already column "
+                f"{header.index(name) + 1}",
+                file=str(path),
+            )
     missing = [c for c in required if c not in header]
     if missing:
         raise StudyError(
@@ -186,6 +221,12 @@ def read_table(
         if cells and len(cells) != len(header):
             raise StudyError(
                 f"malformed results table: line {i + 2} has {len(cells)} cells, the header {len(header)}",
+                file=str(path),
+            )
+        nul = next((j for j, c in enumerate(cells) if "\0" in c), None)
+        if nul is not None:
+            raise StudyError(
+                f"malformed results table: line {i + 2}, column {header[nul]!r} holds a NUL byte",
                 file=str(path),
             )
     rows = read_csv(path)
@@ -200,6 +241,33 @@ def read_table(
     if not rows:
         raise StudyError("malformed results table: no rows", file=str(path))
     return rows
+
+
+#: Characters no column name holds: NUL and the other C0 controls, DEL.
+_CONTROL = re.compile(r"[\x00-\x1f\x7f]")
+
+
+def check_baseline(rows: list[dict], metrics: list[str], path: str | Path) -> None:
+    """A baseline's rows as :func:`compare` needs them: one row per (case, label), and every compared metric a
+    finite number or empty (NaN): an infinite baseline would make its tolerance infinite too. Else one
+    StudyError naming the first offending cell (bad input, exit 2)."""
+    first = {}
+    for i, r in enumerate(rows):
+        k = (r["case"], r["label"])
+        if k in first:
+            raise StudyError(
+                f"malformed baseline: line {i + 2} repeats case {k[0]!r}, label {k[1]!r} of line {first[k]}; "
+                "each (case, label) once",
+                file=str(path),
+            )
+        first[k] = i + 2
+        bad = next((m for m in metrics if isinstance(r.get(m), float) and math.isinf(r[m])), None)
+        if bad:
+            raise StudyError(
+                f"malformed baseline: line {i + 2}, column {bad!r} (case {k[0]!r}, label {k[1]!r}) holds "
+                f"{r[bad]}; a compared metric is a finite number or empty",
+                file=str(path),
+            )
 
 
 def read_csv_rows(rows: list[dict]) -> list[dict]:

@@ -20,7 +20,7 @@ from study import progress as pg
 from study.cache import Cache
 from study.errors import StudyError
 from study.harness import budget
-from study.harness.config import load_figure_config, quality_overrides
+from study.harness.config import load_figure_config, plain_name, quality_overrides
 from study.harness.runner import metadata
 from study.io import atomic_savefig, file_stems, json_text, locked, png_bytes, write_set
 from study.measure.case import CaseOutput, run_case
@@ -283,7 +283,9 @@ def figure_positions(
 ) -> list[dict]:
     """Run every position (or case) of a figure config with every method; write ``<out>/<name>.png`` and
     ``<out>/metrics.csv`` (one row per position or case × method). Returns the rows. ``quality``: a preset of
-    :data:`study.harness.config.QUALITY` applied to every case (``paper``: 1024² renders)."""
+    :data:`study.harness.config.QUALITY` applied to every case (``paper``: 1024² renders). ``name`` is one plain
+    name (:func:`study.harness.config.plain_name`): the figure's files stay inside ``out``."""
+    plain_name(name)
     with pg.task(name, None) as job:  # stage lines and the ETA (study.progress)
         return _figure(config, out, name, backend, cache, progress, quality, job)
 

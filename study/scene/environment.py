@@ -12,7 +12,9 @@ import json
 from collections import OrderedDict
 from typing import TYPE_CHECKING, Any
 
+from study.errors import StudyError
 from study.scene.sources import EnvGeometry, key_fields
+from study.scene.sources.base import checked_build, source_call
 
 if TYPE_CHECKING:
     from study.scene.schema import Scene
@@ -26,7 +28,12 @@ def env_key(scene: Scene) -> str:
     """Content key of what :func:`geometry` returns: the environment source (files by their bytes), and for the
     box the room and columns."""
     env = scene.environment
-    return json.dumps({"environment": key_fields(env), **env.key_extra(scene)}, sort_keys=True)
+    extra = source_call(env, "key_extra()", lambda: env.key_extra(scene))
+    if not isinstance(extra, dict):
+        raise StudyError(
+            f"environment {env.type!r}: key_extra() returned a {type(extra).__name__}, not a dict"
+        )
+    return json.dumps({"environment": key_fields(env), **extra}, sort_keys=True, default=str)
 
 
 def geometry(scene: Scene | Any) -> EnvGeometry:
@@ -41,7 +48,7 @@ def geometry(scene: Scene | Any) -> EnvGeometry:
         scene = type("_EnvOnly", (), {"environment": env, "room": None, "columns": ()})()
     key = env_key(scene)
     if key not in _MEMO:
-        _MEMO[key] = scene.environment.build(scene)
+        _MEMO[key] = checked_build(scene.environment, scene)
         while len(_MEMO) > 8:
             _MEMO.popitem(last=False)
     _MEMO.move_to_end(key)

@@ -16,6 +16,12 @@ A source is a pydantic model (one ``[environment]`` table of a scene) deriving f
 and one class attribute, :attr:`Source.placed`: whether automatic placement (:mod:`study.scene.autoplace`) fills
 in the placement keys a scene leaves out (true for any environment nobody placed things in; false for the box,
 whose defaults are the paper's placement).
+
+Every source is built through :func:`checked_build`, which holds what ``build`` returns to the contract (an
+:class:`EnvGeometry` of finite vertices, at least one triangle, vertex indices and surface ids in range) and turns
+a plug-in's failures (an exception, ``sys.exit``) into one StudyError line naming it, as
+:meth:`study.methods.Method._guarded` does for methods; a plug-in's code is part of its content keys
+(:func:`.keys.key_fields`).
 """
 
 from __future__ import annotations
@@ -67,9 +73,10 @@ class EnvGeometry:
         return bool(self.emitters or self.lights or any(p.emission is not None for p in self.parts))
 
     def __post_init__(self):
-        if self.bounds is None:
-            v = self.mesh.vertices.astype(float)
-            object.__setattr__(self, "bounds", (v.min(0), v.max(0)))
+        if self.bounds is None:  # left None where there are no vertices: :func:`checked_build` says so
+            v = np.asarray(getattr(self.mesh, "vertices", ()), float)
+            if v.ndim == 2 and len(v):
+                object.__setattr__(self, "bounds", (v.min(0), v.max(0)))
 
 
 class Source(BaseModel):
@@ -144,3 +151,119 @@ def validate_source(v: Any, info: ValidationInfo) -> Source:
 
 def _names() -> str:
     return ", ".join(sorted(SOURCES))
+
+
+# ---------------------------------------------------------------------------------------------- plug-ins
+def is_source_plugin(cls: type) -> bool:
+    """Whether a source class comes from outside study's own package (a plug-in)."""
+    return not cls.__module__.startswith("study.scene.sources.")
+
+
+def _who(source: Source) -> str:
+    cls = type(source)
+    return f"environment {source.type!r} (" + (
+        f"plug-in {cls.__module__})" if is_source_plugin(cls) else f"{source.label()})"
+    )
+
+
+def source_call(source: Source, what: str, call):
+    """``call()`` (the source's ``what``, e.g. ``"build()"``), with a plug-in's failures and any ``sys.exit`` turned
+    into one StudyError line naming the source (bad input, exit 2); a failure of study's own sources stays what it
+    is (a bug, exit 4)."""
+    try:
+        return call()
+    except StudyError:
+        raise
+    except SystemExit as err:
+        raise StudyError(f"{_who(source)}: {what} called sys.exit({err.code!r})") from None
+    except Exception as err:
+        if not is_source_plugin(type(source)):
+            raise
+        first = (str(err).strip().splitlines() or [""])[0][:160]
+        raise StudyError(f"{_who(source)}: {what} failed: {type(err).__name__}: {first}") from None
+
+
+def checked_build(source: Source, scene: Any) -> EnvGeometry:
+    """``source.build(scene)`` (:func:`source_call`), and what it built held to the contract (:func:`geometry_problem`):
+    anything else is one StudyError line naming the source and the first wrong element (exit 2)."""
+    geo = source_call(source, "build()", lambda: source.build(scene))
+    problem = geometry_problem(geo)
+    if problem:
+        raise StudyError(f"{_who(source)}: {problem}")
+    return geo
+
+
+def geometry_problem(geo: Any) -> str | None:
+    """What is wrong with a source's :class:`EnvGeometry` (the first thing found), or None: the arrays of its mesh
+    and their shapes, finite vertices and uv, at least one triangle, every vertex index and surface id in range,
+    every part a :class:`~study.scene.parts.Part`, finite colours (vertices', parts', textures'), emissions and
+    bounds. The message names the element: a vertex, a triangle, a part."""
+    if not isinstance(geo, EnvGeometry):
+        return f"build() returned {_what(geo)}, not an EnvGeometry"
+    m = geo.mesh
+    if not isinstance(m, RoomMesh):
+        return f"built mesh = {_what(m)}, not a study.scene.room.RoomMesh"
+    for name, a, kind, cols in (
+        ("vertices", m.vertices, "f", 3),
+        ("faces", m.faces, "i", 3),
+        ("uv", m.uv, "f", 2),
+        ("surface ids", m.surface, "i", None),
+    ):
+        if not isinstance(a, np.ndarray):
+            return f"{name} are {_what(a)}, not a numpy array"
+        want = "(V, 3)" if name == "vertices" else "(F, 3)" if name == "faces" else "(V, 2)"
+        if cols is not None and (a.ndim != 2 or a.shape[1] != cols):
+            return f"{name} have shape {a.shape}, not {want}"
+        if kind == "i" and a.dtype.kind not in "iu" or kind == "f" and a.dtype.kind not in "fiu":
+            return f"{name} are {a.dtype}, not {'integers' if kind == 'i' else 'numbers'}"
+    V, F, S = m.vertices, m.faces, m.surface
+    if len(F) == 0 or len(V) == 0:
+        return "built no triangles"
+    if S.shape != (len(F),):
+        return f"surface ids for {S.size} triangles; the mesh has {len(F)}"
+    if len(m.uv) != len(V):
+        return f"uv for {len(m.uv)} vertices; the mesh has {len(V)}"
+    for name, a in (("vertex", V), ("uv", m.uv)):
+        bad = np.flatnonzero(~np.isfinite(a).all(axis=1))
+        if bad.size:
+            return f"{name} {bad[0]} is not finite ({', '.join(f'{x:g}' for x in a[bad[0]])})"
+    bad = np.flatnonzero(((F < 0) | (F >= len(V))).any(axis=1))
+    if bad.size:
+        i = bad[0]
+        v = next(int(x) for x in F[i] if not 0 <= x < len(V))
+        return f"triangle {i} has vertex index {v}; the mesh has {len(V)} vertices"
+    bad = np.flatnonzero((S < 0) | (S >= len(geo.parts)))
+    if bad.size:
+        return f"triangle {bad[0]} has surface id {S[bad[0]]}; there are {len(geo.parts)} parts"
+    wrong = next((i for i, p in enumerate(geo.parts) if not isinstance(p, Part)), None)
+    if wrong is not None:
+        return f"part {wrong} is {_what(geo.parts[wrong])}, not a study.scene.parts.Part"
+    if m.colors is not None:
+        if not isinstance(m.colors, np.ndarray) or m.colors.shape != V.shape:
+            return (
+                f"vertex colours are {_what(m.colors)} of shape {np.shape(m.colors)}, not one RGB per vertex"
+            )
+        bad = np.flatnonzero(~np.isfinite(m.colors).all(axis=1))
+        if bad.size:
+            v = int(bad[0])
+            used = np.flatnonzero((F == v).any(axis=1))
+            part = f" (part {geo.parts[S[used[0]]].name!r})" if used.size else ""
+            return f"the colour of vertex {v}{part} is not finite ({_rgb(m.colors[v])})"
+    for i, p in enumerate(geo.parts):
+        for what, value in (("colour", p.color), ("emission", p.emission)):
+            if value is not None and not np.isfinite(np.asarray(value, float)).all():
+                return f"part {i} ({p.name!r}): its {what} is not finite ({_rgb(value)})"
+        if p.albedo is not None and not np.isfinite(np.asarray(p.albedo, float)).all():
+            r, c = np.argwhere(~np.isfinite(np.asarray(p.albedo, float)).all(axis=-1))[0][:2]
+            return f"part {i} ({p.name!r}): its texture is not finite (first at row {r}, column {c})"
+    if geo.bounds is None or not all(np.isfinite(np.asarray(b, float)).all() for b in geo.bounds):
+        return f"bounds {geo.bounds} are not finite"
+    return None
+
+
+def _rgb(v: Any) -> str:
+    return ", ".join(f"{float(x):g}" for x in np.ravel(v))
+
+
+def _what(v: Any) -> str:
+    return "None" if v is None else f"a {type(v).__name__}"

@@ -76,7 +76,8 @@ def key_fields(model: BaseModel | dict) -> dict:
     """``model_dump`` of a scene (or part of one) for content keys: every field called ``file`` (or ``filename``,
     in a Mitsuba scene dict) replaced by the digest of the file's bytes (and of the files it references), Python
     objects (Mitsuba transforms in a scene dict) by their repr; the framing keys (:data:`FRAMING_KEYS`) left
-    out, and the object's later keys at their defaults (:data:`LATER_DEFAULTS`)."""
+    out, and the object's later keys at their defaults (:data:`LATER_DEFAULTS`); a plug-in source's code
+    (:func:`plugin_code`) is added to the source's fields."""
     data = model.model_dump(mode="python") if isinstance(model, BaseModel) else model
 
     def walk(v):
@@ -94,4 +95,27 @@ def key_fields(model: BaseModel | dict) -> dict:
             return [walk(x) for x in v]
         return v
 
-    return json.loads(json.dumps(_canon(walk(data)), sort_keys=True))
+    out = json.loads(json.dumps(_canon(walk(data)), sort_keys=True))
+    env = model if hasattr(model, "build") else getattr(model, "environment", None)
+    code = plugin_code(env)
+    if code is not None:  # a plug-in source's code, as the methods' code is in the sweep's keys
+        (out if env is model else out["environment"])[PLUGIN_CODE] = code
+    return out
+
+
+#: The key under which a plug-in source's code hash joins its content key (:func:`key_fields`).
+PLUGIN_CODE = "plugin_code"
+
+
+def plugin_code(source: Any) -> str | None:
+    """The hash of a plug-in source's code (:func:`study.codehash.code_hash` of its class: its module's file, read
+    now, so an edited ``build()`` changes every key that holds the source), or None for study's own sources (their
+    code is in the keys of the study code that builds them) and for anything that is not a source."""
+    cls = type(source)
+    if not hasattr(source, "build") or not hasattr(source, "type"):
+        return None
+    if cls.__module__.startswith("study.scene.sources."):
+        return None
+    from study.codehash import code_hash
+
+    return code_hash(cls)
