@@ -62,6 +62,13 @@ def test_bad_check_file(tmp_path):
     )
     res = runner.invoke(app, ["check", "--config", str(p)])
     assert res.exit_code == 2 and "claims[0]: unknown claim 'nope'; allowed: beats-classical" in res.output
+    p.write_text('sweep = "x.toml"\nbaseline = "b"\n[tolerance]\nwrong_fracton = { abs = 0, rel = 0 }\n')
+    res = runner.invoke(app, ["check", "--config", str(p)])
+    assert res.exit_code == 2, res.output
+    assert (
+        "tolerance.wrong_fracton: 'wrong_fracton' is not a declared column (did you mean wrong_fraction"
+        in " ".join(res.output.split())
+    ), res.output
 
 
 def test_report_from_results(tmp_path):

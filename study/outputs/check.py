@@ -15,6 +15,7 @@ tolerance would be infinite too), never a regression (exit 1).
 from __future__ import annotations
 
 import csv
+import difflib
 import io
 import json
 import math
@@ -25,6 +26,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from study import columns
 from study.errors import StudyError, os_problem
 from study.harness.runner import run_sweep
 from study.io import write_set
@@ -62,6 +64,18 @@ def load_check(path: str | Path) -> tuple[CheckConfig, Path, Path]:
         if c not in known:
             raise StudyError(
                 f"unknown claim {c!r}; allowed: {', '.join(known)}", file=str(path), key=f"claims[{i}]"
+            )
+    for (
+        metric
+    ) in cfg.tolerance:  # a tolerance names a declared column (study.columns), or it compares nothing
+        if columns.declared(metric) is None:
+            near = difflib.get_close_matches(metric, columns.column_names(), n=3)
+            raise StudyError(
+                f"{metric!r} is not a declared column"
+                + (f" (did you mean {', '.join(near)}?)" if near else "")
+                + "; the columns are listed in study/columns.py",
+                file=str(path),
+                key=f"tolerance.{metric}",
             )
     return cfg, path.parent / cfg.sweep, path.parent / cfg.baseline
 
