@@ -31,12 +31,12 @@ TRIMESH_WRONG = {
     "obj/mcguire-cornell/CornellBox-Original.obj": "tab-separated v lines (trimesh drops them)",
     "gltf/Box/glTF-Draco/Box.gltf": "Draco (trimesh has no decoder)",
     "gltf/SimpleSparseAccessor/glTF/SimpleSparseAccessor.gltf": "sparse accessors (trimesh ignores them)",
+    "gltf/meshoptimizer-pirate/pirate.glb": "EXT_meshopt_compression (trimesh has no decoder)",
     "obj/tinyobjloader/cornell_box.obj": "negative indices counted from the file's end, not the face's line (trimesh "
     "puts the ceiling's quads on the last object's vertices: its bounds top at y = 330, the ceiling is at 548.8)",
 }
 #: what each refused file is refused for: words its one line holds
 REFUSAL = {
-    "gltf/meshoptimizer-pirate/pirate.glb": "EXT_meshopt_compression",
     "obj/tinyobjloader/invalid-relative-vertex-index.obj": "refers past the end of the list",
     "obj/tinyobjloader/issue-140-zero-face-idx.obj": "index 0",
     "xml/mitsuba-data/tests/scenes/various_shapes/test_various_shapes_path.xml": "outside the scene's folder",
@@ -124,6 +124,22 @@ def test_corpus_files_outside_what_study_reads_are_refused_in_one_line(entry):
         load(entry)
     msg = str(e.value)
     assert REFUSAL[entry["path"]] in msg and "\n" not in msg, msg
+
+
+def test_the_meshopt_pirate_decodes_to_its_accessors_bounds():
+    """pirate.glb (EXT_meshopt_compression, KHR_mesh_quantization): its decoded uint16 positions, dequantized by
+    the node's scale and translation, span exactly the POSITION accessor's min and max that the file states."""
+    from study.scene.references import gltf_json
+
+    p = CORPUS / "gltf/meshoptimizer-pirate/pirate.glb"
+    g = gltf_json(p)
+    acc = g["accessors"][g["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]
+    node = g["nodes"][0]
+    lo = np.asarray(acc["min"]) * node["scale"] + node["translation"]
+    hi = np.asarray(acc["max"]) * node["scale"] + node["translation"]
+    env = load({"format": "glb", "path": "gltf/meshoptimizer-pirate/pirate.glb"})
+    np.testing.assert_allclose(env.bounds[0], lo, atol=1e-6)
+    np.testing.assert_allclose(env.bounds[1], hi, atol=1e-6)
 
 
 def test_the_published_mcguire_cornell_box_runs_with_its_ceiling_light_lit():

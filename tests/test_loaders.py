@@ -127,11 +127,11 @@ def test_a_draco_stream_that_does_not_decode_is_refused_in_one_line_at_once():
     assert time.perf_counter() - t < 5
 
 
-def test_meshopt_and_unknown_required_extensions_are_refused(tmp_path):
+def test_unknown_required_extensions_are_refused(tmp_path):
     import json
 
     g = json.loads((ASSETS / "room.gltf").read_text())
-    for ext in ("EXT_meshopt_compression", "KHR_made_up"):
+    for ext in ("KHR_made_up",):
         g2 = {**g, "extensionsRequired": [ext], "extensionsUsed": [*g["extensionsUsed"], ext]}
         shutil.copy(ASSETS / "room.bin", tmp_path / "room.bin")
         shutil.copy(ASSETS / "wall.png", tmp_path / "wall.png")

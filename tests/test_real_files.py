@@ -315,6 +315,41 @@ def test_draco_compressed_meshes_decode_to_the_same_triangles(tmp_path):
     np.testing.assert_allclose(triangle_set(env.mesh.vertices, env.mesh.faces), triangle_set(V, F), atol=1e-3)
 
 
+def test_meshopt_compressed_buffer_views_decode_to_the_same_triangles(tmp_path):
+    """EXT_meshopt_compression (meshoptimizer's codec, the package meshopt): positions as ATTRIBUTES and indices as
+    TRIANGLES in a compressed buffer, the fallback buffer without data; the same triangles as the plain file."""
+    import meshopt
+
+    V = (CUBE_V * 2 - 1).astype(np.float32)
+    F = (np.array([t for q in CUBE_Q for t in ((q[0], q[1], q[2]), (q[0], q[2], q[3]))]) - 1).astype(
+        np.uint32
+    )
+    pos = meshopt.encode_gltf_buffer(V, "ATTRIBUTES")
+    idx = meshopt.encode_gltf_buffer(F.ravel(), "TRIANGLES")
+    g, _ = gltf_doc(V, F)
+
+    def ext(off, n, count, stride, mode):
+        keys = {
+            "buffer": 1,
+            "byteOffset": off,
+            "byteLength": n,
+            "count": count,
+            "byteStride": stride,
+            "mode": mode,
+        }
+        return {"EXT_meshopt_compression": keys}
+
+    g["bufferViews"] = [
+        {"buffer": 0, "byteLength": V.nbytes, "extensions": ext(0, len(pos), len(V), 12, "ATTRIBUTES")},
+        {"buffer": 0, "byteLength": F.nbytes, "extensions": ext(len(pos), len(idx), F.size, 4, "TRIANGLES")},
+    ]
+    g["buffers"] = [{"byteLength": V.nbytes + F.nbytes, "extensions": {"EXT_meshopt_compression": {"fallback": True}}},
+                    {"byteLength": len(pos) + len(idx)}]  # fmt: skip
+    g["extensionsUsed"] = g["extensionsRequired"] = ["EXT_meshopt_compression"]
+    env = mesh(write_glb(tmp_path / "m.glb", g, pos + idx))
+    np.testing.assert_allclose(triangle_set(env.mesh.vertices, env.mesh.faces), triangle_set(V, F))
+
+
 # ---------------------------------------------------------------------------------------------- Mitsuba XML
 def test_mitsuba_analytic_shapes_are_tessellated_and_rendered_as_those_triangles(tmp_path):
     """A sphere, a cylinder and an emitting disk become triangles; Mitsuba renders the same triangles (the part's

@@ -22,8 +22,8 @@
   (radians, outer default π/4; 0 ≤ inner < outer ≤ π/2, as the spec says) become Mitsuba's ``cutoff_angle``
   (outer) and ``beam_width`` (inner), in degrees. Lights shine along the node's −z. ``range`` is ignored
   (counted): Mitsuba's lights fall off as 1/r². A negative intensity is refused, naming the light.
-* ``EXT_meshopt_compression`` is refused in one line (no maintained Python decoder), as is any other required
-  extension that is not read.
+* ``EXT_meshopt_compression`` is decoded (:mod:`study.scene.gltf_data`); any other required extension that is
+  not read is refused in one line.
 """
 
 from __future__ import annotations
@@ -37,13 +37,14 @@ from study.scene.gltf_data import GltfFile, is_index
 from study.scene.parts import Loaded, Piece
 
 LUMENS_PER_WATT = 683.0
-COMPRESSION = {"EXT_meshopt_compression": "meshopt-compressed buffers"}
+COMPRESSION: dict[str, str] = {}  # compressions refused (none: Draco and meshopt are decoded)
 READ = {
     "KHR_lights_punctual",
     "KHR_materials_emissive_strength",
     "KHR_mesh_quantization",
     "KHR_texture_transform",
     "KHR_draco_mesh_compression",
+    "EXT_meshopt_compression",
 }
 
 

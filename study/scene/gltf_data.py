@@ -7,7 +7,8 @@
 * Buffer and image URIs are relative to the file and must stay in its folder
   (:func:`study.scene.paths.named_file`); ``data:`` URIs are the file's own bytes, base64 or percent-encoded.
 * Accessors of any component type, normalized integers scaled as the spec says, sparse accessors (their values
-  written over the base, or over zeros: glTF 2.0 § 3.6.2.3).
+  written over the base, or over zeros: glTF 2.0 § 3.6.2.3); ``EXT_meshopt_compression`` buffer views decoded by
+  meshoptimizer's decoder (the package ``meshopt``), filters undone (a fallback buffer without data is not read).
 """
 
 from __future__ import annotations
@@ -56,6 +57,7 @@ class GltfFile:
             self.fail(f"not a glTF 2.0 file ({' '.join(str(err).split())[:120]})")
         self._check_types()
         self._buffers: dict[int, bytes] = {}
+        self._decoded: dict[int, bytes] = {}  # meshopt-compressed buffer views, decoded
         self.images_used: set[int] = set()
 
     def fail(self, msg: str):
@@ -148,11 +150,44 @@ class GltfFile:
     def view(self, i: int, where: str) -> tuple[bytes, int, int, int | None]:
         """(buffer, start, end, byteStride) of buffer view ``i``, checked against its buffer."""
         v = self.get("bufferViews", i, where)
+        ext = (
+            v.get("extensions", {}).get("EXT_meshopt_compression")
+            if isinstance(v.get("extensions"), dict)
+            else None
+        )
+        if isinstance(ext, dict):
+            data = self._meshopt(i, ext)
+            return data, 0, len(data), v.get("byteStride")
         buf = self.buffer(v.get("buffer"), f"bufferView {i}")
         off, n = v.get("byteOffset", 0), v.get("byteLength")
         if not (is_index(off) and is_index(n)) or off + n > len(buf):
             self.fail(f"bufferView {i} (bytes {off!r}..+{n!r}) lies outside its buffer of {len(buf)} bytes")
         return buf, off, off + n, v.get("byteStride")
+
+    def _meshopt(self, i: int, ext: dict) -> bytes:
+        """Buffer view ``i`` decoded from its EXT_meshopt_compression stream (meshoptimizer's decoder through the
+        package meshopt): ``count`` elements of ``byteStride`` bytes, the ``filter`` undone."""
+        if i not in self._decoded:
+            what = f"bufferView {i} (EXT_meshopt_compression)"
+            try:
+                import meshopt
+            except ImportError:
+                self.fail(
+                    f"{what}: the package meshopt, which decodes it, is not installed (pip install meshopt)"
+                )
+            buf = self.buffer(ext.get("buffer"), what)
+            off, n = ext.get("byteOffset", 0), ext.get("byteLength")
+            count, stride = ext.get("count"), ext.get("byteStride")
+            mode, filt = ext.get("mode"), ext.get("filter", "NONE")
+            if not all(is_index(x) for x in (off, n, count, stride)) or off + n > len(buf):
+                self.fail(f"{what}: byteOffset, byteLength, count and byteStride must be indices inside buffer "
+                          f"{ext.get('buffer')!r}")  # fmt: skip
+            try:
+                rows = meshopt.decode_gltf_buffer(bytes(buf[off : off + n]), count, stride, mode, filt)
+            except Exception as err:  # noqa: BLE001 - the decoder's own errors are bad input
+                self.fail(f"{what}: its stream does not decode ({type(err).__name__}: {err})")
+            self._decoded[i] = np.ascontiguousarray(rows).astype(rows.dtype.newbyteorder("<")).tobytes()
+        return self._decoded[i]
 
     def _rows(self, view: int, offset, dt: np.dtype, nc: int, count: int, where: str) -> np.ndarray:
         """``count`` elements of ``nc`` components of type ``dt`` from buffer view ``view`` at ``offset``."""
