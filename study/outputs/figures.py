@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import textwrap
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -317,9 +318,12 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) 
     budget.check_cases(scenes, methods, source=str(config))
     store = Cache(cache)
     job.total = len(scenes)
-    with locked(out):  # one command at a time here; the files are written together at the end
+    every = [m.label for m in methods]
+    titles = [None] * len(todo) if cfg.positions is not None else [lab for _, lab, _ in todo]
+    stems = file_stems(cid for cid, _ in scenes)
+    with locked(out), ThreadPoolExecutor(1) as writer:  # one command at a time here; files written at the end
         t_start = time.perf_counter()
-        cases, rows = [], []
+        cases, rows, made = [], [], []
         for i, (case_id, sc) in enumerate(scenes):
             t0 = time.perf_counter()
             with pg.item(case_id):
@@ -330,11 +334,14 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) 
                 r["case_seconds"] = time.perf_counter() - t0
             cases.append(case)
             rows += case.rows
+            # the case's EXR and viewer images are encoded beside the next case, not after the last one
+            made.append(writer.submit(viewer.case_files, name, stems[case_id], case, every,
+                                      title=titles[i] or "", case_id=case_id))  # fmt: skip
             if progress:
                 progress(i + 1, len(todo))
             pg.advance(case_id)
         mark = pg.Stages()
-        mark("outputs")  # the grid PNGs, EXRs and the viewer's images
+        mark("outputs")  # the grid PNGs, then the EXRs and viewer images the writer has made meanwhile
         exposure = figure_exposure(cases)
         meta = metadata(
             config,
@@ -367,14 +374,10 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) 
             "metadata.json": json_text(meta, indent=2),
             **pngs,
         }
-        every = [m.label for m in methods]
-        titles = [None] * len(todo) if cfg.positions is not None else [lab for _, lab, _ in todo]
-        stems = file_stems(cid for cid, _ in scenes)
         entries = []
-        for (cid, _), case, t in zip(scenes, cases, titles):
-            more, entry = viewer.case_files(
-                name, stems[cid], case, every, title=t or "", case_id=cid, exposure_ev=exposure
-            )
+        for job_i in made:
+            more, entry = job_i.result()
+            entry["exposure_ev"] = round(float(exposure), 2)  # the figure's, known once every case is in
             files.update(more)
             entries.append(entry)
         files[viewer.MANIFEST] = viewer.manifest_text(name, entries)
