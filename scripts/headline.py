@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from study.outputs import summary
+from study.outputs import plots, summary
 from study.outputs.check import read_table
 from study.tables import markdown
 
@@ -43,7 +43,7 @@ def main() -> None:
         for name, tab in tables.items():
             rows = summary.tolerance_curve_rows(tab)
             if rows:
-                summary.plot_tolerance_curve(rows, a.curves / f"{name}-tolerance.png", title=name)
+                plots.plot_tolerance_curve(rows, a.curves / f"{name}-tolerance.png", title=name)
                 print(f"wrote {a.curves / f'{name}-tolerance.png'}")
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 
 from study.measure import stats
-from study.outputs import claims, power, summary
+from study.outputs import claims, plots, power, summary
 
 
 def _table(n_cases, methods, rays=2000, seed=0):
@@ -95,7 +95,7 @@ def test_tolerance_curve_data_and_plot(tmp_path):
     rows = summary.tolerance_curve_rows(tab)
     assert [r["tolerance_m"] for r in rows] == [0.001, 0.003, 0.01, 0.03, 0.1, 0.3]
     assert rows[0]["wrong"] == 0.5 and rows[-1]["wrong"] == 0.5 / 6
-    summary.plot_tolerance_curve(rows, tmp_path / "c.png", title="t")
+    plots.plot_tolerance_curve(rows, tmp_path / "c.png", title="t")
     assert (tmp_path / "c.png").stat().st_size > 1000
 
 

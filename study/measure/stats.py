@@ -317,6 +317,22 @@ def over_cases(values, statistic=np.median) -> tuple[float, float, float, int]:
     return float(statistic(v)), lo, hi, int(v.size)
 
 
+#: Fewer cases than this and an interval over cases is their range, not a "95 % CI": a percentile bootstrap over
+#: 2–4 cases covers the truth 52–87 % of the time in simulation (with 3 cases it is just [min, max]).
+MIN_CASES_CI = 10
+
+
+def case_interval(values) -> tuple[float, float, float, int, str]:
+    """(median, lo, hi, n, kind) of per-case values: ``kind`` "ci", the bootstrap's 95 % interval over the cases
+    (:func:`over_cases`), from :data:`MIN_CASES_CI` cases on; else "range", their min and max."""
+    med, lo, hi, n = over_cases(values)
+    if 0 < n < MIN_CASES_CI:
+        v = np.asarray(values, float)
+        v = v[np.isfinite(v)]
+        return med, float(v.min()), float(v.max()), n, "range"
+    return med, lo, hi, n, "ci"
+
+
 def paired(a, b) -> dict:
     """Paired comparison of two methods over the same cases: per-case values ``a`` and ``b`` (lower is better;
     cases where either is not finite are left out).

@@ -257,3 +257,29 @@ def sweep_plots(rows: list[dict], out: str | Path) -> list[Path]:
             )
             made.append(p)
     return made
+
+
+def plot_tolerance_curve(rows: list[dict], path, title: str = "") -> None:
+    """Wrong fraction (median over cases; the band up to the worst case) against the fixed tolerance, one line
+    per method, log tolerance axis; written to ``path`` (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for lab in dict.fromkeys(r["label"] for r in rows):
+        sel = sorted((r for r in rows if r["label"] == lab), key=lambda r: r["tolerance_m"])
+        t = [r["tolerance_m"] for r in sel]
+        (line,) = ax.plot(t, [r["wrong"] for r in sel], marker="o", ms=3, label=lab)
+        ax.fill_between(
+            t, [r["wrong"] for r in sel], [r["wrong_max"] for r in sel], alpha=0.1, color=line.get_color()
+        )
+    ax.set_xscale("log")
+    ax.set_xlabel("tolerance |shown − exact| (m)")
+    ax.set_ylabel("wrong fraction (median over cases; band to the worst)")
+    ax.set_title(title)
+    ax.legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
