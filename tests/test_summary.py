@@ -1,6 +1,7 @@
 """The report's headline (study.outputs.summary): the cheapest method as good as the best, how sure, and flags."""
 
 import numpy as np
+import pytest
 
 from study.measure import stats
 from study.outputs import claims, plots, power, summary
@@ -243,3 +244,23 @@ def test_tables_of_rough_objects_stay_out_of_the_wrong_hit_headline():
         for lab, w in (("prefiltered", 0.8), ("stochastic(samples=4)", 0.01))
     ]
     assert headline_blocks({"fig_glossy": rows}) == []
+
+
+def test_fewer_than_ten_cases_give_their_range_not_a_ci():
+    """A percentile bootstrap over 3 cases is just [min, max] and covers 52–87 %: below stats.MIN_CASES_CI cases the
+    table says "range over n = 3" and gives the cases' min and max; from 10 cases on, the bootstrap's 95 % CI."""
+
+    def table(n):
+        rows = []
+        for i in range(n):
+            for lab, w in (("a", 0.1 + 0.01 * i), ("b", 0.5 + 0.01 * i)):
+                rows.append({"case": f"c{i}", "label": lab, "method": lab, "wrong_fraction": w,
+                             "lookups_per_ray": 1.0, "rmse_truth_debiased": w})  # fmt: skip
+        return rows
+
+    few = summary.ranking(table(3), summary.WRONG)[0]
+    assert few["kind"] == "range" and (few["lo"], few["hi"]) == pytest.approx((0.1, 0.12))
+    assert "range over n = 3 10 %–12 %" in summary.table_sentence("t", table(3))
+    many = summary.ranking(table(12), summary.WRONG)[0]
+    assert many["kind"] == "ci" and "95 % CI over cases" in summary.table_sentence("t", table(12))
+    assert {r["interval"] for r in summary.interval_rows({"t": table(3)})} == {"range"}
