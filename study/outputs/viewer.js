@@ -73,6 +73,13 @@
   const REF = "truth_at_hit";                       // what A/B and the difference compare against
   const DIGIT_MS = 900;                             // digits typed within this time form one number (1, 4 → 14)
   const byFig = {};                                 // figure → its viewers: they share exposure and view
+  // The exposure slider spans what any image of the page needs (each case's exposure_span: its images' own
+  // exposures with a margin, study/outputs/viewer.py), at least ±8 EV.
+  const EV_SPAN = Object.values(MANIFEST).flatMap(m => m.cases).reduce(([lo, hi], c) => {
+    const ev = typeof c.exposure_ev === "number" ? c.exposure_ev : 0;
+    const s = Array.isArray(c.exposure_span) ? c.exposure_span : [ev - 8, ev + 8];
+    return [Math.min(lo, s[0], ev), Math.max(hi, s[1], ev)];
+  }, [-8, 8]);
 
   class Viewer {
     constructor(el, fig, c) {
@@ -119,7 +126,8 @@
       zb("−", () => this.zoomBy(1 / 1.5)); zb("+", () => this.zoomBy(1.5)); zb("fit", () => this.fit());
       add("span", "", trow).textContent = " exposure";
       this.slider = add("input", "exposure", trow);
-      Object.assign(this.slider, {type: "range", min: -8, max: 8, step: 0.01, value: String(this.exposure)});
+      Object.assign(this.slider, {type: "range", min: EV_SPAN[0], max: EV_SPAN[1], step: 0.01,
+                                   value: String(this.exposure)});
       this.expLabel = add("span", "", trow);
       this.slider.addEventListener("input", () => this.setExposure(parseFloat(this.slider.value)));
       this.shownLabel = add("div", "shown");
