@@ -4,8 +4,10 @@ viewer). Made in memory (relative path → bytes) for :func:`study.io.write_set`
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
+from study.io import file_stem
 from study.outputs import figures, html, viewer
 
 #: The one case of a run: its file names (exr/run.exr, viewer/run.js, run.png).
@@ -15,6 +17,17 @@ CASE = "run"
 EXPOSURE_RULE = f"Mitsuba image: {viewer.FRAME_RULE}"
 
 
+def default_folder(scene: str | Path, reports: Path = Path("reports")) -> Path:
+    """Where ``study run SCENE`` writes without ``--out``: ``reports/run-<stem>-<8 hex>``, the hex digits of the
+    SHA-256 of the file's resolved path — two files of one name (``a/room.glb``, ``b/room.obj``) never share a
+    folder, and a re-run of the same file replaces its own."""
+    from study.harness.config import shipped
+
+    path = shipped(Path(scene).expanduser()).resolve()
+    digest = hashlib.sha256(str(path).encode("utf-8", "surrogateescape")).hexdigest()[:8]
+    return reports / f"run-{file_stem(Path(scene).stem)}-{digest}"
+
+
 def run_exposure(res) -> float:
     """The exposure (EV) of a run's images: :data:`EXPOSURE_RULE` (0 where Mitsuba's render shows no light)."""
     ev = viewer.auto_exposure(getattr(res, "mitsuba", None))
@@ -22,11 +35,11 @@ def run_exposure(res) -> float:
 
 
 def result_files(
-    res, rows: list[dict], labels: list[str], *, title: str
+    res, rows: list[dict], labels: list[str], *, title: str, name: str | None = None
 ) -> tuple[dict[str, bytes | str], dict]:
     """``res``: a case's images and maps (attributes as :class:`~study.measure.case.CaseOutput`); ``rows``: its
-    table; ``labels``: the methods. Returns the files and the viewer manifest entry's layer names
-    (``{"exr": …, "layers": {group: {label: layer}}}``) for ``index.json``."""
+    table; ``labels``: the methods; ``name``: the scene file's (titles its viewer). Returns the files and the
+    viewer manifest entry's layer names (``{"exr": …, "layers": {group: {label: layer}}}``) for ``index.json``."""
     exposure = run_exposure(res)
     files: dict[str, bytes | str] = dict(
         figures.image_grids(
@@ -54,7 +67,7 @@ def result_files(
         ),
         *[("img", p, p) for p in files if p.endswith(".png")],
         ("p", html.SHADOW_NOTE),
-        ("viewer", "."),
+        ("viewer", ".", f"{name or 'the scene'}: images per case"),
         ("table", rows, list(dict.fromkeys(k for r in rows for k in r))),
     ]
     files["index.html"] = html.page(blocks, Path("."), title=f"study run: {title}", made={".": manifest})
