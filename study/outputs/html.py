@@ -2,7 +2,9 @@
 
 The page is self-contained apart from files under ``reports/`` it names by relative paths (figure PNGs, plots, each
 figure's viewer scripts ``<fig>/viewer/<case>.js`` and EXRs): no CDN, no server, opened as ``file://``. Its script and
-style (``viewer.js``, ``html.css`` beside this module) are inlined: tables sort by a click on a header (numbers by
+style (``viewer.js``, ``html.css`` beside this module) are inlined. The page fits a 1280–1920 px window: the top bar
+wraps its links, a table wider than the page scrolls in its own box, viewers share each row's width (one alone
+takes the row, its controls beside the image). Tables sort by a click on a header (numbers by
 value, empty cells last) and their headers stick under the top bar, and each case of a figure gets an image viewer
 (sources by number keys, the references first, digits typed quickly forming one number, or ←/→ and clicks; layers —
 image, angular error, outcome, FLIP, hidden — by ↑/↓ or clicks; r flips to truth_at_hit and back, d shows the
@@ -196,7 +198,7 @@ def page(blocks: list[tuple], reports: Path, *, title: str, made: dict | None = 
             '<meta name="viewport" content="width=device-width, initial-scale=1">',
             f"<title>{esc(title)}</title>",
             f"<style>{css}</style></head><body>",
-            f'<nav class="toc">{" · ".join(toc)}</nav><main>',
+            f'<nav class="toc">{" · ".join(toc)}</nav><main>' if toc else "<main>",  # no empty bar
             *body,
             "</main>",
             f'<script type="application/json" id="study-manifest">{_script_json(manifests)}</script>',

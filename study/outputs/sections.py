@@ -67,9 +67,9 @@ def _split_tables(d: Path) -> list[tuple]:
     """A figure's error split where one was written beside it (``split.csv``: ``scripts/glossy_split.py`` for
     the glossy figure): a heading, the source and the table."""
     f = d / "split.csv"
-    if not f.is_file():
+    rows = read_csv(f) if f.is_file() else []
+    if not rows:  # no section of an empty table
         return []
-    rows = read_csv(f)
     return [
         ("h", 3, "Error split"),
         (
@@ -77,7 +77,7 @@ def _split_tables(d: Path) -> list[tuple]:
             f"Prefiltering, localization, visibility and noise with 95 % intervals over blocks of pixels "
             f"({link(f'{d.name}/split.csv', f'{d.name}/split.csv')}; scripts/glossy_split.py).",
         ),
-        ("table", rows, list(rows[0]) if rows else []),
+        ("table", rows, list(rows[0])),
     ]
 
 
