@@ -249,6 +249,9 @@ class Result:
     mask: np.ndarray | None = None
     backend: str = "numpy"
     occluded: np.ndarray | None = None
+    file: str | None = (
+        None  # the scene's file (resolved), where it came from one: named in titles and index.json
+    )
 
     def __post_init__(
         self,
@@ -313,7 +316,15 @@ class Result:
         buf = _io.BytesIO()
         self.table.to_parquet(buf, index=False)
         labels = [lab for lab in self.labels if lab not in REFERENCES]
-        files, index = result_files(self._case(), rows, labels, title=self.summary())
+        name = Path(self.file).name if self.file else None
+        files, index = result_files(
+            self._case(),
+            rows,
+            labels,
+            title=f"{name}: {self.summary()}" if name else self.summary(),
+            name=name,
+        )
+        index.update(file=self.file, name=name)  # study report finds the run by this file and names it
         files.update(
             {
                 "table.csv": to_csv(rows),
@@ -386,8 +397,8 @@ def evaluate(
 
     if cache is not None and not isinstance(cache, str | os.PathLike):
         raise StudyError(f"cache is a directory path or None, not {type(cache).__name__}", key="cache")
-    if source is None:
-        source = str(scene) if isinstance(scene, str | os.PathLike) else "evaluate"
+    named = source if source is not None else str(scene) if isinstance(scene, str | os.PathLike) else None
+    source = named or "evaluate"
     scene = load_scene(scene, overrides)
     ms = method_list(methods)
     budget.check_backend(backend)
@@ -423,4 +434,14 @@ def evaluate(
         mask=mask,
         backend=backend,
         occluded=None if case.occluded is None else np.asarray(case.occluded, np.float32),
+        file=scene_file(named, scene),
     )
+
+
+def scene_file(source: str | None, scene: Scene) -> str | None:
+    """The file a scene came from, resolved: ``source`` where it names one, else its environment's file."""
+    from study.harness.config import shipped
+
+    if source and (p := shipped(Path(source).expanduser())).is_file():
+        return str(p.resolve())
+    return getattr(getattr(scene, "environment", None), "file", None)

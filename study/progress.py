@@ -6,9 +6,10 @@ figure or sweep, the frames of an animation) whose units finish with :func:`adva
 load (the environment and the object's rays), placement (automatic placement of the keys a scene leaves out),
 capture (impostor and camera renders), probes (the other views methods search: layers, probes, the camera's
 buffer), references (Mitsuba with the object, Embree's exact hits, the oracle), methods (every method traced)
-and metrics (the rows). The command line decides where that goes by installing a :class:`Reporter`
-(:func:`reporting`; :mod:`study.cli.progress` prints lines on stderr, with a live bar on a terminal). Without
-one every call here is a no-op: the Python API, tests and worker processes stay silent.
+and metrics (the rows). A long stage may say how far it is with :func:`note` (``"probe 2/6"``). The command
+line decides where that goes by installing a :class:`Reporter` (:func:`reporting`; :mod:`study.cli.progress`
+prints lines on stderr — when a stage starts, when it ends, and every few seconds while it runs — with a live bar
+on a terminal). Without one every call here is a no-op: the Python API, tests and worker processes stay silent.
 
 The elapsed time and the ETA (the mean time per unit finished in this run × the units left) are computed here,
 so every reporter shows the same numbers.
@@ -40,6 +41,17 @@ class Task:
     start: int = 0
     t0: float = field(default_factory=time.perf_counter)
     item: str = ""  # the unit now running
+    open: list = field(default_factory=list)  # the stages running, outermost first: (name, start)
+    detail: str = ""  # how far the stage is (:func:`note`: "probe 2/6"), "" until it says
+
+    @property
+    def stage(self) -> str:
+        """The innermost stage now running ("" between stages)."""
+        return self.open[-1][0] if self.open else ""
+
+    @property
+    def stage_t0(self) -> float:
+        return self.open[-1][1] if self.open else self.t0
 
     @property
     def elapsed(self) -> float:
@@ -72,6 +84,9 @@ class Reporter:
     def entered(self, task: Task, name: str) -> None:
         """Stage ``name`` began."""
 
+    def noted(self, task: Task, text: str) -> None:
+        """The stage now running said how far it is (``task.detail``)."""
+
     def advanced(self, task: Task, what: str) -> None:
         """Unit ``what`` finished (``task.done`` counts it)."""
 
@@ -99,6 +114,40 @@ def reporting(reporter: Reporter | None) -> Iterator[Reporter | None]:
 
 def _current() -> Task:
     return _tasks[-1] if _tasks else Task("study", None)
+
+
+def current() -> Task | None:
+    """The innermost task running, None outside every task (what a reporter's heartbeat reads)."""
+    return _tasks[-1] if _tasks else None
+
+
+def note(text: str) -> None:
+    """How far the stage now running is (``"probe 2/6"``), for long stages: kept on the task, and the reporter
+    told; a no-op without a reporter."""
+    if _reporter is None:
+        return
+    t = _current()
+    t.detail = text
+    _reporter.noted(t, text)
+
+
+def _enter(t: Task, name: str) -> None:
+    t.open.append((name, time.perf_counter()))
+    t.detail = ""
+    _reporter.entered(t, name)
+
+
+def _close(t: Task, name: str) -> None:
+    for i in range(len(t.open) - 1, -1, -1):
+        if t.open[i][0] == name:
+            del t.open[i:]
+            break
+    t.detail = ""
+
+
+def _leave(t: Task, name: str, seconds: float) -> None:
+    _close(t, name)
+    _reporter.stage(t, name, seconds)
 
 
 @contextlib.contextmanager
@@ -137,11 +186,11 @@ def item(label: str) -> Iterator[None]:
     """One unit (a case) running: the stages inside are reported under its label."""
     checkpoint()
     t = _current()
-    before, t.item = t.item, label
+    before, t.item, stages = t.item, label, list(t.open)
     try:
         yield
     finally:
-        t.item = before
+        t.item, t.open[:], t.detail = before, stages, ""  # a stage that failed inside is not running any more
 
 
 @contextlib.contextmanager
@@ -153,10 +202,14 @@ def stage(name: str) -> Iterator[None]:
         yield
         return
     t = _current()
-    _reporter.entered(t, name)
+    _enter(t, name)
     t0 = time.perf_counter()
-    yield
-    _reporter.stage(t, name, time.perf_counter() - t0)
+    try:
+        yield
+    except BaseException:
+        _close(t, name)
+        raise
+    _leave(t, name, time.perf_counter() - t0)
 
 
 class Stages:
@@ -172,11 +225,11 @@ class Stages:
         checkpoint()
         if _reporter is not None:
             self._name, self._t0 = name, time.perf_counter()
-            _reporter.entered(_current(), name)
+            _enter(_current(), name)
 
     def end(self) -> None:
         if self._name is not None and _reporter is not None:
-            _reporter.stage(_current(), self._name, time.perf_counter() - self._t0)
+            _leave(_current(), self._name, time.perf_counter() - self._t0)
         self._name = None
 
 

@@ -57,7 +57,12 @@ def test_figure_reports_every_stage_of_every_case_in_order_with_times(figure_run
     ]
     assert stages == [("1/2 fig_tiny-p0", s) for s in CASE] + [("2/2 fig_tiny-p1", s) for s in CASE]
     text = res.stderr
-    assert lines[0].endswith("fig_tiny 1/2 fig_tiny-p0: load " + lines[0].rsplit(" ", 2)[1] + " s")  # first
+    assert lines[0].endswith("fig_tiny 1/2 fig_tiny-p0: load …")  # first: the first stage starts
+    assert lines[1].endswith("fig_tiny 1/2 fig_tiny-p0: load " + lines[1].rsplit(" ", 2)[1] + " s")
+    started = [
+        m.group(1) for m in (re.search(r"\] fig_tiny \d/2 fig_tiny-p\d: (\w+) …$", ln) for ln in lines) if m
+    ]
+    assert started == CASE + CASE  # every stage says when it starts
     done1 = re.search(r"\] fig_tiny: 1/2 done \(fig_tiny-p0\), ETA (\d+\.\d) s\n", text)
     assert done1 and text.index(done1.group(0)) > text.index("fig_tiny-p0: metrics")
     assert text.index(done1.group(0)) < text.index("fig_tiny-p1: load")
@@ -110,10 +115,11 @@ def test_nothing_is_reported_without_a_reporter_and_lines_name_task_item_and_sta
         text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", con.file.getvalue())  # the bar's cursor moves out
         lines = [ln.rsplit("\r", 1)[-1] for ln in text.split("\n")]  # a line printed over the bar
         said = [ln.split("] ", 1)[1] for ln in lines if STAMP.match(ln)]
-        assert re.fullmatch(r"job 1/2 case-a: load \d+\.\d s", said[0]), (kind, said)
-        assert re.fullmatch(r"job 1/2 case-a: capture \d+\.\d s", said[1])
-        assert re.fullmatch(r"job: 1/2 done \(case-a\), ETA \d+\.\d s", said[2])
-        assert re.fullmatch(r"job: finished in \d+\.\d s", said[3]) and len(said) == 4
+        assert said[0] == "job 1/2 case-a: load …" and said[2] == "job 1/2 case-a: capture …", (kind, said)
+        assert re.fullmatch(r"job 1/2 case-a: load \d+\.\d s", said[1]), (kind, said)
+        assert re.fullmatch(r"job 1/2 case-a: capture \d+\.\d s", said[3])
+        assert re.fullmatch(r"job: 1/2 done \(case-a\), ETA \d+\.\d s", said[4])
+        assert re.fullmatch(r"job: finished in \d+\.\d s", said[5]) and len(said) == 6
     con = Console(file=io.StringIO(), width=200)
     with pytest.raises(ValueError), progress.reporting(Lines(con)), progress.task("job", 2):
         raise ValueError  # a failed task: the error says why, no "finished" line

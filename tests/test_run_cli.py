@@ -13,6 +13,7 @@ from study.cli.run import parse_sets
 from study.errors import StudyError
 from study.harness import budget
 from study.io import read_exr_layers
+from study.outputs.run_files import default_folder
 from study.tables import read_csv
 from tests.conftest import error_output, scene_toml, small_scene_dict
 
@@ -53,11 +54,12 @@ def test_run_prints_and_writes_the_table(tmp_path, monkeypatch):
     )
     assert res.exit_code == 0, res.output
     assert "localized(iterations=3)" in res.output and "camera 32×32, cube 16²" in res.output
-    rows = read_csv(tmp_path / "reports" / "run-tiny" / "table.csv")  # default --out: reports/run-<stem>
+    (d,) = (tmp_path / "reports").glob("run-tiny-*")  # default --out: reports/run-<stem>-<hash of the path>
+    assert d == default_folder("tiny.toml", tmp_path / "reports")
+    rows = read_csv(d / "table.csv")
     by = {r["label"]: r for r in rows}
     assert list(by) == ["oracle_map", "truth_at_hit", "classical", "localized(iterations=3)"]
     assert by["classical"]["angle_median_deg"] > 1 > by["localized(iterations=3)"]["angle_median_deg"] * 100
-    d = tmp_path / "reports" / "run-tiny"
     layers = read_exr_layers(d / "exr" / "run.exr")  # one multi-layer EXR, named as a figure's
     assert {
         "classical",
@@ -77,8 +79,9 @@ def test_run_prints_and_writes_the_table(tmp_path, monkeypatch):
     res = run(app, ["report", "--reports", str(tmp_path / "reports")])
     assert res.exit_code == 0, res.output
     text = (tmp_path / "reports" / "index.html").read_text()
-    assert 'id="run-tiny"' in text and 'data-fig="run-tiny"' in text and '<img src="run-tiny/run.png"' in text
-    assert (tmp_path / "reports" / "run-tiny" / "scene.json").read_text().count('"cube_res": 16') == 1
+    assert f'id="{d.name}-tiny-toml"' in text and f'data-fig="{d.name}"' in text
+    assert f'<img src="{d.name}/run.png"' in text
+    assert (d / "scene.json").read_text().count('"cube_res": 16') == 1
 
 
 @pytest.mark.parametrize(

@@ -141,10 +141,24 @@ def check(
 
 @app.command()
 @guarded()
-def report(reports: Path = typer.Option(Path("reports"), help="directory holding the figures and sweeps")):
+def report(
+    reports: Path = typer.Option(
+        Path("reports"),
+        help="directory holding the figures, sweeps and `study run` folders (found by their own files, any name)",
+    ),
+):
     """Build reports/index.md and reports/index.html (tables, image viewers) from the results tables: figures,
     tables, the paper's claims, versions."""
     path = build_report(reports)
+    if path is None:  # one line on stderr, and no page of empty tables
+        err_console.print(
+            f"warning: found no results under {reports} (a figure's metrics.csv, a sweep's results.csv, a study "
+            "run folder's index.json + table.csv + scene.json); nothing written",
+            highlight=False,
+            markup=False,
+            soft_wrap=True,
+        )
+        return
     console.print(f"report: wrote {path} and {path.with_suffix('.html')}", highlight=False)
 
 

@@ -6,8 +6,10 @@
 SCENE is a scene TOML, a mesh file (the environment: OBJ/PLY/GLB/STL/OFF) or a Mitsuba XML file
 (:func:`study.api.load_scene`). ``--set KEY=VALUE`` overrides a dotted scene key; VALUE is a TOML value (a bare
 word is taken as a string: ``--set object.shape=torus``). The table is printed and written with the images to
-``--out`` (default ``reports/run-<scene stem>``) by :meth:`study.api.Result.save`: the table, one multi-layer EXR,
-the image grid PNG and a viewer page (``index.html``), as a figure's; ``study report`` shows it as a section.
+``--out`` by :meth:`study.api.Result.save`: the table, one multi-layer EXR, the image grid PNG and a viewer page
+(``index.html``), as a figure's; ``study report`` shows it as a section. The default ``--out`` is
+``reports/run-<scene stem>-<8 hex digits of its resolved path>``, one folder per scene file: two files named
+``room.*`` never replace each other's results, and a re-run of the same file replaces its own.
 """
 
 from __future__ import annotations
@@ -65,7 +67,10 @@ def run(
         [], "--set", "-s", metavar="KEY=VALUE", help="override a scene key, VALUE as TOML (repeatable)"
     ),
     backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
-    out: Path | None = typer.Option(None, help="output directory (default reports/run-<scene stem>)"),
+    out: Path | None = typer.Option(
+        None,
+        help="output directory (default reports/run-<scene stem>-<hash of its path>: one per scene file)",
+    ),
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
 ):
     """Evaluate methods on one scene, no config file: prints the table, writes table + images to --out."""
@@ -73,6 +78,7 @@ def run(
     from rich.table import Table
 
     from study.api import evaluate, load_scene, method_list
+    from study.outputs.run_files import default_folder
 
     t0 = time.perf_counter()  # the time reported includes loading and placing the scene
     overrides = parse_sets(set_)
@@ -83,7 +89,7 @@ def run(
         t_load = time.perf_counter() - t0
         if sc.load_summary():  # what the environment's file held, and what was ignored (stderr)
             typer.echo(sc.load_summary(), err=True)
-        out = out or Path("reports") / f"run-{file_stem(scene.stem)}"
+        out = out or default_folder(scene)  # reports/run-<stem>-<hash of the path>: one per scene file
         with progress.item(file_stem(scene.stem)):
             res = evaluate(sc, methods, backend=backend, cache=cache, source=str(scene))
         progress.advance(file_stem(scene.stem))

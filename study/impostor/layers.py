@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from study import progress
 from study.cache import Cache, content_key
 from study.impostor import cubemap
 from study.impostor.capture import impostor_key
@@ -44,7 +45,8 @@ def peel(tracer: Tracer, o: np.ndarray, dirs: np.ndarray, layers: int):
     """
     V, F = tracer.mesh.vertices.astype(float), tracer.mesh.faces
     fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    fn /= np.linalg.norm(fn, axis=1, keepdims=True)
+    length = np.linalg.norm(fn, axis=1, keepdims=True)  # 0 for a degenerate triangle (never hit): normal 0
+    fn = np.divide(fn, length, out=np.zeros_like(fn), where=length > 0)
     n = len(dirs)
     start = np.broadcast_to(np.asarray(o, float), (n, 3)).copy()
     dist, point, normal, new = (
@@ -109,6 +111,7 @@ def capture_layers(
     for k in range(1, layers):
         rgb[k] = rgb[k - 1]
         if new[k].any():
+            progress.note(f"layer {k + 1}/{layers}: path tracing {int(new[k].sum())} texels")
             rgb[k][new[k]] = surface_radiance(
                 scene, point[k][new[k]], normal[k][new[k]], spp, seed=scene.render.seed + 1000 * k
             )

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from study import progress
 from study.backend import V3, Backend
 from study.cache import Cache
 from study.impostor import cubemap
@@ -69,7 +70,10 @@ def capture_probes(
     spp = r.probe_spp or r.cube_spp  # the probes' own sample count (render.probe_spp), else the impostor's
     pts = probe_points(spec, bounds if bounds is not None else scene.bounds(), tracer)
     maps, centres = [np.asarray(texels0, np.float32)], [np.asarray(scene.reference.point, float)]
-    for p in pts:
+    for i, p in enumerate(pts):
+        progress.note(
+            f"probe {i + 1}/{len(pts)}: its cube map, path traced"
+        )  # long: the stage's lines say so
         at = scene.with_updates({"reference.point": [float(c) for c in p]})
         rad = cache.get(
             "radiance",

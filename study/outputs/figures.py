@@ -239,14 +239,16 @@ def image_grid(
 
 
 def image_grids(
-    name: str, cases, labels, *, title: str, exposure: float | None = None, **kw
+    name: str, cases, labels, *, title: str, exposure: float | None = None, rule: str | None = None, **kw
 ) -> dict[str, bytes]:
     """The figure's grid PNGs: ``<name>.png`` whole where it is at most :data:`MAX_WIDTH_PX` wide, else the images
     in ``<name>.png`` and the error maps in ``<name>-errors.png``, each shrunk to fit a page. The images' exposure
-    (EV; :func:`figure_exposure` of ``cases`` unless given) is stated at the end of the title."""
+    (EV; :func:`figure_exposure` of ``cases`` unless given) is stated at the end of the title with its ``rule``
+    (default the figure's: the object's p99 → 0.8)."""
     if exposure is None:
         exposure = figure_exposure(cases)
-    kw.update(exposure=exposure, title=f"{title}, exposure {exposure:+.2f} EV (object's p99 → {WHITE:g})")
+    rule = rule or f"object's p99 → {WHITE:g}"
+    kw.update(exposure=exposure, title=f"{title}, exposure {exposure:+.2f} EV ({rule})")
     ncol = (
         2 * len(labels)
         + 1

@@ -2,7 +2,9 @@
 
 The page is self-contained apart from files under ``reports/`` it names by relative paths (figure PNGs, plots, each
 figure's viewer scripts ``<fig>/viewer/<case>.js`` and EXRs): no CDN, no server, opened as ``file://``. Its script and
-style (``viewer.js``, ``html.css`` beside this module) are inlined: tables sort by a click on a header (numbers by
+style (``viewer.js``, ``html.css`` beside this module) are inlined. The page fits a 1280–1920 px window: the top bar
+wraps its links, a table wider than the page scrolls in its own box, viewers share each row's width (one alone
+takes the row, its controls beside the image). Tables sort by a click on a header (numbers by
 value, empty cells last) and their headers stick under the top bar, and each case of a figure gets an image viewer
 (sources by number keys, the references first, digits typed quickly forming one number, or ←/→ and clicks; layers —
 image, angular error, outcome, FLIP, hidden — by ↑/↓ or clicks; r flips to truth_at_hit and back, d shows the
@@ -106,7 +108,9 @@ def viewer_note(reports: Path, fig: str) -> str:
     return f"Per-case image viewer ({len(m['cases'])} cases): {link('index.html', f'index.html#viewers-{fig}')}; {exr}."
 
 
-def _viewers_html(reports: Path, fig: str, manifests: dict, made: dict | None = None) -> str:
+def _viewers_html(
+    reports: Path, fig: str, manifests: dict, made: dict | None = None, heading: str | None = None
+) -> str:
     m = _figure_viewers(reports, fig, made)
     if m is None:
         return (
@@ -126,7 +130,8 @@ def _viewers_html(reports: Path, fig: str, manifests: dict, made: dict | None = 
         for i in range(len(m["cases"]))
     )
     return (
-        f'<h3 id="viewers-{esc(fig)}">{esc(fig)}: images per case</h3><p class="note">Click a viewer, then: '
+        f'<h3 id="viewers-{esc(fig)}">{esc(heading or f"{fig}: images per case")}</h3>'
+        '<p class="note">Click a viewer, then: '
         "number keys pick the image (the references first; digits typed quickly form one number, e.g. 1 2 for the "
         "12th) or ←/→, ↑/↓ the layer (image, angular error, outcome, …); r flips to truth_at_hit and back (A/B), "
         "d shows the difference from it; wheel or +/− to zoom (f: fit), drag to pan; the slider sets the exposure "
@@ -180,7 +185,10 @@ def page(blocks: list[tuple], reports: Path, *, title: str, made: dict | None = 
             )
             body.append(f'<figure>{tag}<figcaption><a href="{src}">{esc(b[1])}</a></figcaption></figure>')
         elif kind == "viewer":
-            body.append(_viewers_html(reports, b[1], manifests, (made or {}).get(b[1])))
+            heading = (
+                b[2] if len(b) > 2 else None
+            )  # ("viewer", figure, heading): default "<figure>: images …"
+            body.append(_viewers_html(reports, b[1], manifests, (made or {}).get(b[1]), heading))
     css = (_HERE / "html.css").read_text(encoding="utf-8")
     js = (_HERE / "viewer.js").read_text(encoding="utf-8")
     return "\n".join(
@@ -190,7 +198,7 @@ def page(blocks: list[tuple], reports: Path, *, title: str, made: dict | None = 
             '<meta name="viewport" content="width=device-width, initial-scale=1">',
             f"<title>{esc(title)}</title>",
             f"<style>{css}</style></head><body>",
-            f'<nav class="toc">{" · ".join(toc)}</nav><main>',
+            f'<nav class="toc">{" · ".join(toc)}</nav><main>' if toc else "<main>",  # no empty bar
             *body,
             "</main>",
             f'<script type="application/json" id="study-manifest">{_script_json(manifests)}</script>',

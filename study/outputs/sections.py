@@ -67,9 +67,9 @@ def _split_tables(d: Path) -> list[tuple]:
     """A figure's error split where one was written beside it (``split.csv``: ``scripts/glossy_split.py`` for
     the glossy figure): a heading, the source and the table."""
     f = d / "split.csv"
-    if not f.is_file():
+    rows = read_csv(f) if f.is_file() else []
+    if not rows:  # no section of an empty table
         return []
-    rows = read_csv(f)
     return [
         ("h", 3, "Error split"),
         (
@@ -77,22 +77,62 @@ def _split_tables(d: Path) -> list[tuple]:
             f"Prefiltering, localization, visibility and noise with 95 % intervals over blocks of pixels "
             f"({link(f'{d.name}/split.csv', f'{d.name}/split.csv')}; scripts/glossy_split.py).",
         ),
-        ("table", rows, list(rows[0]) if rows else []),
+        ("table", rows, list(rows[0])),
     ]
 
 
+def _json(path: Path) -> dict:
+    try:
+        m = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return m if isinstance(m, dict) else {}
+
+
+def find_runs(reports: Path) -> list[Path]:
+    """Every folder under ``reports``, at any depth and of any name (hidden ones aside), that ``study run`` or
+    :meth:`study.api.Result.save` wrote, known by its own files: ``index.json`` naming its EXR and layers, beside
+    ``table.csv`` and ``scene.json``."""
+    hidden = lambda d: any(p.startswith(".") or ".tmp" in p for p in d.relative_to(reports).parts)  # noqa: E731
+    return sorted(i.parent for i in reports.rglob("index.json") if not hidden(i.parent) and is_run(i.parent))
+
+
+def is_run(d: Path) -> bool:
+    """Whether folder ``d`` holds one run's results (:func:`find_runs`)."""
+    m = _json(d / "index.json")
+    return isinstance(m.get("layers"), dict) and "exr" in m and all((d / f).is_file() for f in RUN_FILES)
+
+
+#: The files beside ``index.json`` that make a folder a run's (:meth:`study.api.Result.save` writes them).
+RUN_FILES = ("table.csv", "scene.json")
+
+
+def run_file(d: Path) -> str | None:
+    """The name of the scene file a run folder's results are of (``index.json``'s ``name``; older runs: their
+    environment's file in ``scene.json``), None where neither says."""
+    name = _json(d / "index.json").get("name")
+    if not name:
+        env = _json(d / "scene.json").get("environment")
+        name = Path(env["file"]).name if isinstance(env, dict) and isinstance(env.get("file"), str) else None
+    return str(name) if name else None
+
+
 def run_section(reports: Path, d: Path, rows: list[dict], cols: list[str]) -> list[tuple]:
-    """What ``study run`` wrote (``reports/run-*/``): its grid, viewer and table, like a figure's."""
+    """What ``study run`` wrote (a folder :func:`find_runs` found): its grid, viewer and table, like a figure's;
+    titled by the folder and the scene file it measured."""
+    rel = d.relative_to(reports).as_posix()
+    name = run_file(d)
     page = (
-        f" Its own page: {link(f'{d.name}/index.html', f'{d.name}/index.html')}."
+        f" Its own page: {link(f'{rel}/index.html', f'{rel}/index.html')}."
         if (d / "index.html").is_file()
         else ""
     )
+    what = f"{code(name)}, one scene" if name else "One scene"
     return [
-        ("h", 2, md_esc(d.name)),
-        ("p", f"One scene, `study run`; table: {link(f'{d.name}/table.csv', f'{d.name}/table.csv')}.{page}"),
-        *_images(d, d.name),
-        ("viewer", d.name),
+        ("h", 2, md_esc(f"{rel}: {name}" if name else rel)),
+        ("p", f"{what}, `study run`; table: {link(f'{rel}/table.csv', f'{rel}/table.csv')}.{page}"),
+        *_images(d, rel),
+        ("viewer", rel, f"{name or rel}: images per case"),
         ("table", rows, ["label", *cols]),
     ]
 
@@ -265,6 +305,8 @@ def versions_section(dirs: list[Path]) -> list[tuple]:
                 "versions": ", ".join(f"{k} {v}" for k, v in m.get("versions", {}).items() if v),
             }
         )
+    if not rows:
+        return []
     return [
         ("h", 2, "Versions and commands"),
         ("table", rows, ["table", "command", "config sha256", "seed", "backend", "git commit", "versions"]),

@@ -26,12 +26,28 @@
   }
   document.querySelectorAll("table.sortable th").forEach(th => th.addEventListener("click", () => sortBy(th)));
 
+  // ------------------------------------------------------------------ the page fits its window
+  // The top bar wraps to as many lines as its links need: sticky headers and anchors clear its height (--bar). A
+  // table wider than the page scrolls in its own box (its header sticks to the box's top) instead of the page.
+  const nav = document.querySelector("nav.toc");
+  function fitPage() {
+    document.documentElement.style.setProperty("--bar", (nav ? nav.getBoundingClientRect().height : 0) + "px");
+    document.querySelectorAll(".tablebox").forEach(box => {
+      box.classList.remove("scroll");
+      box.classList.toggle("scroll", box.firstElementChild.getBoundingClientRect().width > box.clientWidth + 1);
+    });
+  }
+  fitPage();
+  window.addEventListener("resize", fitPage);
+  if (nav && "ResizeObserver" in window) new ResizeObserver(fitPage).observe(nav);
+
   // ------------------------------------------------------------------ viewers
   const MANIFEST = JSON.parse(document.getElementById("study-manifest").textContent);
   const LUTS = JSON.parse(document.getElementById("study-luts").textContent);
   const LAYER_NAMES = {image: "image", angle: "angular error", outcome: "outcome", flip: "FLIP", error: "error",
                        hidden: "hidden"};
-  const SIZE = 400;
+  const MIN_SIDE = 280, CONTROLS = 300, GAP = 14;   // px: the smallest canvas; the controls beside a wide one
+  const bar = () => { const n = document.querySelector("nav.toc"); return n ? n.getBoundingClientRect().height : 0; };
   const srgb = v => (v <= 0.0031308 ? 12.92 * v : 1.055 * Math.pow(v, 1 / 2.4) - 0.055);
   const loadedScripts = {};
 
@@ -73,6 +89,13 @@
   const REF = "truth_at_hit";                       // what A/B and the difference compare against
   const DIGIT_MS = 900;                             // digits typed within this time form one number (1, 4 → 14)
   const byFig = {};                                 // figure → its viewers: they share exposure and view
+  // The exposure slider spans what any image of the page needs (each case's exposure_span: its images' own
+  // exposures with a margin, study/outputs/viewer.py), at least ±8 EV.
+  const EV_SPAN = Object.values(MANIFEST).flatMap(m => m.cases).reduce(([lo, hi], c) => {
+    const ev = typeof c.exposure_ev === "number" ? c.exposure_ev : 0;
+    const s = Array.isArray(c.exposure_span) ? c.exposure_span : [ev - 8, ev + 8];
+    return [Math.min(lo, s[0], ev), Math.max(hi, s[1], ev)];
+  }, [-8, 8]);
 
   class Viewer {
     constructor(el, fig, c) {
@@ -94,7 +117,8 @@
       const add = (tag, cls, parent) => { const e = document.createElement(tag); if (cls) e.className = cls;
                                          (parent || el).appendChild(e); return e; };
       add("div", "title").textContent = c.title + (c.title !== c.id ? "  (" + c.id + ")" : "");
-      const srow = add("div", "row sources");
+      const body = add("div", "vbody"), controls = add("div", "controls", body), stage = add("div", "stage", body);
+      const srow = add("div", "row sources", controls);
       this.srcButtons = this.sources.map((s, i) => {
         const b = add("button", "", srow);
         b.textContent = (i + 1) + " " + s;
@@ -102,36 +126,55 @@
         b.addEventListener("click", () => { this.src = i; this.show(); });
         return b;
       });
-      const lrow = add("div", "row");
+      const lrow = add("div", "row", controls);
       this.layerButtons = this.layerIds.map(l => {
         const b = add("button", "", lrow);
         b.textContent = LAYER_NAMES[l] || l;
         b.addEventListener("click", () => { this.want = l; this.show(); });
         return b;
       });
-      const mrow = add("div", "row");
+      const mrow = add("div", "row", controls);
       const mb = (t, title, mode) => { const b = add("button", "mode", mrow); b.textContent = t; b.title = title;
         b.dataset.mode = mode; b.addEventListener("click", () => this.setMode(mode)); return b; };
       this.modeButtons = [mb("a/b ref (r)", "flip to " + REF + " and back (key r)", "flip"),
                           mb("difference (d)", "|image − " + REF + "| (key d)", "diff")];
-      const trow = add("div", "row");
+      const trow = add("div", "row", controls);
       const zb = (t, f) => { const b = add("button", "", trow); b.textContent = t; b.addEventListener("click", f); };
       zb("−", () => this.zoomBy(1 / 1.5)); zb("+", () => this.zoomBy(1.5)); zb("fit", () => this.fit());
       add("span", "", trow).textContent = " exposure";
       this.slider = add("input", "exposure", trow);
-      Object.assign(this.slider, {type: "range", min: -8, max: 8, step: 0.01, value: String(this.exposure)});
+      Object.assign(this.slider, {type: "range", min: EV_SPAN[0], max: EV_SPAN[1], step: 0.01,
+                                   value: String(this.exposure)});
       this.expLabel = add("span", "", trow);
       this.slider.addEventListener("input", () => this.setExposure(parseFloat(this.slider.value)));
-      this.shownLabel = add("div", "shown");
-      this.canvas = add("canvas", "view");
-      this.canvas.width = SIZE; this.canvas.height = SIZE;
-      this.legend = add("div", "legend");
-      this.readout = add("div", "readout");
-      this.links = add("div", "links");
-      this.msg = add("div", "msg");
+      this.shownLabel = add("div", "shown", controls);
+      this.canvas = add("canvas", "view", stage);
+      this.legend = add("div", "legend", stage);
+      this.readout = add("div", "readout", stage);
+      this.links = add("div", "links", controls);
+      this.msg = add("div", "msg", controls);
+      this.S = 0;
+      this.layout();
+      if ("ResizeObserver" in window) new ResizeObserver(() => this.layout()).observe(el);
       if (c.missing) this.msg.textContent = "images missing: " + c.script + " (study figure " + this.fig + " writes it)";
       this.bindInput();
       this.updateButtons();
+    }
+    layout() {                                    // the canvas as large as the row allows, whole in the window
+      const cs = getComputedStyle(this.el);
+      const w = this.el.clientWidth - parseFloat(cs.paddingLeft) - parseFloat(cs.paddingRight);
+      const wide = w >= 2 * CONTROLS + GAP;       // room for the controls beside the image
+      this.el.classList.toggle("wide", wide);
+      const home = wide ? this.canvas.parentNode.previousSibling : this.canvas.parentNode;  // controls : stage
+      if (this.legend.parentNode !== home) { home.append(this.legend, this.readout); }
+      const high = Math.max(MIN_SIDE, window.innerHeight - bar() - (wide ? 70 : 200));
+      const side = Math.floor(Math.max(MIN_SIDE, Math.min(wide ? w - CONTROLS - GAP : w, high)));
+      const S = Math.round(side * (window.devicePixelRatio || 1));
+      this.canvas.style.width = this.canvas.style.height = side + "px";
+      if (S === this.S) return;
+      const keep = this.zoom === null || !this.S ? null : this.view();
+      this.S = this.canvas.width = this.canvas.height = S;
+      if (keep) this.setView(keep); else if (this.buf) { this.fit(false); this.draw(); }
     }
     siblings() { return (byFig[this.fig] || []).filter(o => o !== this); }
     setExposure(x, share = true) {                // one exposure for every viewer of the figure
@@ -146,13 +189,13 @@
       cv.addEventListener("wheel", e => {
         e.preventDefault();
         const r = cv.getBoundingClientRect();
-        this.zoomBy(e.deltaY < 0 ? 1.25 : 0.8, (e.clientX - r.left) * SIZE / r.width, (e.clientY - r.top) * SIZE / r.height);
+        this.zoomBy(e.deltaY < 0 ? 1.25 : 0.8, (e.clientX - r.left) * this.S / r.width, (e.clientY - r.top) * this.S / r.height);
       }, {passive: false});
       let drag = null;
       cv.addEventListener("mousedown", e => { drag = [e.clientX, e.clientY, this.pan[0], this.pan[1]]; this.el.focus(); });
       window.addEventListener("mouseup", () => { drag = null; });
       cv.addEventListener("mousemove", e => {
-        const r = cv.getBoundingClientRect(), s = SIZE / r.width;
+        const r = cv.getBoundingClientRect(), s = this.S / r.width;
         if (drag) {
           this.pan = [drag[2] + (e.clientX - drag[0]) * s, drag[3] + (e.clientY - drag[1]) * s];
           this.draw(); this.shareView();
@@ -299,14 +342,14 @@
       g.append(t(String(disp.lo)), bar, t(String(Number(disp.hi.toPrecision(3))) + " " + (disp.unit || "") +
                (disp.type === "log" ? " (log)" : "")));
     }
-    fitZoom() { const [, , h, w] = this.c.crop; return Math.min(SIZE / w, SIZE / h); }
+    fitZoom() { const [, , h, w] = this.c.crop; return Math.min(this.S / w, this.S / h); }
     fit(redraw = true) {
       const [, , h, w] = this.c.crop;
       this.zoom = this.fitZoom();
-      this.pan = [(SIZE - w * this.zoom) / 2, (SIZE - h * this.zoom) / 2];
+      this.pan = [(this.S - w * this.zoom) / 2, (this.S - h * this.zoom) / 2];
       if (redraw) { this.draw(); this.shareView(); }
     }
-    zoomBy(f, cx = SIZE / 2, cy = SIZE / 2) {
+    zoomBy(f, cx = this.S / 2, cy = this.S / 2) {
       if (this.zoom === null) this.fit(false);
       const z = Math.max(0.25, Math.min(64, this.zoom * f)), r = z / this.zoom;
       this.pan = [cx - (cx - this.pan[0]) * r, cy - (cy - this.pan[1]) * r];
@@ -315,20 +358,20 @@
     }
     view() {                                      // zoom relative to fit, and the crop point at the canvas centre
       const [, , h, w] = this.c.crop;
-      return {mag: this.zoom / this.fitZoom(), u: (SIZE / 2 - this.pan[0]) / this.zoom / w,
-              v: (SIZE / 2 - this.pan[1]) / this.zoom / h};
+      return {mag: this.zoom / this.fitZoom(), u: (this.S / 2 - this.pan[0]) / this.zoom / w,
+              v: (this.S / 2 - this.pan[1]) / this.zoom / h};
     }
     setView(s) {
       const [, , h, w] = this.c.crop;
       this.zoom = this.fitZoom() * s.mag;
-      this.pan = [SIZE / 2 - s.u * w * this.zoom, SIZE / 2 - s.v * h * this.zoom];
+      this.pan = [this.S / 2 - s.u * w * this.zoom, this.S / 2 - s.v * h * this.zoom];
       this.draw();
     }
     shareView() { const s = this.view(); this.siblings().forEach(o => o.setView(s)); }
     draw() {
       const g = this.canvas.getContext("2d");
       g.setTransform(1, 0, 0, 1, 0, 0);
-      g.clearRect(0, 0, SIZE, SIZE);
+      g.clearRect(0, 0, this.S, this.S);
       if (!this.buf) return;
       g.imageSmoothingEnabled = false;
       g.drawImage(this.buf, this.pan[0], this.pan[1], this.buf.width * this.zoom, this.buf.height * this.zoom);
@@ -367,6 +410,7 @@
     viewers.push(v);
     el.addEventListener("mousedown", () => { viewers.forEach(o => o.el.classList.toggle("active", o === v)); });
   });
+  window.addEventListener("resize", () => viewers.forEach(v => v.layout()));  // the window's height, too
   if ("IntersectionObserver" in window) {
     const io = new IntersectionObserver(es => es.forEach(e => {
       if (e.isIntersecting) { io.unobserve(e.target); viewers.find(v => v.el === e.target).show(); }

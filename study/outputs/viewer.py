@@ -78,6 +78,42 @@ HIDDEN_COLORS = ("#d9e8f5", "#8a2be2")
 HIDDEN_NAMES = ("visible from the reference point", "hidden from the reference point")
 
 
+# ---------------------------------------------------------------------------------------------- exposure
+#: Exposure from an image as a whole, as a person (or tev) would set it: the median of its visible luminance (the
+#: pixels that show any light) at middle grey, unless that puts more than 5 % of them above 1 (then their 95th
+#: percentile at 1).
+MIDDLE_GREY, HIGH = 0.18, 95.0
+FRAME_RULE = f"median of the visible luminance → {MIDDLE_GREY:g}, its p{HIGH:g} ≤ 1"
+REC709 = (0.2126, 0.7152, 0.0722)
+
+
+def auto_exposure(rgb: np.ndarray | None) -> float | None:
+    """The exposure (EV: image × 2^EV) of :data:`FRAME_RULE` for an (H, W, 3) or (H, W) linear image; None where
+    no pixel shows light."""
+    if rgb is None:
+        return None
+    a = np.asarray(rgb, np.float64)
+    lum = a @ np.asarray(REC709) if a.ndim == 3 and a.shape[-1] == 3 else a.reshape(a.shape[:2])
+    lum = lum[np.isfinite(lum) & (lum > 0)]
+    if lum.size == 0:
+        return None
+    mid, high = np.percentile(lum, [50.0, HIGH])
+    return float(min(np.log2(MIDDLE_GREY / mid), np.log2(1.0 / high)))
+
+
+#: The viewer's exposure slider spans at least this (EV), and this much beyond any image's own exposure.
+SLIDER_EV, SLIDER_MARGIN = 8.0, 4.0
+
+
+def exposure_span(images, start: float = 0.0) -> list[float]:
+    """[lo, hi] EV a viewer's slider spans for ``images`` (linear RGB): ±:data:`SLIDER_EV`, ``start`` and every
+    image's :func:`auto_exposure`, with :data:`SLIDER_MARGIN` either side."""
+    evs = [start, *(e for e in map(auto_exposure, images) if e is not None)]
+    lo = min(-SLIDER_EV, np.floor(min(evs) - SLIDER_MARGIN))
+    hi = max(SLIDER_EV, np.ceil(max(evs) + SLIDER_MARGIN))
+    return [float(lo), float(hi)]
+
+
 def crop_box(mask: np.ndarray, margin: float = 0.35) -> tuple[slice, slice]:
     """A square around the object's pixels, with a margin, inside the image."""
     ys, xs = np.nonzero(mask)
@@ -203,7 +239,8 @@ def case_files(
     """One case's files, made in memory (relative path → bytes, for :func:`study.io.write_set`): its multi-layer
     EXR ``exr/<stem>.exr`` and its viewer script ``viewer/<stem>.js``; and its manifest entry. ``stem``: the
     case's file name (distinct among the figure's cases, :func:`study.io.file_stems`). ``exposure_ev``: the
-    exposure the viewer starts at (the figure's grid exposure, so the viewer first shows what the PNG shows)."""
+    exposure the viewer starts at (the figure's grid exposure, so the viewer first shows what the PNG shows); its
+    slider spans :func:`exposure_span` of the case's images (``exposure_span`` in the entry)."""
     layers = case_layers(case, labels)
     occ = getattr(case, "occluded", None)
     sy, sx = (
@@ -255,6 +292,9 @@ def case_files(
         "exr": exr,
         "layers": entries,
         "exposure_ev": round(float(exposure_ev), 2),
+        "exposure_span": exposure_span(
+            [a[sy, sx] for _, la, a in layers if la == "image" and a.ndim == 3], exposure_ev
+        ),
     }
     return {exr: layers_exr_bytes(named), script: text}, entry
 

@@ -253,14 +253,16 @@ class Scene(_Strict):
         data = self.model_dump(mode="python")
         for key, value in updates.items():
             node, parts = data, key.split(".")
-            for p in parts[:-1]:
-                if not isinstance(node, dict) or p not in node:
-                    raise StudyError(
-                        f"unknown scene key; allowed top-level keys: {sorted(data)}", file=source, key=key
+            for i, p in enumerate(parts):
+                last = i == len(parts) - 1
+                if not isinstance(node, dict) or (p not in node and not (last and p == "material")):
+                    where = ".".join(parts[:i]) or "the scene"  # the table the key is missing from
+                    valid = (
+                        ", ".join(sorted(node)) if isinstance(node, dict) else f"none ({where} is a value)"
                     )
-                node = node[p]
-            if not isinstance(node, dict) or (parts[-1] not in node and parts[-1] != "material"):
-                raise StudyError("unknown scene key", file=source, key=key)
+                    raise StudyError(f"unknown scene key; allowed: {valid}", file=source, key=key)
+                if not last:
+                    node = node[p]
             node[parts[-1]] = value
         keep = frozenset(k for k in self._suggested if k not in updates)
         return scene_from_dict(data, source=source, suggested=keep)
