@@ -260,7 +260,7 @@ def test_fewer_than_ten_cases_give_their_range_not_a_ci():
 
     few = summary.ranking(table(3), summary.WRONG)[0]
     assert few["kind"] == "range" and (few["lo"], few["hi"]) == pytest.approx((0.1, 0.12))
-    assert "range over n = 3 10 %–12 %" in summary.table_sentence("t", table(3))
+    assert "range over n = 3: 10 %–12 %" in summary.table_sentence("t", table(3))
     many = summary.ranking(table(12), summary.WRONG)[0]
     assert many["kind"] == "ci" and "95 % CI over cases" in summary.table_sentence("t", table(12))
     assert {r["interval"] for r in summary.interval_rows({"t": table(3)})} == {"range"}

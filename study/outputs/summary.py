@@ -113,7 +113,7 @@ def separated(tab: list[dict], a: str, b: str, col: str = WRONG) -> tuple[int, i
 
 def interval_words(r: dict) -> str:
     """How an interval over cases is told: "95 % CI over cases" or "range over n = 3"."""
-    return "95 % CI over cases" if r.get("kind", "ci") == "ci" else f"range over n = {r['n']}"
+    return "95 % CI over cases" if r.get("kind", "ci") == "ci" else f"range over n = {r['n']}:"
 
 
 def ranking(tab: list[dict], col: str) -> list[dict]:
