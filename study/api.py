@@ -370,6 +370,7 @@ def evaluate(
     cache: str | Path | None = ".cache",
     overrides: dict[str, Any] | None = None,
     source: str | None = None,
+    allow_mismatch: bool = False,
 ) -> Result:
     """Run every method on ``scene`` (anything :func:`load_scene` takes) and measure it (one case,
     :func:`study.measure.case.run_case`).
@@ -382,6 +383,7 @@ def evaluate(
     cache : directory of cached impostors and Mitsuba renders (None: no cache).
     overrides : dotted scene keys applied first.
     source : the name refusals give (the budget's, say); default the scene's file, else ``evaluate``.
+    allow_mismatch : score methods that do not model the object's surface (rows marked ``surface_mismatch``).
 
     Returns
     -------
@@ -391,6 +393,7 @@ def evaluate(
 
     from study.cache import Cache
     from study.harness import budget
+    from study.harness.config import surface_methods
     from study.measure.case import run_case
     from study.measure.metrics import flip_map
     from study.tables import columns_of
@@ -400,7 +403,8 @@ def evaluate(
     named = source if source is not None else str(scene) if isinstance(scene, str | os.PathLike) else None
     source = named or "evaluate"
     scene = load_scene(scene, overrides)
-    ms = method_list(methods)
+    chosen = not (isinstance(methods, str) and methods == "all")  # the default set: the surface's family
+    ms, wrong = surface_methods(scene, method_list(methods), chosen=chosen, allow_mismatch=allow_mismatch)
     budget.check_backend(backend)
     budget.check_cases([("run", scene)], ms, source=source)
     from study import runtime
@@ -421,7 +425,7 @@ def evaluate(
         for k, v in images.items()
         if k not in ("truth_at_hit",)
     }
-    rows = case.rows
+    rows = [{**r, "surface_mismatch": 1.0} if r["label"] in wrong else r for r in case.rows]
     table = pd.DataFrame(rows, columns=columns_of(rows))
     return Result(
         scene,

@@ -191,6 +191,10 @@ TABLE: list[TableColumn] = [
     C("dec_sums", F, note="Σ terms / total"),
     C("rmse_truth_held", "linear RGB", LOW, interval=True),
     C("rmse_truth_unheld", "linear RGB", LOW, interval=True),
+    C(
+        "surface_mismatch",
+        note="1: the method does not model the object's surface (scored with --allow-mismatch)",
+    ),
 ]
 #: the leading columns: every results table writes these first, in this order; the rest of a row follows in the order
 #: it first appears (so tables written before a column was declared keep their layout)

@@ -72,6 +72,9 @@ def run(
         help="output directory (default reports/run-<scene stem>-<hash of its path>: one per scene file)",
     ),
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
+    allow_mismatch: bool = typer.Option(
+        False, help="score methods that do not model the object's surface (rows marked surface_mismatch)"
+    ),
 ):
     """Evaluate methods on one scene, no config file: prints the table, writes table + images to --out."""
     from rich.console import Console
@@ -82,7 +85,7 @@ def run(
 
     t0 = time.perf_counter()  # the time reported includes loading and placing the scene
     overrides = parse_sets(set_)
-    methods = method_list(method or "all", key="--method")
+    methods = method_list(method, key="--method") if method else "all"  # all: the family fitting the surface
     with progress.task(f"run {scene.name}", 1):  # stages on stderr (study.cli.progress)
         with progress.stage("load"):
             sc = load_scene(scene, overrides)
@@ -91,7 +94,9 @@ def run(
             typer.echo(sc.load_summary(), err=True)
         out = out or default_folder(scene)  # reports/run-<stem>-<hash of the path>: one per scene file
         with progress.item(file_stem(scene.stem)):
-            res = evaluate(sc, methods, backend=backend, cache=cache, source=str(scene))
+            res = evaluate(
+                sc, methods, backend=backend, cache=cache, source=str(scene), allow_mismatch=allow_mismatch
+            )
         progress.advance(file_stem(scene.stem))
         shown = res.shown()
         t = Table(title=res.summary())

@@ -220,3 +220,27 @@ def plain_name(name: str, key: str = "name") -> str:
             key=key,
         )
     return name
+
+
+def surface_methods(scene, methods: list[Method], *, chosen: bool, allow_mismatch: bool) -> tuple[list, set]:
+    """The methods for the object's surface: mirror methods (``Method.glossy`` False) model smooth mirrors and
+    glass, glossy ones rough conductors (``object.alpha`` > 0). Where the user chose no methods (``chosen`` False:
+    the default set), the family that fits the surface; a chosen method that does not fit is a StudyError naming
+    it, unless ``allow_mismatch``. Returns the methods and the labels that do not fit (their rows are marked)."""
+    rough = scene.object.alpha > 0
+    if not chosen and any(m.glossy != rough for m in methods):
+        methods = registry.glossy_methods() if rough else registry.all_methods()
+    wrong = {m.label for m in methods if m.glossy != rough}
+    if wrong and not allow_mismatch:
+        what = (
+            f"object.alpha = {scene.object.alpha:g}: a rough surface"
+            if rough
+            else "a smooth (mirror or glass) object"
+        )
+        kind = "smooth mirrors and glass" if rough else "rough conductors"
+        raise StudyError(
+            f"{what}, but {', '.join(sorted(wrong))} model {kind}; choose methods that fit (methods = "
+            f'"{"glossy" if rough else "all"}"), or allow the mismatch (--allow-mismatch) to score them anyway',
+            key="methods",
+        )
+    return methods, wrong
