@@ -184,7 +184,8 @@ def caustics_section(reports: Path) -> list[tuple]:
         (
             "p",
             "Glass sphere (n = 1.3) focusing the point light; caustic map from the light, photon hits localized "
-            "in the distance impostor, splatted into light maps (study/caustics.py, study/lightmap.py). "
+            "in the distance impostor, splatted into light maps (study/caustics/photons.py, "
+            "study/caustics/lightmap.py). "
             "lm_* = light-map error against exact photon tracing (a), W/m²; img_* = caustic-only image against "
             "Mitsuba ptracer (b); mitsuba_noise_rmse = Mitsuba's own noise (two seeds). "
             "Table: [fig8/sweep/results.csv](fig8/sweep/results.csv).",
