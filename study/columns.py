@@ -210,17 +210,20 @@ ORDER = {
 _BY_NAME: dict[str, TableColumn] = {}
 
 
+def _index(c: TableColumn) -> None:
+    if c.name in _BY_NAME:
+        raise ValueError(f"column {c.name!r} is declared twice")
+    _BY_NAME[c.name] = c
+    for v in c.views:
+        if c.name not in ORDER.setdefault(v, []):
+            ORDER[v].append(c.name)
+
+
 def declare(*cols: TableColumn) -> None:
     """Add columns to the table (a plug-in's): a name declared twice is an error."""
     for c in cols:
-        if c.name in _BY_NAME:
-            raise ValueError(f"column {c.name!r} is declared twice")
-        _BY_NAME[c.name] = c
-        if c not in TABLE:
-            TABLE.append(c)
-        for v in c.views:
-            if c.name not in ORDER.setdefault(v, []):
-                ORDER[v].append(c.name)
+        _index(c)
+        TABLE.append(c)
 
 
 def declared(name: str) -> TableColumn | None:
@@ -249,4 +252,5 @@ def headers() -> dict[str, str]:
     return {c.name: c.header for c in TABLE if c.header}
 
 
-declare(*list(TABLE))
+for _c in TABLE:  # the table's own columns, indexed by name
+    _index(_c)

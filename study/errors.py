@@ -42,6 +42,24 @@ def _rebuild(cls, detail, file, key, code):
     return cls(detail, file=file, key=key, code=code)
 
 
+def plugin_guard(call, *, plugin: bool, exited, failed: str):
+    """``call()`` with what a plug-in may do wrong turned into one StudyError line (bad input, exit 2):
+    ``sys.exit`` always (``exited(code)`` is the line), an exception where ``plugin`` (``failed``, then the
+    exception's type and first line); a StudyError passes as it is, and an exception of study's own code stays a
+    bug (exit 4)."""
+    try:
+        return call()
+    except StudyError:
+        raise
+    except SystemExit as err:
+        raise StudyError(exited(err.code)) from None
+    except Exception as err:
+        if not plugin:
+            raise
+        first = (str(err).strip().splitlines() or [""])[0][:160]
+        raise StudyError(f"{failed}: {type(err).__name__}: {first}") from None
+
+
 #: errno values that say the path given is wrong (bad input, exit 2); any other OSError is the machine's (exit 3).
 _BAD_PATH = {errno.ENOTDIR, errno.EEXIST, errno.EISDIR, errno.ENOENT, errno.ENAMETOOLONG, errno.ELOOP}
 

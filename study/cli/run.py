@@ -100,10 +100,9 @@ def run(
         progress.advance(file_stem(scene.stem))
         shown = res.shown()
         t = Table(title=res.summary())
+        headers = columns.headers()  # the declared short headers (the files keep the names)
         for c in shown.columns:
-            t.add_column(
-                columns.headers().get(c, c), justify="left" if c == "label" else "right", overflow="fold"
-            )
+            t.add_column(headers.get(c, c), justify="left" if c == "label" else "right", overflow="fold")
         for row in shown.itertuples(index=False):
             t.add_row(*(f"{v:.3g}" if isinstance(v, float) else str(v) for v in row))
         wide = Console(width=max(console.width, 150), highlight=False, markup=False)  # no cell cut to "…"

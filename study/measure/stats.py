@@ -325,12 +325,11 @@ MIN_CASES_CI = 10
 def case_interval(values) -> tuple[float, float, float, int, str]:
     """(median, lo, hi, n, kind) of per-case values: ``kind`` "ci", the bootstrap's 95 % interval over the cases
     (:func:`over_cases`), from :data:`MIN_CASES_CI` cases on; else "range", their min and max."""
-    med, lo, hi, n = over_cases(values)
-    if 0 < n < MIN_CASES_CI:
-        v = np.asarray(values, float)
-        v = v[np.isfinite(v)]
-        return med, float(v.min()), float(v.max()), n, "range"
-    return med, lo, hi, n, "ci"
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if 0 < v.size < MIN_CASES_CI:  # no bootstrap to throw away
+        return float(np.median(v)), float(v.min()), float(v.max()), int(v.size), "range"
+    return (*over_cases(v), "ci")
 
 
 def paired(a, b) -> dict:

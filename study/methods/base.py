@@ -56,7 +56,7 @@ from typing import Any, ClassVar
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 from study.backend import V3, Backend
-from study.errors import StudyError
+from study.errors import StudyError, plugin_guard
 from study.impostor.cubemap import FAR, FAR_MIN
 from study.impostor.views import Captured, Views
 from study.validation import first_error
@@ -280,19 +280,12 @@ class Method(ABC):
     # ---------------------------------------------------------------------------------------------- plug-ins
     def _guarded(self, call):
         """``call()``, with a plug-in's failures (and its ``sys.exit``) turned into one StudyError line."""
-        try:
-            return call()
-        except StudyError:
-            raise
-        except SystemExit as err:
-            raise StudyError(f"method {self.name!r} called sys.exit({err.code!r}) while tracing") from None
-        except Exception as err:
-            if not is_plugin(type(self)):
-                raise
-            first = (str(err).strip().splitlines() or [""])[0][:160]
-            raise StudyError(
-                f"method {self.name!r} (plug-in {type(self).__module__}) failed: {type(err).__name__}: {first}"
-            ) from None
+        return plugin_guard(
+            call,
+            plugin=is_plugin(type(self)),
+            exited=lambda code: f"method {self.name!r} called sys.exit({code!r}) while tracing",
+            failed=f"method {self.name!r} (plug-in {type(self).__module__}) failed",
+        )
 
     def _check_answer(self, B: Backend, ans, x: V3, want: type) -> None:
         """The shape of a search's answer: a ``want`` (Localization or Found) of V3s of N floats and a boolean mask

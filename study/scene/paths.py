@@ -13,6 +13,7 @@ symlink loop is one line too.
 
 from __future__ import annotations
 
+import errno
 import os
 import re
 from pathlib import Path
@@ -58,15 +59,19 @@ def named_file(
     if p != base and base not in p.parents:
         raise StudyError(f"{what}: {raw!r} leaves the scene's folder ({base}); files a scene names must lie in "
                          "it", key=src)  # fmt: skip
+    if strict_resolve(p) == "a symlink loop":
+        raise StudyError(f"{what}: {raw!r} is a symlink loop", key=src)
+    return p  # missing: the caller says what that means for its format
+
+
+def strict_resolve(p: Path) -> Path | str:
+    """``p`` resolved (symlinks followed), or why it cannot be: "a symlink loop" or "no such file"."""
     try:
-        p.resolve(strict=True)
+        return p.resolve(strict=True)
     except RuntimeError:  # Python < 3.13: a symlink loop
-        raise StudyError(f"{what}: {raw!r} is a symlink loop", key=src) from None
+        return "a symlink loop"
     except OSError as err:
-        if err.errno == 40:  # ELOOP
-            raise StudyError(f"{what}: {raw!r} is a symlink loop", key=src) from None
-        return p  # missing: the caller says what that means for its format
-    return p
+        return "a symlink loop" if err.errno == errno.ELOOP else "no such file"
 
 
 def inside(folder: Path, name: str, *, uri: bool = False, root: Path | None = None) -> Path | None:

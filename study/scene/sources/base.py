@@ -35,7 +35,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationInfo
 from pydantic_core import PydanticCustomError
 
-from study.errors import StudyError
+from study.errors import StudyError, plugin_guard
 from study.scene.parts import Part
 from study.scene.room import RoomMesh
 from study.validation import KeyedError
@@ -170,17 +170,13 @@ def source_call(source: Source, what: str, call):
     """``call()`` (the source's ``what``, e.g. ``"build()"``), with a plug-in's failures and any ``sys.exit`` turned
     into one StudyError line naming the source (bad input, exit 2); a failure of study's own sources stays what it
     is (a bug, exit 4)."""
-    try:
-        return call()
-    except StudyError:
-        raise
-    except SystemExit as err:
-        raise StudyError(f"{_who(source)}: {what} called sys.exit({err.code!r})") from None
-    except Exception as err:
-        if not is_source_plugin(type(source)):
-            raise
-        first = (str(err).strip().splitlines() or [""])[0][:160]
-        raise StudyError(f"{_who(source)}: {what} failed: {type(err).__name__}: {first}") from None
+    who = _who(source)
+    return plugin_guard(
+        call,
+        plugin=is_source_plugin(type(source)),
+        exited=lambda code: f"{who}: {what} called sys.exit({code!r})",
+        failed=f"{who}: {what} failed",
+    )
 
 
 def checked_build(source: Source, scene: Any) -> EnvGeometry:

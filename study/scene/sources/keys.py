@@ -16,6 +16,8 @@ from typing import Any
 from pydantic import BaseModel, ValidationInfo
 from pydantic_core import PydanticCustomError
 
+from study.scene.paths import strict_resolve
+
 
 def resolve(v: Any, info: ValidationInfo) -> Any:
     """A ``file`` field: absolute, resolved against the scene file's directory; it must exist."""
@@ -25,14 +27,10 @@ def resolve(v: Any, info: ValidationInfo) -> Any:
     if not p.is_absolute():
         base = (info.context or {}).get("base") if info.context else None
         p = Path(base or ".") / p
-    try:
-        p = p.resolve(strict=True)
-    except RuntimeError:  # Python < 3.13: a symlink loop
-        raise PydanticCustomError("file", "a symlink loop: {path}", {"path": str(p)}) from None
-    except OSError as err:
-        if err.errno == 40:  # ELOOP
-            raise PydanticCustomError("file", "a symlink loop: {path}", {"path": str(p)}) from None
-        raise PydanticCustomError("file", "no such file: {path}", {"path": str(p)}) from None
+    found = strict_resolve(p)
+    if isinstance(found, str):  # a symlink loop, or missing
+        raise PydanticCustomError("file", "{why}: {path}", {"why": found, "path": str(p)})
+    p = found
     if not p.is_file():
         raise PydanticCustomError("file", "no such file: {path}", {"path": str(p)})
     return str(p)
@@ -111,11 +109,10 @@ def plugin_code(source: Any) -> str | None:
     """The hash of a plug-in source's code (:func:`study.codehash.code_hash` of its class: its module's file, read
     now, so an edited ``build()`` changes every key that holds the source), or None for study's own sources (their
     code is in the keys of the study code that builds them) and for anything that is not a source."""
-    cls = type(source)
-    if not hasattr(source, "build") or not hasattr(source, "type"):
-        return None
-    if cls.__module__.startswith("study.scene.sources."):
+    from study.scene.sources.base import is_source_plugin
+
+    if not hasattr(source, "build") or not hasattr(source, "type") or not is_source_plugin(type(source)):
         return None
     from study.codehash import code_hash
 
-    return code_hash(cls)
+    return code_hash(type(source))
