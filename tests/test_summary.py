@@ -1,10 +1,17 @@
 """The report's headline (study.outputs.summary): the cheapest method as good as the best, how sure, and flags."""
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from study.measure import stats
 from study.outputs import claims, plots, power, summary
+
+#: the paper's text beside the checkout (the team's shared folder; not in a clean clone, where the quotes' check
+#: below is skipped and the rest still runs)
+PAPER = Path(__file__).resolve().parents[2] / "shared/paper/ray-tracing-effects-without-tracing-rays.txt"
 
 
 def _table(n_cases, methods, rays=2000, seed=0):
@@ -105,8 +112,8 @@ def test_claims_name_no_internal_issue_numbers():
 
 
 def test_claim_evidence_carries_the_rays_interval():
-    """hidden-wrong on a case whose visible wrong fraction (6 % of 200 rays) is within its interval of the 5 %
-    bound: the evidence gives the interval and says the bound is not decided by these rays."""
+    """hidden-wrong names no fractions in the paper, so it is measured, not judged: the evidence gives each
+    fraction's interval over the rays and says whether the two intervals are apart."""
     lab = claims._default("localized")
     row = {
         "case": "c0",
@@ -117,7 +124,20 @@ def test_claim_evidence_carries_the_rays_interval():
         "wrong_fraction_visible": 0.06,
     }
     v = claims.hidden_wrong([row])
-    assert not v.ok and "0.06 [0." in v.number and "within the rays' uncertainty of the bound" in v.number
+    assert v.ok is None and "0.06 [0.0347–0.102]" in v.number and "the two intervals apart" in v.number
+    close = claims.hidden_wrong([row | {"rays": 20.0 / 0.8, "wrong_fraction_hidden": 0.3}])
+    assert close is None  # 20 hidden rays: too few to say anything
+
+
+def test_every_threshold_names_its_source():
+    """No claim carries a number that neither the paper nor a cited source gives: a claim is a comparison, a
+    measurement (no verdict) or names where its threshold comes from; every claim of the paper quotes it."""
+    for c in claims.CLAIMS:
+        assert c.threshold.startswith("none") or "(" in c.threshold, c.id
+        assert c.quote or c.source.startswith("beyond the paper"), c.id
+        if PAPER.exists():  # the paper's words, its emphasis (*…*) and citations ([Name05]) left out
+            text = " ".join(re.sub(r"\*|\s*\[\w+\]", "", PAPER.read_text()).split())
+            assert not c.quote or c.quote in text, c.id
 
 
 def test_detectable_fraction_matches_cohens_table():
@@ -168,7 +188,7 @@ def test_hidden_hit_claims_rest_on_cases_with_200_hidden_rays():
         for c, h, w in (("few", 20.0, 0.5), ("many", 2000.0, 0.97))
     ]
     v = claims.hidden_wrong(rows)
-    assert v.ok and "1 cases with ≥ 200 hidden rays" in v.number and "1 more with 1–199" in v.number
+    assert v.ok is None and "1 cases with ≥ 200 hidden rays" in v.number and "1 more with 1–199" in v.number
     assert claims.hidden_wrong(rows[:1]) is None
 
 
@@ -192,39 +212,71 @@ def _ladder_rows(case, wrong_at_3, exit="exact"):
     ]
 
 
-def test_fast_convergence_is_judged_on_the_wrong_fraction_not_the_median():
-    """26 % wrong rays at 3 iterations (fig4's farthest position) with a median of 0.001°: the claim fails and
-    says so; the same ladder behind a glass exit from the distance map is not judged (exit error, not search)."""
+def test_fast_convergence_is_measured_on_the_wrong_fraction_not_the_median():
+    """26 % wrong rays at 3 iterations (fig4's farthest position) with a median of 0.001°: the paper gives no
+    number for 'very quickly', so the ladder is reported (worst case per rung, with its interval) and where every
+    case is within 5 % and 1 %, with no verdict; the same ladder behind a glass exit from the distance map is
+    left out (exit error, not search)."""
     v = claims.converges_quickly(_ladder_rows("p3", 0.26))
-    assert not v.ok and v.number.startswith("fails: ") and "0.26 [0.25" in v.number
+    assert (
+        v.ok is None and "3: 0.26 [0.25" in v.number and "every case: ≤ 5% from 10 iterations on" in v.number
+    )
     assert v.subset.startswith("all rays, convex cases") and "10000 rays" in v.n
-    assert claims.converges_quickly(_ladder_rows("p0", 0.01)).ok
+    assert (
+        "≤ 5% from 1 iterations on, ≤ 1% from 10 iterations on"
+        in claims.converges_quickly(_ladder_rows("p0", 0.01)).number
+    )
+    assert (
+        "≤ 5% not reached by 10 iterations"
+        in claims.converges_quickly([r | {"wrong_fraction": 0.5} for r in _ladder_rows("p0", 0.5)]).number
+    )
     assert claims.converges_quickly(_ladder_rows("torus", 0.3, exit="distance_map")) is None
+    hidden = [r | {"occluded_fraction": 0.1} for r in _ladder_rows("col", 0.2)]
+    assert (
+        claims.converges_quickly(hidden) is None
+        and "cases with hidden hits" in claims.converges_occluded(hidden).subset
+    )
 
 
-def test_hardly_visible_judges_held_pixels_and_sets_the_glass_exit_aside():
+def test_hardly_visible_reports_held_pixels_and_sets_the_glass_exit_aside():
+    """FLIP states no just-noticeable value: the claim on still frames is measured (no verdict)."""
     lab = claims._default("localized")
     rows = [
         {"case": "mirror", "label": lab, "flip_oracle_p95": 0.03, "flip_oracle": 0.01, "held_pixels": 900},
         {"case": "torus", "label": lab, "flip_oracle_p95": 0.4, "exit": "distance_map", "held_pixels": 900},
     ]
     v = claims.hardly_visible(rows)
-    assert v.ok and "0.4 (torus)" in v.number and "1 cases, 900 pixels" == v.n
+    assert v.ok is None and "0.4 (torus)" in v.number and "1 cases, 900 pixels" == v.n
     rows[0]["flip_oracle_p95"] = 0.08
-    assert claims.hardly_visible(rows).number.startswith("fails: worst p95 FLIP vs the oracle 0.08")
+    assert claims.hardly_visible(rows).number.startswith("worst p95 FLIP vs the oracle 0.08")
 
 
-def test_layered_radiance_on_hidden_pixels_fails_plainly():
-    """RMSE 0.22 on the pixels whose hits o cannot see against 0.05 elsewhere (the audit's numbers): fails."""
+def test_layered_radiance_on_hidden_pixels_is_measured_as_a_ratio():
+    """RMSE 0.22 on the pixels whose hits o cannot see against 0.05 elsewhere (the audit's numbers): × 4.4."""
     lab = claims._default("layered")
     row = {"case": "c", "label": lab, "unheld_pixels": 400, "held_pixels": 4000}
     row |= {"rmse_truth_unheld": 0.22, "rmse_truth_unheld_lo": 0.2, "rmse_truth_unheld_hi": 0.24}
     row |= {"rmse_truth_held": 0.05, "rmse_truth_held_lo": 0.048, "rmse_truth_held_hi": 0.052}
     v = claims.layered_radiance([row])
-    assert not v.ok and v.number.startswith("fails: worst case c: RMSE on those pixels 0.22")
+    assert (
+        v.ok is None
+        and v.number.startswith("worst case c: RMSE on those pixels 0.22")
+        and "(×4.4)" in v.number
+    )
     assert claims.layered_radiance([row | {"unheld_pixels": 10}]) is None  # too few pixels to judge
-    ok = row | {"rmse_truth_unheld": 0.09, "rmse_truth_unheld_lo": 0.08, "rmse_truth_unheld_hi": 0.1}
-    assert claims.layered_radiance([ok]).ok
+
+
+def test_layered_beats_localized_on_hidden_hits_only_when_the_intervals_part():
+    loc, lay = claims._default("localized"), claims._default("layered")
+    base = {"case": "c", "n_rays": 10_000.0, "n_hidden": 1000.0, "occluded_fraction": 0.1}
+    rows = [
+        base | {"label": loc, "wrong_fraction_hidden": 0.97},
+        base | {"label": lay, "wrong_fraction_hidden": 0.05},
+    ]
+    assert claims.layered_fixes_occlusion(rows).ok
+    rows[1]["wrong_fraction_hidden"] = 0.96  # within the rays' uncertainty of localized's
+    v = claims.layered_fixes_occlusion(rows)
+    assert not v.ok and v.number.startswith("fails: ")
 
 
 def test_tables_of_rough_objects_stay_out_of_the_wrong_hit_headline():

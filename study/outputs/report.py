@@ -26,6 +26,8 @@ from study.outputs import claims as claim_registry
 from study.outputs import html, sections, summary
 from study.outputs.check import read_table
 from study.outputs.markup import Md, link, md_esc
+from study.outputs.register import bench_sentence, motion_sentences, register_markdown
+from study.outputs.verdicts import verdict_mark
 from study.tables import REFERENCE_ROWS, fmt_number
 
 #: Outcome classes first (study.measure.outcomes): the angle alone is blind to a wrong depth on the same ray.
@@ -188,7 +190,7 @@ def _claims_section(tables: dict[str, list[dict]]) -> list[tuple]:
                     "claim": cl.text,
                     "paper": cl.source,
                     "table": name,
-                    "holds": "✓" if v.ok else "✗",
+                    "holds": verdict_mark(v),
                     "subset": v.subset,
                     "n": v.n,
                     "evidence": str(v.number),
@@ -203,7 +205,7 @@ def _claims_section(tables: dict[str, list[dict]]) -> list[tuple]:
                         "claim": cl.text,
                         "paper": cl.source,
                         "table": " + ".join(figs),
-                        "holds": "✓" if v.ok else "✗",
+                        "holds": verdict_mark(v),
                         "subset": v.subset,
                         "n": v.n,
                         "evidence": str(v.number),
@@ -217,7 +219,9 @@ def _claims_section(tables: dict[str, list[dict]]) -> list[tuple]:
             "p",
             "Each claim is checked on every table it applies to (study/outputs/claims.py), on the rays or pixels "
             "it is about (*subset*, *n*) and on tails — wrong fractions with their 95 % Wilson interval over rays, "
-            "95th percentiles — not medians; a claim that does not hold says so first (fails: …).",
+            "95th percentiles — not medians; a claim that does not hold says so first (fails: …); a claim the paper "
+            "gives no number for is *measured* (no verdict). Each claim's words, place and threshold: "
+            "[claims.md](claims.md).",
         ),
         ("table", rows, ["claim", "paper", "table", "holds", "subset", "n", "evidence"]),
     ]
@@ -291,14 +295,28 @@ INTRO = (
 TITLE = "study: how close do ray-tracing effects without tracing rays come to ray tracing?"
 
 
+def _figures(reports: Path) -> list[Path]:
+    return sorted(d for d in reports.glob("fig*") if (d / "metrics.csv").is_file())
+
+
+def _sweeps(reports: Path) -> list[Path]:
+    return sorted(d for d in reports.glob("sweep-*") if (d / "results.csv").is_file())
+
+
+def tables_of(reports: Path) -> dict[str, list[dict]]:
+    """Every figure's and sweep's table under ``reports``, by folder name (what the claims are judged on)."""
+    numeric = ["cube_res", *SUMMARY]
+    tables = {d.name: read_table(d / "metrics.csv", numeric=numeric) for d in _figures(reports)}
+    tables.update({d.name: read_table(d / "results.csv", numeric=numeric) for d in _sweeps(reports)})
+    return tables
+
+
 def blocks(reports: Path) -> list[tuple]:
     """The report as blocks (see :func:`markdown_text` and :func:`study.outputs.html.page`)."""
-    figs = sorted(d for d in reports.glob("fig*") if (d / "metrics.csv").is_file())
-    sweeps = sorted(d for d in reports.glob("sweep-*") if (d / "results.csv").is_file())
+    figs, sweeps = _figures(reports), _sweeps(reports)
     runs = sections.find_runs(reports)  # by their own files, whatever the folder's name
     numeric = ["cube_res", *SUMMARY]
-    tables = {d.name: read_table(d / "metrics.csv", numeric=numeric) for d in figs}
-    tables.update({d.name: read_table(d / "results.csv", numeric=numeric) for d in sweeps})
+    tables = tables_of(reports)
 
     out = _claims_section(tables) + _comparison_section(tables) + _decomposition_section(tables)
     for d in figs:
@@ -384,5 +402,10 @@ def build_report(reports: str | Path = "reports") -> Path | None:
             files = {
                 "index.md": markdown_text(bl, reports),
                 "index.html": html.page(bl, reports, title=TITLE),
+                "claims.md": register_markdown(
+                    tables_of(reports),
+                    motion_sentences(reports),
+                    bench_sentence(reports / "performance" / "bench-gpu.csv"),
+                ),
             }
             return write_set(reports, files, lock=False, swap=False)[0]  # others write beside it

@@ -14,7 +14,7 @@ from study.outputs.summary import fraction_bounds
 
 @dataclass
 class Verdict:
-    ok: bool
+    ok: bool | None  # None: measured, not judged (no threshold in the paper or a cited source)
     number: str  # the evidence with its interval; "fails: …" when the claim does not hold
     subset: str = ""  # the rays or pixels the claim was judged on
     n: str = ""  # how many (cases, rays or pixels)
@@ -22,10 +22,17 @@ class Verdict:
 
 @dataclass
 class Claim:
+    """One claim: the paper's own words (``quote``) and place (``source``), the project's operationalisation in
+    words (``text``: subset, metric, what decides) and the threshold with where it comes from (``threshold``:
+    a comparison needs none; a number the paper does not give and no cited source states is never invented —
+    such a claim is measured (:func:`_measured`) and its numbers reported, with no verdict)."""
+
     id: str
-    text: str  # the claim, in the paper's words where possible
-    source: str  # where in the paper
+    text: str  # the operationalisation: subset of rays or pixels, metric, what decides
+    source: str  # where in the paper (section, figure), or "beyond the paper: …"
     test: Callable[[list[dict]], Verdict | None]
+    quote: str = ""  # the paper's words ("" for a claim beyond the paper)
+    threshold: str = "none: a comparison of intervals"  # the threshold and its source
 
 
 def _by(rows, **eq):
@@ -53,13 +60,6 @@ def _ci(rows, case, label, metric) -> str:
     return f" [{lo:.3g}–{hi:.3g}]" if np.isfinite(lo) and np.isfinite(hi) else ""
 
 
-def _sure(lo_ok: bool, hi_ok: bool) -> str:
-    """Whether the bounds a claim tests lie wholly on one side (``lo_ok``, ``hi_ok``: each interval decided)."""
-    return (
-        "; beyond the rays' uncertainty" if lo_ok and hi_ok else "; within the rays' uncertainty of the bound"
-    )
-
-
 def _convex(rows):
     """Rows of cases without columns (the room is convex from the reference point)."""
     if rows and "axis:columns" in rows[0]:
@@ -74,6 +74,16 @@ def _row(rows, case, label):
 
 def _verdict(ok: bool, subset: str, n: str, number: str) -> Verdict:
     return Verdict(ok, number if ok else f"fails: {number}", subset, n)
+
+
+def _measured(subset: str, n: str, number: str) -> Verdict:
+    """The numbers of a claim that no sourced threshold decides: reported as measured, no verdict."""
+    return Verdict(None, number, subset, n)
+
+
+def verdict_mark(v: Verdict) -> str:
+    """✓ holds, ✗ fails, 'measured' (no verdict: no threshold in the paper or a cited source)."""
+    return "measured" if v.ok is None else ("✓" if v.ok else "✗")
 
 
 def _finite(v) -> bool:
