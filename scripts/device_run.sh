@@ -2,6 +2,7 @@
 # The GPU measurements of reports/performance.md (issue 15), run on a lent GPU machine from the repository root:
 #
 #   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3] [hier] [fig4paper]
+#                              [side] [reproduce]
 #                                                                                   (default: bench studies)
 #
 #   bench   : `study bench --backends cuda` — methods, exact queries (ray_intersect, _preliminary, ray_test) and
@@ -149,6 +150,41 @@ print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' 
     timed fig4-paper-kernels-warm $S figure fig4 --quality paper --backend cuda --cache "$W/pc2" \
       --out "$W/paper-warm/fig4" > /dev/null 2>&1
     tar czf "$OUT/results-paper.tgz" -C "$W" --exclude=exr --exclude=viewer paper ;;
+  side)    # issue-41 targets, the commit before ($OLD, default .devold: `git archive <rev> study configs scenes
+           # pyproject.toml | tar x -C .devold`) and this one side by side on one host, each cold (fresh study and
+           # kernel caches): fig4 at paper quality cold and with the kernels warm, then the 256² fig4 + fig5 + fig6 +
+           # main sweep; this commit's fig4 at paper quality under cProfile → profile-side-new.txt
+    OLD=${OLD:-.devold}
+    for which in old new; do
+      src=$PWD; [ "$which" = old ] && src=$(cd "$OLD" && pwd)
+      export HOME=$W/home-$which; mkdir -p "$HOME"
+      ( cd "$src" && export PYTHONPATH=/tmp/site:$src
+        if [ "$which" = new ]; then
+          timed "$which-fig4-paper-cold" python3 -m cProfile -o "$OUT/side-new.prof" -m study.cli figure fig4 \
+            --quality paper --backend cuda --cache "$W/$which-p1" --out "$W/$which/paper-fig4" > /dev/null 2>&1
+          python3 -c "import pstats,sys; pstats.Stats(sys.argv[1]).sort_stats('cumulative').print_stats(70)" \
+            "$OUT/side-new.prof" > "$OUT/profile-side-new.txt" 2>&1; rm -f "$OUT/side-new.prof"
+        else
+          timed "$which-fig4-paper-cold" $S figure fig4 --quality paper --backend cuda --cache "$W/$which-p1" \
+            --out "$W/$which/paper-fig4" > /dev/null 2>&1
+        fi
+        timed "$which-fig4-paper-kernels-warm" $S figure fig4 --quality paper --backend cuda --cache "$W/$which-p2" \
+          --out "$W/$which/paper-fig4-warm" > /dev/null 2>&1
+        export HOME=$W/home-$which-256; mkdir -p "$HOME"
+        for f in fig4 fig5 fig6; do
+          timed "$which-$f-256" $S figure $f --backend cuda --cache "$W/$which-c256" --out "$W/$which/$f" > /dev/null 2>&1
+        done
+        timed "$which-sweep-256" timeout 300 $S sweep configs/sweep.toml --backend cuda --cache "$W/$which-c256" \
+          --out "$W/$which/sweep" --jobs 8 --no-plots > /dev/null 2>&1 )
+    done
+    tar czf "$OUT/results-side.tgz" -C "$W" --exclude=exr --exclude=viewer --exclude="*.png" --exclude=cases old new ;;
+  reproduce)  # scripts/reproduce.sh's commands on this host's CPU cores (numpy methods, Mitsuba on LLVM: the
+              # committed tables' backends), $REPRODUCE_JOBS at a time; the reports back as reports-part-*.tar.xz
+    export HOME=$W/home-repro; mkdir -p "$HOME"
+    STUDY="python3 -m study.cli" STUDY_PYTHON=python3 REPRODUCE_JOBS=${REPRODUCE_JOBS:-8} timed reproduce bash scripts/reproduce.sh \
+      --no-setup 2>&1 | tail -60 | tee "$OUT/log-reproduce.txt"
+    tar cJf "$W/reports.tar.xz" --exclude=cases --exclude=exr reports
+    split -b 15M -d "$W/reports.tar.xz" "$OUT/reports-part-" ;;
   *) echo "unknown part $part"; exit 2 ;;
   esac
 done

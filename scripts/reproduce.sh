@@ -7,8 +7,11 @@
 # columns; the committed report was made so), without it those columns say "cvvdp not installed".
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh "$@"
-S=.venv/bin/study
+# --no-setup: use what is installed (a lent GPU host's CPU cores, scripts/device_run.sh reproduce), with $STUDY as
+# the command and $REPRODUCE_JOBS commands at a time
+if [ "${1:-}" = "--no-setup" ]; then shift; else bash scripts/setup.sh "$@"; fi
+S=${STUDY:-.venv/bin/study}
+J=${REPRODUCE_JOBS:-2}
 commands=(
   "sweep configs/sweep.toml --jobs 2"          # the main sweep: position × cube resolution × occlusion
   "figure fig5"
@@ -29,7 +32,7 @@ commands=(
 )
 t0=$(date +%s)
 printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' \
-  | xargs -P 2 -I CMD bash -c 'set -o pipefail; '"$S"' CMD 2>&1 | sed -u "s|^|[CMD] |"'
-PYTHONPATH=. .venv/bin/python scripts/glossy_split.py reports/fig_glossy   # the glossy error split
+  | xargs -P "$J" -I CMD bash -c 'set -o pipefail; '"$S"' CMD 2>&1 | sed -u "s|^|[CMD] |"'
+PYTHONPATH=. ${STUDY_PYTHON:-.venv/bin/python} scripts/glossy_split.py reports/fig_glossy   # the glossy error split
 $S report
 echo "reproduce: every report written in $(( $(date +%s) - t0 )) s"
