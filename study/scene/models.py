@@ -19,7 +19,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from study.scene.sources import resolve
+from study.scene.paths import resolve
 from study.validation import KeyedError
 
 
