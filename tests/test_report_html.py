@@ -298,7 +298,8 @@ def test_report_degrades_gracefully(reports):
 
 
 def test_animation_and_fig8_images_are_linked(reports):
-    """What other commands write beside the figures: ``animation/*.gif|mp4`` (and its plot), ``fig8/*.png``."""
+    """What the other kinds of figure write beside the grids, found by their files (study.outputs.kinds):
+    ``animation/*.gif|mp4`` (and its plot) beside ``frames.csv``, ``fig8/*.png`` beside ``fig8.csv``."""
     from PIL import Image
 
     (reports / "animation").mkdir()
@@ -306,6 +307,10 @@ def test_animation_and_fig8_images_are_linked(reports):
     (reports / "animation" / "motion.mp4").write_bytes(b"\x00" * 16)
     (reports / "fig8").mkdir()
     Image.new("RGB", (8, 8), "blue").save(reports / "fig8" / "fig8.png")
+    res = runner.invoke(app, ["report", "--reports", str(reports)])
+    assert "fig8/fig8.png" not in (reports / "index.md").read_text()  # without their files: no kind's folders
+    (reports / "animation" / "frames.csv").write_text("frame,label\n")
+    (reports / "fig8" / "fig8.csv").write_text("label\n")
     res = runner.invoke(app, ["report", "--reports", str(reports)])
     assert res.exit_code == 0, res.output
     text = (reports / "index.html").read_text()
@@ -372,16 +377,20 @@ def test_binary_hidden_map_is_two_classes():
 
 
 def test_a_figure_with_an_error_split_shows_it(tmp_path):
-    """A figure folder with ``split.csv`` beside its table (the glossy figure's, scripts/glossy_split.py) gets an
-    'Error split' heading and the split as a table; one without gets neither."""
-    from study.outputs.sections import figure_section
+    """A figure folder with ``split.csv`` beside its table (the ``glossy`` kind's) is that kind's and gets an
+    'Error split' heading and the split as a table; one without is a grid and gets neither."""
+    from study.outputs.kinds import folder_kind
 
     d = tmp_path / "fig_x"
     d.mkdir()
     (d / "metadata.json").write_text("{}")
-    assert not any(b[0] == "h" and b[2] == "Error split" for b in figure_section(tmp_path, d, [], []))
+    (d / "metrics.csv").write_text("case,label\n")
+    assert folder_kind(d).name == "grid"
+    section = folder_kind(d).section
+    assert not any(b[0] == "h" and b[2] == "Error split" for b in section(tmp_path, d, [], []))
     (d / "split.csv").write_text("alpha,where,prefiltering,localization\n0.05,near,0.047,0.609\n")
-    blocks = figure_section(tmp_path, d, [], [])
+    assert folder_kind(d).name == "glossy"
+    blocks = folder_kind(d).section(tmp_path, d, [], [])
     assert ("h", 3, "Error split") in blocks
     table = [b for b in blocks if b[0] == "table"][-1]
     assert table[1][0]["localization"] == 0.609 and table[2] == [

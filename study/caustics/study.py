@@ -20,7 +20,7 @@ What is compared with what (like with like):
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
@@ -71,6 +71,7 @@ class MitsubaParams(BaseModel):
 
 class CausticConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+    kind: Literal["caustics"] = "caustics"  # the figure kind (study.outputs.kinds.caustics)
     scene: str | dict[str, Any]
     overrides: dict[str, Any] = {}
     methods: MethodSpecs = "all"

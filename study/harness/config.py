@@ -47,6 +47,9 @@ from study.validation import validate_file
 
 class FigureConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+    kind: str = (
+        "grid"  # the figure kind that makes it (study.outputs.kinds): "grid", "glossy", or a plug-in's
+    )
     scene: str | dict[str, Any]
     overrides: dict[str, Any] = {}
     positions: list[Vec3] | None = Field(None, min_length=1)

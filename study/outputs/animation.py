@@ -60,6 +60,7 @@ TEMPORAL_METRIC = "E_warp along the exact motion (study.measure.temporal)"
 
 class MotionConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+    kind: Literal["animation"] = "animation"  # the figure kind (study.outputs.kinds.animation)
     scene: str | dict[str, Any]
     overrides: dict[str, Any] = {}
     path: list[Vec3] = Field(min_length=2)

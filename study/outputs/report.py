@@ -23,7 +23,7 @@ from study import progress as pg
 from study.errors import StudyError
 from study.io import locked, write_set
 from study.outputs import claims as claim_registry
-from study.outputs import html, sections, summary
+from study.outputs import html, kinds, sections, summary
 from study.outputs.check import read_table
 from study.outputs.markup import Md, link, md_esc
 from study.tables import REFERENCE_ROWS, fmt_number
@@ -293,7 +293,8 @@ TITLE = "study: how close do ray-tracing effects without tracing rays come to ra
 
 def blocks(reports: Path) -> list[tuple]:
     """The report as blocks (see :func:`markdown_text` and :func:`study.outputs.html.page`)."""
-    figs = sorted(d for d in reports.glob("fig*") if (d / "metrics.csv").is_file())
+    made = kinds.found(reports)  # figures of every kind, by the files their runs write (study.outputs.kinds)
+    figs = [d for k, d in made if k.tables]
     sweeps = sorted(d for d in reports.glob("sweep-*") if (d / "results.csv").is_file())
     runs = sections.find_runs(reports)  # by their own files, whatever the folder's name
     numeric = ["cube_res", *SUMMARY]
@@ -301,15 +302,17 @@ def blocks(reports: Path) -> list[tuple]:
     tables.update({d.name: read_table(d / "results.csv", numeric=numeric) for d in sweeps})
 
     out = _claims_section(tables) + _comparison_section(tables) + _decomposition_section(tables)
-    for d in figs:
-        out += sections.figure_section(reports, d, tables[d.name], SUMMARY)
+    for k, d in made:
+        if k.place == kinds.WITH_FIGURES:
+            out += k.section(reports, d, tables.get(d.name, []) if k.tables else [], SUMMARY)
     for d in runs:  # study run: one scene each, not among the tables the claims are checked on
         out += sections.run_section(reports, d, read_table(d / "table.csv", numeric=numeric), SUMMARY)
     for d in sweeps:
         out += sections.sweep_section(d, tables[d.name])
-    out += (
-        sections.caustics_section(reports) + sections.media_section(reports) + sections.paper_section(reports)
-    )
+    for k, d in made:
+        if k.place == kinds.AFTER_SWEEPS:
+            out += k.section(reports, d, tables.get(d.name, []) if k.tables else [], SUMMARY)
+    out += sections.paper_section(reports)
     others = sections.shown(p for p in reports.glob("*.md") if p.name != "index.md")
     others += sections.shown(
         p for p in reports.glob("*/*.md") if p.parent.name not in {d.name for d in figs + sweeps}
