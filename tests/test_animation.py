@@ -117,7 +117,7 @@ def test_motion_jod_table_and_claim(tiny):
     out = tiny / "out"
     rows = {r["label"]: r for r in read_csv(out / "motion.csv")}
     assert set(rows) == {"classical", "localized(iterations=10)", "truth_at_hit"}
-    assert all(0 < r["jod"] <= 10 and r["display"] == video.DISPLAY for r in rows.values())
+    assert all(0 < r["jod"] <= 10 and r["display"] == video.CVVDP_DISPLAY for r in rows.values())
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["video_metric"] == f"ColorVideoVDP (cvvdp {video.VERSION})"
     assert len(meta["motion_claim"]) == 2 and all("the claim" in c for c in meta["motion_claim"])

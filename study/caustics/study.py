@@ -71,7 +71,6 @@ class MitsubaParams(BaseModel):
 
 class CausticConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-    kind: Literal["caustics"] = "caustics"  # the figure kind (study.outputs.kinds.caustics)
     scene: str | dict[str, Any]
     overrides: dict[str, Any] = {}
     methods: MethodSpecs = "all"
@@ -81,6 +80,7 @@ class CausticConfig(BaseModel):
     )
     caustic: CausticParams = CausticParams()
     mitsuba: MitsubaParams = MitsubaParams()
+    kind: Literal["caustics"] = "caustics"  # the figure kind (study.outputs.kinds.caustics)
 
     @field_validator("resolutions")
     @classmethod

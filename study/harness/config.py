@@ -47,9 +47,6 @@ from study.validation import validate_file
 
 class FigureConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-    kind: str = (
-        "grid"  # the figure kind that makes it (study.outputs.kinds): "grid", "glossy", or a plug-in's
-    )
     scene: str | dict[str, Any]
     overrides: dict[str, Any] = {}
     positions: list[Vec3] | None = Field(None, min_length=1)
@@ -58,6 +55,8 @@ class FigureConfig(BaseModel):
     grid: list[str] | None = None
     occlusion_panel: StrictBool = False  # add a column showing which rays' exact hits are hidden from o
     outcome_panel: StrictBool = False  # add per grid method a map of its per-ray outcome classes
+    #: the figure kind that makes it (study.outputs.kinds): "grid", "glossy", or a plug-in's
+    kind: str = "grid"
 
     @model_validator(mode="after")
     def _one_of(self):
