@@ -139,9 +139,11 @@ def sweep_section(d: Path, rows: list[dict]) -> list[tuple]:
 
 
 def paper_section(reports: Path) -> list[tuple]:
-    """Figures at the paper's resolution made on a GPU machine (``reports/paper/<name>/``, ``study figure NAME
-    --quality paper``): their grids, the command and the seconds each took, from their metadata."""
-    dirs = shown(d for d in (reports / "paper").glob("*") if (d / "metadata.json").is_file())
+    """Figures at the paper's resolution made on a GPU machine (``study figure NAME --quality paper``, by default
+    into ``reports/paper/<name>/``; found one level down by their metadata's ``quality``, whatever the folders are
+    called): their grids, the command and the seconds each took, from their metadata."""
+    under = {d for d in shown(reports.glob("*")) if d.is_dir()}  # not inside a hidden or half-written folder
+    dirs = shown(d for d in reports.glob("*/*") if d.parent in under and meta(d).get("quality") == "paper")
     if not dirs:
         return []
     out = [
@@ -160,12 +162,16 @@ def paper_section(reports: Path) -> list[tuple]:
                 Md(
                     f"**{md_esc(d.name)}**: {code(m.get('command') or '?')}, {m.get('seconds', '?')} s on "
                     f"{md_esc(m.get('machine_note') or _machine(m))}; "
-                    f"table: {link('metrics.csv', f'paper/{d.name}/metrics.csv')}"
+                    f"table: {link('metrics.csv', f'{_rel(reports, d)}/metrics.csv')}"
                 ),
             )
         )
-        out += [("img", f"paper/{d.name}/{p.name}", f"{d.name} at 1024²") for p in shown(d.glob("*.png"))]
+        out += [("img", f"{_rel(reports, d)}/{p.name}", f"{d.name} at 1024²") for p in shown(d.glob("*.png"))]
     return out
+
+
+def _rel(reports: Path, d: Path) -> str:
+    return d.relative_to(reports).as_posix()
 
 
 def _machine(m: dict) -> str:
