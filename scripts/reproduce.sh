@@ -25,7 +25,7 @@ commands=(
   "sweep configs/sweep_atrium.toml"
   "sweep configs/sweep_lroom.toml"
   "animate"                                     # the sphere in motion → reports/animation/
-  "figure fig_glossy"                           # rough objects: prefiltered probes against the lobe's truth
+  "figure fig_glossy"                           # rough objects against the lobe's truth, and the error split
   "sweep configs/sweep_glossy.toml"
   "figure fig_attic"                            # unequal roof slopes, an off-centre reference point
   "figure fig_probes"                           # screen-space and multi-probe tracing beside the paper's
@@ -33,6 +33,5 @@ commands=(
 t0=$(date +%s)
 printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' \
   | xargs -P "$J" -I CMD bash -c 'set -o pipefail; '"$S"' CMD 2>&1 | sed -u "s|^|[CMD] |"'
-PYTHONPATH=. ${STUDY_PYTHON:-.venv/bin/python} scripts/glossy_split.py reports/fig_glossy   # the glossy error split
 $S report
 echo "reproduce: every report written in $(( $(date +%s) - t0 )) s"

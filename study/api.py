@@ -40,11 +40,11 @@ from study import columns
 from study import methods as registry
 from study.errors import StudyError
 from study.scene import Scene
+from study.scene.models import MESH_SUFFIXES
+from study.tables import REFERENCE_ROWS
 
 #: file suffixes that :func:`load_scene` reads as an environment mesh, and as a Mitsuba scene
-MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".stl", ".off")
 MITSUBA_SUFFIXES = (".xml",)
-REFERENCES = ("oracle_map", "truth_at_hit")
 
 
 # ---------------------------------------------------------------------------------------------- scenes
@@ -270,7 +270,7 @@ class Result:
         return (
             f"{env} environment, {obj} (radius {s.object.radius:g}, {s.object.material.type}), camera "
             f"{s.camera.width}×{s.camera.height}, cube {r.cube_res}², backend {self.backend}, "
-            f"{len(self.table) - len(REFERENCES)} method(s)"
+            f"{len(self.table) - len(REFERENCE_ROWS)} method(s)"
         )
 
     def shown(self):
@@ -315,7 +315,7 @@ class Result:
         rows = self.table.to_dict("records")
         buf = _io.BytesIO()
         self.table.to_parquet(buf, index=False)
-        labels = [lab for lab in self.labels if lab not in REFERENCES]
+        labels = [lab for lab in self.labels if lab not in REFERENCE_ROWS]
         name = Path(self.file).name if self.file else None
         files, index = result_files(
             self._case(),

@@ -20,7 +20,7 @@ from functools import cache
 from pathlib import Path
 
 PACKAGE = __name__.partition(".")[0]  # "study"
-ROOT = Path(__file__).resolve().parent  # the study package directory
+PACKAGE_DIR = Path(__file__).resolve().parent  # the study package directory
 
 
 def code_hash(*objs) -> str:
@@ -67,7 +67,7 @@ def _outside_digest(name: str) -> str:
 def _path(name: str) -> Path | None:
     """The source file of study module ``name`` (a module file or a package's ``__init__``), None if none."""
     rel = name.split(".")[1:]
-    base = ROOT.joinpath(*rel) if rel else ROOT
+    base = PACKAGE_DIR.joinpath(*rel) if rel else PACKAGE_DIR
     if (base / "__init__.py").is_file():
         return base / "__init__.py"
     f = base.with_suffix(".py") if rel else None

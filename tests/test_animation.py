@@ -117,11 +117,11 @@ def test_motion_jod_table_and_claim(tiny):
     out = tiny / "out"
     rows = {r["label"]: r for r in read_csv(out / "motion.csv")}
     assert set(rows) == {"classical", "localized(iterations=10)", "truth_at_hit"}
-    assert all(0 < r["jod"] <= 10 and r["display"] == video.DISPLAY for r in rows.values())
+    assert all(0 < r["jod"] <= 10 and r["display"] == video.CVVDP_DISPLAY for r in rows.values())
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["video_metric"] == f"ColorVideoVDP (cvvdp {video.VERSION})"
     assert len(meta["motion_claim"]) == 2 and all("the claim" in c for c in meta["motion_claim"])
-    from study.outputs.sections import motion_claim_section
+    from study.outputs.kinds.animation import motion_claim_section
 
     text = " ".join(str(p) for block in motion_claim_section(out, out / "motion.csv") for p in block)
     assert f"measured with the extra study[video] installed: ColorVideoVDP (cvvdp {video.VERSION})" in text
@@ -131,7 +131,7 @@ def test_without_cvvdp_the_jod_columns_say_so(tiny, monkeypatch):
     """Without study[video] (made so here where it is installed): the animation still runs, its JOD columns say
     "cvvdp not installed", no claim is judged in JOD, and the report says which metric was used."""
     from study.measure import video
-    from study.outputs.sections import media_section
+    from study.outputs.kinds.animation import media_section
 
     monkeypatch.setattr(video, "available", lambda: False)
     reports = tiny / "reports"
@@ -146,7 +146,7 @@ def test_without_cvvdp_the_jod_columns_say_so(tiny, monkeypatch):
     assert all(np.isfinite(r["ewarp_flip"]) for r in rows)
     meta = json.loads((reports / "animation" / "metadata.json").read_text())
     assert meta["video_metric"] == "cvvdp not installed" and "motion_claim" not in meta
-    text = " ".join(str(p) for block in media_section(reports) for p in block)
+    text = " ".join(str(p) for block in media_section(reports, reports / "animation", [], []) for p in block)
     assert "ColorVideoVDP was not installed when these frames were measured" in text and "E_warp" in text
     assert "(ColorVideoVDP)" not in text and "cvvdp not installed" in text
 

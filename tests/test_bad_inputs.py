@@ -703,12 +703,14 @@ def test_corpus_size():
 
 def test_internal_error_is_one_line_unless_debug(workdir, monkeypatch):
     """An unexpected exception (a bug) is one line with exit code 4; --debug lets its traceback through."""
-    import study.cli.commands as cli
+    import dataclasses
+
+    from study.outputs import kinds
 
     def broken(*a, **k):
         raise ValueError("something\nunexpected")
 
-    monkeypatch.setattr(cli, "figure_positions", broken)
+    monkeypatch.setitem(kinds.KINDS, "grid", dataclasses.replace(kinds.KINDS["grid"], run=broken))
     before = digest(workdir / "out")
     res = runner.invoke(app, fig_args(workdir))
     assert_one_line_error(

@@ -293,7 +293,7 @@ def test_proxies_use_the_bounds_or_the_given_box():
 def test_a_closed_cube_with_flipped_normals_is_a_room():
     """A Mitsuba ``cube`` with ``flip_normals`` faces inwards: its inside is free space, placement and the
     suggested placement accept it (Mitsuba's flag, not the triangles' winding, says which side is free)."""
-    from study.scene.environment import suggest_placement as suggest
+    from study.scene.autoplace import suggest_placement as suggest
 
     env = {
         "type": "mitsuba",

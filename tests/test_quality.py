@@ -42,10 +42,15 @@ def test_unknown_preset_is_one_line(tmp_path):
 
 
 def test_report_shows_the_paper_resolution_figures(tmp_path):
+    """Found by their metadata's quality (as `study figure --quality paper` writes it), not by the folder's name."""
     d = tmp_path / "paper" / "fig9"
     d.mkdir(parents=True)
+    (d / "metadata.json").write_text(json.dumps({"command": "study figure fig9", "seconds": 12.5}))
+    (d / "fig9.png").write_bytes(b"\x89PNG")
+    assert runner.invoke(app, ["report", "--reports", str(tmp_path)]).exit_code == 0
+    assert not (tmp_path / "index.md").exists()  # a preview figure there is not one: nothing to report
     (d / "metadata.json").write_text(
-        json.dumps({"command": "study figure fig9 --quality paper", "seconds": 12.5})
+        json.dumps({"command": "study figure fig9 --quality paper", "seconds": 12.5, "quality": "paper"})
     )
     (d / "fig9.png").write_bytes(b"\x89PNG")
     res = runner.invoke(app, ["report", "--reports", str(tmp_path)])

@@ -234,44 +234,13 @@ def test_json_is_strict(reports, tmp_path):
     assert rows and math.isnan(rows[0]["v"]) and rows[0]["psnr"] == math.inf and rows[0]["low"] == -math.inf
 
 
-def test_summary_names_the_winner_and_the_front():
-    rows = [
-        {
-            "case": f"c{i}",
-            "label": lab,
-            "method": lab.split("(")[0],
-            "wrong_fraction": w + 0.01 * i,
-            "rmse_truth_debiased": e,
-            "lookups_per_ray": n,
-        }
-        for i in range(3)
-        for lab, w, e, n in (
-            ("classical", 0.9, 0.3, 1),
-            ("localized(iterations=3)", 0.2, 0.05, 6),
-            ("layered", 0.01, 0.08, 2451),
-            ("slow_bad", 0.95, 0.4, 900),
-            ("oracle_map", 0.0, 0.0, 1),
-        )
-    ]
+def test_pareto_front_keeps_what_nothing_beats():
+    """The rows no other row beats on both cost and error, cheapest first: 900 lookups for 95 % is beaten by 1 for
+    90 %."""
     front = report.pareto_front(
         [{"c": 1, "e": 0.9}, {"c": 6, "e": 0.2}, {"c": 900, "e": 0.95}, {"c": 2451, "e": 0.01}], "c", "e"
     )
     assert [r["c"] for r in front] == [1, 6, 2451]
-    (_, _, _), (_, text), (_, items) = report.summary_blocks({"figX": rows})
-    s = items[0]
-    assert s.startswith("**figX** (3 cases):")
-    assert "fewest wrong hits: `layered`, 2 % at 2451 lookups/ray; the cheapest, `classical`: 91 % at 1" in s
-    assert (
-        "lowest image error against the truth (RMSE): `localized(iterations=3)`, 0.05 at 6 lookups/ray" in s
-    )
-    assert "`classical` 1: 91 % → `localized(iterations=3)` 6: 21 % → `layered` 2451: 2 %" in s
-    assert "oracle_map" not in s and "slow_bad" not in s
-    # a tie within 1 % goes to the cheaper method
-    for r in rows:
-        if r["label"] == "classical":
-            r["wrong_fraction"] = 1.005 * (0.01 + 0.01 * int(r["case"][1]))
-    s = report.summary_blocks({"figX": rows})[2][1][0]
-    assert "fewest wrong hits: `classical`, 2.01 % at 1 lookups/ray (1 more within 1%, none cheaper)" in s, s
 
 
 def test_report_degrades_gracefully(reports):
@@ -298,7 +267,8 @@ def test_report_degrades_gracefully(reports):
 
 
 def test_animation_and_fig8_images_are_linked(reports):
-    """What other commands write beside the figures: ``animation/*.gif|mp4`` (and its plot), ``fig8/*.png``."""
+    """What the other kinds of figure write beside the grids, found by their files (study.outputs.kinds):
+    ``animation/*.gif|mp4`` (and its plot) beside ``frames.csv``, ``fig8/*.png`` beside ``fig8.csv``."""
     from PIL import Image
 
     (reports / "animation").mkdir()
@@ -306,6 +276,10 @@ def test_animation_and_fig8_images_are_linked(reports):
     (reports / "animation" / "motion.mp4").write_bytes(b"\x00" * 16)
     (reports / "fig8").mkdir()
     Image.new("RGB", (8, 8), "blue").save(reports / "fig8" / "fig8.png")
+    res = runner.invoke(app, ["report", "--reports", str(reports)])
+    assert "fig8/fig8.png" not in (reports / "index.md").read_text()  # without their files: no kind's folders
+    (reports / "animation" / "frames.csv").write_text("frame,label\n")
+    (reports / "fig8" / "fig8.csv").write_text("label\n")
     res = runner.invoke(app, ["report", "--reports", str(reports)])
     assert res.exit_code == 0, res.output
     text = (reports / "index.html").read_text()
@@ -372,16 +346,20 @@ def test_binary_hidden_map_is_two_classes():
 
 
 def test_a_figure_with_an_error_split_shows_it(tmp_path):
-    """A figure folder with ``split.csv`` beside its table (the glossy figure's, scripts/glossy_split.py) gets an
-    'Error split' heading and the split as a table; one without gets neither."""
-    from study.outputs.sections import figure_section
+    """A figure folder with ``split.csv`` beside its table (the ``glossy`` kind's) is that kind's and gets an
+    'Error split' heading and the split as a table; one without is a grid and gets neither."""
+    from study.outputs.kinds import folder_kind
 
     d = tmp_path / "fig_x"
     d.mkdir()
     (d / "metadata.json").write_text("{}")
-    assert not any(b[0] == "h" and b[2] == "Error split" for b in figure_section(tmp_path, d, [], []))
+    (d / "metrics.csv").write_text("case,label\n")
+    assert folder_kind(d).name == "grid"
+    section = folder_kind(d).section
+    assert not any(b[0] == "h" and b[2] == "Error split" for b in section(tmp_path, d, [], []))
     (d / "split.csv").write_text("alpha,where,prefiltering,localization\n0.05,near,0.047,0.609\n")
-    blocks = figure_section(tmp_path, d, [], [])
+    assert folder_kind(d).name == "glossy"
+    blocks = folder_kind(d).section(tmp_path, d, [], [])
     assert ("h", 3, "Error split") in blocks
     table = [b for b in blocks if b[0] == "table"][-1]
     assert table[1][0]["localization"] == 0.609 and table[2] == [

@@ -174,7 +174,9 @@ def test_detectable_rows_state_n_and_hidden_cases():
     assert "4 cases are too few" in text and "3 case(s) with ≥ 200 hidden rays" in text
     blocks = summary.headline_blocks({"t": tab})
     assert (
-        blocks[-1][0] == "table" and blocks[-1][2] == power.COLUMNS and blocks[-1][1][0]["hidden_cases"] == 3
+        blocks[-1][0] == "table"
+        and blocks[-1][2] == power.POWER_COLUMNS
+        and blocks[-1][1][0]["hidden_cases"] == 3
     )
 
 

@@ -104,9 +104,9 @@ def test_occlusion_mask_excludes_disoccluded_pixels(frames):
     a, b = scenes[0], scenes[3]  # a step of 21 cm
     flow = temporal.exact_flow(a, b, tracer)
     sa, sb = temporal.surfaces(a, tracer), temporal.surfaces(b, tracer)
-    uncovered = (sa != temporal.ENVIRONMENT) & (sb == temporal.ENVIRONMENT)
+    uncovered = (sa != temporal.ENV_SURFACE) & (sb == temporal.ENV_SURFACE)
     assert uncovered.sum() > 20 and not flow.valid[uncovered].any()
-    never = (sa == temporal.ENVIRONMENT) & (sb == temporal.ENVIRONMENT)
+    never = (sa == temporal.ENV_SURFACE) & (sb == temporal.ENV_SURFACE)
     inner = never.copy()  # away from the sphere by a pixel: the bilinear lookup reads background only
     for ax in (0, 1):
         for s in (1, -1):
@@ -116,7 +116,7 @@ def test_occlusion_mask_excludes_disoccluded_pixels(frames):
     assert not flow.valid[sb == temporal.MIXED].any()
     # the sphere's far side coming into view: a point of b's sphere whose spot on a's sphere faced away
     moved_back = temporal.exact_flow(b, a, tracer)  # the other way round: uncovered pixels of a
-    assert not moved_back.valid[(sb != temporal.ENVIRONMENT) & (sa == temporal.ENVIRONMENT)].any()
+    assert not moved_back.valid[(sb != temporal.ENV_SURFACE) & (sa == temporal.ENV_SURFACE)].any()
 
 
 def test_frames_that_differ_in_more_than_the_motion_are_refused(frames):

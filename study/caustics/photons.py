@@ -53,7 +53,7 @@ class CausticMap:
     seconds: dict  # phase → seconds
 
     @property
-    def alpha(self) -> np.ndarray:
+    def luminance(self) -> np.ndarray:
         """The paper's alpha channel: the photon's power luminance (mean of RGB), −1 where invalid."""
         return np.where(self.valid, self.power.mean(-1), -1.0)
 
@@ -212,8 +212,8 @@ def cone_power(scene: Scene, n: int = 20000) -> np.ndarray:
         scene.object.radius,
     )
     D = np.linalg.norm(c - L)
-    alpha = math.asin(r / D)
-    th = (np.arange(n) + 0.5) / n * alpha
+    half_angle = math.asin(r / D)  # of the cone of light rays that meet the sphere
+    th = (np.arange(n) + 0.5) / n * half_angle
     sin_i = np.clip(D * np.sin(th) / r, 0, 1)  # incidence angle at the sphere
     cos_i = np.sqrt(1 - sin_i**2)
     eta = 1 / scene.object.material.ior
@@ -221,7 +221,7 @@ def cone_power(scene: Scene, n: int = 20000) -> np.ndarray:
     cos_t = np.sqrt(1 - (eta * sin_i) ** 2)
     F_out = optics.fresnel_dielectric(cos_t, 1 / eta)
     integrand = (1 - F_in) * (1 - F_out) * 2 * np.pi * np.sin(th)
-    return np.asarray(scene.light.intensity, float) * integrand.sum() * alpha / n
+    return np.asarray(scene.light.intensity, float) * integrand.sum() * half_angle / n
 
 
 __all__ = [

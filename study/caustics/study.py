@@ -20,7 +20,7 @@ What is compared with what (like with like):
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
@@ -80,6 +80,7 @@ class CausticConfig(BaseModel):
     )
     caustic: CausticParams = CausticParams()
     mitsuba: MitsubaParams = MitsubaParams()
+    kind: Literal["caustics"] = "caustics"  # the figure kind (study.outputs.kinds.caustics)
 
     @field_validator("resolutions")
     @classmethod

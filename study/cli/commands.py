@@ -11,14 +11,14 @@ import typer
 from study import methods
 from study.bench.output import bench_table, write_bench_files, write_scaling
 from study.bench.run import BenchOptions, check_options, run_bench
-from study.caustics.figure import fig8
 from study.cli.app import app, console, err_console, figures, guarded
 from study.errors import StudyError
 from study.harness.config import load_figure_config, plain_name, shipped
 from study.harness.runner import prepare_sweep, run_sweep
-from study.io import file_stem, locked, read_toml
+from study.io import file_stem, locked
 from study.outputs.check import run_check
-from study.outputs.figures import figure_positions
+from study.outputs.kinds import config_kind
+from study.outputs.kinds.caustics import caustics_figure, caustics_lines
 from study.outputs.plots import sweep_plots
 from study.outputs.report import build_report
 
@@ -54,10 +54,12 @@ def figure(
     name = plain_name(name) if name else file_stem(config.stem)  # one folder under reports/, never a path
     out = out or (Path("reports") / name if quality == "preview" else Path("reports") / quality / name)
     t0 = time.perf_counter()
-    if "caustic" in read_toml(config):  # caustics (fig8): study/caustics/figure.py
-        return _caustics(config, out, backend, cache, sweep=False)
-    rows = figure_positions(config, out, name=name, backend=backend, cache=cache, quality=quality)
-    _print_table(rows)
+    kind = config_kind(config)  # the config's `kind` (grid by default): study/outputs/kinds/
+    rows = kind.run(config, out, name=name, backend=backend, cache=cache, quality=quality)
+    if kind.lines is None:
+        _print_table(rows)
+    for line in kind.lines(rows) if kind.lines else ():
+        console.print(line, highlight=False)
     console.print(f"{name}: wrote {out} in {time.perf_counter() - t0:.1f} s", highlight=False)
 
 
@@ -227,26 +229,9 @@ def bench(
 
 def _caustics(config, out, backend, cache, *, sweep: bool):
     t0 = time.perf_counter()
-    rows = fig8(config, out, backend=backend, cache=cache, sweep=sweep)
-    for r in rows:
-        console.print(
-            ", ".join(
-                f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
-                for k, v in r.items()
-                if k
-                in (
-                    "caustic_res",
-                    "label",
-                    "lm_rmse",
-                    "lm_relmse",
-                    "energy_ratio",
-                    "img_rmse_mitsuba",
-                    "mitsuba_noise_rmse",
-                    "seconds_per_map",
-                )
-            ),
-            highlight=False,
-        )
+    rows = caustics_figure(config, out, backend=backend, cache=cache, sweep=sweep)
+    for line in caustics_lines(rows):
+        console.print(line, highlight=False)
     console.print(f"wrote {out} in {time.perf_counter() - t0:.1f} s", highlight=False)
 
 

@@ -30,7 +30,7 @@ from study.reference.mitsuba import radiance_along
 from study.reference.tracer import make_tracer
 from study.scene import Scene
 
-EPS = 1e-4  # restart offset along the ray beyond a hit (m)
+RESTART_EPS = 1e-4  # restart offset along the ray beyond a hit (m)
 
 
 def peel(tracer: Tracer, o: np.ndarray, dirs: np.ndarray, layers: int):
@@ -64,7 +64,7 @@ def peel(tracer: Tracer, o: np.ndarray, dirs: np.ndarray, layers: int):
         point[k], new[k] = p, hit
         dist[k] = np.where(hit, np.linalg.norm(p - o, axis=1), dist[k - 1] if k else cubemap.FAR)
         normal[k] = np.where(hit[:, None], fn[np.maximum(h["prim"], 0)], normal[k - 1] if k else 0.0)
-        start = np.where(hit[:, None], p + dirs * EPS, start)
+        start = np.where(hit[:, None], p + dirs * RESTART_EPS, start)
     return dist, point, normal, new
 
 

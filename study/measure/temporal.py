@@ -37,9 +37,9 @@ from study.measure.metrics import flip_map, to_ldr
 from study.scene import Scene, camera_rays, look_at_basis, objects
 
 #: the depth test's tolerance (relative, absolute in metres), as the exact hits' occlusion test in run_case
-REL_EPS, ABS_EPS = 1e-4, 1e-5
+WARP_REL_EPS, WARP_ABS_EPS = 1e-4, 1e-5
 #: surface classes of a pixel (``Flow.surface``)
-ENVIRONMENT, OBJECT, MIXED = 0, 1, -1
+ENV_SURFACE, OBJECT, MIXED = 0, 1, -1
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,7 @@ class Flow:
 
     coords: np.ndarray  # (H, W, 2) float: (row, column) in the previous frame, pixel centres at integers
     valid: np.ndarray  # (H, W) bool: the point was seen there (module docstring)
-    surface: np.ndarray  # (H, W) int8: the current pixel's surface: OBJECT, ENVIRONMENT or MIXED
+    surface: np.ndarray  # (H, W) int8: the current pixel's surface: OBJECT, ENV_SURFACE or MIXED
 
 
 def project(cam, points: np.ndarray, *, at_infinity: np.ndarray | None = None) -> np.ndarray:
@@ -76,12 +76,12 @@ def _first_hits(scene: Scene, tracer, o: np.ndarray, d: np.ndarray) -> tuple[np.
 
 def surfaces(scene: Scene, tracer) -> np.ndarray:
     """(H, W) int8: OBJECT where every sub-pixel ray (``render.supersample``²) first meets the object,
-    ENVIRONMENT where none does, MIXED between."""
+    ENV_SURFACE where none does, MIXED between."""
     o, d = camera_rays(scene.camera, scene.render.supersample)
     H, W, S, _ = d.shape
     t_env, t_obj = _first_hits(scene, tracer, o.reshape(-1, 3), d.reshape(-1, 3))
     on = (t_obj < t_env).reshape(H, W, S)
-    return np.where(on.all(-1), OBJECT, np.where(on.any(-1), MIXED, ENVIRONMENT)).astype(np.int8)
+    return np.where(on.all(-1), OBJECT, np.where(on.any(-1), MIXED, ENV_SURFACE)).astype(np.int8)
 
 
 def exact_flow(
@@ -113,7 +113,7 @@ def exact_flow(
     dirs = to / np.where(far, 1.0, dist)[:, None]
     p_env, p_obj = _first_hits(prev, tracer, eye, dirs)
     first = np.minimum(p_env, p_obj)
-    seen = np.where(far, ~np.isfinite(first), first >= dist * (1 - REL_EPS) - ABS_EPS)
+    seen = np.where(far, ~np.isfinite(first), first >= dist * (1 - WARP_REL_EPS) - WARP_ABS_EPS)
     seen &= np.where(on, p_obj <= p_env, True)  # an object point is seen on the object, not through it
     coords = coords.reshape(H, W, 2)
     valid = seen.reshape(H, W) & (surface != MIXED) & _same_surface(coords, prev_surface, surface)

@@ -3,7 +3,7 @@
 
 JOD (just-objectionable differences): 10 means no visible difference from the reference; each unit less means
 that about 75 % of viewers would prefer the reference. The frames are the animation's own (sRGB, 8 bit after
-:func:`study.measure.metrics.to_ldr`), shown on ColorVideoVDP's display model :data:`DISPLAY` — a 24-inch Full HD
+:func:`study.measure.metrics.to_ldr`), shown on ColorVideoVDP's display model :data:`CVVDP_DISPLAY` — a 24-inch Full HD
 SDR monitor, 200 cd/m² peak, contrast 1000:1, 250 lux office light, seen from 0.6 m (its ``standard_fhd``) — at
 the animation's frame rate. The interval resamples the sequence's ``segments`` equal runs of consecutive frames
 (scipy's percentile bootstrap of their mean JOD, seed 0): it says how much the verdict depends on which part of
@@ -20,7 +20,7 @@ import os
 import numpy as np
 
 #: ColorVideoVDP's display model (see the module docstring).
-DISPLAY = "standard_fhd"
+CVVDP_DISPLAY = "standard_fhd"
 #: cvvdp's version the numbers were made with (v0.6 retrained the model: pin it).
 VERSION = "0.5.7"
 
@@ -41,7 +41,7 @@ def _metric():
 
     torch.manual_seed(0)
     with contextlib.redirect_stderr(io.StringIO()):
-        return pycvvdp.cvvdp(display_name=DISPLAY, quiet=True, device=torch.device("cpu"))
+        return pycvvdp.cvvdp(display_name=CVVDP_DISPLAY, quiet=True, device=torch.device("cpu"))
 
 
 def jod(test: np.ndarray, ref: np.ndarray, *, fps: float, metric=None) -> float:
@@ -88,7 +88,7 @@ def motion_rows(sequences: dict[str, np.ndarray], reference: np.ndarray, *, fps:
     for label, frames in sequences.items():
         q, lo, hi = jod_with_interval(frames, reference, fps=fps, metric=m)
         rows.append({"label": label, "jod": q, "jod_lo": lo, "jod_hi": hi, "frames": len(frames),
-                     "display": DISPLAY, "cvvdp": VERSION})  # fmt: skip
+                     "display": CVVDP_DISPLAY, "cvvdp": VERSION})  # fmt: skip
     return rows
 
 

@@ -213,20 +213,20 @@ class Method(ABC):
         return Views(layers=self.layers_needed())
 
     # ---------------------------------------------------------------------------------------------- the search
-    def search(self, B: Backend, views: Captured, x: V3, R: V3) -> Found:
+    def search(self, B: Backend, env: Captured, x: V3, R: V3) -> Found:
         """The hit of each ray and what it shows. Default: :meth:`localize`, then one lookup of the impostor in
         direction l gives the shown point l̂·|l'| and its radiance. A method that reads another view overrides
         this (its :class:`Found` carries the point, the radiance and the lookups it spent)."""
-        loc = self.localize(B, views, x, R)
+        loc = self.localize(B, env, x, R)
         self._check_answer(B, loc, x, Localization)
         valid = loc.valid & ~(B.length(loc.l) == 0.0)  # a zero lookup vector points nowhere: no hit
         finite = B.isfinite(B.length(loc.l))  # no lookup at a NaN or inf (its shown point stays NaN)
         l, Rs = loc.l, R
-        r, g, b, dist = views.lookup(
+        r, g, b, dist = env.lookup(
             V3(*(B.select(finite, c, d) for c, d in zip((l.x, l.y, l.z), (Rs.x, Rs.y, Rs.z))))
         )
         lhat = B.normalize(loc.l)
-        spent = loc.lookups if loc.lookups is not None else x.x * 0.0 + (self.lookup_bound(views.res) - 1)
+        spent = loc.lookups if loc.lookups is not None else x.x * 0.0 + (self.lookup_bound(env.res) - 1)
         return Found(
             loc.l,
             V3(lhat.x * dist, lhat.y * dist, lhat.z * dist),
@@ -236,10 +236,10 @@ class Method(ABC):
             spent + 1.0,
         )
 
-    def sees_origin(self, B: Backend, views: Captured, x: V3):
+    def sees_origin(self, B: Backend, env: Captured, x: V3):
         """Rays whose origin the views see: |x| ≤ |x'| from o (not outside the room, inside geometry or hidden
         behind it). One more lookup, not counted in the lookups."""
-        return B.length(x) <= views.distance(x) * 1.0001 + 1e-6
+        return B.length(x) <= env.distance(x) * 1.0001 + 1e-6
 
     #: The diagnostic ratio is NaN on invalid rays (else it is kept there, as the lookup methods' |l|/|l'|).
     ratio_where_valid: ClassVar[bool] = False
@@ -251,14 +251,14 @@ class Method(ABC):
         radiance; one more lookup, not counted); rays with a non-finite direction, and with ``check_origin``
         rays whose origin the views do not see (:meth:`sees_origin`), are invalid; invalid rays show NaN.
         ``env``: a :class:`Captured`, or a bare impostor (an EnvMap: the methods' fallbacks apply)."""
-        views = Captured.of(env)
-        f = self._guarded(lambda: self.search(B, views, x, R))
+        env = Captured.of(env)
+        f = self._guarded(lambda: self.search(B, env, x, R))
         self._check_answer(B, f, x, Found)
         l, shown, rad, ratio, valid = f.l, f.shown, f.radiance, f.ratio, f.valid
-        if views.open:  # a ray with no hit whose direction sees no surface escapes
-            escape = ~valid & (views.distance(R) >= FAR_MIN)
+        if env.open:  # a ray with no hit whose direction sees no surface escapes
+            escape = ~valid & (env.distance(R) >= FAR_MIN)
             far = R * FAR
-            r, g, b, dist = views.lookup(far)
+            r, g, b, dist = env.lookup(far)
             fhat = B.normalize(far)
 
             def sel(a: V3, b: V3) -> V3:
@@ -269,7 +269,7 @@ class Method(ABC):
             valid = valid | escape
         valid = valid & B.isfinite(B.length(R))
         if check_origin:
-            valid = valid & self.sees_origin(B, views, x)
+            valid = valid & self.sees_origin(B, env, x)
         nan = float("nan")
         shown = V3(*(B.select(valid, c, nan) for c in (shown.x, shown.y, shown.z)))
         rad = V3(*(B.select(valid, c, nan) for c in (rad.x, rad.y, rad.z)))
@@ -331,10 +331,10 @@ class TracingMethod(Method):
     its lookup vector is that shown point, from a trace without the origin check."""
 
     @abstractmethod
-    def search(self, B: Backend, views: Captured, x: V3, R: V3) -> Found:
+    def search(self, B: Backend, env: Captured, x: V3, R: V3) -> Found:
         """The hit, the shown point and its radiance from the view that saw it, the lookups spent."""
 
-    def localize(self, B: Backend, env, x: V3, R: V3) -> Localization:
+    def localize(self, B: Backend, env: Captured, x: V3, R: V3) -> Localization:
         tr = self.trace(B, env, x, R, check_origin=False)
         return Localization(l=tr.shown, valid=tr.valid, lookups=tr.lookups)
 

@@ -8,6 +8,8 @@ point lies at infinity along R (exact for the escaping rays, whatever x).
 
 from __future__ import annotations
 
+from study.backend import V3, Backend
+from study.impostor.views import Captured
 from study.methods.base import Localization, Method, register
 
 
@@ -15,7 +17,7 @@ from study.methods.base import Localization, Method, register
 class Classical(Method):
     name = "classical"
 
-    def localize(self, B, env, x, R):
+    def localize(self, B: Backend, env: Captured, x: V3, R: V3) -> Localization:
         return Localization(l=R, valid=B.abs(R.x) >= 0.0)  # always a hit: the environment in direction R
 
     def lookups_per_ray(self, res: int | None = None) -> float:

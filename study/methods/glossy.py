@@ -60,16 +60,16 @@ class PrefilteredMethod(GlossyMethod):
     def views_needed(self) -> Views:
         return Views(prefiltered=True)
 
-    def point(self, B: Backend, views: Captured, x: V3, d: V3):
+    def point(self, B: Backend, env: Captured, x: V3, d: V3):
         """(l, valid, lookups spent before the final read) for the ray x + d t."""
         raise NotImplementedError
 
-    def search(self, B: Backend, views: Captured, x: V3, R: V3) -> Found:
-        lobe, pre = views.need_lobe(self.name, R), views.need_prefiltered(self.name)
+    def search(self, B: Backend, env: Captured, x: V3, R: V3) -> Found:
+        lobe, pre = env.need_lobe(self.name, R), env.need_prefiltered(self.name)
         d = ggx.dominant_direction(B, lobe.normal, R, lobe.alpha)
-        l, valid, spent = self.point(B, views, x, d)
+        l, valid, spent = self.point(B, env, x, d)
         a = footprint_alpha(B, lobe.alpha, x, l) if self.footprint else x.x * 0.0 + lobe.alpha
         r, g, b, _ = pre.lookup(l, a)
-        dist = views.distance(l)  # the lobe centre's point in the impostor itself
+        dist = env.distance(l)  # the lobe centre's point in the impostor itself
         lhat = B.normalize(l)
         return Found(l, lhat * dist, V3(r, g, b), B.length(l) / dist, valid, spent + 1.0)

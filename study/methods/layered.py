@@ -54,9 +54,10 @@ from typing import Annotated
 
 from pydantic import Field
 
-from study.backend import V3
+from study.backend import V3, Backend
 from study.impostor import cubemap
 from study.impostor.envmap import EnvMap
+from study.impostor.views import Captured
 from study.methods.base import Found, Knob, TracingMethod, register
 from study.methods.linear_secant import TexelMarchParams, march_bound, march_steps, skipper
 from study.methods.search import arc_samples, first_entry, refine, secant_point
@@ -94,7 +95,7 @@ class Layered(TracingMethod):
     def layers_needed(self) -> int:
         return self.params.layers
 
-    def search(self, B, env, x, R) -> Found:
+    def search(self, B: Backend, env: Captured, x: V3, R: V3) -> Found:
         """The kept entry's point, read on its layer (distance and radiance)."""
         p = self.params
         maps = env.need_layers(self.name, p.layers)

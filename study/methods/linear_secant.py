@@ -47,7 +47,9 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from study.backend import V3, Backend
 from study.impostor import cubemap
+from study.impostor.views import Captured
 from study.methods.base import Knob, Localization, Method, register
 from study.methods.march import Skip, iterations
 from study.methods.search import arc_samples, first_crossing, refine, secant_point
@@ -158,7 +160,7 @@ class LinearSecant(Method):
     Params = Params
     knob = Knob("steps_per_texel", (0.25, 0.5, 1.0, 2.0))  # below 1, thin crossings can fall between samples
 
-    def localize(self, B, env, x, R):
+    def localize(self, B: Backend, env: Captured, x: V3, R: V3) -> Localization:
         p = self.params
         # ------------------------------------------------------------- parameterization and samples
         xl = B.length(x)  # |x|

@@ -16,6 +16,8 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from study.backend import V3, Backend
+from study.impostor.views import Captured
 from study.methods.base import Knob, Localization, Method, register
 
 
@@ -41,7 +43,7 @@ class Localized(Method):
     Params = Params
     knob = Knob("iterations", (0, 1, 3, 10, 20))  # false-position steps
 
-    def localize(self, B, env, x, R):
+    def localize(self, B: Backend, env: Captured, x: V3, R: V3) -> Localization:
         p = self.params
         # ------------------------------------------------------------- start: eq. 2 from p = x, overshoot at r
         r_len = env.distance(R)  # |r|

@@ -4,6 +4,8 @@ from the reference point, α′ = α |l − x| / |l|. At α = 0 it is ``localize
 
 from __future__ import annotations
 
+from study.backend import V3, Backend
+from study.impostor.views import Captured
 from study.methods.base import Knob, register
 from study.methods.glossy import PrefilteredMethod
 from study.methods.localized import Localized, Params
@@ -19,10 +21,10 @@ class LocalizedPrefiltered(PrefilteredMethod):
     def _mirror(self) -> Localized:
         return Localized(**self.params.model_dump(exclude_unset=True))
 
-    def point(self, B, views, x, d):
+    def point(self, B: Backend, env: Captured, x: V3, d: V3):
         m = self._mirror()
-        loc = m.localize(B, views, x, d)
-        spent = loc.lookups if loc.lookups is not None else x.x * 0.0 + (m.lookup_bound(views.res) - 1)
+        loc = m.localize(B, env, x, d)
+        spent = loc.lookups if loc.lookups is not None else x.x * 0.0 + (m.lookup_bound(env.res) - 1)
         return loc.l, loc.valid, spent
 
     def lookups_per_ray(self, res: int | None = None) -> float:

@@ -50,9 +50,9 @@ from typing import Annotated
 import numpy as np
 from pydantic import Field
 
-from study.backend import V3
+from study.backend import V3, Backend
 from study.impostor import cubemap
-from study.impostor.views import ProbeSpec, Views
+from study.impostor.views import Captured, ProbeSpec, Views
 from study.methods.base import Found, Knob, TracingMethod, register
 from study.methods.linear_secant import TexelMarchParams, march_bound, march_steps, skipper
 from study.methods.search import arc_samples, first_crossing, refine, secant_point
@@ -146,13 +146,13 @@ class MultiProbe(TracingMethod):
     def _probes(self, env):
         return env.need_probes(self.name, self.spec()) or _Single(env)
 
-    def sees_origin(self, B, env, x):
+    def sees_origin(self, B: Backend, env: Captured, x: V3):
         """Rays whose origin some probe sees (N more lookups, not counted)."""
         P = self._probes(env)
         never = B.isfinite(x.x) & ~B.isfinite(x.x)
         return self._choose(B, P, _finite(B, x), [~never] * P.n) >= 0.0
 
-    def search(self, B, env, x, R) -> Found:
+    def search(self, B: Backend, env: Captured, x: V3, R: V3) -> Found:
         p = self.params
         P = self._probes(env)
         N, res = P.n, P.res

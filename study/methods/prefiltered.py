@@ -4,6 +4,8 @@ reference point. At α = 0 it is ``classical``. Open environments: as ``classica
 
 from __future__ import annotations
 
+from study.backend import V3, Backend
+from study.impostor.views import Captured
 from study.methods.base import register
 from study.methods.glossy import PrefilteredMethod
 
@@ -12,7 +14,7 @@ from study.methods.glossy import PrefilteredMethod
 class Prefiltered(PrefilteredMethod):
     name = "prefiltered"
 
-    def point(self, B, views, x, d):
+    def point(self, B: Backend, env: Captured, x: V3, d: V3):
         return d, B.abs(d.x) >= 0.0, x.x * 0.0
 
     def lookups_per_ray(self, res: int | None = None) -> float:

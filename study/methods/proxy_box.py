@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from study.backend import V3, Backend
 from study.errors import StudyError
 from study.impostor.views import Captured
 from study.methods.base import Localization, Method, register
@@ -59,7 +60,7 @@ class ProxyBox(Method):
     name = "proxy_box"
     Params = Params
 
-    def localize(self, B, env, x, R):
+    def localize(self, B: Backend, env: Captured, x: V3, R: V3) -> Localization:
         p = self.params
         if (p.box_min is None) != (p.box_max is None):
             raise StudyError("give both box_min and box_max, or neither", key="method.box_min")

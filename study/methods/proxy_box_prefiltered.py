@@ -5,6 +5,8 @@ the proxy: as ``proxy_box``."""
 
 from __future__ import annotations
 
+from study.backend import V3, Backend
+from study.impostor.views import Captured
 from study.methods.base import register
 from study.methods.glossy import PrefilteredMethod
 from study.methods.proxy_box import Params, ProxyBox
@@ -15,8 +17,8 @@ class ProxyBoxPrefiltered(PrefilteredMethod):
     name = "proxy_box_prefiltered"
     Params = Params
 
-    def point(self, B, views, x, d):
-        loc = ProxyBox(**self.params.model_dump(exclude_unset=True)).localize(B, views, x, d)
+    def point(self, B: Backend, env: Captured, x: V3, d: V3):
+        loc = ProxyBox(**self.params.model_dump(exclude_unset=True)).localize(B, env, x, d)
         return loc.l, loc.valid, x.x * 0.0
 
     def lookups_per_ray(self, res: int | None = None) -> float:

@@ -22,7 +22,7 @@ from typing import Annotated
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from study.backend import V3
+from study.backend import V3, Backend
 from study.impostor import analytic
 from study.impostor.views import Captured
 from study.methods.base import Localization, Method, register
@@ -67,7 +67,7 @@ class ProxySphere(Method):
     name = "proxy_sphere"
     Params = Params
 
-    def localize(self, B, env, x, R):
+    def localize(self, B: Backend, env: Captured, x: V3, R: V3) -> Localization:
         p = self.params
         c = np.zeros(3) if p.center is None else np.asarray(p.center, float) - env.origin()
         rho = p.radius if p.radius is not None else fitted_radius(B, env)

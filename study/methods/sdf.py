@@ -39,9 +39,9 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from study.backend import V3
+from study.backend import V3, Backend
 from study.impostor.sdf import SdfGrid, room_field
-from study.impostor.views import ProbeSpec, SdfSpec, Views
+from study.impostor.views import Captured, ProbeSpec, SdfSpec, Views
 from study.methods.base import Found, Knob, TracingMethod, register
 from study.methods.search import Bracket, refine, secant_point
 
@@ -93,7 +93,7 @@ class SDF(TracingMethod):
         return f if f is not None else room_field(env, self.spec())
 
     # ---------------------------------------------------------------------------------------------- the search
-    def search(self, B, env, x, R) -> Found:
+    def search(self, B: Backend, env: Captured, x: V3, R: V3) -> Found:
         p = self.params
         phi = self.field(env)
         h = phi.h

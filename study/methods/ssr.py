@@ -36,8 +36,8 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from study.backend import V3
-from study.impostor.views import Views
+from study.backend import V3, Backend
+from study.impostor.views import Captured, Views
 from study.methods.base import REGISTRY, Found, Knob, Method, TracingMethod, register
 
 NEAR = 0.01  # near plane of the clipped ray, metres
@@ -129,7 +129,7 @@ class SSR(TracingMethod):
         rgbz = scr.fetch(hj, hi)
         return found & B.isfinite(beta), d_end * beta, rgbz[:3], spent
 
-    def search(self, B, env, x, R) -> Found:
+    def search(self, B: Backend, env: Captured, x: V3, R: V3) -> Found:
         """The DDA's hit where there is one (shown point on the ray, colour buffer radiance), the fallback's
         elsewhere."""
         p = self.params

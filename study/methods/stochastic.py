@@ -17,8 +17,9 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from study import progress
-from study.backend import V3
+from study.backend import V3, Backend
 from study.impostor import ggx
+from study.impostor.views import Captured
 from study.methods.base import Found, Knob, register
 from study.methods.glossy import GlossyMethod, eye
 from study.methods.localized import Localized
@@ -43,17 +44,17 @@ class Stochastic(GlossyMethod):
     def _search(self) -> Localized:
         return Localized(iterations=self.params.iterations)
 
-    def search(self, B, views, x, R):
-        p, lobe = self.params, views.need_lobe(self.name, R)
+    def search(self, B: Backend, env: Captured, x: V3, R: V3) -> Found:
+        p, lobe = self.params, env.need_lobe(self.name, R)
         n = lobe.normal
         v = eye(n, R)
         M = B.shape_of(x.x)[1]
         rng = np.random.default_rng(p.seed)
         m = self._search()
-        per = m.lookup_bound(views.res) - 1  # a search's lookups before its read
+        per = m.lookup_bound(env.res) - 1  # a search's lookups before its read
         # ------------------------------------------------------------- the mirror direction: the shown point
-        loc = m.localize(B, views, x, R)
-        dist = views.distance(loc.l)
+        loc = m.localize(B, env, x, R)
+        dist = env.distance(loc.l)
         lhat = B.normalize(loc.l)
         spent = (loc.lookups if loc.lookups is not None else x.x * 0.0 + per) + 1.0
         # ------------------------------------------------------------- N lobe samples, each localized
@@ -64,17 +65,17 @@ class Stochastic(GlossyMethod):
             h = ggx.half_vectors(lobe.alpha, u[0], u[1])
             l_dir, w = ggx.lobe_directions(B, n, v, tuple(B.array(h[:, i]) for i in range(3)), lobe.alpha)
             if p.localize:
-                s = m.localize(B, views, x, l_dir)
+                s = m.localize(B, env, x, l_dir)
                 look = s.l
                 spent = spent + (s.lookups if s.lookups is not None else x.x * 0.0 + per) + 1.0
             else:
                 look = l_dir
                 spent = spent + 1.0
-            r, g, b, _ = views.lookup(look)
+            r, g, b, _ = env.lookup(look)
             w = B.select(B.isfinite(r + g + b), w, w * 0.0)
             acc = [a + B.select(w > 0.0, c * w, w * 0.0) for a, c in zip(acc, (r, g, b))]
             wsum = wsum + w
-        r0, g0, b0, _ = views.lookup(loc.l)  # no sample above the surface (grazing): the mirror direction
+        r0, g0, b0, _ = env.lookup(loc.l)  # no sample above the surface (grazing): the mirror direction
         some = wsum > 0.0
         safe = B.maximum(wsum, 1e-30)
         rad = V3(*(B.select(some, a / safe, c) for a, c in zip(acc, (r0, g0, b0))))

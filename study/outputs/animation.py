@@ -51,7 +51,7 @@ from study.scene import Vec3
 from study.tables import to_csv
 from study.validation import validate_file
 
-ALPHA = 0.6  # opacity of an outcome colour over the image
+OPACITY = 0.6  # opacity of an outcome colour over the image
 #: what ``metadata.json`` (``video_metric``, ``temporal_metric``) and the report say was measured
 VIDEO_METRIC = f"ColorVideoVDP (cvvdp {video.VERSION})"
 NO_CVVDP = "cvvdp not installed"
@@ -72,6 +72,7 @@ class MotionConfig(BaseModel):
         {"name": "layered"},
     ]
     formats: list[Literal["gif", "mp4"]] = Field(["gif", "mp4"], min_length=1)
+    kind: Literal["animation"] = "animation"  # the figure kind (study.outputs.kinds.animation)
 
 
 def positions(path: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -110,7 +111,7 @@ def overlay(image: np.ndarray, outcome: np.ndarray) -> np.ndarray:
     for code, color in enumerate(OUTCOME_COLORS):
         m = outcome == code
         if code > 0 and m.any():
-            out[m] = (1 - ALPHA) * out[m] + ALPHA * np.asarray(to_rgb(color))
+            out[m] = (1 - OPACITY) * out[m] + OPACITY * np.asarray(to_rgb(color))
     return out
 
 
@@ -278,7 +279,7 @@ def _animate(config, out, backend, cache, progress, job: pg.Task) -> list[dict]:
         meta["temporal_metric"] = TEMPORAL_METRIC
         if claim:
             meta["motion_claim"] = claim
-            meta["jod_display"] = video.DISPLAY
+            meta["jod_display"] = video.CVVDP_DISPLAY
         files["metadata.json"] = json.dumps(meta, indent=2)
         write_set(out, files, owns, lock=False)
     return rows

@@ -32,8 +32,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from study.io import file_stem, read_exr_layers
+from study.io import atomic_write, file_stem, read_exr_layers
 from study.measure.stats import mean_cis, pixel_blocks
+from study.tables import markdown
 
 #: (part, first image, second image, pixels): image names are file stems of labels (``study.io.file_stem``)
 PARTS = (
@@ -108,3 +109,52 @@ def crossover(table: pd.DataFrame) -> dict:
         first = next((i for i in range(len(below)) if below[i:].all()), None)
         out[pos] = float(g["alpha"].iloc[first]) if first is not None else np.nan
     return out
+
+
+def _cell(v, lo, hi) -> str:
+    return f"{v:.3f} [{lo:.3f}, {hi:.3f}]"
+
+
+def write_split(fig_dir: Path) -> str:
+    """A glossy figure's tables, written beside it (``split.csv``, ``glossy.md``) and returned as Markdown: the
+    error of every method against the lobe's truth per α and object position (noise-debiased RMSE with its 95 %
+    interval over pixels), the split of the engines' default (:func:`split_table`), and from which α on the
+    localization error stays below the prefiltering error (:func:`crossover`)."""
+    m = pd.read_csv(fig_dir / "metrics.csv")
+    m = m[m.method != "truth_at_hit"].copy()
+    m["where"] = m.apply(
+        lambda r: f"α={r.object_alpha:g} @({r.object_x:g}, {r.object_y:g}, {r.object_z:g})", 1
+    )
+    m["cell"] = [
+        _cell(v, lo, hi)
+        for v, lo, hi in zip(m.rmse_truth_debiased, m.rmse_truth_debiased_lo, m.rmse_truth_debiased_hi)
+    ]
+    by_method = m.pivot(index="label", columns="where", values="cell")
+    s = split_table(fig_dir)
+    parts = ["total", "prefiltering", "localization", "remainder", "visibility"]
+    split = pd.DataFrame(
+        {
+            "case": s.case,
+            "α": s.alpha,
+            **{p: [_cell(r[p], r[f"{p}_lo"], r[f"{p}_hi"]) for _, r in s.iterrows()] for p in parts},
+            "hidden px": s.visibility_pixels,
+            "noise": s.noise.round(3),
+        }
+    )
+    cross = crossover(s)
+    text = "\n\n".join(
+        [
+            "## Error against the lobe's truth (noise-debiased RMSE [95 % interval over pixels])",
+            markdown(by_method.reset_index().to_dict("records"), ["label", *by_method.columns]),
+            "## The split of `prefiltered` (RMSE [95 % interval over pixels])",
+            markdown(split.to_dict("records"), list(split.columns)),
+            "## From which α on localization errs less than prefiltering",
+            "\n".join(
+                f"- object at {pos}: " + (f"α ≥ {a_:g}" if a_ == a_ else "at no α of the table")
+                for pos, a_ in cross.items()
+            ),
+        ]
+    )
+    s.to_csv(fig_dir / "split.csv", index=False)
+    atomic_write(fig_dir / "glossy.md", text + "\n")
+    return text

@@ -144,7 +144,7 @@ def _luts() -> dict:
     """The colour maps the viewers use, 256 RGB entries each (matplotlib's)."""
     import matplotlib
 
-    names = {d["cmap"] for d in viewer.DISPLAY.values() if "cmap" in d}
+    names = sorted({d["cmap"] for d in viewer.DISPLAY.values() if "cmap" in d})  # one order: same bytes
     return {
         n: [[round(255 * x) for x in matplotlib.colormaps[n](i / 255)[:3]] for i in range(256)] for n in names
     }

@@ -15,13 +15,15 @@ import numpy as np
 from study.measure import stats
 from study.tables import REFERENCE_ROWS
 
-ALPHA, POWER = 0.05, 0.8
+#: The significance level of every test in the report: what the intervals' confidence (stats.LEVEL, 95 %) leaves.
+SIGNIFICANCE = round(1 - stats.LEVEL, 12)
+POWER = 0.8
 #: Fewest hidden rays per case for a claim about hidden hits (wrong_fraction_hidden) to rest on.
 MIN_HIDDEN = 200
 WRONG = "wrong_fraction"
 
 #: The columns of :func:`row`.
-COLUMNS = [
+POWER_COLUMNS = [
     "table",
     "cases",
     "rays_min",
@@ -68,8 +70,8 @@ def _finite(v: np.ndarray, f) -> float:
 
 
 def row(name: str, tab: list[dict], rank: list[dict]) -> dict:
-    """One table's sample sizes and detectable differences (:data:`COLUMNS`); ``rank``: its methods by median wrong
-    fraction (:func:`study.outputs.summary.ranking`), best first. ``rays_min``/``rays_median`` and
+    """One table's sample sizes and detectable differences (:data:`POWER_COLUMNS`); ``rank``: its methods by median
+    wrong fraction (:func:`study.outputs.summary.ranking`), best first. ``rays_min``/``rays_median`` and
     ``hidden_min``/``_max`` per case; ``hidden_cases``: cases with ≥ :data:`MIN_HIDDEN` hidden rays; ``mdd_rays``:
     the smallest rise above the best's median wrong fraction (``best_wrong``) one case detects over its fewest
     rays; ``mdd_hidden``: the same over the fewest hidden rays of the ``hidden_cases``, at the best's median hidden
@@ -90,7 +92,7 @@ def row(name: str, tab: list[dict], rank: list[dict]) -> dict:
         d = _values(tab, best["label"], WRONG, cases) - _values(tab, rank[1]["label"], WRONG, cases)
         d = d[np.isfinite(d)]
         sd = float(np.std(d, ddof=1)) if d.size > 1 else math.nan
-    shift = stats.detectable_shift(best["n"], ALPHA, POWER)
+    shift = stats.detectable_shift(best["n"], SIGNIFICANCE, POWER)
     return {
         "table": name,
         "cases": best["n"],
@@ -100,8 +102,8 @@ def row(name: str, tab: list[dict], rank: list[dict]) -> dict:
         "hidden_max": _finite(hidden, np.nanmax),
         "hidden_cases": int(many.size),
         "best_wrong": best["median"],
-        "mdd_rays": stats.detectable_fraction(_finite(rays, np.nanmin), best["median"], ALPHA, POWER),
-        "mdd_hidden": stats.detectable_fraction(float(many.min()), hid_wrong, ALPHA, POWER)
+        "mdd_rays": stats.detectable_fraction(_finite(rays, np.nanmin), best["median"], SIGNIFICANCE, POWER),
+        "mdd_hidden": stats.detectable_fraction(float(many.min()), hid_wrong, SIGNIFICANCE, POWER)
         if many.size and math.isfinite(hid_wrong)
         else math.nan,
         "mdd_cases_sd": shift,
@@ -125,7 +127,9 @@ def sentence(r: dict) -> str:
     elif math.isfinite(r["hidden_max"]) and r["hidden_max"] > 0:
         text += f"; at most {r['hidden_max']:.0f} hidden rays per case, too few for claims about hidden hits"
     if math.isinf(r["mdd_cases_sd"]):
-        text += f"; {n} cases are too few for any difference over cases to reach {100 * ALPHA:g} % (2/2ⁿ)"
+        text += (
+            f"; {n} cases are too few for any difference over cases to reach {100 * SIGNIFICANCE:g} % (2/2ⁿ)"
+        )
     else:
         text += f"; over the cases a shift of {r['mdd_cases_sd']:.2g} standard deviations of the per-case differences"
         text += f" (≈ {_pct(r['mdd_cases'])})" if math.isfinite(r["mdd_cases"]) else ""
@@ -141,12 +145,12 @@ def power_blocks(rows: list[dict]) -> list[tuple]:
         (
             "p",
             f"Per table: the cases, the object rays and hidden rays per case, and the smallest difference in wrong "
-            f"fraction the table could detect (two-sided {100 * ALPHA:g} %, {100 * POWER:g} % power): within one "
-            "case over its fewest rays (two fractions, arcsine effect size, from the best method's median), over "
+            f"fraction the table could detect (two-sided {100 * SIGNIFICANCE:g} %, {100 * POWER:g} % power): within "
+            "one case over its fewest rays (two fractions, arcsine effect size, from the best method's median), over "
             f"the hidden rays of the cases with ≥ {MIN_HIDDEN} of them, and over the cases (Wilcoxon signed-rank: "
             "in standard deviations of the per-case differences, and in wrong fraction with those of the best "
             "method and the runner-up; with n cases its smallest p is 2/2ⁿ).",
         ),
         ("list", [sentence(r) for r in rows]),
-        ("table", rows, COLUMNS),
+        ("table", rows, POWER_COLUMNS),
     ]

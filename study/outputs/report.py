@@ -23,12 +23,11 @@ from study import progress as pg
 from study.errors import StudyError
 from study.io import locked, write_set
 from study.outputs import claims as claim_registry
-from study.outputs import html, sections, summary
+from study.outputs import html, kinds, sections, summary
 from study.outputs.check import read_table
 from study.outputs.markup import Md, link, md_esc
 from study.outputs.register import bench_sentence, motion_sentences, register_markdown
 from study.outputs.verdicts import verdict_mark
-from study.tables import REFERENCE_ROWS, fmt_number
 
 #: Outcome classes first (study.measure.outcomes): the angle alone is blind to a wrong depth on the same ray.
 OUTCOMES = ["wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95", *summary.DROPPED]
@@ -94,18 +93,6 @@ def _medians(tables: dict[str, list[dict]], cols: list[str]) -> list[dict]:
 
 
 # ---------------------------------------------------------------------------------------------- the summary
-def _pct(v: float) -> str:
-    return f"{100 * v:.3g} %"
-
-
-def _cost(v: float) -> str:
-    return f"{v:.0f}" if v >= 10 else fmt_number(v)
-
-
-#: Within this relative margin of the best value a cheaper method counts as just as good (a tie).
-TIE = 0.01
-
-
 def pareto_front(rows: list[dict], cost: str, err: str) -> list[dict]:
     """The rows no other row beats on both ``cost`` and ``err`` (lower is better), cheapest first."""
     ok = sorted(
@@ -118,65 +105,6 @@ def pareto_front(rows: list[dict], cost: str, err: str) -> list[dict]:
             front.append(r)
             best = r[err]
     return front
-
-
-def _winner(rows: list[dict], col: str, fmt) -> str | None:
-    """The cheapest method within :data:`TIE` of the lowest ``col``, and the cheapest method's value."""
-    ok = [r for r in rows if np.isfinite(r[col])]
-    if not ok:
-        return None
-    low = min(r[col] for r in ok)
-    ties = [r for r in ok if r[col] <= low * (1 + TIE) + 1e-12]
-    best = min(ties, key=lambda r: (r["lookups_per_ray"], r[col]))
-    text = f"`{best['method']}`, {fmt(best[col])} at {_cost(best['lookups_per_ray'])} lookups/ray"
-    if len(ties) > 1:
-        text += f" ({len(ties) - 1} more within {TIE:.0%}, none cheaper)"
-    cheap = min(ok, key=lambda r: (r["lookups_per_ray"], r[col]))
-    if cheap not in ties:
-        text += f"; the cheapest, `{cheap['method']}`: {fmt(cheap[col])} at {_cost(cheap['lookups_per_ray'])}"
-    return text
-
-
-def summary_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
-    """Per table, from the medians over its cases: which method shows the fewest wrong hits and which the lowest
-    image error against the truth, at what cost (the cheapest of those within :data:`TIE` of the best), and the
-    cost/accuracy front (lookups per ray → wrong hits)."""
-    items = []
-    meds = _medians(tables, ["wrong_fraction", "rmse_truth_debiased", "lookups_per_ray"])
-    for name in tables:
-        rows = [r for r in meds if r["table"] == name and r["method"] not in REFERENCE_ROWS]
-        if not rows:
-            continue
-        cases = max(r["cases"] for r in rows)
-        parts = []
-        for col, what, fmt in (
-            ("wrong_fraction", "fewest wrong hits", _pct),
-            ("rmse_truth_debiased", "lowest image error against the truth (RMSE)", fmt_number),
-        ):
-            if (w := _winner(rows, col, fmt)) is not None:
-                parts.append(f"{what}: {w}")
-        front = pareto_front(rows, "lookups_per_ray", "wrong_fraction")
-        if len(front) > 1:
-            parts.append(
-                "cost → wrong hits, each step buying fewer: "
-                + " → ".join(
-                    f"`{r['method']}` {_cost(r['lookups_per_ray'])}: {_pct(r['wrong_fraction'])}"
-                    for r in front
-                )
-            )
-        items.append(f"**{name}** ({cases:g} case{'s' if cases != 1 else ''}): " + "; ".join(parts) + ".")
-    if not items:
-        return []
-    return [
-        ("h", 2, "Summary"),
-        (
-            "p",
-            "Written from the tables below: medians over each table's cases; *wrong hits* = rays whose shown "
-            "point is not the exact hit (see *Method comparison*); cost in cube-map lookups per ray; of methods "
-            f"within {TIE:.0%} of the best value the cheapest is named.",
-        ),
-        ("list", items),
-    ]
 
 
 # ---------------------------------------------------------------------------------------------- sections
@@ -296,7 +224,7 @@ TITLE = "study: how close do ray-tracing effects without tracing rays come to ra
 
 
 def _figures(reports: Path) -> list[Path]:
-    return sorted(d for d in reports.glob("fig*") if (d / "metrics.csv").is_file())
+    return [d for k, d in kinds.found(reports) if k.tables]
 
 
 def _sweeps(reports: Path) -> list[Path]:
@@ -313,21 +241,24 @@ def tables_of(reports: Path) -> dict[str, list[dict]]:
 
 def blocks(reports: Path) -> list[tuple]:
     """The report as blocks (see :func:`markdown_text` and :func:`study.outputs.html.page`)."""
-    figs, sweeps = _figures(reports), _sweeps(reports)
+    made = kinds.found(reports)  # figures of every kind, by the files their runs write (study.outputs.kinds)
+    figs, sweeps = [d for k, d in made if k.tables], _sweeps(reports)
     runs = sections.find_runs(reports)  # by their own files, whatever the folder's name
     numeric = ["cube_res", *SUMMARY]
     tables = tables_of(reports)
 
     out = _claims_section(tables) + _comparison_section(tables) + _decomposition_section(tables)
-    for d in figs:
-        out += sections.figure_section(reports, d, tables[d.name], SUMMARY)
+    for k, d in made:
+        if k.place == kinds.WITH_FIGURES:
+            out += k.section(reports, d, tables.get(d.name, []) if k.tables else [], SUMMARY)
     for d in runs:  # study run: one scene each, not among the tables the claims are checked on
         out += sections.run_section(reports, d, read_table(d / "table.csv", numeric=numeric), SUMMARY)
     for d in sweeps:
         out += sections.sweep_section(d, tables[d.name])
-    out += (
-        sections.caustics_section(reports) + sections.media_section(reports) + sections.paper_section(reports)
-    )
+    for k, d in made:
+        if k.place == kinds.AFTER_SWEEPS:
+            out += k.section(reports, d, tables.get(d.name, []) if k.tables else [], SUMMARY)
+    out += sections.paper_section(reports)
     others = sections.shown(p for p in reports.glob("*.md") if p.name != "index.md")
     others += sections.shown(
         p for p in reports.glob("*/*.md") if p.parent.name not in {d.name for d in figs + sweeps}
@@ -346,7 +277,7 @@ def blocks(reports: Path) -> list[tuple]:
             "Generated by `study report` from the tables under `reports/` (nothing here is "
             "computed by hand); the same report with image viewers: [index.html](index.html).",
         ),
-        *summary.headline_blocks(tables),  # the headline first; it replaces summary_blocks
+        *summary.headline_blocks(tables),  # the headline first
         ("p", INTRO),
     ]
     return head + out + sections.versions_section(figs + sweeps)

@@ -14,7 +14,7 @@ from study.outputs import figures, html, viewer
 CASE = "run"
 #: A run's images are exposed as a person would set them for the whole picture (not for the object's highlights):
 #: :func:`study.outputs.viewer.auto_exposure` of Mitsuba's render, stated in the PNG's title and index.json.
-EXPOSURE_RULE = f"Mitsuba image: {viewer.FRAME_RULE}"
+RUN_EXPOSURE_RULE = f"Mitsuba image: {viewer.FRAME_RULE}"
 
 
 def default_folder(scene: str | Path, reports: Path = Path("reports")) -> Path:
@@ -29,7 +29,7 @@ def default_folder(scene: str | Path, reports: Path = Path("reports")) -> Path:
 
 
 def run_exposure(res) -> float:
-    """The exposure (EV) of a run's images: :data:`EXPOSURE_RULE` (0 where Mitsuba's render shows no light)."""
+    """The exposure (EV) of a run's images: :data:`RUN_EXPOSURE_RULE` (0 where Mitsuba's render shows no light)."""
     ev = viewer.auto_exposure(getattr(res, "mitsuba", None))
     return 0.0 if ev is None else ev
 
@@ -51,7 +51,7 @@ def result_files(
             outcome_panel=bool(res.outcome_maps),
             row_labels=[CASE],
             exposure=exposure,
-            rule=EXPOSURE_RULE,
+            rule=RUN_EXPOSURE_RULE,
         )
     )
     more, entry = viewer.case_files(CASE, CASE, res, labels, title=title, case_id=CASE, exposure_ev=exposure)
@@ -75,7 +75,7 @@ def result_files(
         "exr": entry["exr"],
         "layers": {},
         "exposure_ev": round(exposure, 4),
-        "exposure_rule": EXPOSURE_RULE,
+        "exposure_rule": RUN_EXPOSURE_RULE,
     }
     for la in entry["layers"]:
         index["layers"].setdefault(la["layer"], {})[la["source"]] = la["exr_layer"]

@@ -1,5 +1,6 @@
-"""The report's sections for what commands wrote under ``reports/``: each figure, sweep, ``study run`` output,
-fig8's caustics, animations, and the versions table. Names from files and metadata are text (escaped,
+"""The report's sections for what commands wrote under ``reports/``: a grid figure's, each sweep, ``study run``
+output, the figures at the paper's resolution, and the versions table (the other kinds of figure bring their own:
+:mod:`study.outputs.kinds`). Names from files and metadata are text (escaped,
 :mod:`study.outputs.markup`); links go to the report's own files only."""
 
 from __future__ import annotations
@@ -8,22 +9,8 @@ import json
 from pathlib import Path
 
 from study.outputs import html
-from study.outputs.check import read_table
 from study.outputs.markup import Md, code, link, md_esc
-from study.tables import REFERENCE_ROWS, read_csv
-
-CAUSTIC_COLS = [
-    "caustic_res",
-    "label",
-    "photons",
-    "lm_rmse",
-    "lm_relmse",
-    "img_rmse_mitsuba",
-    "img_sum_ratio_mitsuba",
-    "mitsuba_noise_rmse",
-    "photon_angle_p95_deg",
-    "seconds_per_map",
-]
+from study.tables import REFERENCE_ROWS
 
 
 def meta(d: Path) -> dict:
@@ -60,25 +47,7 @@ def figure_section(reports: Path, d: Path, rows: list[dict], cols: list[str]) ->
         ("p", html.SHADOW_NOTE),
         ("viewer", d.name),
     ]
-    return out + [("table", rows, ["case", "label", *cols])] + _split_tables(d)
-
-
-def _split_tables(d: Path) -> list[tuple]:
-    """A figure's error split where one was written beside it (``split.csv``: ``scripts/glossy_split.py`` for
-    the glossy figure): a heading, the source and the table."""
-    f = d / "split.csv"
-    rows = read_csv(f) if f.is_file() else []
-    if not rows:  # no section of an empty table
-        return []
-    return [
-        ("h", 3, "Error split"),
-        (
-            "p",
-            f"Prefiltering, localization, visibility and noise with 95 % intervals over blocks of pixels "
-            f"({link(f'{d.name}/split.csv', f'{d.name}/split.csv')}; scripts/glossy_split.py).",
-        ),
-        ("table", rows, list(rows[0])),
-    ]
+    return out + [("table", rows, ["case", "label", *cols])]
 
 
 def _json(path: Path) -> dict:
@@ -169,97 +138,12 @@ def sweep_section(d: Path, rows: list[dict]) -> list[tuple]:
     return out
 
 
-def caustics_section(reports: Path) -> list[tuple]:
-    """Figure 8 (``study caustics-sweep`` → reports/fig8/): light-map error against exact photon tracing (a),
-    image error against Mitsuba's ptracer (b), time per caustic map."""
-    d = reports / "fig8"
-    pngs = shown(d.glob("*.png"))
-    if not (d / "sweep" / "results.csv").is_file():
-        return (
-            [("h", 2, "fig8: caustics"), *[("img", f"fig8/{p.name}", "fig8") for p in pngs]] if pngs else []
-        )
-    rows = read_table(d / "sweep" / "results.csv", required=("label",), numeric=["caustic_res"])
-    out = [
-        ("h", 2, "fig8: caustics"),
-        (
-            "p",
-            "Glass sphere (n = 1.3) focusing the point light; caustic map from the light, photon hits localized "
-            "in the distance impostor, splatted into light maps (study/caustics/photons.py, "
-            "study/caustics/lightmap.py). "
-            "lm_* = light-map error against exact photon tracing (a), W/m²; img_* = caustic-only image against "
-            "Mitsuba ptracer (b); mitsuba_noise_rmse = Mitsuba's own noise (two seeds). "
-            "Table: [fig8/sweep/results.csv](fig8/sweep/results.csv).",
-        ),
-    ]
-    out += [("img", f"fig8/{p.name}", "fig8") for p in pngs]
-    return out + [("table", rows, CAUSTIC_COLS)]
-
-
-def media_section(reports: Path) -> list[tuple]:
-    """Animations another command wrote (``reports/animation/*.gif|*.mp4``, ``study animate``), and its plots."""
-    d = reports / "animation"
-    files = shown(p for p in d.glob("*") if p.suffix.lower() in (".gif", ".mp4", ".webm"))
-    if not files:
-        return []
-    out = [
-        ("h", 2, "Animations"),
-        *[("media", f"animation/{p.name}", p.stem) for p in files],
-        *[("img", f"animation/{p.name}", p.stem) for p in shown(d.glob("*.png"))],
-    ]
-    table = next((t for t in (d / "motion.csv", d / "jod.csv") if t.is_file()), None)  # jod.csv: older runs
-    return out + (motion_claim_section(d, table) if table else [])
-
-
-def motion_claim_section(d: Path, table: Path) -> list[tuple]:
-    """The animation's judgement as a sequence: what was measured is said from its metadata (``video_metric``:
-    ColorVideoVDP or "cvvdp not installed"; older runs without it had ColorVideoVDP), then the claim and the
-    table."""
-    m = meta(d)
-    rows = read_csv(table)
-    used = m.get("video_metric") or f"ColorVideoVDP (cvvdp {rows[0].get('cvvdp', '') if rows else ''})"
-    with_jod = "not installed" not in used and any(isinstance(r.get("jod"), float) for r in rows)
-    if with_jod:
-        first = (
-            f"These frames were measured with the extra study[video] installed: {used} scores each method's frame "
-            "sequence against Mitsuba's in JOD (10: no visible difference; "
-            f"1 JOD less: about 75 % of viewers prefer the reference) on its {m.get('jod_display', 'standard_fhd')}"
-            " display (24-inch Full HD, 200 cd/m², office light, 0.6 m); truth_at_hit is the noise floor (exact "
-            "hits, Mitsuba's shading). Intervals: bootstrap over 4 runs of consecutive frames. The claim holds "
-            "for a method within 0.5 JOD of the floor."
-        )
-    else:
-        first = (
-            "ColorVideoVDP was not installed when these frames were measured (`bash scripts/setup.sh --video` adds "
-            "it), so its JOD columns say so and the claim is not judged in JOD."
-        )
-    ewarp = ""
-    if any("ewarp_l2" in r for r in rows):
-        ewarp = (
-            " Beside it, torch-free: flip_truth, the per-frame FLIP against truth_at_hit (the frames' mean), and "
-            "E_warp (study/measure/temporal.py): the frame before warped onto each frame along the exact motion "
-            "(the renderer's exact hits moved by the object's step), masked where that point was hidden a frame "
-            "earlier or lies off the object; ewarp_l2 is the mean squared sRGB difference, ewarp_flip the FLIP "
-            "of the two. E_warp counts every change along the motion, wanted or not: truth_at_hit's holds the "
-            "reflection's true slide and its Monte Carlo noise, drawn anew each frame; a method far above it "
-            "flickers, one below it changes less than the truth does (steadier, not closer)."
-        )
-    cols = ["label", "flip_truth", "ewarp_l2", "ewarp_flip", "jod", "jod_lo", "jod_hi", "frames", "display"]
-    return [
-        ("h", 3, "Is the error visible in motion?" + (" (ColorVideoVDP)" if with_jod else "")),
-        (
-            "p",
-            "The paper says localization errors of curved moving objects can hardly be recognized visually. "
-            f"{first}{ewarp} Table: [animation/{table.name}](animation/{table.name}).",
-        ),
-        *([("list", [md_esc(c) for c in m["motion_claim"]])] if m.get("motion_claim") else []),
-        ("table", rows, cols),
-    ]
-
-
 def paper_section(reports: Path) -> list[tuple]:
-    """Figures at the paper's resolution made on a GPU machine (``reports/paper/<name>/``, ``study figure NAME
-    --quality paper``): their grids, the command and the seconds each took, from their metadata."""
-    dirs = shown(d for d in (reports / "paper").glob("*") if (d / "metadata.json").is_file())
+    """Figures at the paper's resolution made on a GPU machine (``study figure NAME --quality paper``, by default
+    into ``reports/paper/<name>/``; found one level down by their metadata's ``quality``, whatever the folders are
+    called): their grids, the command and the seconds each took, from their metadata."""
+    under = {d for d in shown(reports.glob("*")) if d.is_dir()}  # not inside a hidden or half-written folder
+    dirs = shown(d for d in reports.glob("*/*") if d.parent in under and meta(d).get("quality") == "paper")
     if not dirs:
         return []
     out = [
@@ -278,12 +162,16 @@ def paper_section(reports: Path) -> list[tuple]:
                 Md(
                     f"**{md_esc(d.name)}**: {code(m.get('command') or '?')}, {m.get('seconds', '?')} s on "
                     f"{md_esc(m.get('machine_note') or _machine(m))}; "
-                    f"table: {link('metrics.csv', f'paper/{d.name}/metrics.csv')}"
+                    f"table: {link('metrics.csv', f'{_rel(reports, d)}/metrics.csv')}"
                 ),
             )
         )
-        out += [("img", f"paper/{d.name}/{p.name}", f"{d.name} at 1024²") for p in shown(d.glob("*.png"))]
+        out += [("img", f"{_rel(reports, d)}/{p.name}", f"{d.name} at 1024²") for p in shown(d.glob("*.png"))]
     return out
+
+
+def _rel(reports: Path, d: Path) -> str:
+    return d.relative_to(reports).as_posix()
 
 
 def _machine(m: dict) -> str:

@@ -26,12 +26,11 @@ import numpy as np
 from study.measure import stats
 from study.outputs import power
 from study.outputs.markup import code, md_esc
+from study.outputs.power import SIGNIFICANCE, WRONG
 from study.tables import REFERENCE_ROWS, fmt_number
 
-WRONG = "wrong_fraction"
 IMAGE = "rmse_truth_debiased"
 COST = "lookups_per_ray"
-ALPHA = 0.05
 #: Comparison columns: fixed tolerances (one meaning at every cube resolution) and robust image errors.
 COMPARED = [
     "wrong_fraction_1cm",
@@ -172,9 +171,9 @@ def versus(tab: list[dict], a: str, b: str, col: str) -> dict:
 
 def _verdict(cmp: dict) -> str:
     n = cmp["n"]
-    if n and stats.min_p(n) >= ALPHA:
-        return f"{n} cases are too few for any difference to be significant at {ALPHA:.0%}"
-    return stats.significance(cmp["p"], ALPHA)
+    if n and stats.min_p(n) >= SIGNIFICANCE:
+        return f"{n} cases are too few for any difference to be significant at {SIGNIFICANCE:.0%}"
+    return stats.significance(cmp["p"], SIGNIFICANCE)
 
 
 def recommend(tab: list[dict]) -> tuple[dict, dict] | None:
@@ -188,7 +187,7 @@ def recommend(tab: list[dict]) -> tuple[dict, dict] | None:
             return best, r
         _, above, _ = separated(tab, r["label"], best["label"])
         cmp = versus(tab, r["label"], best["label"], WRONG)
-        if above == 0 and not cmp["p"] < ALPHA:
+        if above == 0 and not cmp["p"] < SIGNIFICANCE:
             return best, r
     return best, best
 
@@ -288,8 +287,8 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
         rank = ranking(tab, WRONG)
         if len(rank) > 1:
             cmp = versus(tab, rank[0]["label"], rank[1]["label"], WRONG)
-            sig += cmp["p"] < ALPHA
-            few += stats.min_p(cmp["n"]) >= ALPHA
+            sig += cmp["p"] < SIGNIFICANCE
+            few += stats.min_p(cmp["n"]) >= SIGNIFICANCE
     where = ""
     clear = [n for n in recs if _hidden(tables[n]) == 0]
     if clear and len(clear) < len(recs):

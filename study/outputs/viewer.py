@@ -82,8 +82,8 @@ HIDDEN_NAMES = ("visible from the reference point", "hidden from the reference p
 #: Exposure from an image as a whole, as a person (or tev) would set it: the median of its visible luminance (the
 #: pixels that show any light) at middle grey, unless that puts more than 5 % of them above 1 (then their 95th
 #: percentile at 1).
-MIDDLE_GREY, HIGH = 0.18, 95.0
-FRAME_RULE = f"median of the visible luminance → {MIDDLE_GREY:g}, its p{HIGH:g} ≤ 1"
+MIDDLE_GREY, HIGH_PERCENTILE = 0.18, 95.0
+FRAME_RULE = f"median of the visible luminance → {MIDDLE_GREY:g}, its p{HIGH_PERCENTILE:g} ≤ 1"
 REC709 = (0.2126, 0.7152, 0.0722)
 
 
@@ -97,7 +97,7 @@ def auto_exposure(rgb: np.ndarray | None) -> float | None:
     lum = lum[np.isfinite(lum) & (lum > 0)]
     if lum.size == 0:
         return None
-    mid, high = np.percentile(lum, [50.0, HIGH])
+    mid, high = np.percentile(lum, [50.0, HIGH_PERCENTILE])
     return float(min(np.log2(MIDDLE_GREY / mid), np.log2(1.0 / high)))
 
 

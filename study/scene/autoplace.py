@@ -24,8 +24,9 @@ from typing import Any
 
 import numpy as np
 
+import study.scene.placement as placement
 from study.errors import StudyError
-from study.scene import placement
+from study.scene.environment import geometry
 from study.validation import KeyedError
 
 KEYS = (
@@ -185,3 +186,10 @@ def suggest(env, given: dict[str, Any] | None = None) -> dict[str, Any]:
         if want("light.intensity"):
             out["light.intensity"] = [light_intensity(lo, hi)] * 3
     return out
+
+
+def suggest_placement(scene: Any, given: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Where to put things in an environment nobody placed them in (:func:`suggest`): dotted overrides for the
+    placement keys missing from ``given`` (the user's dotted keys → values). ``scene`` is a scene or an environment
+    alone (a mesh or Mitsuba source, as :func:`study.scene.environment.geometry` takes)."""
+    return suggest(geometry(scene), given)

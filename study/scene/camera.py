@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from study.scene.schema import Camera
+from study.scene.models import Camera
 
 
 def look_at_basis(eye, target, up) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -55,17 +55,6 @@ def geometry(scene: Scene | Any) -> EnvGeometry:
     return _MEMO[key]
 
 
-# ---------------------------------------------------------------------------------------------- placement
-# for new scenes
-def suggest_placement(scene: Scene | Any, given: dict[str, Any] | None = None) -> dict[str, Any]:
-    """Where to put things in an environment nobody placed them in (:func:`study.scene.autoplace.suggest`): dotted
-    overrides for the placement keys missing from ``given`` (the user's dotted keys → values). ``scene`` is a
-    scene or an environment alone (a mesh or Mitsuba source, as :func:`geometry` takes)."""
-    from study.scene import autoplace
-
-    return autoplace.suggest(geometry(scene), given)
-
-
 def describe_source(env) -> str:
     """The source of an environment in a few words (its file name, builtin or "scene dict")."""
     return env.label()

@@ -19,7 +19,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from study.scene.sources import resolve
+from study.scene.paths import resolve
 from study.validation import KeyedError
 
 
@@ -196,8 +196,8 @@ class Camera(_Strict):
             raise KeyedError(
                 "camera.eye", "lies inside the object's bounding sphere: frame_object cannot frame it"
             )
-        tan_alpha = radius / math.sqrt(d * d - radius * radius)
-        tan_x = tan_alpha / (self.frame_fill * min(1.0, self.height / self.width))
+        tan_half = radius / math.sqrt(d * d - radius * radius)
+        tan_x = tan_half / (self.frame_fill * min(1.0, self.height / self.width))
         fov = math.degrees(2 * math.atan(tan_x))
         if fov >= 180:
             raise KeyedError("camera.frame_fill", f"the object is too close to frame (fov {fov:.0f}°)")

@@ -17,7 +17,11 @@ import errno
 import os
 import re
 from pathlib import Path
+from typing import Any
 from urllib.parse import unquote
+
+from pydantic import ValidationInfo
+from pydantic_core import PydanticCustomError
 
 from study.errors import StudyError
 
@@ -81,3 +85,20 @@ def inside(folder: Path, name: str, *, uri: bool = False, root: Path | None = No
         return named_file(folder, name, what="", src="", uri=uri, root=root)
     except StudyError:
         return None
+
+
+def resolve(v: Any, info: ValidationInfo) -> Any:
+    """A ``file`` field: absolute, resolved against the scene file's directory; it must exist."""
+    if v is None or not isinstance(v, (str, Path)):
+        return v
+    p = Path(v).expanduser()
+    if not p.is_absolute():
+        base = (info.context or {}).get("base") if info.context else None
+        p = Path(base or ".") / p
+    found = strict_resolve(p)
+    if isinstance(found, str):  # a symlink loop, or missing
+        raise PydanticCustomError("file", "{why}: {path}", {"why": found, "path": str(p)})
+    p = found
+    if not p.is_file():
+        raise PydanticCustomError("file", "no such file: {path}", {"path": str(p)})
+    return str(p)

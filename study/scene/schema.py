@@ -162,7 +162,7 @@ class Scene(_Strict):
             return data
         from pydantic import TypeAdapter
 
-        from study.scene.environment import suggest_placement as suggest
+        from study.scene.autoplace import suggest_placement as suggest
 
         try:
             model = TypeAdapter(Environment).validate_python(env, context=ctx)

@@ -13,27 +13,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ValidationInfo
-from pydantic_core import PydanticCustomError
+from pydantic import BaseModel
 
-from study.scene.paths import strict_resolve
-
-
-def resolve(v: Any, info: ValidationInfo) -> Any:
-    """A ``file`` field: absolute, resolved against the scene file's directory; it must exist."""
-    if v is None or not isinstance(v, (str, Path)):
-        return v
-    p = Path(v).expanduser()
-    if not p.is_absolute():
-        base = (info.context or {}).get("base") if info.context else None
-        p = Path(base or ".") / p
-    found = strict_resolve(p)
-    if isinstance(found, str):  # a symlink loop, or missing
-        raise PydanticCustomError("file", "{why}: {path}", {"why": found, "path": str(p)})
-    p = found
-    if not p.is_file():
-        raise PydanticCustomError("file", "no such file: {path}", {"path": str(p)})
-    return str(p)
+from study.scene.paths import resolve, strict_resolve  # noqa: F401  (resolve: re-exported)
 
 
 # ---------------------------------------------------------------------------------------------- content keys

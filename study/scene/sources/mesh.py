@@ -38,7 +38,7 @@ class MeshEnv(Source):
         return resolve(v, info)
 
     def build(self, scene: Any) -> EnvGeometry:
-        from study.scene import meshfile
+        import study.scene.meshfile as meshfile
 
         mesh, parts, lights, line, sensor = meshfile.load(self)
         return EnvGeometry(mesh, parts, kind="mesh", lights=tuple(lights), summary=line, sensor=sensor)

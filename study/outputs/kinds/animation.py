@@ -1,0 +1,98 @@
+"""The ``animation`` kind (``configs/motion.toml``, ``study animate``): the sphere of Figure 4 moving along a path,
+every method beside Mitsuba (:func:`study.outputs.animation.animate`); in the report, the animation, its plot and
+whether the error is visible in motion."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from study.outputs.animation import animate
+from study.outputs.kinds import AFTER_SWEEPS, FigureKind, register_kind
+from study.outputs.markup import md_esc
+from study.outputs.sections import meta, shown
+from study.tables import read_csv
+
+
+def animation_figure(config, out, *, name=None, backend="numpy", cache=".cache", quality="preview"):
+    """The motion config's frames into ``out`` (at the config's own resolution whatever the ``quality``)."""
+    return animate(config, out, backend=backend, cache=cache)
+
+
+def animation_lines(rows: list[dict]) -> list[str]:
+    """How many frames were made."""
+    return [f"{len({r['frame'] for r in rows})} frames"]
+
+
+def media_section(reports: Path, d: Path, table: list[dict], cols: list[str]) -> list[tuple]:
+    """An animation's files (``*.gif|*.mp4|*.webm``, :func:`study.outputs.animation.animate`), its plots and the
+    judgement of its sequences."""
+    rel = d.relative_to(reports).as_posix()
+    files = shown(p for p in d.glob("*") if p.suffix.lower() in (".gif", ".mp4", ".webm"))
+    if not files:
+        return []
+    out = [
+        ("h", 2, "Animations"),
+        *[("media", f"{rel}/{p.name}", p.stem) for p in files],
+        *[("img", f"{rel}/{p.name}", p.stem) for p in shown(d.glob("*.png"))],
+    ]
+    table = next((t for t in (d / "motion.csv", d / "jod.csv") if t.is_file()), None)  # jod.csv: older runs
+    return out + (motion_claim_section(d, table, rel) if table else [])
+
+
+def motion_claim_section(d: Path, table: Path, rel: str = "animation") -> list[tuple]:
+    """The animation's judgement as a sequence: what was measured is said from its metadata (``video_metric``:
+    ColorVideoVDP or "cvvdp not installed"; older runs without it had ColorVideoVDP), then the claim and the
+    table."""
+    m = meta(d)
+    rows = read_csv(table)
+    used = m.get("video_metric") or f"ColorVideoVDP (cvvdp {rows[0].get('cvvdp', '') if rows else ''})"
+    with_jod = "not installed" not in used and any(isinstance(r.get("jod"), float) for r in rows)
+    if with_jod:
+        first = (
+            f"These frames were measured with the extra study[video] installed: {used} scores each method's frame "
+            "sequence against Mitsuba's in JOD (10: no visible difference; "
+            f"1 JOD less: about 75 % of viewers prefer the reference) on its {m.get('jod_display', 'standard_fhd')}"
+            " display (24-inch Full HD, 200 cd/m², office light, 0.6 m); truth_at_hit is the noise floor (exact "
+            "hits, Mitsuba's shading). Intervals: bootstrap over 4 runs of consecutive frames. The claim holds "
+            "for a method within 0.5 JOD of the floor."
+        )
+    else:
+        first = (
+            "ColorVideoVDP was not installed when these frames were measured (`bash scripts/setup.sh --video` adds "
+            "it), so its JOD columns say so and the claim is not judged in JOD."
+        )
+    ewarp = ""
+    if any("ewarp_l2" in r for r in rows):
+        ewarp = (
+            " Beside it, torch-free: flip_truth, the per-frame FLIP against truth_at_hit (the frames' mean), and "
+            "E_warp (study/measure/temporal.py): the frame before warped onto each frame along the exact motion "
+            "(the renderer's exact hits moved by the object's step), masked where that point was hidden a frame "
+            "earlier or lies off the object; ewarp_l2 is the mean squared sRGB difference, ewarp_flip the FLIP "
+            "of the two. E_warp counts every change along the motion, wanted or not: truth_at_hit's holds the "
+            "reflection's true slide and its Monte Carlo noise, drawn anew each frame; a method far above it "
+            "flickers, one below it changes less than the truth does (steadier, not closer)."
+        )
+    cols = ["label", "flip_truth", "ewarp_l2", "ewarp_flip", "jod", "jod_lo", "jod_hi", "frames", "display"]
+    return [
+        ("h", 3, "Is the error visible in motion?" + (" (ColorVideoVDP)" if with_jod else "")),
+        (
+            "p",
+            "The paper says localization errors of curved moving objects can hardly be recognized visually. "
+            f"{first}{ewarp} Table: [{rel}/{table.name}]({rel}/{table.name}).",
+        ),
+        *([("list", [md_esc(c) for c in m["motion_claim"]])] if m.get("motion_claim") else []),
+        ("table", rows, cols),
+    ]
+
+
+ANIMATION = register_kind(
+    FigureKind(
+        name="animation",
+        run=animation_figure,
+        files=("frames.csv",),
+        section=media_section,
+        place=AFTER_SWEEPS,
+        rank=20,
+        lines=animation_lines,
+    )
+)
