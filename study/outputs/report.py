@@ -26,6 +26,7 @@ from study.outputs import claims as claim_registry
 from study.outputs import html, sections, summary
 from study.outputs.check import read_table
 from study.outputs.markup import Md, link, md_esc
+from study.outputs.pareto import pareto_front
 from study.tables import REFERENCE_ROWS, fmt_number
 
 #: Outcome classes first (study.measure.outcomes): the angle alone is blind to a wrong depth on the same ray.
@@ -102,20 +103,6 @@ def _cost(v: float) -> str:
 
 #: Within this relative margin of the best value a cheaper method counts as just as good (a tie).
 TIE = 0.01
-
-
-def pareto_front(rows: list[dict], cost: str, err: str) -> list[dict]:
-    """The rows no other row beats on both ``cost`` and ``err`` (lower is better), cheapest first."""
-    ok = sorted(
-        (r for r in rows if np.isfinite(r.get(cost, np.nan)) and np.isfinite(r.get(err, np.nan))),
-        key=lambda r: (r[cost], r[err]),
-    )
-    front, best = [], np.inf
-    for r in ok:
-        if r[err] < best:
-            front.append(r)
-            best = r[err]
-    return front
 
 
 def _winner(rows: list[dict], col: str, fmt) -> str | None:
