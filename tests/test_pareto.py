@@ -147,3 +147,23 @@ def test_the_synthetic_batch_and_bad_options(tmp_path):
         res = CliRunner().invoke(app, ["pareto", "--reports", str(reports), "--out", str(tmp_path / "o"), *args]
                                  + ([] if "--benches" in args else ["--benches", str(gpu)]))  # fmt: skip
         assert res.exit_code == 2 and words in res.output and res.output.count("\n") == 1, res.output
+
+
+def test_the_report_shows_each_tables_front_where_study_pareto_wrote_it(tmp_path):
+    """``study report`` puts reports/pareto/<table>.png under its table's section (and links pareto.md); without
+    the plot, nothing."""
+    import shutil
+
+    from study.outputs import report, sections
+
+    reports = tmp_path / "reports"
+    (reports / "fig5").mkdir(parents=True)
+    for f in ("metrics.csv", "metadata.json"):
+        shutil.copy(f"reports/fig5/{f}", reports / "fig5" / f)
+    assert sections.pareto_plot(reports, "fig5") == []
+    assert not any(b[0] == "img" and "pareto" in b[1] for b in report.blocks(reports))
+    (reports / "pareto").mkdir()
+    (reports / "pareto" / "fig5.png").write_bytes(b"\x89PNG")
+    (reports / "pareto" / "pareto.md").write_text("# front\n")
+    imgs = [b[1] for b in report.blocks(reports) if b[0] == "img"]
+    assert "pareto/fig5.png" in imgs

@@ -289,11 +289,13 @@ def blocks(reports: Path) -> list[tuple]:
 
     out = _claims_section(tables) + _comparison_section(tables) + _decomposition_section(tables)
     for d in figs:
-        out += sections.figure_section(reports, d, tables[d.name], SUMMARY)
+        out += sections.figure_section(reports, d, tables[d.name], SUMMARY) + sections.pareto_plot(
+            reports, d.name
+        )
     for d in runs:  # study run: one scene each, not among the tables the claims are checked on
         out += sections.run_section(reports, d, read_table(d / "table.csv", numeric=numeric), SUMMARY)
     for d in sweeps:
-        out += sections.sweep_section(d, tables[d.name])
+        out += sections.sweep_section(d, tables[d.name]) + sections.pareto_plot(reports, d.name)
     out += (
         sections.caustics_section(reports) + sections.media_section(reports) + sections.paper_section(reports)
     )
