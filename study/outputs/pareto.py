@@ -73,7 +73,7 @@ class DeviceTimes:
     batch: str  # the bench batch's full name
     source: str  # the CSV
     commit: str  # the git commit that holds the CSV ('uncommitted' where none)
-    code: str  # study.codehash of the bench's code (bench-<tag>.md), '-' where not stated
+    code: str  # study.codehash of the bench's code (bench-<tag>.md), 'not stated' where missing
     ms: dict[str, float] = field(default_factory=dict)  # label → ms per 1080p frame (wall clock per call)
 
 
@@ -90,12 +90,12 @@ def _header(md: Path) -> tuple[str, str]:
     """(device, code hash) from bench-<tag>.md's machine and code lines."""
     text = md.read_text() if md.is_file() else ""
     mach = re.search(r"^machine: (.*)$", text, re.M)
-    code = re.search(r"^code: (\S+)", text, re.M)
+    code = re.search(r"^code: (\S+)", text, re.M)  # older benches do not state it
     device = "unknown machine"
     if mach:
         cpu, _, gpu = mach.group(1).partition("; GPU: ")
         device = cpu if gpu.strip() in ("", "none") else f"{gpu.split(',')[0]} (host {cpu.split(',')[0]})"
-    return device, code.group(1) if code else "-"
+    return device, code.group(1) if code else "not stated"
 
 
 def exact_priced() -> dict[str, str]:
