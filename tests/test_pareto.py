@@ -65,7 +65,14 @@ def _bench(tmp_path, tag, backend, times, exact_ms):
     for batch, k in (("fig4 close-up (1, 1, 1) 1024²", 1.0), ("synthetic 1048576", 10.0)):
         for lab, ms in times.items():
             rows.append(
-                {"batch": batch, "backend": backend, "path": "frozen", "label": lab, "ms_per_frame": ms * k}
+                {
+                    "batch": batch,
+                    "backend": backend,
+                    "path": "frozen",
+                    "label": lab,
+                    "ms_per_frame": ms * k,
+                    "kernel_ms_per_frame": ms * k / 2,
+                }
             )
         variant = "cuda_ad_rgb" if backend == "cuda" else "llvm_ad_rgb"
         for q, ms in (
@@ -74,7 +81,7 @@ def _bench(tmp_path, tag, backend, times, exact_ms):
             ("ray_test", 0.1),
         ):
             rows.append({"batch": batch, "backend": backend, "path": q, "label": f"exact: Mitsuba {variant}",
-                         "ms_per_frame": ms * k})  # fmt: skip
+                         "ms_per_frame": ms * k, "kernel_ms_per_frame": ms * k / 4})  # fmt: skip
     p = tmp_path / f"bench-{tag}.csv"
     _write(p, rows)
     gpu = "NVIDIA Testcard, 1.0, 10 MiB" if backend == "cuda" else "none"
@@ -138,10 +145,14 @@ def test_the_synthetic_batch_and_bad_options(tmp_path):
     gpu = _bench(tmp_path, "gpu", "cuda", TIMES, exact_ms=0.2)
     d = pareto.device_times(gpu, batch="synthetic")
     assert d.ms["classical"] == pytest.approx(0.5 * 1920 * 1080 / 1024**2)
+    k = pareto.device_times(gpu, clock="kernel")  # the kernels' device time: its own column, traced's too
+    assert k.ms["classical"] == pytest.approx(0.025 * 1920 * 1080 / 1024**2)
+    assert k.ms["traced"] == pytest.approx(0.05 * 1920 * 1080 / 1024**2)
     reports = _table(tmp_path)
     for args, words in (
         (["--batch", "nope"], "unknown batch 'nope'; allowed: close-up"),
         (["--metric", "nope"], "unknown metric 'nope'; allowed: wrong_fraction"),
+        (["--clock", "nope"], "unknown clock 'nope'; allowed: wall, kernel"),
         (["--benches", str(tmp_path / "missing.csv")], "no such bench table"),
     ):
         res = CliRunner().invoke(app, ["pareto", "--reports", str(reports), "--out", str(tmp_path / "o"), *args]

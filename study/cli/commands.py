@@ -179,11 +179,14 @@ def pareto(
     batch: str = typer.Option(
         "close-up", help="bench batch the times come from: close-up, fig4, synthetic, sorted"
     ),
+    clock: str = typer.Option(
+        "wall", help="wall: ms per call (host share included) | kernel: the device's alone"
+    ),
 ):
     """The equal-cost front per figure and sweep: error (median over cases, with its interval) against measured ms
     per 1080p frame on each benched device, the Pareto front, and the method to use at a few budgets."""
     paths = [Path(b.strip()) for b in benches.split(",") if b.strip()]
-    written = write_pareto(reports, out, paths, metric=metric, batch=batch)
+    written = write_pareto(reports, out, paths, metric=metric, batch=batch, clock=clock)
     console.print(f"pareto: wrote {len(written) - 1} plots and {out / 'pareto.md'}", highlight=False)
 
 

@@ -11,7 +11,10 @@ CPU one) on one batch (:data:`BATCHES`; by default ``close-up``, a full 1024² f
 scaled to a 1080p frame by the ray count, one secondary ray per pixel: × 1920·1080 / 1024² = 1.978 (on a full
 frame the time grows with the rays; ``scaling-<tag>.csv`` measures it). A method that is the exact query itself
 (``traced``: its class names its ``bench_query``) takes that query's time on the same batch and device, from its
-own bench row where the bench has one, else from the exact query's row (the same number). The bench times the
+own bench row where the bench has one, else from the exact query's row (the same number). ``--clock kernel``
+takes the device's time in the kernels instead of the wall clock (:data:`CLOCKS`): a 1080p frame's host share
+(launching, about 0.05 ms per call on the H200) does not grow with the rays, so the wall clock scaled by the ray
+count overstates the cheapest GPU methods, the kernel clock understates a frame's cost. The bench times the
 methods at its cube resolution (256²) on the fig4 room, whatever the table's scene: a time is the method's, not the
 scene's. Table labels the bench did not time (other parameters) are listed, not placed.
 
@@ -61,6 +64,9 @@ ERRORS = {
     "wrong_fraction_1cm": "fraction of rays > 1 cm from the exact hit (median over cases)",
 }
 FLOORS = {"rmse_truth_debiased": 1e-4}
+#: Which time of a bench row: the wall clock per call (what a frame pays, host share included), or the device's
+#: time in the kernels alone (Dr.Jit's kernel history: on a fast GPU a short kernel's call is the host's).
+CLOCKS = {"wall": "ms_per_frame", "kernel": "kernel_ms_per_frame"}
 
 
 @dataclass
@@ -108,15 +114,19 @@ def exact_priced() -> dict[str, str]:
     return out
 
 
-def device_times(path: str | Path, *, batch: str = "close-up") -> DeviceTimes:
-    """The times of one bench CSV (module docstring); a StudyError names the file where it has no such batch."""
+def device_times(path: str | Path, *, batch: str = "close-up", clock: str = "wall") -> DeviceTimes:
+    """The times of one bench CSV (module docstring) on ``clock`` (:data:`CLOCKS`); a StudyError names the file
+    where it has no such batch."""
     path = Path(path)
+    if clock not in CLOCKS:
+        raise StudyError(f"unknown clock {clock!r}; allowed: {', '.join(CLOCKS)}", key="--clock")
+    col = CLOCKS[clock]
     if batch not in BATCHES:
         raise StudyError(f"unknown batch {batch!r}; allowed: {', '.join(BATCHES)}", key="--batch")
     if not path.is_file():
         raise StudyError("no such bench table (study bench writes it)", file=str(path))
     rows = read_csv(path)
-    need = {"batch", "backend", "path", "label", "ms_per_frame"}
+    need = {"batch", "backend", "path", "label", col}
     if rows and not need <= set(rows[0]):
         raise StudyError(
             f"not a bench table: it lacks {', '.join(sorted(need - set(rows[0])))}", file=str(path)
@@ -128,17 +138,13 @@ def device_times(path: str | Path, *, batch: str = "close-up") -> DeviceTimes:
                          file=str(path), key="--batch")  # fmt: skip
     sel = [r for r in rows if r["batch"] == names[0]]
     scale = RAYS_1080P / RAYS_BENCH
-    ms = {
-        r["label"]: r["ms_per_frame"] * scale
-        for r in sel
-        if r["backend"] == backend and r["path"] == "frozen"
-    }
+    ms = {r["label"]: r[col] * scale for r in sel if r["backend"] == backend and r["path"] == "frozen"}
     variant = "cuda_ad_rgb" if backend == "cuda" else "llvm_ad_rgb"
     for label, query in exact_priced().items():
         own = [r for r in sel if r["label"] == label and r["backend"] == backend]
         exact = [r for r in sel if r["label"] == f"exact: Mitsuba {variant}" and r["path"] == query]
         for r in own or exact:
-            ms[label] = r["ms_per_frame"] * scale
+            ms[label] = r[col] * scale
     tag = path.stem.removeprefix("bench-")
     device, code = _header(path.with_suffix(".md"))
     ms = {k: v for k, v in ms.items() if math.isfinite(v)}
@@ -306,11 +312,11 @@ def find_tables(reports: Path) -> dict[str, Path]:
 
 
 def write_pareto(reports: Path, out: Path, benches: list[Path], *, metric: str = "wrong_fraction",
-                 batch: str = "close-up", lock: bool = True) -> list[Path]:  # fmt: skip
+                 batch: str = "close-up", clock: str = "wall", lock: bool = True) -> list[Path]:  # fmt: skip
     """``out``/<table>.png per figure and sweep with benched methods, and ``out``/pareto.md; the paths."""
     if metric not in ERRORS:
         raise StudyError(f"unknown metric {metric!r}; allowed: {', '.join(ERRORS)}", key="--metric")
-    devices = [device_times(b, batch=batch) for b in benches]
+    devices = [device_times(b, batch=batch, clock=clock) for b in benches]
     tables = find_tables(Path(reports))
     if not tables:
         raise StudyError("no figure or sweep tables here (reports/fig*/metrics.csv, reports/sweep-*/results.csv)",
@@ -328,8 +334,10 @@ def write_pareto(reports: Path, out: Path, benches: list[Path], *, metric: str =
         "",
         "Written by `study pareto` from the committed tables and the bench's; do not edit. Error: "
         f"`{metric}`, the median over each table's cases with its interval over them (95 % bootstrap from 10 "
-        "cases, else the range). Time: the bench's measured ms per 1024² frame of the methods' Dr.Jit kernels "
-        f"(frozen path) on the `{batch}` batch, × 1920·1080/1024² = {RAYS_1080P / RAYS_BENCH:.3f} for a 1080p "
+        f"cases, else the range). Time: the bench's measured ms per 1024² frame (`{CLOCKS[clock]}`: "
+        f"{'the wall clock per call' if clock == 'wall' else 'the device time in the kernels alone'}) of the "
+        f"methods' Dr.Jit kernels (frozen path) on the `{batch}` batch, × 1920·1080/1024² = "
+        f"{RAYS_1080P / RAYS_BENCH:.3f} for a 1080p "
         "frame (one secondary ray per pixel); `traced` is priced at the exact query it makes (Mitsuba's "
         "`ray_intersect_preliminary` on the same rays and device: OptiX on CUDA, Embree inside Mitsuba on the "
         "CPU). The bench times at cube resolution 256² on the fig4 room; a method's time is taken as the same "
