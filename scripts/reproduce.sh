@@ -33,5 +33,6 @@ commands=(
 t0=$(date +%s)
 printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' \
   | xargs -P "$J" -I CMD bash -c 'set -o pipefail; '"$S"' CMD 2>&1 | sed -u "s|^|[CMD] |"'
+$S pareto   # error vs measured ms per 1080p frame (the committed benches), fronts, budgets → reports/pareto/
 $S report
 echo "reproduce: every report written in $(( $(date +%s) - t0 )) s"

@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 
 from study.cli import app
 from study.io import file_stem, json_text, read_exr_layers
-from study.outputs import report, viewer
+from study.outputs import pareto, viewer
 from study.tables import read_csv, to_parquet, write_table
 
 SMALL = """
@@ -237,7 +237,7 @@ def test_json_is_strict(reports, tmp_path):
 def test_pareto_front_keeps_what_nothing_beats():
     """The rows no other row beats on both cost and error, cheapest first: 900 lookups for 95 % is beaten by 1 for
     90 %."""
-    front = report.pareto_front(
+    front = pareto.pareto_front(
         [{"c": 1, "e": 0.9}, {"c": 6, "e": 0.2}, {"c": 900, "e": 0.95}, {"c": 2451, "e": 0.01}], "c", "e"
     )
     assert [r["c"] for r in front] == [1, 6, 2451]

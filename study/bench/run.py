@@ -5,6 +5,8 @@ Method rows: every registered method (or those named in ``methods``), each at ev
 path (``Backend.freeze``: recorded kernels replayed, no Python tracing per call) and, for the ``focus`` method at
 its defaults (the paper's ``localized``), also the plain traced path. numpy is timed on at most
 ``numpy_max_rays`` rays of a batch.
+A method that is the exact query itself (``traced``, whose class names its ``bench_query``) is not timed again:
+its row takes the time measured for that query (:func:`exact_query_row`).
 Exact rows: Embree on every core, and Mitsuba's ``ray_intersect`` (full SurfaceInteraction) and the cheapest exact
 queries for the same question, ``ray_intersect_preliminary`` (hit distance) and ``ray_test`` (occlusion), on the
 device of each backend asked for.
@@ -204,6 +206,10 @@ def run_bench(
             x, R = b.x[:k] - o, b.R[:k]
             paths = ["frozen"] if nm != "numpy" else ["plain"]
             for m in methods:
+                if getattr(m, "bench_query", None):  # the exact query as a method: its time is the query's
+                    rows.append(with_ratios(exact_query_row(m, exact, b, nm, len(F)), exact, b, nm))
+                    rows[-1].update({"floor_ms_per_frame": "", "x_floor": "", "kernel_x_floor": ""})
+                    continue
                 extra = ["plain"] if nm != "numpy" and m.label == plain_too else []
                 for path in paths + extra:
                     spent: list = []
@@ -262,6 +268,26 @@ def run_bench(
         on_table(rows, info)
     scaling = scaling_rows(scene, opt, names, o, tex, exact, log) if opt.scaling else []
     return rows, scaling, info
+
+
+def exact_query_row(m: Method, exact: Exact, b: Batch, backend: str, triangles: int) -> dict:
+    """The row of a method that is the exact query itself (``traced``: ``m.bench_query``), from the time the bench
+    measured for that query on the same rays and device (Mitsuba's variant of the backend's device; Embree on
+    every core for numpy, which is the case's tracer there) rather than timed twice. Its path names the query;
+    lookups are its bound (the hit's radiance read, not in the time); no floor (a traversal, not fetches)."""
+    n = len(b.x)
+    if backend == "numpy":
+        path, t, kern = "embree", exact.embree(b), math.nan
+    else:
+        v = mitsuba_variant(backend)
+        path, t = m.bench_query, exact.mitsuba(b, v, m.bench_query)
+        kern = exact.mitsuba_kernels(b, v, m.bench_query)
+    base = {"batch": b.name, "backend": backend, "path": path, "label": m.label, "triangles": triangles,
+            "cube_res": ""}  # fmt: skip
+    row = rate_row(base, t, n)
+    row.update(carry.cost_columns(m.lookup_bound(), m.lookup_bound()))
+    row["kernel_ms_per_frame"] = ms_per_frame(kern, n)
+    return row
 
 
 def with_ratios(row: dict, exact: Exact, b: Batch, backend: str) -> dict:

@@ -1,5 +1,5 @@
-"""The commands that make results: ``figure``, ``sweep``, ``check``, ``report``, ``bench``, ``caustics-sweep``,
-``methods``. Argument parsing only: every command calls one function of the package."""
+"""The commands that make results: ``figure``, ``sweep``, ``check``, ``report``, ``pareto``, ``bench``,
+``caustics-sweep``, ``methods``. Argument parsing only: every command calls one function of the package."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ from study.io import file_stem, locked
 from study.outputs.check import run_check
 from study.outputs.kinds import config_kind
 from study.outputs.kinds.caustics import caustics_figure, caustics_lines
+from study.outputs.pareto import ERRORS, write_pareto
 from study.outputs.plots import sweep_plots
 from study.outputs.report import build_report
 
@@ -162,6 +163,33 @@ def report(
         )
         return
     console.print(f"report: wrote {path} and {path.with_suffix('.html')}", highlight=False)
+
+
+@app.command()
+@guarded()
+def pareto(
+    reports: Path = typer.Option(Path("reports"), help="directory holding the figures' and sweeps' tables"),
+    out: Path = typer.Option(
+        Path("reports/pareto"), help="output directory: <table>.png per table, pareto.md"
+    ),
+    benches: str = typer.Option(
+        "reports/performance/bench-gpu.csv,reports/performance/bench-cpu.csv",
+        "--benches",
+        help="comma list of bench tables (study bench's bench-<tag>.csv), one panel each",
+    ),
+    metric: str = typer.Option("wrong_fraction", help="error column: " + ", ".join(ERRORS)),
+    batch: str = typer.Option(
+        "close-up", help="bench batch the times come from: close-up, fig4, synthetic, sorted"
+    ),
+    clock: str = typer.Option(
+        "wall", help="wall: ms per call (host share included) | kernel: the device's alone"
+    ),
+):
+    """The equal-cost front per figure and sweep: error (median over cases, with its interval) against measured ms
+    per 1080p frame on each benched device, the Pareto front, and the method to use at a few budgets."""
+    paths = [Path(b.strip()) for b in benches.split(",") if b.strip()]
+    written = write_pareto(reports, out, paths, metric=metric, batch=batch, clock=clock)
+    console.print(f"pareto: wrote {len(written) - 1} plots and {out / 'pareto.md'}", highlight=False)
 
 
 @app.command()

@@ -204,6 +204,7 @@ def estimate(
     if lookups is None:
         lookups = sum(m.lookup_bound(r.cube_res) for m in methods)  # bounds: no method spends more
     steps = sum(_host_steps(m, r.cube_res) for m in methods)  # whatever the rays: a loop over samples, …
+    shade = int(Views.merge(*(m.views_needed() for m in methods)).shade)  # one more path-traced set of rays
     sub_key = "render.supersample" if r.supersample > 1 else "camera.width"
     tris = _triangles(scene)
     mem = {
@@ -213,7 +214,8 @@ def estimate(
     }
     time = {
         "environment": tris * SECONDS_PER_TRIANGLE,
-        "render.spp": (3 * c.width * c.height + 2 * rays) * r.spp / rate,
+        # camera renders, the truth's two seeds and exact shading's own seed (traced, sdf(shading="exact"))
+        "render.spp": (3 * c.width * c.height + (2 + shade) * rays) * r.spp / rate,
         sub_key: SECONDS_PER_CASE + sub * SECONDS_PER_SUBPIXEL + rays * len(methods) * SECONDS_PER_OBJECT_RAY,
         "methods": rays * lookups * SECONDS_PER_LOOKUP + steps * SECONDS_PER_STEP,
     }

@@ -62,8 +62,8 @@ class SdfSpec:
 @dataclass(frozen=True)
 class Views:
     """A request for views: ``layers`` depth layers from o (1: the plain impostor), the probe sets ``probes``,
-    with ``screen`` the camera's depth and colour buffer, the distance fields ``sdfs`` and, with ``shade``, the
-    exact shading of points (``Captured.shade``)."""
+    with ``screen`` the camera's depth and colour buffer, the distance fields ``sdfs``, with ``shade`` the
+    exact shading of points (``Captured.shade``) and with ``hits`` the exact tracer's first hits (``Captured.hits``)."""
 
     layers: int = 1
     probes: tuple[ProbeSpec, ...] = field(default_factory=tuple)
@@ -71,6 +71,7 @@ class Views:
     sdfs: tuple[SdfSpec, ...] = field(default_factory=tuple)
     shade: bool = False
     prefiltered: bool = False  # the GGX-prefiltered mip chain of the impostor (study.impostor.prefilter)
+    hits: bool = False  # the exact tracer's first hits (not a view: the scene's own triangles, Captured.hits)
 
     @staticmethod
     def merge(*requests: Views) -> Views:
@@ -83,6 +84,7 @@ class Views:
             sdfs=tuple(dict.fromkeys(s for r in requests for s in r.sdfs)),
             shade=any(r.shade for r in requests),
             prefiltered=any(r.prefiltered for r in requests),
+            hits=any(r.hits for r in requests),
         )
 
 
@@ -110,6 +112,9 @@ class Captured:
     sdfs       {:class:`SdfSpec`: SdfGrid} signed distance fields of the environment (:mod:`study.impostor.sdf`)
     shade      exact shading, not an image-based view: a function (origins, dirs), world (N, 3) numpy arrays →
                (N, 3) radiance arriving along each ray (Mitsuba, the scene without the object), or None
+    hits       the exact query, not an image-based view: a function (origins, dirs), world (N, 3) numpy arrays →
+               (N, 3) first hits on the environment's triangles (the case's exact tracer, Embree or OptiX;
+               non-finite where the ray leaves the scene), or None
     reference  o in world coordinates (None: unknown; methods then take the origin)
     room       the room box (min, max), world coordinates: ``reference.box`` where given, else the environment's
                bounds (None: unknown; proxies then fit a box or sphere to the impostor's own distances)
@@ -130,6 +135,7 @@ class Captured:
     screen: ScreenView | None = None
     sdfs: Mapping[SdfSpec, Any] = field(default_factory=dict)  # SdfGrid (sdf.py imports this module)
     shade: Any = None  # (origins, dirs) world (N, 3) numpy → (N, 3) radiance along each ray, path traced
+    hits: Any = None  # (origins, dirs) world (N, 3) numpy → (N, 3) exact first hits (non-finite: no hit)
     reference: tuple[float, float, float] | None = None
     room: tuple[Vec3, Vec3] | None = None
     open: bool = False
@@ -230,6 +236,12 @@ class Captured:
         if self.shade is not None or self.fallback:
             return self.shade
         raise self._missing(method, "exact shading (Captured.shade)")
+
+    def need_hits(self, method: str):
+        """The exact tracer's first hits; None on a fallback Captured without them."""
+        if self.hits is not None or self.fallback:
+            return self.hits
+        raise self._missing(method, "the exact tracer's hits (Captured.hits)")
 
 
 @dataclass(frozen=True)

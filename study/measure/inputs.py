@@ -100,8 +100,8 @@ def capture_views(
     """What ``methods`` search, captured for ``scene``: the impostor ``imp`` on backend ``B``, the views their
     :meth:`~study.methods.base.Method.views_needed` ask for (depth layers, probe sets, the camera's buffer, whose
     colour is ``background``: the camera's render without the object, rendered here when not given, the
-    prefiltered impostor) and the scene knowledge, with ``lobe`` (the rays' roughness and normals); a method
-    asking for a view that is missing is then an error, not a fallback."""
+    prefiltered impostor, the exact tracer's hits: ``tracer``) and the scene knowledge, with ``lobe`` (the rays'
+    roughness and normals); a method asking for a view that is missing is then an error, not a fallback."""
     o = np.asarray(scene.reference.point, float)
     views = Views.merge(*(m.views_needed() for m in methods))
     layers, probe_sets, scr = (), {}, None
@@ -131,6 +131,7 @@ def capture_views(
         screen=scr,
         sdfs=fields,
         shade=shade if views.shade else None,
+        hits=(lambda origins, dirs: tracer.intersect(origins, dirs)["point"]) if views.hits else None,
         open=open_environment(imp),
         prefiltered=pre,
         lobe=lobe,

@@ -93,18 +93,6 @@ def _medians(tables: dict[str, list[dict]], cols: list[str]) -> list[dict]:
 
 
 # ---------------------------------------------------------------------------------------------- the summary
-def pareto_front(rows: list[dict], cost: str, err: str) -> list[dict]:
-    """The rows no other row beats on both ``cost`` and ``err`` (lower is better), cheapest first."""
-    ok = sorted(
-        (r for r in rows if np.isfinite(r.get(cost, np.nan)) and np.isfinite(r.get(err, np.nan))),
-        key=lambda r: (r[cost], r[err]),
-    )
-    front, best = [], np.inf
-    for r in ok:
-        if r[err] < best:
-            front.append(r)
-            best = r[err]
-    return front
 
 
 # ---------------------------------------------------------------------------------------------- sections
@@ -251,10 +239,11 @@ def blocks(reports: Path) -> list[tuple]:
     for k, d in made:
         if k.place == kinds.WITH_FIGURES:
             out += k.section(reports, d, tables.get(d.name, []) if k.tables else [], SUMMARY)
+            out += sections.pareto_plot(reports, d.name) if k.tables else []
     for d in runs:  # study run: one scene each, not among the tables the claims are checked on
         out += sections.run_section(reports, d, read_table(d / "table.csv", numeric=numeric), SUMMARY)
     for d in sweeps:
-        out += sections.sweep_section(d, tables[d.name])
+        out += sections.sweep_section(d, tables[d.name]) + sections.pareto_plot(reports, d.name)
     for k, d in made:
         if k.place == kinds.AFTER_SWEEPS:
             out += k.section(reports, d, tables.get(d.name, []) if k.tables else [], SUMMARY)

@@ -106,6 +106,20 @@ def run_section(reports: Path, d: Path, rows: list[dict], cols: list[str]) -> li
     ]
 
 
+def pareto_plot(reports: Path, name: str) -> list[tuple]:
+    """The table's equal-cost front (``study pareto``: ``pareto/<name>.png`` under ``reports``), where written."""
+    if not (reports / "pareto" / f"{name}.png").is_file():
+        return []
+    page = link("pareto/pareto.md", "pareto/pareto.md")
+    return [
+        (
+            "p",
+            f"Equal-cost front: error against measured ms per 1080p frame, budgets and the exact query ({page}).",
+        ),
+        ("img", f"pareto/{name}.png", f"{name}: equal-cost front"),
+    ]
+
+
 def sweep_section(d: Path, rows: list[dict]) -> list[tuple]:
     m = meta(d)
     rel = d.name
