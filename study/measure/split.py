@@ -1,15 +1,31 @@
 """The oracle with one meaning, and the split of a method's image error over every object pixel.
 
-**Which hits the views hold.** The views are what the reference point o captured (the impostor). A secondary
-ray's exact hit is *held* when o sees it (not hidden, :func:`held`) or when the ray leaves the scene (its
-"hit" is the background at infinity, which the impostor's open texels hold by direction). A hit hidden from o
-is *not held*: no search on o's views can show it.
+**Which hits the views hold.** The views are what the reference point o captured (the impostor). Each secondary
+ray's exact hit falls in one of four classes (:func:`view_class`, from :func:`exact_hits`):
+
+====================  ====  ===============================================================================
+class                 code  the exact hit …
+====================  ====  ===============================================================================
+:data:`HELD`          0     is a surface point o sees (nothing nearer on the segment o → hit)
+:data:`HIDDEN`        1     is a surface point something nearer hides from o
+:data:`ESC_VISIBLE`   2     is at infinity (the ray leaves the scene) and o, looking in the ray's direction,
+                            sees no surface either: the impostor's open texel holds the background there
+:data:`ESC_HIDDEN`    3     is at infinity, but o sees a surface in the ray's direction (a wall behind the
+                            opening, seen from o): the texel holds that wall, not the background
+====================  ====  ===============================================================================
+
+The hit is *held* (:func:`held`) in the classes HELD and ESC_VISIBLE, i.e. exactly where o sees it: for an
+escaping ray "seeing it" means seeing the background in its direction (the point ``x + d·FAR`` is not occluded
+from o). No search on o's views can show a hit of the other two classes. Whether the camera's frame shows the
+hit (:func:`study.measure.outcomes.off_screen`) is another question, asked of screen-space views only: an
+off-screen hit is held or not by o's views like any other.
 
 **oracle_map** (:func:`oracle_radiance`) = the exact hit shaded with what the views hold:
 
 * a held hit seen from o: the impostor's radiance read in the direction o → exact hit;
-* an escaping ray: the background in the ray's *own* direction (the environment's radiance along the exact ray,
-  which for a ray that meets nothing is the emitter's value: Mitsuba's ``truth_at_hit`` there);
+* an escaping ray whose direction o sees open (ESC_VISIBLE): the background in the ray's *own* direction (the
+  environment's radiance along the exact ray, which for a ray that meets nothing is the emitter's value:
+  Mitsuba's ``truth_at_hit`` there);
 * a hit the views do not hold: no value. Its pixels are marked (:data:`MARK`, magenta) in the image and left out
   of every ``*_oracle`` column (``held_pixels`` says how many pixels are left).
 
@@ -51,6 +67,7 @@ import math
 
 import numpy as np
 
+from study.impostor.cubemap import FAR
 from study.measure.stats import mean_cis, pixel_blocks
 
 #: The colour of oracle_map pixels whose hits the views do not hold (linear RGB).
@@ -61,9 +78,47 @@ SEED_SPP_DIVISOR = 8
 TERMS = ("search", "visibility", "representation", "noise", "cross")
 
 
+#: Where a secondary ray's exact hit stands with o's views (module docstring), codes of :func:`view_class`.
+HELD, HIDDEN, ESC_VISIBLE, ESC_HIDDEN = 0, 1, 2, 3
+#: Names of the view classes, indexed by code (tables, legends).
+VIEW_NAMES = ("held", "hidden", "escaping-visible", "escaping-hidden")
+
+
+def hidden_from(tracer, o, points) -> np.ndarray:
+    """(N,) bool: something nearer than each of ``points`` (N, 3) lies on the segment from ``o`` (3,) to it, by
+    the exact ``tracer`` (a relative slack of 1e-4 and 1e-5 m keeps a point on a surface seen). For a point at
+    :data:`~study.impostor.cubemap.FAR` along an escaping ray this asks whether o sees a surface in that
+    direction."""
+    to_hit = np.asarray(points, float) - np.asarray(o, float)
+    dist = np.linalg.norm(to_hit, axis=-1)
+    seen = tracer.distance(np.broadcast_to(np.asarray(o, float), to_hit.shape), to_hit / dist[:, None])
+    return seen < dist * (1 - 1e-4) - 1e-5
+
+
+def exact_hits(tracer, origins, dirs, o) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The exact answer for rays ``origins + t·dirs`` (N, 3 each, unit dirs) seen against o's views:
+    (point (N, 3): the first hit, escaping rays at ``FAR`` in their direction; escapes (N,) bool; hidden (N,)
+    bool: :func:`hidden_from` o)."""
+    origins, dirs = np.asarray(origins, float), np.asarray(dirs, float)
+    point = tracer.intersect(origins, dirs)["point"]
+    escapes = ~np.all(np.isfinite(point), axis=-1)  # open environments: the ray leaves the scene
+    point[escapes] = origins[escapes] + dirs[escapes] * FAR  # "no surface": at infinity (cubemap.FAR)
+    return point, escapes, hidden_from(tracer, o, point)
+
+
+def view_class(hidden, escapes) -> np.ndarray:
+    """(N,) int8 class of each exact hit (module docstring) from ``hidden`` (:func:`hidden_from`: for an escaping
+    ray, o sees a surface in its direction) and ``escapes``."""
+    hidden, escapes = np.asarray(hidden, bool), np.asarray(escapes, bool)
+    return np.where(
+        escapes, np.where(hidden, ESC_HIDDEN, ESC_VISIBLE), np.where(hidden, HIDDEN, HELD)
+    ).astype(np.int8)
+
+
 def held(hidden, escapes) -> np.ndarray:
-    """(N,) bool: the exact hit is held by o's views (seen from o, or the ray escapes to the background)."""
-    return np.asarray(escapes, bool) | ~np.asarray(hidden, bool)
+    """(N,) bool: the exact hit is held by o's views: class HELD or ESC_VISIBLE of :func:`view_class` (seen from
+    o; an escaping ray only where o sees the background in its direction, not a wall)."""
+    return np.isin(view_class(hidden, escapes), (HELD, ESC_VISIBLE))
 
 
 def oracle_radiance(looked_up, background_along, held_rays, escapes) -> np.ndarray:
