@@ -52,6 +52,17 @@ held, u = 1 − h:
                               resolution explains (view-dependent radiance, bounce budget, …)
 ============================  ===========================================================================
 
+**Each term from its own experiment.** Besides the split above, whose representation is measured without T, the
+representation is also measured directly: ``dec_representation_direct`` = mean h·(|O − T|² − n²), the exact hit
+shaded from the impostor against the same hit shaded from the scene, the truth's noise removed. Then every part is
+an experiment of its own: search = the method against the oracle on the same views (img vs O), visibility = the
+pixels whose hits the views do not hold against the truth there, representation = O against T, noise = the two
+seeds. ``dec_sums_direct`` is 1 when search + visibility + representation_direct + noise meets the total within
+their intervals: what is left is the cross term 2(img − O)(O − T) (:data:`TERMS`' ``cross``), so the check asks
+whether the search's error and the map's are unrelated. ``tests/test_split_planted.py`` plants each kind of error in
+a cube map of a known room (shifted views, a wall hidden, a blurred impostor, noisy truth): each lands in its own
+term.
+
 Each term has a 95 % percentile-bootstrap interval over blocks of pixels (``scipy.stats.bootstrap``, paired: one draw of
 blocks for all terms, :func:`study.measure.stats.mean_cis` on :func:`study.measure.stats.pixel_blocks`), written
 ``dec_<term>_lo``/``_hi``. ``dec_sums`` is 1 when the parts add up to the total within their intervals: the parts'
@@ -76,6 +87,8 @@ MARK = (1.0, 0.0, 1.0)
 SEED_SPP_DIVISOR = 8
 #: The split's terms, in the order the parts add up (``dec_residual`` closes the sum).
 TERMS = ("search", "visibility", "representation", "noise", "cross")
+#: The parts measured each by its own experiment (module docstring): their sum is checked against the total.
+DIRECT = ("search", "visibility", "representation_direct", "noise")
 
 
 #: Where a secondary ray's exact hit stands with o's views (module docstring), codes of :func:`view_class`.
@@ -167,7 +180,8 @@ def pixel_terms(img, truth, noise, oracle, oracle_seed, oracle_coarse, held_px) 
 
     Returns
     -------
-    dict of (P,) float arrays: ``total`` and every name of :data:`TERMS`, and ``residual``.
+    dict of (P,) float arrays: ``total`` and every name of :data:`TERMS`, ``residual`` and
+    ``representation_direct``.
     """
     img, truth, noise = (np.asarray(a, float) for a in (img, truth, noise))
     h = np.asarray(held_px, bool)
@@ -185,6 +199,7 @@ def pixel_terms(img, truth, noise, oracle, oracle_seed, oracle_coarse, held_px) 
         "cross": np.where(h, 2 * _sq(img - O, O - truth), 0.0),
     }
     t["residual"] = t["total"] - sum(t[k] for k in TERMS)
+    t["representation_direct"] = np.where(h, _sq(O - truth) - _sq(noise), 0.0)  # O against T itself
     return t
 
 
@@ -202,14 +217,14 @@ def split_columns(
     t = pixel_terms(
         *(np.asarray(a)[mask] for a in (img, truth, noise, oracle, oracle_seed, oracle_coarse)), h
     )
-    names = ["total", *TERMS, "residual"]
+    names = ["total", *TERMS, "residual", "representation_direct"]
     out: dict[str, float] = {"held_pixels": int(h.sum()), "unheld_pixels": int((~h).sum())}
     nan2 = (math.nan, math.nan)
     if not h.size:
         return (
             out
             | {f"dec_{k}{s}": math.nan for k in names for s in ("", "_lo", "_hi")}
-            | {"dec_sums": math.nan}
+            | {"dec_sums": math.nan, "dec_sums_direct": math.nan}
         )
     parts = {**{f"dec_{k}": t[k] for k in names}, "held": t["total"] * h, "unheld": t["total"] * ~h}
     cis = (
@@ -219,10 +234,9 @@ def split_columns(
     )
     for k in names:
         out[f"dec_{k}"], (out[f"dec_{k}_lo"], out[f"dec_{k}_hi"]) = float(t[k].mean()), cis[f"dec_{k}"]
-    lo, hi = sum(out[f"dec_{k}_lo"] for k in TERMS), sum(out[f"dec_{k}_hi"] for k in TERMS)
-    out["dec_sums"] = (
-        float(lo <= out["dec_total_hi"] and out["dec_total_lo"] <= hi) if intervals else math.nan
-    )
+    for name, parts_of in (("dec_sums", TERMS), ("dec_sums_direct", DIRECT)):
+        lo, hi = sum(out[f"dec_{k}_lo"] for k in parts_of), sum(out[f"dec_{k}_hi"] for k in parts_of)
+        out[name] = float(lo <= out["dec_total_hi"] and out["dec_total_lo"] <= hi) if intervals else math.nan
     for name, sel in (("held", h), ("unheld", ~h)):
         share = sel.mean()
         out[f"rmse_truth_{name}"] = math.sqrt(t["total"][sel].mean()) if sel.any() else math.nan
