@@ -23,7 +23,7 @@ from tests.conftest import error_output
 ROOT = Path(__file__).resolve().parents[1]
 POSITION = [1.5, 0.6, 1.0]  # fig4's farthest: rays that need several steps
 SMALL = {"camera.width": 48, "camera.height": 48, "render.supersample": 1, "render.cube_res": 64,
-         "render.cube_spp": 4, "render.spp": 4}  # fmt: skip
+         "render.cube_spp": 4, "render.spp": 4, "render.flip_against": []}  # fmt: skip
 K = 3  # the localized rung explained
 
 

@@ -6,7 +6,7 @@ Config (``configs/convergence.toml``)::
     figures = ["fig4.toml", "fig5.toml"]   # figure configs (relative to this file): their positions or cases are
                                            # the cases, each config one scene
     targets = [0.05, 0.01]                 # wrong fractions to reach
-    reach = ["wrong_fraction_texel", "wrong_fraction_1cm"]   # … in these columns
+    reach = ["wrong_fraction_texel", "wrong_fraction_visible"]   # … in these columns
     [overrides]                            # dotted scene keys applied to every case (after the figure's own)
     [[ladders]]                            # one curve per case: method(param = v) for v in values
     method = "localized"
@@ -57,12 +57,14 @@ CURVE_COLUMNS = (
     "label", "lookups_per_ray", "n_rays", "wrong_fraction_texel", "wrong_fraction_texel_lo",
     "wrong_fraction_texel_hi", "wrong_fraction_1cm", "wrong_fraction_1cm_lo", "wrong_fraction_1cm_hi",
     "wrong_fraction_3cm", "wrong_fraction_3cm_lo", "wrong_fraction_3cm_hi", "wrong_fraction_10cm",
-    "wrong_fraction_10cm_lo", "wrong_fraction_10cm_hi", "wrong_fraction_hidden", "angle_p95_deg",
-    "angle_p95_all_deg", "rmse_truth", "flip_truth", "hidden_fraction",
+    "wrong_fraction_10cm_lo", "wrong_fraction_10cm_hi", "wrong_fraction_visible", "wrong_fraction_visible_lo",
+    "wrong_fraction_visible_hi", "wrong_fraction_hidden", "angle_p95_deg",
+    "angle_p95_all_deg", "rmse_truth", "hidden_fraction",
 )  # fmt: skip
 #: The plotted metrics: (column, axis label, log axis).
 PANELS = (
-    ("wrong_fraction_texel", "wrong (≤ 1 texel)", True),
+    ("wrong_fraction_texel", "wrong (> 1 texel)", True),
+    ("wrong_fraction_visible", "wrong (> 1 texel), hits o sees", True),
     ("wrong_fraction_1cm", "wrong (> 1 cm)", True),
     ("wrong_fraction_3cm", "wrong (> 3 cm)", True),
     ("wrong_fraction_10cm", "wrong (> 10 cm)", True),
@@ -86,7 +88,7 @@ class ConvergenceConfig(BaseModel):
     figures: list[str] = Field(min_length=1)
     ladders: list[LadderSpec] = Field(min_length=1)
     targets: list[float] = [0.05, 0.01]
-    reach: list[str] = ["wrong_fraction_texel", "wrong_fraction_1cm"]
+    reach: list[str] = ["wrong_fraction_texel", "wrong_fraction_visible", "wrong_fraction_1cm"]
     overrides: dict[str, Any] = {}
 
 
@@ -219,7 +221,7 @@ def convergence_plot(rows: list[dict], ladders: list[Ladder]) -> bytes:
                 ax.set_yscale("log")
             ax.set_xlabel(ld.param, fontsize=8)
             ax.set_title(f"{ld.method}: {ylabel}", fontsize=8)
-            ax.tick_params(labelsize=7)
+            ax.tick_params(which="both", labelsize=7)
             ax.grid(alpha=0.3, lw=0.5)
     handles = {
         h.get_label(): h for ax in axes.flat for h in ax.get_lines() if not h.get_label().startswith("_")
