@@ -29,6 +29,7 @@ commands=(
   "sweep configs/sweep_glossy.toml"
   "figure fig_attic"                            # unequal roof slopes, an off-centre reference point
   "figure fig_probes"                           # screen-space and multi-probe tracing beside the paper's
+  "convergence"                                 # localized's iterations 0…30, the marches' steps → reports/convergence/
 )
 t0=$(date +%s)
 printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' \

@@ -189,6 +189,14 @@ TABLE: list[TableColumn] = [
     C("dec_cross", "MSE", interval=True),
     C("dec_residual", "MSE", interval=True),
     C("dec_sums", F, note="Σ terms / total"),
+    C(
+        "dec_representation_direct",
+        "MSE",
+        LOW,
+        interval=True,
+        note="the map's share measured against the truth: oracle vs truth_at_hit on held pixels, noise removed",
+    ),
+    C("dec_sums_direct", F, note="search + visibility + representation_direct + noise meet the total"),
     C("rmse_truth_held", "linear RGB", LOW, interval=True),
     C("rmse_truth_unheld", "linear RGB", LOW, interval=True),
     C(

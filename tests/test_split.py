@@ -85,7 +85,8 @@ def test_only_reference_noise():
 
 def test_oracle_radiance_has_one_meaning():
     looked, along = np.full((3, 3), 0.5), np.full((3, 3), 2.0)
-    hidden, escapes = np.array([False, True, True]), np.array([False, False, True])
+    # seen from o; hidden from o; escaping where o sees open sky in the ray's direction
+    hidden, escapes = np.array([False, True, False]), np.array([False, False, True])
     rad = split.oracle_radiance(looked, along, split.held(hidden, escapes), escapes)
     assert np.all(rad[0] == 0.5)  # seen from o: the map
     assert np.all(np.isnan(rad[1]))  # hidden from o: no value (not what o sees)

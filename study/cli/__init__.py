@@ -27,7 +27,7 @@ def _interrupted_at_start(signum, frame):
 
 def _load():
     """Import the application and its commands; ``study.cli.app`` names the Typer application from then on."""
-    from study.cli import animate, cache, commands, run  # noqa: F401  (register their commands)
+    from study.cli import animate, cache, commands, convergence, run  # noqa: F401  (register their commands)
     from study.cli.app import app
 
     globals()["app"] = app

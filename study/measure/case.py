@@ -22,7 +22,6 @@ from study import backend as backends
 from study import columns, progress
 from study.cache import Cache
 from study.errors import StudyError
-from study.impostor.cubemap import FAR
 from study.impostor.envmap import EnvMap
 from study.impostor.views import Lobe
 from study.measure import metrics, outcomes, split, stats, truth
@@ -157,17 +156,12 @@ class Traced:
 
 def _exact(scene: Scene, tracer, rays, o: np.ndarray) -> ExactHits:
     ex_o, ex_d = rays.exact_rays()  # dielectrics: the exactly traced rays
-    point = tracer.intersect(ex_o, ex_d)["point"]
-    escapes = ~np.all(np.isfinite(point), axis=-1)  # open environments: the ray leaves the scene
-    point[escapes] = ex_o[escapes] + ex_d[escapes] * FAR  # "no surface": at infinity (cubemap.FAR)
-    to_hit = point - o
-    hit_dist = np.linalg.norm(to_hit, axis=-1)
-    seen = tracer.distance(np.broadcast_to(o, to_hit.shape), to_hit / hit_dist[:, None])
+    point, escapes, hidden = split.exact_hits(tracer, ex_o, ex_d, o)  # escaping rays at FAR; hidden from o
     return ExactHits(
         point,
         escapes,
-        to_hit,
-        occluded=seen < hit_dist * (1 - 1e-4) - 1e-5,
+        point - o,
+        occluded=hidden,
         eps=outcomes.tolerance(o, point, scene.render.cube_res),
         offscreen=outcomes.off_screen(scene.camera, point),
     )

@@ -1,15 +1,31 @@
 """The oracle with one meaning, and the split of a method's image error over every object pixel.
 
-**Which hits the views hold.** The views are what the reference point o captured (the impostor). A secondary
-ray's exact hit is *held* when o sees it (not hidden, :func:`held`) or when the ray leaves the scene (its
-"hit" is the background at infinity, which the impostor's open texels hold by direction). A hit hidden from o
-is *not held*: no search on o's views can show it.
+**Which hits the views hold.** The views are what the reference point o captured (the impostor). Each secondary
+ray's exact hit falls in one of four classes (:func:`view_class`, from :func:`exact_hits`):
+
+====================  ====  ===============================================================================
+class                 code  the exact hit …
+====================  ====  ===============================================================================
+:data:`HELD`          0     is a surface point o sees (nothing nearer on the segment o → hit)
+:data:`HIDDEN`        1     is a surface point something nearer hides from o
+:data:`ESC_VISIBLE`   2     is at infinity (the ray leaves the scene) and o, looking in the ray's direction,
+                            sees no surface either: the impostor's open texel holds the background there
+:data:`ESC_HIDDEN`    3     is at infinity, but o sees a surface in the ray's direction (a wall behind the
+                            opening, seen from o): the texel holds that wall, not the background
+====================  ====  ===============================================================================
+
+The hit is *held* (:func:`held`) in the classes HELD and ESC_VISIBLE, i.e. exactly where o sees it: for an
+escaping ray "seeing it" means seeing the background in its direction (the point ``x + d·FAR`` is not occluded
+from o). No search on o's views can show a hit of the other two classes. Whether the camera's frame shows the
+hit (:func:`study.measure.outcomes.off_screen`) is another question, asked of screen-space views only: an
+off-screen hit is held or not by o's views like any other.
 
 **oracle_map** (:func:`oracle_radiance`) = the exact hit shaded with what the views hold:
 
 * a held hit seen from o: the impostor's radiance read in the direction o → exact hit;
-* an escaping ray: the background in the ray's *own* direction (the environment's radiance along the exact ray,
-  which for a ray that meets nothing is the emitter's value: Mitsuba's ``truth_at_hit`` there);
+* an escaping ray whose direction o sees open (ESC_VISIBLE): the background in the ray's *own* direction (the
+  environment's radiance along the exact ray, which for a ray that meets nothing is the emitter's value:
+  Mitsuba's ``truth_at_hit`` there);
 * a hit the views do not hold: no value. Its pixels are marked (:data:`MARK`, magenta) in the image and left out
   of every ``*_oracle`` column (``held_pixels`` says how many pixels are left).
 
@@ -36,6 +52,17 @@ held, u = 1 − h:
                               resolution explains (view-dependent radiance, bounce budget, …)
 ============================  ===========================================================================
 
+**Each term from its own experiment.** Besides the split above, whose representation is measured without T, the
+representation is also measured directly: ``dec_representation_direct`` = mean h·(|O − T|² − n²), the exact hit
+shaded from the impostor against the same hit shaded from the scene, the truth's noise removed. Then every part is
+an experiment of its own: search = the method against the oracle on the same views (img vs O), visibility = the
+pixels whose hits the views do not hold against the truth there, representation = O against T, noise = the two
+seeds. ``dec_sums_direct`` is 1 when search + visibility + representation_direct + noise meets the total within
+their intervals: what is left is the cross term 2(img − O)(O − T) (:data:`TERMS`' ``cross``), so the check asks
+whether the search's error and the map's are unrelated. ``tests/test_split_planted.py`` plants each kind of error in
+a cube map of a known room (shifted views, a wall hidden, a blurred impostor, noisy truth): each lands in its own
+term.
+
 Each term has a 95 % percentile-bootstrap interval over blocks of pixels (``scipy.stats.bootstrap``, paired: one draw of
 blocks for all terms, :func:`study.measure.stats.mean_cis` on :func:`study.measure.stats.pixel_blocks`), written
 ``dec_<term>_lo``/``_hi``. ``dec_sums`` is 1 when the parts add up to the total within their intervals: the parts'
@@ -51,6 +78,7 @@ import math
 
 import numpy as np
 
+from study.impostor.cubemap import FAR
 from study.measure.stats import mean_cis, pixel_blocks
 
 #: The colour of oracle_map pixels whose hits the views do not hold (linear RGB).
@@ -59,11 +87,51 @@ MARK = (1.0, 0.0, 1.0)
 SEED_SPP_DIVISOR = 8
 #: The split's terms, in the order the parts add up (``dec_residual`` closes the sum).
 TERMS = ("search", "visibility", "representation", "noise", "cross")
+#: The parts measured each by its own experiment (module docstring): their sum is checked against the total.
+DIRECT = ("search", "visibility", "representation_direct", "noise")
+
+
+#: Where a secondary ray's exact hit stands with o's views (module docstring), codes of :func:`view_class`.
+HELD, HIDDEN, ESC_VISIBLE, ESC_HIDDEN = 0, 1, 2, 3
+#: Names of the view classes, indexed by code (tables, legends).
+VIEW_NAMES = ("held", "hidden", "escaping-visible", "escaping-hidden")
+
+
+def hidden_from(tracer, o, points) -> np.ndarray:
+    """(N,) bool: something nearer than each of ``points`` (N, 3) lies on the segment from ``o`` (3,) to it, by
+    the exact ``tracer`` (a relative slack of 1e-4 and 1e-5 m keeps a point on a surface seen). For a point at
+    :data:`~study.impostor.cubemap.FAR` along an escaping ray this asks whether o sees a surface in that
+    direction."""
+    to_hit = np.asarray(points, float) - np.asarray(o, float)
+    dist = np.linalg.norm(to_hit, axis=-1)
+    seen = tracer.distance(np.broadcast_to(np.asarray(o, float), to_hit.shape), to_hit / dist[:, None])
+    return seen < dist * (1 - 1e-4) - 1e-5
+
+
+def exact_hits(tracer, origins, dirs, o) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The exact answer for rays ``origins + t·dirs`` (N, 3 each, unit dirs) seen against o's views:
+    (point (N, 3): the first hit, escaping rays at ``FAR`` in their direction; escapes (N,) bool; hidden (N,)
+    bool: :func:`hidden_from` o)."""
+    origins, dirs = np.asarray(origins, float), np.asarray(dirs, float)
+    point = tracer.intersect(origins, dirs)["point"]
+    escapes = ~np.all(np.isfinite(point), axis=-1)  # open environments: the ray leaves the scene
+    point[escapes] = origins[escapes] + dirs[escapes] * FAR  # "no surface": at infinity (cubemap.FAR)
+    return point, escapes, hidden_from(tracer, o, point)
+
+
+def view_class(hidden, escapes) -> np.ndarray:
+    """(N,) int8 class of each exact hit (module docstring) from ``hidden`` (:func:`hidden_from`: for an escaping
+    ray, o sees a surface in its direction) and ``escapes``."""
+    hidden, escapes = np.asarray(hidden, bool), np.asarray(escapes, bool)
+    return np.where(
+        escapes, np.where(hidden, ESC_HIDDEN, ESC_VISIBLE), np.where(hidden, HIDDEN, HELD)
+    ).astype(np.int8)
 
 
 def held(hidden, escapes) -> np.ndarray:
-    """(N,) bool: the exact hit is held by o's views (seen from o, or the ray escapes to the background)."""
-    return np.asarray(escapes, bool) | ~np.asarray(hidden, bool)
+    """(N,) bool: the exact hit is held by o's views: class HELD or ESC_VISIBLE of :func:`view_class` (seen from
+    o; an escaping ray only where o sees the background in its direction, not a wall)."""
+    return np.isin(view_class(hidden, escapes), (HELD, ESC_VISIBLE))
 
 
 def oracle_radiance(looked_up, background_along, held_rays, escapes) -> np.ndarray:
@@ -112,7 +180,8 @@ def pixel_terms(img, truth, noise, oracle, oracle_seed, oracle_coarse, held_px) 
 
     Returns
     -------
-    dict of (P,) float arrays: ``total`` and every name of :data:`TERMS`, and ``residual``.
+    dict of (P,) float arrays: ``total`` and every name of :data:`TERMS`, ``residual`` and
+    ``representation_direct``.
     """
     img, truth, noise = (np.asarray(a, float) for a in (img, truth, noise))
     h = np.asarray(held_px, bool)
@@ -130,6 +199,7 @@ def pixel_terms(img, truth, noise, oracle, oracle_seed, oracle_coarse, held_px) 
         "cross": np.where(h, 2 * _sq(img - O, O - truth), 0.0),
     }
     t["residual"] = t["total"] - sum(t[k] for k in TERMS)
+    t["representation_direct"] = np.where(h, _sq(O - truth) - _sq(noise), 0.0)  # O against T itself
     return t
 
 
@@ -147,14 +217,14 @@ def split_columns(
     t = pixel_terms(
         *(np.asarray(a)[mask] for a in (img, truth, noise, oracle, oracle_seed, oracle_coarse)), h
     )
-    names = ["total", *TERMS, "residual"]
+    names = ["total", *TERMS, "residual", "representation_direct"]
     out: dict[str, float] = {"held_pixels": int(h.sum()), "unheld_pixels": int((~h).sum())}
     nan2 = (math.nan, math.nan)
     if not h.size:
         return (
             out
             | {f"dec_{k}{s}": math.nan for k in names for s in ("", "_lo", "_hi")}
-            | {"dec_sums": math.nan}
+            | {"dec_sums": math.nan, "dec_sums_direct": math.nan}
         )
     parts = {**{f"dec_{k}": t[k] for k in names}, "held": t["total"] * h, "unheld": t["total"] * ~h}
     cis = (
@@ -164,10 +234,9 @@ def split_columns(
     )
     for k in names:
         out[f"dec_{k}"], (out[f"dec_{k}_lo"], out[f"dec_{k}_hi"]) = float(t[k].mean()), cis[f"dec_{k}"]
-    lo, hi = sum(out[f"dec_{k}_lo"] for k in TERMS), sum(out[f"dec_{k}_hi"] for k in TERMS)
-    out["dec_sums"] = (
-        float(lo <= out["dec_total_hi"] and out["dec_total_lo"] <= hi) if intervals else math.nan
-    )
+    for name, parts_of in (("dec_sums", TERMS), ("dec_sums_direct", DIRECT)):
+        lo, hi = sum(out[f"dec_{k}_lo"] for k in parts_of), sum(out[f"dec_{k}_hi"] for k in parts_of)
+        out[name] = float(lo <= out["dec_total_hi"] and out["dec_total_lo"] <= hi) if intervals else math.nan
     for name, sel in (("held", h), ("unheld", ~h)):
         share = sel.mean()
         out[f"rmse_truth_{name}"] = math.sqrt(t["total"][sel].mean()) if sel.any() else math.nan

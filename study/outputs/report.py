@@ -53,6 +53,8 @@ DECOMPOSITION = [
     "dec_cross",
     "dec_residual",
     "dec_sums",
+    "dec_representation_direct",
+    "dec_sums_direct",
     "held_pixels",
     "unheld_pixels",
     "rmse_truth_held",
@@ -160,7 +162,11 @@ def _decomposition_section(tables: dict[str, list[dict]]) -> list[tuple]:
             "(1/8 of the samples) plus the resolution error from the map at half the resolution (its 2 × 2 texel "
             "means; first-order extrapolation); dec_noise = "
             "truth_at_hit's own noise (two seeds); dec_cross = 2·(method − oracle)·(oracle − truth). dec_residual "
-            "= total − the parts; dec_sums = 1 where the parts add up to the total within their 95 % intervals "
+            "= total − the parts; dec_sums = 1 where the parts add up to the total within their 95 % intervals. "
+            "Each part from its own experiment: dec_representation_direct = oracle_map against truth_at_hit on the "
+            "held pixels, noise removed (the exact hit shaded from the impostor vs from the scene); dec_sums_direct "
+            "= 1 where search + visibility + representation_direct + noise meet the total within their intervals "
+            "(what is left is the cross term); intervals "
             "(percentile bootstrap over blocks of pixels — the tiles of a 64 × 64 grid over the frame — "
             "scipy.stats.bootstrap, 1000 resamples, in the results tables as "
             "dec_*_lo / _hi). rmse_truth_held / _unheld: RMSE against the truth on the pixels whose hits the views "
