@@ -361,7 +361,7 @@ def _image_columns(t: Traced, r: _Refs, fmap, backend: str, keep_images: bool) -
                                with_flip="truth" in r.against),
         **metrics.image_errors(r.mitsuba, img, mask=over, suffix="mitsuba", backend=backend,
                                with_flip="mitsuba" in r.against),
-        **truth.columns(img, r.truth, r.mitsuba, mask=over),
+        **truth.columns(img, r.truth, r.mitsuba, mask=over, backend=backend),
         **stats.pixel_columns(img, r.truth.image, mask=over, sigma=r.sigma, rel_eps=truth.REL_EPS, emap=fmap),
         **split.split_columns(img, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
                               mask=over, held_px=r.held_px, intervals=keep_images),  # sweeps: values only

@@ -140,6 +140,18 @@ def flip(
     return float(v.mean()) if v.size else np.nan
 
 
+#: Where a case on the CPU's Dr.Jit backend (``llvm``) measures RMSE, PSNR, SSIM and the truth's columns: its array
+#: code (:mod:`study.measure.pixels`) or numpy (scikit-image); the faster on the CPU, measured side by side by
+#: ``scripts/bench_image_columns.py`` (reports/performance/image-columns-cpu.md).
+LLVM_IMAGES = "llvm"
+
+
+def image_backend(backend: str) -> str:
+    """Where a case on ``backend`` measures its image columns: numpy (scikit-image, the reference) for ``numpy``,
+    the GPU for ``cuda``, :data:`LLVM_IMAGES` for ``llvm``."""
+    return LLVM_IMAGES if backend == "llvm" else backend
+
+
 def image_errors(
     ref: np.ndarray,
     test: np.ndarray,
@@ -152,13 +164,24 @@ def image_errors(
 ) -> dict[str, float]:
     """``rmse_<suffix>``, ``psnr_<suffix>``, ``ssim_<suffix>``, ``flip_<suffix>`` (mean) and ``flip_<suffix>_p95``
     (the 95th percentile over the pixels: the tail a viewer notices) of ``test`` against ``ref`` over ``mask``
-    (``flip_emap``: the FLIP map of the two images, if already computed; ``backend``: where FLIP runs,
-    :func:`flip_map`; ``with_flip`` False: the FLIP columns are NaN, not measured)."""
+    (``flip_emap``: the FLIP map of the two images, if already computed; ``backend``: the case's backend, where FLIP
+    runs, :func:`flip_map`, and RMSE, PSNR and SSIM on :func:`image_backend`; ``with_flip`` False: the FLIP columns
+    are NaN, not measured)."""
     fv = flip_values(ref, test, mask=mask, emap=flip_emap, backend=backend) if with_flip else np.zeros(0)
+    on = image_backend(backend)
+    if on == "numpy":
+        e = rmse(ref, test, mask=mask), psnr(ref, test, mask=mask), ssim(ref, test, mask=mask)
+    else:  # the same three as array code where the images are (study.measure.pixels)
+        from study.measure import pixels
+
+        e = (np.nan,) * 3
+        if mask.any():  # SSIM's crop, as ssim takes it (the masked pixels lie inside it)
+            cut, r, t = _crop(mask, 8, ref, test)
+            e = pixels.errors_on(r, t, mask=cut, backend=on)
     return {
-        f"rmse_{suffix}": rmse(ref, test, mask=mask),
-        f"psnr_{suffix}": psnr(ref, test, mask=mask),
-        f"ssim_{suffix}": ssim(ref, test, mask=mask),
+        f"rmse_{suffix}": e[0],
+        f"psnr_{suffix}": e[1],
+        f"ssim_{suffix}": e[2],
         f"flip_{suffix}": float(fv.mean()) if fv.size else np.nan,
         f"flip_{suffix}_p95": float(np.percentile(fv, 95)) if fv.size else np.nan,
     }
