@@ -17,6 +17,8 @@ from study.errors import StudyError
 from study.harness.config import load_figure_config, plain_name, shipped
 from study.harness.runner import prepare_sweep, run_sweep
 from study.io import file_stem, locked, read_toml
+from study.outputs import case_images
+from study.outputs.case_images import image_choice
 from study.outputs.check import run_check
 from study.outputs.figures import figure_positions
 from study.outputs.plots import sweep_plots
@@ -39,12 +41,14 @@ def figure(
         "preview",
         help="preview: the config as written | paper: 1024² renders (reports/paper/<name>; a GPU job)",
     ),
+    images: str = typer.Option("all", help="per-case images: all (EXRs and viewer) | viewer | none"),
 ):
     """Reproduce one of the paper's figures, or your own (--config ANY.toml): image grid, metrics, per-case EXRs
     and viewer images under reports/<name>/ (reports/paper/<name>/ with --quality paper)."""
     from study.harness.config import quality_overrides
 
-    quality_overrides(quality)  # an unknown preset: one line, before any work
+    quality_overrides(quality)  # an unknown preset (or --images): one line, before any work
+    image_choice(images)
     known = figures()
     if name is None and config is None:
         raise StudyError(f"name a figure or give --config; figures: {', '.join(known)}", key="name")
@@ -56,7 +60,9 @@ def figure(
     t0 = time.perf_counter()
     if "caustic" in read_toml(config):  # caustics (fig8): study/caustics/figure.py
         return _caustics(config, out, backend, cache, sweep=False)
-    rows = figure_positions(config, out, name=name, backend=backend, cache=cache, quality=quality)
+    rows = figure_positions(
+        config, out, name=name, backend=backend, cache=cache, quality=quality, images=images
+    )
     _print_table(rows)
     console.print(f"{name}: wrote {out} in {time.perf_counter() - t0:.1f} s", highlight=False)
 
@@ -90,11 +96,15 @@ def sweep(
         "'local-gpus' for --jobs workers per visible GPU",
     ),
     plots: bool = typer.Option(True, help="write the error curves next to the table"),
+    images: str = typer.Option(
+        "none", help="per-case images of the cases computed: none | viewer | all (+ EXRs)"
+    ),
 ):
     """Run (or resume) a sweep: one row per case × method in <out>/results.csv, curves beside it."""
     from study.harness.cluster import check_address
 
     dask = check_address(dask)  # before any work: '' and 'banana' are refused, not run locally
+    image_choice(images)
     out = out or Path("reports") / f"sweep-{config.stem}"  # a stem: one folder under reports/
     ready = prepare_sweep(config, backend=backend, jobs=jobs)  # every case checked before any work
     rows, stats = run_sweep(  # progress by case on stderr (study.cli.progress)
@@ -106,7 +116,12 @@ def sweep(
         dask=dask,
         prepared=ready,
         extra=(lambda rows, d: sweep_plots(rows, d / "plots")) if plots else None,  # in the output set
+        images=None
+        if images == "none"
+        else (case_images.write_case, str(out), images, jobs == 1 and not dask),
     )
+    if images != "none":  # the background writer's last files, then the viewer's manifest
+        case_images.finish(out, out.name)
     console.print(
         f"sweep: {stats['cases']} cases ({stats['cached']} already done, {stats['computed']} computed) "
         f"in {stats['seconds']:.1f} s → {out / 'results.csv'}",
