@@ -703,12 +703,12 @@ def test_corpus_size():
 
 def test_internal_error_is_one_line_unless_debug(workdir, monkeypatch):
     """An unexpected exception (a bug) is one line with exit code 4; --debug lets its traceback through."""
-    import study.cli.commands as cli
+    import study.outputs.figures as figures  # the command imports it when it runs
 
     def broken(*a, **k):
         raise ValueError("something\nunexpected")
 
-    monkeypatch.setattr(cli, "figure_positions", broken)
+    monkeypatch.setattr(figures, "figure_positions", broken)
     before = digest(workdir / "out")
     res = runner.invoke(app, fig_args(workdir))
     assert_one_line_error(

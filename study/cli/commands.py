@@ -9,20 +9,14 @@ from pathlib import Path
 import typer
 
 from study import methods
-from study.bench.output import bench_table, write_bench_files, write_scaling
-from study.bench.run import BenchOptions, check_options, run_bench
-from study.caustics.figure import fig8
 from study.cli.app import app, console, err_console, figures, guarded
 from study.errors import StudyError
 from study.harness.config import load_figure_config, plain_name, shipped
-from study.harness.runner import prepare_sweep, run_sweep
 from study.io import file_stem, locked, read_toml
-from study.outputs import case_images
 from study.outputs.case_images import image_choice
-from study.outputs.check import run_check
-from study.outputs.figures import figure_positions
-from study.outputs.plots import sweep_plots
-from study.outputs.report import build_report
+
+# What each command runs (measurement, outputs, the bench) is imported by that command, so that ``study --help``
+# and a command's bad input do not wait for it.
 
 
 @app.command()
@@ -46,6 +40,7 @@ def figure(
     """Reproduce one of the paper's figures, or your own (--config ANY.toml): image grid, metrics, per-case EXRs
     and viewer images under reports/<name>/ (reports/paper/<name>/ with --quality paper)."""
     from study.harness.config import quality_overrides
+    from study.outputs.figures import figure_positions
 
     quality_overrides(quality)  # an unknown preset (or --images): one line, before any work
     image_choice(images)
@@ -102,6 +97,9 @@ def sweep(
 ):
     """Run (or resume) a sweep: one row per case × method in <out>/results.csv, curves beside it."""
     from study.harness.cluster import check_address
+    from study.harness.runner import prepare_sweep, run_sweep
+    from study.outputs import case_images
+    from study.outputs.plots import sweep_plots
 
     dask = check_address(dask)  # before any work: '' and 'banana' are refused, not run locally
     image_choice(images)
@@ -142,6 +140,8 @@ def check(
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
 ):
     """CI regression: run a small fixed sweep and compare every metric with the committed baseline."""
+    from study.outputs.check import run_check
+
     fails, lines = run_check(shipped(config), update=update, cache=cache, backend=backend)  # progress: stderr
     for line in lines:
         console.print(line, highlight=False)
@@ -164,6 +164,8 @@ def report(
 ):
     """Build reports/index.md and reports/index.html (tables, image viewers) from the results tables: figures,
     tables, the paper's claims, versions."""
+    from study.outputs.report import build_report
+
     path = build_report(reports)
     if path is None:  # one line on stderr, and no page of empty tables
         err_console.print(
@@ -199,6 +201,9 @@ def bench(
     tag: str = typer.Option("", help="name of this machine in file names (default cpu or gpu)"),
 ):
     """Time every method against exact ray casting (Embree, Mitsuba) on the same rays: CSV + Markdown tables."""
+    from study.bench.output import bench_table, write_bench_files, write_scaling
+    from study.bench.run import BenchOptions, check_options, run_bench
+
     cfg, scene, _ = load_figure_config(config)
     if cfg.positions is None or not 0 <= position < len(cfg.positions):
         n = len(cfg.positions or [])
@@ -241,6 +246,8 @@ def bench(
 
 
 def _caustics(config, out, backend, cache, *, sweep: bool):
+    from study.caustics.figure import fig8
+
     t0 = time.perf_counter()
     rows = fig8(config, out, backend=backend, cache=cache, sweep=sweep)
     for r in rows:
