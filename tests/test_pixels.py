@@ -6,6 +6,8 @@ corner, NaN off the mask, a frame barely larger than the window) and on study im
 float64 rounding, ≤ 1e-12). The case's own calls (metrics.image_errors, truth.columns with backend 'llvm') take
 this path, and backend 'numpy' stays scikit-image's."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -132,3 +134,14 @@ def test_where_the_columns_are_measured():
     assert metrics.image_backend("numpy") == "numpy"  # the reference path
     assert metrics.image_backend("cuda") == "cuda"
     assert metrics.image_backend("llvm") == metrics.LLVM_IMAGES
+
+
+def test_the_bench_script_writes_its_table(tmp_path):
+    import runpy
+
+    bench = runpy.run_path(str(Path(__file__).resolve().parents[1] / "scripts" / "bench_image_columns.py"))
+    out = tmp_path / "image-columns-cpu.md"
+    bench["main"](["--sizes", "40", "--repeats", "1", "--out", str(out)])
+    text = out.read_text()
+    assert "| 40² |" in text and f"measures these columns on **{metrics.LLVM_IMAGES}**" in text
+    assert "LLVM / flip-evaluator" in text  # FLIP's ratio beside it
