@@ -19,6 +19,13 @@ pytestmark = pytest.mark.skipif("llvm" not in BACKENDS, reason="needs Dr.Jit's L
 TOL = 1e-5
 
 
+@pytest.fixture(autouse=True)
+def llvm_at_every_size(monkeypatch):
+    """The case's calls with backend llvm take the array code on these small images too (not only from
+    metrics.LLVM_MIN_PIXELS on, where it is the faster)."""
+    monkeypatch.setattr(metrics, "LLVM_MIN_PIXELS", 0)
+
+
 def disc(h, w, cy, cx, r):
     yy, xx = np.mgrid[:h, :w]
     return (yy - cy) ** 2 + (xx - cx) ** 2 < r * r
@@ -130,10 +137,21 @@ def test_study_images_match_scikit_image(study_images):
         assert abs(got[k] - want[k]) <= TOL * max(1.0, abs(want[k])), k
 
 
-def test_where_the_columns_are_measured():
+def test_where_the_columns_are_measured(monkeypatch):
     assert metrics.image_backend("numpy") == "numpy"  # the reference path
-    assert metrics.image_backend("cuda") == "cuda"
-    assert metrics.image_backend("llvm") == metrics.LLVM_IMAGES
+    assert metrics.image_backend("cuda", 10) == "cuda"
+    monkeypatch.setattr(metrics, "LLVM_MIN_PIXELS", 10_000)
+    assert metrics.image_backend("llvm", 10_000) == metrics.LLVM_IMAGES
+    assert metrics.image_backend("llvm", 9_999) == "numpy"  # small crops: scikit-image is the faster
+    calls = []
+    real = pixels.errors_on
+    monkeypatch.setattr(pixels, "errors_on", lambda *a, **k: calls.append(1) or real(*a, **k))
+    a = np.random.default_rng(1).random((160, 160, 3))
+    for r, want in ((20, 0), (60, 1)):  # crops of (2r + 16)² pixels: 56² below the threshold, 136² above
+        metrics.image_errors(
+            a, a * 0.9, mask=disc(160, 160, 80, 80, r), suffix="x", backend="llvm", with_flip=False
+        )
+        assert len(calls) == want
 
 
 def test_the_bench_script_writes_its_table(tmp_path):
@@ -143,5 +161,6 @@ def test_the_bench_script_writes_its_table(tmp_path):
     out = tmp_path / "image-columns-cpu.md"
     bench["main"](["--sizes", "40", "--repeats", "1", "--out", str(out)])
     text = out.read_text()
-    assert "| 40² |" in text and f"measures these columns on **{metrics.LLVM_IMAGES}**" in text
+    assert "| 40² |" in text and f"measures these columns on **{metrics.LLVM_IMAGES}** from crops of" in text
+    assert metrics.LLVM_MIN_PIXELS == 0  # the fixture's; the script says the rule's own threshold
     assert "LLVM / flip-evaluator" in text  # FLIP's ratio beside it

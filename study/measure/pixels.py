@@ -56,10 +56,12 @@ class _Frame:
         ]
 
     def mean(self, values) -> float:
-        """Mean over the masked pixels of one or several (summed) per-pixel arrays."""
+        """Mean over the masked pixels of one or several per-pixel arrays (summed per pixel first: one
+        reduction)."""
         dr = self.dr
-        total = sum(dr.sum(dr.select(self.mask, v, 0.0))[0] for v in values)
-        return float(total) / (self.count * len(values))
+        return float(dr.sum(dr.select(self.mask, sum(values[1:], values[0]), 0.0))[0]) / (
+            self.count * len(values)
+        )
 
     def shifted(self, a, k: int, axis: int):
         """``a`` moved by k pixels along ``axis`` (1: x, 0: y) as a flat array (index + k or + k·width, clamped to

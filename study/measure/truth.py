@@ -146,16 +146,15 @@ def columns(
     """The truth columns of one method's image (or the oracle's) over ``mask``: errors against truth_at_hit (raw,
     debiased, relMSE) and against Mitsuba debiased (module docstring); measured on
     :func:`study.measure.metrics.image_backend` of ``backend`` (numpy: the functions above)."""
-    on = image_backend(backend)
+    box = None  # only the mask's bounding box travels
+    if backend != "numpy" and mask.any():
+        box = _crop(mask, 0, img, truth.image, mitsuba, truth.noise, truth.mitsuba_noise)
+    on = "numpy" if box is None else image_backend(backend, box[0].size)
     if on != "numpy":  # the same means as array code where the images are
         from study.measure import pixels
 
-        images = {"image": img, "truth": truth.image, "mitsuba": mitsuba, "truth_noise": truth.noise,
-                  "mitsuba_noise": truth.mitsuba_noise}  # fmt: skip
-        if mask.any():  # only the mask's bounding box travels
-            mask, *cut = _crop(mask, 0, *images.values())
-            images = dict(zip(images, cut))
-        m = pixels.truth_errors(images, mask=mask, backend=on, rel_eps=REL_EPS)
+        names = ("image", "truth", "mitsuba", "truth_noise", "mitsuba_noise")
+        m = pixels.truth_errors(dict(zip(names, box[1:])), mask=box[0], backend=on, rel_eps=REL_EPS)
         sigma, rmse_truth, sigma_m = (float(np.sqrt(m[k])) for k in ("truth_noise", "truth", "mitsuba_noise"))
         rmse_mitsuba, relmse_truth = float(np.sqrt(m["mitsuba"])), m["relmse"]
     else:
