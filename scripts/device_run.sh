@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The GPU measurements of reports/performance.md (issue 15), run on a lent GPU machine from the repository root:
 #
-#   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3] [hier] [fig4paper]
+#   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3] [hier] [fig4paper] [pixels]
 #                                                                                   (default: bench studies)
 #
 #   bench   : `study bench --backends cuda` — methods, exact queries (ray_intersect, _preliminary, ray_test) and
@@ -149,6 +149,8 @@ print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' 
     timed fig4-paper-kernels-warm $S figure fig4 --quality paper --backend cuda --cache "$W/pc2" \
       --out "$W/paper-warm/fig4" > /dev/null 2>&1
     tar czf "$OUT/results-paper.tgz" -C "$W" --exclude=exr --exclude=viewer paper ;;
+  pixels)   # the image columns on the GPU (study/measure/pixels.py) against scikit-image/numpy, and side by side
+    timed pixels python3 scripts/pixels_cuda.py 2>&1 | tee "$OUT/log-pixels.txt" ;;
   *) echo "unknown part $part"; exit 2 ;;
   esac
 done
