@@ -2,7 +2,7 @@
 # The GPU measurements of reports/performance.md (issue 15), run on a lent GPU machine from the repository root:
 #
 #   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3] [hier] [fig4paper]
-#                              [side] [reproduce]
+#                              [side] [reproduce] [pixels]
 #                                                                                   (default: bench studies)
 #
 #   bench   : `study bench --backends cuda` — methods, exact queries (ray_intersect, _preliminary, ray_test) and
@@ -185,6 +185,8 @@ print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' 
       --no-setup 2>&1 | tail -60 | tee "$OUT/log-reproduce.txt"
     tar cJf "$W/reports.tar.xz" --exclude=cases --exclude=exr reports
     split -b 15M -d "$W/reports.tar.xz" "$OUT/reports-part-" ;;
+  pixels)   # the image columns on the GPU (study/measure/pixels.py) against scikit-image/numpy, and side by side
+    timed pixels python3 scripts/pixels_cuda.py 2>&1 | tee "$OUT/log-pixels.txt" ;;
   *) echo "unknown part $part"; exit 2 ;;
   esac
 done

@@ -178,3 +178,13 @@ def test_the_report_shows_each_tables_front_where_study_pareto_wrote_it(tmp_path
     (reports / "pareto" / "pareto.md").write_text("# front\n")
     imgs = [b[1] for b in report.blocks(reports) if b[0] == "img"]
     assert "pareto/fig5.png" in imgs
+
+
+def test_the_commands_metric_help_names_every_error_column():
+    """`study pareto --help` lists the error columns without importing the plots (the command imports them)."""
+    import inspect
+
+    from study.cli import commands
+
+    help_text = inspect.signature(commands.pareto).parameters["metric"].default.help
+    assert all(k in help_text for k in pareto.ERRORS)

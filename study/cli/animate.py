@@ -8,7 +8,6 @@ from pathlib import Path
 import typer
 
 from study.cli.app import app, console, guarded
-from study.outputs.animation import animate as make_animation
 
 
 @app.command()
@@ -21,6 +20,8 @@ def animate(
 ):
     """Render the motion config's frames (one case each) and write motion.gif / motion.mp4, frames.csv,
     motion.png and metadata.json under <out>."""
+    from study.outputs.animation import animate as make_animation  # loaded by the command that needs it
+
     t0 = time.perf_counter()
     rows = make_animation(config, out, backend=backend, cache=cache)  # progress: study.cli.progress
     frames = len({r["frame"] for r in rows})

@@ -3,25 +3,21 @@
 
 from __future__ import annotations
 
+import inspect
 import time
 from pathlib import Path
 
 import typer
 
 from study import methods
-from study.bench.output import bench_table, write_bench_files, write_scaling
-from study.bench.run import BenchOptions, check_options, run_bench
 from study.cli.app import app, console, err_console, figures, guarded
 from study.errors import StudyError
 from study.harness.config import load_figure_config, plain_name, shipped
-from study.harness.runner import prepare_sweep, run_sweep
 from study.io import file_stem, locked
-from study.outputs.check import run_check
-from study.outputs.kinds import config_kind
-from study.outputs.kinds.caustics import caustics_figure, caustics_lines
-from study.outputs.pareto import ERRORS, write_pareto
-from study.outputs.plots import sweep_plots
-from study.outputs.report import build_report
+from study.outputs.case_images import image_choice
+
+# What each command runs (measurement, outputs, the bench) is imported by that command, so that ``study --help``
+# and a command's bad input do not wait for it.
 
 
 @app.command()
@@ -40,12 +36,14 @@ def figure(
         "preview",
         help="preview: the config as written | paper: 1024² renders (reports/paper/<name>; a GPU job)",
     ),
+    images: str = typer.Option("all", help="per-case images: all (EXRs and viewer) | viewer | none"),
 ):
     """Reproduce one of the paper's figures, or your own (--config ANY.toml): image grid, metrics, per-case EXRs
     and viewer images under reports/<name>/ (reports/paper/<name>/ with --quality paper)."""
     from study.harness.config import quality_overrides
 
-    quality_overrides(quality)  # an unknown preset: one line, before any work
+    quality_overrides(quality)  # an unknown preset (or --images): one line, before any work
+    image_choice(images)
     known = figures()
     if name is None and config is None:
         raise StudyError(f"name a figure or give --config; figures: {', '.join(known)}", key="name")
@@ -55,8 +53,12 @@ def figure(
     name = plain_name(name) if name else file_stem(config.stem)  # one folder under reports/, never a path
     out = out or (Path("reports") / name if quality == "preview" else Path("reports") / quality / name)
     t0 = time.perf_counter()
+    from study.outputs.kinds import config_kind
+
     kind = config_kind(config)  # the config's `kind` (grid by default): study/outputs/kinds/
-    rows = kind.run(config, out, name=name, backend=backend, cache=cache, quality=quality)
+    takes = "images" in inspect.signature(kind.run).parameters  # the grid's per-case images, viewer and EXRs
+    rows = kind.run(config, out, name=name, backend=backend, cache=cache, quality=quality,
+                    **({"images": images} if takes else {}))  # fmt: skip
     if kind.lines is None:
         _print_table(rows)
     for line in kind.lines(rows) if kind.lines else ():
@@ -93,11 +95,18 @@ def sweep(
         "'local-gpus' for --jobs workers per visible GPU",
     ),
     plots: bool = typer.Option(True, help="write the error curves next to the table"),
+    images: str = typer.Option(
+        "none", help="per-case images of the cases computed: none | viewer | all (+ EXRs)"
+    ),
 ):
     """Run (or resume) a sweep: one row per case × method in <out>/results.csv, curves beside it."""
     from study.harness.cluster import check_address
+    from study.harness.runner import prepare_sweep, run_sweep
+    from study.outputs import case_images
+    from study.outputs.plots import sweep_plots
 
     dask = check_address(dask)  # before any work: '' and 'banana' are refused, not run locally
+    image_choice(images)
     out = out or Path("reports") / f"sweep-{config.stem}"  # a stem: one folder under reports/
     ready = prepare_sweep(config, backend=backend, jobs=jobs)  # every case checked before any work
     rows, stats = run_sweep(  # progress by case on stderr (study.cli.progress)
@@ -109,7 +118,12 @@ def sweep(
         dask=dask,
         prepared=ready,
         extra=(lambda rows, d: sweep_plots(rows, d / "plots")) if plots else None,  # in the output set
+        images=None
+        if images == "none"
+        else (case_images.write_case, str(out), images, jobs == 1 and not dask),
     )
+    if images != "none":  # the background writer's last files, then the viewer's manifest
+        case_images.finish(out, out.name)
     console.print(
         f"sweep: {stats['cases']} cases ({stats['cached']} already done, {stats['computed']} computed) "
         f"in {stats['seconds']:.1f} s → {out / 'results.csv'}",
@@ -130,6 +144,8 @@ def check(
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
 ):
     """CI regression: run a small fixed sweep and compare every metric with the committed baseline."""
+    from study.outputs.check import run_check
+
     fails, lines = run_check(shipped(config), update=update, cache=cache, backend=backend)  # progress: stderr
     for line in lines:
         console.print(line, highlight=False)
@@ -152,6 +168,8 @@ def report(
 ):
     """Build reports/index.md and reports/index.html (tables, image viewers) from the results tables: figures,
     tables, the paper's claims, versions."""
+    from study.outputs.report import build_report
+
     path = build_report(reports)
     if path is None:  # one line on stderr, and no page of empty tables
         err_console.print(
@@ -177,7 +195,9 @@ def pareto(
         "--benches",
         help="comma list of bench tables (study bench's bench-<tag>.csv), one panel each",
     ),
-    metric: str = typer.Option("wrong_fraction", help="error column: " + ", ".join(ERRORS)),
+    metric: str = typer.Option(
+        "wrong_fraction", help="error column: wrong_fraction, rmse_truth_debiased or wrong_fraction_1cm"
+    ),
     batch: str = typer.Option(
         "close-up", help="bench batch the times come from: close-up, fig4, synthetic, sorted"
     ),
@@ -187,6 +207,8 @@ def pareto(
 ):
     """The equal-cost front per figure and sweep: error (median over cases, with its interval) against measured ms
     per 1080p frame on each benched device, the Pareto front, and the method to use at a few budgets."""
+    from study.outputs.pareto import write_pareto
+
     paths = [Path(b.strip()) for b in benches.split(",") if b.strip()]
     written = write_pareto(reports, out, paths, metric=metric, batch=batch, clock=clock)
     console.print(f"pareto: wrote {len(written) - 1} plots and {out / 'pareto.md'}", highlight=False)
@@ -214,6 +236,9 @@ def bench(
     tag: str = typer.Option("", help="name of this machine in file names (default cpu or gpu)"),
 ):
     """Time every method against exact ray casting (Embree, Mitsuba) on the same rays: CSV + Markdown tables."""
+    from study.bench.output import bench_table, write_bench_files, write_scaling
+    from study.bench.run import BenchOptions, check_options, run_bench
+
     cfg, scene, _ = load_figure_config(config)
     if cfg.positions is None or not 0 <= position < len(cfg.positions):
         n = len(cfg.positions or [])
@@ -256,6 +281,8 @@ def bench(
 
 
 def _caustics(config, out, backend, cache, *, sweep: bool):
+    from study.outputs.kinds.caustics import caustics_figure, caustics_lines
+
     t0 = time.perf_counter()
     rows = caustics_figure(config, out, backend=backend, cache=cache, sweep=sweep)
     for line in caustics_lines(rows):

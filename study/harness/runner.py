@@ -72,8 +72,10 @@ def _run_one(
     cache: str | None,
     case_id: str,
     jobs: int,
+    images: tuple | None = None,
 ) -> list[dict]:
-    """Worker: one case → rows (module-level so worker processes can import it)."""
+    """Worker: one case → rows (module-level so worker processes can import it); ``images`` = (writer, *args):
+    ``writer(case, case_id, out, labels, *args)`` writes its images (``study.outputs.case_images``)."""
     registry.load_plugins()  # methods registered outside study ($STUDY_PLUGINS)
     _limit_threads(jobs)
     scene = scene_from_dict(scene_json)
@@ -90,12 +92,13 @@ def _run_one(
     t0 = time.perf_counter()
     try:  # a remote worker: renders and exact hits on its GPU too
         with runtime.using_render_device("cuda" if backend == "cuda" else None):
-            rows = run_case(
-                scene, ms, backend=backend, cache=Cache(cache), case_id=case_id, keep_images=False
-            ).rows
-        for r in rows:
+            case = run_case(scene, ms, backend=backend, cache=Cache(cache), case_id=case_id,
+                            keep_images=bool(images), intervals=False)  # fmt: skip
+            if images:
+                images[0](case, case_id, images[1], [m.label for m in ms], *images[2:])
+        for r in case.rows:
             r["case_seconds"] = time.perf_counter() - t0  # the case's wall time in its worker
-        return rows
+        return case.rows
     except StudyError as err:  # which case refused, for the sweep's one line
         raise type(err)(f"{err.detail} (case {case_id})", file=err.file, key=err.key, code=err.code) from None
     finally:
@@ -230,8 +233,10 @@ def run_sweep(
     progress: Callable[[int, int, str], None] | None = None,
     extra: Callable[[list[dict], Path], None] | None = None,
     prepared=None,
+    images: tuple | None = None,
 ) -> tuple[list[dict], dict]:
-    """Run (or resume) a sweep; returns (rows, stats) with stats = {cases, cached, computed, seconds}.
+    """Run (or resume) a sweep; returns (rows, stats) with stats = {cases, cached, computed, seconds}; ``images``:
+    (writer, *args), what writes the images of the cases computed (:func:`_run_one`).
     ``prepared``: the sweep as :func:`prepare_sweep` gave it for the same path, backend and jobs (not redone).
     ``extra(rows, dir)`` writes more outputs (the curves, under ``dir/plots``) into the sweep's output set.
 
@@ -253,7 +258,7 @@ def run_sweep(
     )
 
     def task(c: Case) -> Task:
-        return _run_one, (c.scene.model_dump(mode="json"), specs, backend, cache_s, c.id, jobs)
+        return _run_one, (c.scene.model_dump(mode="json"), specs, backend, cache_s, c.id, jobs, images)
 
     try:
         return run_cases(

@@ -207,9 +207,13 @@ def run_case(
     cache: Cache | None = None,
     case_id: str = "",
     keep_images: bool = True,
+    intervals: bool | None = None,
 ) -> CaseOutput:
     """Every method and both references on the same rays of one case: their rows (one per trace, columns of
-    :func:`_row`) and, with ``keep_images``, their images and per-pixel maps."""
+    :func:`_row`) and, with ``keep_images``, their images and per-pixel maps. ``intervals`` (default
+    ``keep_images``): a figure's columns, the pixel intervals and the FLIP maps; False: a sweep's (its images,
+    with ``keep_images``, leave its rows as they are)."""
+    intervals = keep_images if intervals is None else intervals
     cache = cache or Cache(None)
     B = backends.get(backend)
     mark = progress.Stages()  # load, capture, probes, references, methods, metrics (study.progress)
@@ -271,9 +275,9 @@ def run_case(
     for t in traces:
         ang = metrics.angular_error(rays.x, t.shown, exact.point)
         oc = _classify(B, backend, rays, t.shown, exact)
-        fmap = metrics.flip_map(ref.image, t.image, backend) if keep_images and not t.reference else None
+        fmap = metrics.flip_map(ref.image, t.image, backend) if intervals and not t.reference else None
         extra = {"held_fraction": float(held.mean()) if len(held) else np.nan} if t.reference else {}
-        cols = _image_columns(t, refs, fmap, backend, keep_images)
+        cols = _image_columns(t, refs, fmap, backend, intervals)
         if PRODUCERS:
             ctx = RayContext(rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image, ref.image,
                              mask, t.label)  # fmt: skip
@@ -342,7 +346,7 @@ def _base_columns(scene: Scene, case_id: str, backend: str, rays, exact: ExactHi
     }
 
 
-def _image_columns(t: Traced, r: _Refs, fmap, backend: str, keep_images: bool) -> dict:
+def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool) -> dict:
     """One image against every reference: the oracle (on held pixels; unheld ones take the image's value, as FLIP
     and SSIM filter across pixels and a marked neighbour must not count), the truth, Mitsuba; the truth's own
     columns, pixel intervals and the error split."""
@@ -355,10 +359,10 @@ def _image_columns(t: Traced, r: _Refs, fmap, backend: str, keep_images: bool) -
                                with_flip="truth" in r.against),
         **metrics.image_errors(r.mitsuba, img, mask=over, suffix="mitsuba", backend=backend,
                                with_flip="mitsuba" in r.against),
-        **truth.columns(img, r.truth, r.mitsuba, mask=over),
+        **truth.columns(img, r.truth, r.mitsuba, mask=over, backend=backend),
         **stats.pixel_columns(img, r.truth.image, mask=over, sigma=r.sigma, rel_eps=truth.REL_EPS, emap=fmap),
         **split.split_columns(img, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
-                              mask=over, held_px=r.held_px, intervals=keep_images),  # sweeps: values only
+                              mask=over, held_px=r.held_px, intervals=intervals),  # sweeps: values only
     }  # fmt: skip
     if t.reference == "truth_at_hit":  # the truth is not split against itself
         cols.update({k: np.nan for k in cols if k.startswith("dec_")})

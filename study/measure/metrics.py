@@ -140,6 +140,24 @@ def flip(
     return float(v.mean()) if v.size else np.nan
 
 
+#: Where a case on the CPU's Dr.Jit backend (``llvm``) measures RMSE, PSNR, SSIM and the truth's columns: its array
+#: code (:mod:`study.measure.pixels`) or numpy (scikit-image), the faster on the CPU as measured side by side by
+#: ``scripts/bench_image_columns.py`` (reports/performance/image-columns-cpu.md): LLVM from crops of
+#: :data:`LLVM_MIN_PIXELS` pixels (0.6× numpy's time at 1024² frames' 221² crops, 0.6–0.85× at 93²), numpy below
+#: (0.6–2.1× numpy's time over six runs at 256² frames' 67² crops: LLVM's fixed cost per kernel, 2 busy cores).
+LLVM_IMAGES = "llvm"
+LLVM_MIN_PIXELS = 10_000
+
+
+def image_backend(backend: str, pixels: int | None = None) -> str:
+    """Where a case on ``backend`` measures its image columns over a crop of ``pixels`` pixels: numpy
+    (scikit-image, the reference) for ``numpy``, the GPU for ``cuda``, for ``llvm`` :data:`LLVM_IMAGES` from
+    :data:`LLVM_MIN_PIXELS` on (or without ``pixels``) and numpy below."""
+    if backend == "llvm":
+        return LLVM_IMAGES if pixels is None or pixels >= LLVM_MIN_PIXELS else "numpy"
+    return backend
+
+
 def image_errors(
     ref: np.ndarray,
     test: np.ndarray,
@@ -152,13 +170,22 @@ def image_errors(
 ) -> dict[str, float]:
     """``rmse_<suffix>``, ``psnr_<suffix>``, ``ssim_<suffix>``, ``flip_<suffix>`` (mean) and ``flip_<suffix>_p95``
     (the 95th percentile over the pixels: the tail a viewer notices) of ``test`` against ``ref`` over ``mask``
-    (``flip_emap``: the FLIP map of the two images, if already computed; ``backend``: where FLIP runs,
-    :func:`flip_map`; ``with_flip`` False: the FLIP columns are NaN, not measured)."""
+    (``flip_emap``: the FLIP map of the two images, if already computed; ``backend``: the case's backend, where FLIP
+    runs, :func:`flip_map`, and RMSE, PSNR and SSIM on :func:`image_backend` of SSIM's crop; ``with_flip`` False:
+    the FLIP columns are NaN, not measured)."""
     fv = flip_values(ref, test, mask=mask, emap=flip_emap, backend=backend) if with_flip else np.zeros(0)
+    cut = _crop(mask, 8, ref, test) if mask.any() and backend != "numpy" else None  # SSIM's crop
+    on = image_backend(backend, None if cut is None else cut[0].size)
+    if on == "numpy" or cut is None:
+        e = rmse(ref, test, mask=mask), psnr(ref, test, mask=mask), ssim(ref, test, mask=mask)
+    else:  # the same three as array code where the images are (study.measure.pixels), on ssim's crop
+        from study.measure import pixels
+
+        e = pixels.errors_on(cut[1], cut[2], mask=cut[0], backend=on)
     return {
-        f"rmse_{suffix}": rmse(ref, test, mask=mask),
-        f"psnr_{suffix}": psnr(ref, test, mask=mask),
-        f"ssim_{suffix}": ssim(ref, test, mask=mask),
+        f"rmse_{suffix}": e[0],
+        f"psnr_{suffix}": e[1],
+        f"ssim_{suffix}": e[2],
         f"flip_{suffix}": float(fv.mean()) if fv.size else np.nan,
         f"flip_{suffix}_p95": float(np.percentile(fv, 95)) if fv.size else np.nan,
     }

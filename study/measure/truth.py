@@ -33,7 +33,7 @@ import numpy as np
 from study import backend as backends
 from study.cache import Cache, content_key
 from study.impostor import ggx
-from study.measure.metrics import rmse
+from study.measure.metrics import _crop, image_backend, rmse
 from study.optics import shading
 from study.reference.mitsuba import radiance_along
 from study.scene import Scene
@@ -140,18 +140,32 @@ def relmse(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
     return float(np.mean(d * d / (r * r + REL_EPS))) if d.size else np.nan
 
 
-def columns(img: np.ndarray, truth: Truth, mitsuba: np.ndarray, *, mask: np.ndarray) -> dict[str, float]:
+def columns(
+    img: np.ndarray, truth: Truth, mitsuba: np.ndarray, *, mask: np.ndarray, backend: str = "numpy"
+) -> dict[str, float]:
     """The truth columns of one method's image (or the oracle's) over ``mask``: errors against truth_at_hit (raw,
-    debiased, relMSE) and against Mitsuba debiased (module docstring)."""
-    sigma = noise_rms(truth.noise, mask)
-    rmse_truth = rmse(truth.image, img, mask=mask)
+    debiased, relMSE) and against Mitsuba debiased (module docstring); measured on
+    :func:`study.measure.metrics.image_backend` of ``backend`` (numpy: the functions above)."""
+    box = None  # only the mask's bounding box travels
+    if backend != "numpy" and mask.any():
+        box = _crop(mask, 0, img, truth.image, mitsuba, truth.noise, truth.mitsuba_noise)
+    on = "numpy" if box is None else image_backend(backend, box[0].size)
+    if on != "numpy":  # the same means as array code where the images are
+        from study.measure import pixels
+
+        names = ("image", "truth", "mitsuba", "truth_noise", "mitsuba_noise")
+        m = pixels.truth_errors(dict(zip(names, box[1:])), mask=box[0], backend=on, rel_eps=REL_EPS)
+        sigma, rmse_truth, sigma_m = (float(np.sqrt(m[k])) for k in ("truth_noise", "truth", "mitsuba_noise"))
+        rmse_mitsuba, relmse_truth = float(np.sqrt(m["mitsuba"])), m["relmse"]
+    else:
+        sigma, rmse_truth = noise_rms(truth.noise, mask), rmse(truth.image, img, mask=mask)
+        sigma_m, rmse_mitsuba = noise_rms(truth.mitsuba_noise, mask), rmse(mitsuba, img, mask=mask)
+        relmse_truth = relmse(img, truth.image, mask)
     return {
         "rmse_truth": rmse_truth,
         "rmse_truth_debiased": debiased(rmse_truth, sigma),
-        "relmse_truth": relmse(img, truth.image, mask),
+        "relmse_truth": relmse_truth,
         "truth_noise_rmse": sigma,
-        "rmse_mitsuba_debiased": debiased(
-            rmse(mitsuba, img, mask=mask), noise_rms(truth.mitsuba_noise, mask)
-        ),
-        "mitsuba_noise_rmse": noise_rms(truth.mitsuba_noise, mask),
+        "rmse_mitsuba_debiased": debiased(rmse_mitsuba, sigma_m),
+        "mitsuba_noise_rmse": sigma_m,
     }

@@ -28,6 +28,7 @@ from study.measure.case import CaseOutput, run_case
 from study.measure.metrics import to_ldr
 from study.measure.outcomes import NAMES as OUTCOME_NAMES
 from study.outputs import viewer
+from study.outputs.case_images import image_choice
 from study.outputs.viewer import HIDDEN_COLORS, HIDDEN_NAMES, OUTCOME_COLORS
 from study.outputs.viewer import crop_box as _crop_box
 from study.scene.environment import describe
@@ -283,17 +284,20 @@ def figure_positions(
     cache: str | Path | None = ".cache",
     progress=None,
     quality: str = "preview",
+    images: str = "all",
 ) -> list[dict]:
     """Run every position (or case) of a figure config with every method; write ``<out>/<name>.png`` and
     ``<out>/metrics.csv`` (one row per position or case × method). Returns the rows. ``quality``: a preset of
     :data:`study.harness.config.QUALITY` applied to every case (``paper``: 1024² renders). ``name`` is one plain
-    name (:func:`study.harness.config.plain_name`): the figure's files stay inside ``out``."""
+    name (:func:`study.harness.config.plain_name`): the figure's files stay inside ``out``. ``images``: which
+    per-case images it writes (:mod:`study.outputs.case_images`: ``all`` EXRs and viewer, ``viewer``, ``none``)."""
     plain_name(name)
+    image_choice(images)
     with pg.task(name, None) as job:  # stage lines and the ETA (study.progress)
-        return _figure(config, out, name, backend, cache, progress, quality, job)
+        return _figure(config, out, name, backend, cache, progress, quality, job, images)
 
 
-def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) -> list[dict]:
+def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, images: str) -> list[dict]:
     cfg, scene, methods = load_figure_config(config)  # placement, where it runs, is a stage of its own
     preset = quality_overrides(quality)
     by_name = {m.name: m.label for m in reversed(methods)}  # a bare name means its first entry
@@ -337,8 +341,9 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) 
             cases.append(case)
             rows += case.rows
             # the case's EXR and viewer images are encoded beside the next case, not after the last one
-            made.append(writer.submit(viewer.case_files, name, stems[case_id], case, every,
-                                      title=titles[i] or "", case_id=case_id))  # fmt: skip
+            if images != "none":
+                made.append(writer.submit(viewer.case_files, name, stems[case_id], case, every,
+                                          title=titles[i] or "", case_id=case_id, exr=images == "all"))  # fmt: skip
             if progress:
                 progress(i + 1, len(todo))
             pg.advance(case_id)
@@ -382,7 +387,8 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task) 
             entry["exposure_ev"] = round(float(exposure), 2)  # the figure's, known once every case is in
             files.update(more)
             entries.append(entry)
-        files[viewer.MANIFEST] = viewer.manifest_text(name, entries)
+        if entries:
+            files[viewer.MANIFEST] = viewer.manifest_text(name, entries)
         # every byte is made: the output set lives only while they are written (study.io.write_set)
         write_set(out, files, [f"{name}.png", f"{name}-errors.png", "exr", "viewer"], lock=False)
         mark.end()

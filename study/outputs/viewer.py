@@ -235,12 +235,14 @@ def case_files(
     title: str = "",
     case_id: str = "",
     exposure_ev: float = 0.0,
+    exr: bool = True,
 ) -> tuple[dict[str, bytes | str], dict]:
     """One case's files, made in memory (relative path → bytes, for :func:`study.io.write_set`): its multi-layer
     EXR ``exr/<stem>.exr`` and its viewer script ``viewer/<stem>.js``; and its manifest entry. ``stem``: the
     case's file name (distinct among the figure's cases, :func:`study.io.file_stems`). ``exposure_ev``: the
     exposure the viewer starts at (the figure's grid exposure, so the viewer first shows what the PNG shows); its
-    slider spans :func:`exposure_span` of the case's images (``exposure_span`` in the entry)."""
+    slider spans :func:`exposure_span` of the case's images (``exposure_span`` in the entry). ``exr`` False: the
+    viewer script alone (the entry still names the EXR, which the viewer then says is not in this copy)."""
     layers = case_layers(case, labels)
     occ = getattr(case, "occluded", None)
     sy, sx = (
@@ -249,7 +251,7 @@ def case_files(
         else (slice(None), slice(None))
     )
     stems = source_stems(labels)
-    exr = f"exr/{stem}.exr"
+    exr_file = f"exr/{stem}.exr"
     named = {exr_layer(s, la, stems): a for s, la, a in layers}
     if case.mask is not None:
         named["mask"] = case.mask.astype(np.float32)
@@ -267,7 +269,7 @@ def case_files(
                 "layer": layer,
                 "channels": 1 if crop.ndim == 2 else crop.shape[-1],
                 "display": _display(layer, a),
-                "exr": exr,
+                "exr": exr_file,
                 "exr_layer": exr_layer(source, layer, stems),
             }
         )
@@ -289,14 +291,14 @@ def case_files(
         "size": [H, W],
         "crop": [y0, x0, (sy.stop or H) - y0, (sx.stop or W) - x0],
         "script": script,
-        "exr": exr,
+        "exr": exr_file,
         "layers": entries,
         "exposure_ev": round(float(exposure_ev), 2),
         "exposure_span": exposure_span(
             [a[sy, sx] for _, la, a in layers if la == "image" and a.ndim == 3], exposure_ev
         ),
     }
-    return {exr: layers_exr_bytes(named), script: text}, entry
+    return ({exr_file: layers_exr_bytes(named)} if exr else {}) | {script: text}, entry
 
 
 def manifest_text(name: str, cases: list[dict]) -> str:

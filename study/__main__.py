@@ -1,0 +1,5 @@
+"""``python -m study``: the ``study`` command (:func:`study.cli.main`)."""
+
+from study.cli import main
+
+main()
