@@ -385,7 +385,7 @@ LONG_FUNCTIONS = {
     "study/bench/run.py::run_bench": 154,
     "study/caustics/figure.py::_fig8_files": 105,
     "study/harness/runner.py::run_cases": 92,
-    "study/measure/case.py::run_case": 100,  # the pipeline, a banner per stage (as prb_basic.sample)
+    "study/measure/case.py::run_case": 93,  # the pipeline, a banner per stage (as prb_basic.sample)
     "study/methods/multi_probe.py::search": 91,
     "study/methods/search.py::first_entry": 126,
     "study/outputs/figures.py::image_grid": 112,
