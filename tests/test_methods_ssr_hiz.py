@@ -190,3 +190,37 @@ def test_without_a_screen_every_ray_goes_to_the_fallback(room):
     b = _trace(B, env, x, d, "localized")
     assert a[0] == b[0] and np.array_equal(a[2], b[2])
     np.testing.assert_array_equal(a[1][a[2]], b[1][b[2]])
+
+
+@pytest.mark.skipif("llvm" not in BACKENDS, reason="needs Dr.Jit's LLVM backend")
+@pytest.mark.parametrize("name", ["ssr", "ssr_hiz", "probe_blend"])
+def test_bench_times_the_screen_march_frozen(room, name):
+    """As ``study bench`` runs them: with the camera's buffer (bench_screen, its texture and pyramid arguments of the
+    frozen function) the screen methods march on screen (more lookups than their fallback alone), the frozen call,
+    replayed, gives the plain call's points, and both match numpy on ≥ 99 % of the rays; probe_blend freezes with
+    the impostor as its only probe."""
+    from study.bench.timing import bench_screen, method_runner, screen_depth
+
+    s, tracer, o, _ = room
+    x, d, _, _, _ = _rays(s, tracer, o, n=1000)
+    lo, hi = np.asarray(s.room.min) - o, np.asarray(s.room.max) - o
+    tex = analytic.box_impostor(32, lo, hi)
+    info = {"reference": tuple(o), "room": (s.room.min, s.room.max)}
+    depth = screen_depth(s.camera, tracer)
+    m = methods.make(name)
+    out = {}
+    for nm, frozen in (("llvm", False), ("llvm", True), ("numpy", False)):
+        B = backends.get(nm)
+        scr = bench_screen(depth, s.camera, o, B)
+        call, finish = method_runner(m, B, tex, x, d, frozen=frozen, info=info, screen=scr)
+        res = call()
+        finish(res)
+        res = call()  # frozen: a replay
+        finish(res)
+        out[(nm, frozen)] = (B.to_numpy(res[0]), float(np.mean(B.numpy(res[4]))))
+    np.testing.assert_allclose(out[("llvm", True)][0], out[("llvm", False)][0], rtol=1e-6)
+    a, b = out[("numpy", False)][0], out[("llvm", False)][0]
+    both = np.isfinite(a).all(1) & np.isfinite(b).all(1)
+    assert np.mean(both) > 0.9 and np.mean(np.linalg.norm(a[both] - b[both], axis=1) < 1e-3) >= 0.99
+    if name != "probe_blend":
+        assert out[("llvm", True)][1] > methods.make("proxy_box").lookups_per_ray() + 5
