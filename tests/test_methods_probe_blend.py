@@ -1,6 +1,8 @@
 """probe_blend: box-projected probes blended by influence (Lagarde 2012), on the analytic box room (exact probes)
 and the small room with a column (Embree probes)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from conftest import BACKENDS, BOX_HI, BOX_LO, small_scene_dict
@@ -8,6 +10,7 @@ from conftest import BACKENDS, BOX_HI, BOX_LO, small_scene_dict
 import study
 from study import backend as backends
 from study import methods
+from study.errors import StudyError
 from study.impostor import analytic, probes
 from study.impostor.envmap import EnvMap
 from study.impostor.views import Captured, ProbeSpec
@@ -134,3 +137,35 @@ def test_rows_carry_the_ghost_column(tmp_path):
     assert 0.0 <= t.loc["probe_blend", PB.GHOST] <= 1.0
     assert np.isnan(t.loc["classical", PB.GHOST])
     assert 0 < t.loc["ssr_hiz", "lookups_per_ray"] <= t.loc["ssr_hiz", "lookups_bound"]
+
+
+class _Flagged(PB.ProbeBlend):
+    """probe_blend with its flags replaced (not registered: a stand-in for a plug-in)."""
+
+    name = "flagged"
+
+    def __init__(self, flags, **kw):
+        super().__init__(**kw)
+        self.make_flags = flags
+
+    def search(self, B, env, x, R):
+        return dataclasses.replace(super().search(B, env, x, R), flags=self.make_flags(x))
+
+
+def test_flags_must_be_masks_of_declared_columns(tmp_path):
+    """A method's flags are boolean masks, one per ray (else one line naming the method), of declared columns (else
+    one line naming the column, from the case)."""
+    B = backends.get("numpy")
+    env = _box_env(B)
+    x, d = analytic.random_rays(50, extent=0.5, seed=2)
+    with pytest.raises(StudyError, match=r"'flagged' returned flags\['ghost_fraction'\] as float"):
+        _Flagged(lambda x: {PB.GHOST: x.x * 0.0}).trace(B, env, B.vec(x), B.vec(d))
+    tr = _Flagged(lambda x: {PB.GHOST: x.x > 0.0}).trace(B, env, B.vec(x), B.vec(d))
+    assert np.array_equal(B.numpy(tr.flags[PB.GHOST]), (x[:, 0] > 0) & B.numpy(tr.valid))
+    with pytest.raises(StudyError, match="flags the column 'no_such_column', which is not declared"):
+        study.evaluate(
+            small_scene_dict(),
+            [_Flagged(lambda x: {"no_such_column": x.x > 0.0}, grid=(1, 1, 1))],
+            overrides={"render.cube_res": 16, "camera.width": 32, "camera.height": 32},
+            cache=tmp_path,
+        )
