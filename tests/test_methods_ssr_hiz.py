@@ -153,7 +153,7 @@ def test_validation_rejects_what_sssr_rejects(room):
     """A depth buffer 0.5 m too deep: the march finds the wrong surfaces, so few shown points are right (the test
     above can fail). A back face (the ray's direction reversed at the same hit) has
     confidence 0; max_iterations = 2 leaves most hits unfound, spending ≤ 2 + 5 lookups; min_occupancy = 32 stops
-    every wave after its first read."""
+    every wave after its first read (a host loop: the budget counts its steps)."""
     s, tracer, o, colour = room
     B = backends.get("numpy")
     x, d, exact, seen, foot = _rays(s, tracer, o, n=1000)
@@ -177,6 +177,10 @@ def test_validation_rejects_what_sssr_rejects(room):
     r = H.screen_ray(B, env.screen, B.vec(x), B.vec(d))
     _, _, reads, _ = H.hiz_march(B, env.screen, H.hiz_of(env.screen), r, 128, min_occupancy=32)
     assert reads.max() == 1.0
+    assert (
+        methods.make("ssr_hiz", min_occupancy=4).host_steps() == 128
+        and methods.make("ssr_hiz").host_steps() == 0
+    )
 
 
 def test_without_a_screen_every_ray_goes_to_the_fallback(room):

@@ -373,6 +373,12 @@ class SSRHiZ(TracingMethod):
         fb = self._fallback()
         return fb.volume_lookups(res) if fb else 0.0
 
+    def host_steps(self, res: int | None = None) -> float:
+        # the occupancy exit marches on the host, one step over all rays per iteration; and the fallback's steps
+        fb = self._fallback()
+        own = float(self.params.max_iterations) if self.params.min_occupancy > 0 else 0.0
+        return own + (fb.host_steps(res) if fb else 0.0)
+
 
 def hiz_march_ref(depth: np.ndarray, P0, D, max_iterations: int) -> tuple[float, int, int]:
     """Slow twin of :func:`hiz_march` for one ray (P0, D: (px, py, d) and its direction, floats): SSSR's loop in
