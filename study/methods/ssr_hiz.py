@@ -27,19 +27,20 @@ default, as SSSR does for mirror rays: off; on, it runs the march as a host loop
 Validation (FFX_SSSR_ValidateHit): the confidence c of the hit at pixel (j, i) = ⌊P(t)⌋ is 0 where the ray left
 the screen or did not start on it (x off screen or behind the near plane), where it moved < 2 px from its start
 along both axes (self-reflection), where the pixel sees no surface (the background), where the pixel's surface faces
-along the ray (a back face: n·R > 0, the normal reconstructed from the depth buffer, which holds no normals, by the
-neighbour in each axis whose depth is nearer to the pixel's); else c = vignette · (1 − smoothstep(0, ``thickness``,
-δ))², δ the view-space distance between the ray's point and the pixel's surface (both on the pixel's eye ray; SSSR
-reads that depth from its half-resolution copy, here from the full buffer), vignette the screen-border fade
-(smoothstep over 5 % of the screen's height on each side).
+along the ray (a back face: n·R > 0, n the G-buffer's normal, :func:`study.impostor.screen.normal_buffer`; for a
+buffer without normals, as the bench's, reconstructed from the depths by :func:`depth_normal`); else c = vignette ·
+(1 − smoothstep(0, ``thickness``, δ))², δ the view-space distance between the ray's point and the pixel's surface
+(both on the pixel's eye ray; SSSR reads that depth from its half-resolution copy, here from the full buffer),
+vignette the screen-border fade (smoothstep over 5 % of the screen's height on each side).
 
 Blend. Radiance c · (colour buffer at the hit pixel) + (1 − c) · (the environment's), the environment being the
 ``fallback`` method traced on the impostor (as ``ssr``'s fallback: ``proxy_box`` by default, ``localized``, ``sdf``,
 or ``classical``, the plain environment map SSSR samples); with ``"none"`` the colour buffer's radiance where c ≥ ½
 and no hit elsewhere. Shown point (the outcome classes, as for ``ssr``): the ray's point at the hit where c ≥ ½
 (the screen's answer weighs most), the fallback's elsewhere. On a bare impostor without a camera buffer every ray
-goes to the fallback. Cost per ray (``Trace.lookups``): the pyramid reads the march made, 5 for the validation of a
-ray that started (the hit pixel's depth and colour, one fetch; four neighbours' depths), and the fallback's lookups
+goes to the fallback. Cost per ray (``Trace.lookups``): the pyramid reads the march made, 2 for the validation of a
+ray that started (the hit pixel's depth and colour, one fetch; its normal; 5 where four neighbours' depths stand in
+for the normal), and the fallback's lookups
 on rays with c < 1 (the blend needs the environment); :meth:`SSRHiZ.lookups_per_ray` bounds it with
 ``max_iterations`` reads. :func:`hiz_march_ref` is the march's slow twin (one ray, the minima taken from level 0).
 """
@@ -259,6 +260,39 @@ def hiz_march(B, scr, hz: HiZ, r: ScreenRay, max_iterations: int, min_occupancy:
     return t, m, i, on(t) & r.start
 
 
+def depth_normal(B, scr, j, i, zs) -> V3:
+    """The normal of pixel (column j, row i) at depth zs, camera axes, turned towards the camera: reconstructed from
+    the depth buffer (a buffer without a G-buffer's normals) by the neighbour in each axis whose depth is nearer to
+    the pixel's, four reads of level 0 of the pyramid."""
+    W, H, T, Ty = float(scr.width), float(scr.height), scr.tan_x, scr.tan_y
+    hz = hiz_of(scr)
+
+    def view_point(jj, ii, z):  # camera-space point of pixel (jj, ii) at depth z
+        return V3(z * ((2.0 * (jj + 0.5) / W - 1.0) * T), z * ((1.0 - 2.0 * (ii + 0.5) / H) * Ty), z)
+
+    c = view_point(j, i, zs)
+    tangents = []
+    for dj, di, last in ((1.0, 0.0, W - 1.0), (0.0, 1.0, H - 1.0)):
+        k = j if dj else i
+        pts = []
+        for sgn in (-1.0, 1.0):
+            jj, ii = j + sgn * dj, i + sgn * di
+            dn = hz.read(zs * 0.0, zs * 0.0 + hz.size, jj, ii)  # level 0
+            zn = -1.0 / B.select(dn < 0.0, dn, zs * 0.0 - 1.0)
+            inside = (k + sgn >= 0.0) & (k + sgn <= last) & (dn < 0.0)
+            pts.append((view_point(jj, ii, zn), B.select(inside, B.abs(zn - zs), zs * 0.0 + BIG)))
+        (pa, ga), (pb, gb) = pts
+        use_b = gb <= ga
+        other = V3(*(B.select(use_b, u, v) for u, v in zip((pb.x, pb.y, pb.z), (pa.x, pa.y, pa.z))))
+        sgn = B.select(use_b, zs * 0.0 + 1.0, zs * 0.0 - 1.0)
+        ok = B.minimum(ga, gb) < BIG
+        tangents.append((other - c) * B.select(ok, sgn, sgn * 0.0))
+    (ax, ay) = tangents
+    n = V3(ax.y * ay.z - ax.z * ay.y, ax.z * ay.x - ax.x * ay.z, ax.x * ay.y - ax.y * ay.x)
+    n = n * B.select(n.dot(c) > 0.0, zs * 0.0 - 1.0, zs * 0.0 + 1.0)  # a surface on screen faces the camera
+    return n
+
+
 @register
 class SSRHiZ(TracingMethod):
     name = "ssr_hiz"
@@ -284,34 +318,17 @@ class SSRHiZ(TracingMethod):
         zs = rgbz[3]
         far = zs >= FAR_Z
         zs = B.select(far, zs * 0.0 + 1.0, zs)
-        # ------------------------------------------------------------- the normal from the depth buffer
-        hz = hiz_of(scr)
-
-        def view_point(jj, ii, z):  # camera-space point of pixel (jj, ii) at depth z
-            return V3(z * ((2.0 * (jj + 0.5) / W - 1.0) * T), z * ((1.0 - 2.0 * (ii + 0.5) / H) * Ty), z)
-
-        c = view_point(j, i, zs)
-        tangents = []
-        for dj, di, last in ((1.0, 0.0, W - 1.0), (0.0, 1.0, H - 1.0)):
-            k = j if dj else i
-            pts = []
-            for sgn in (-1.0, 1.0):
-                jj, ii = j + sgn * dj, i + sgn * di
-                dn = hz.read(zs * 0.0, zs * 0.0 + hz.size, jj, ii)  # level 0
-                zn = -1.0 / B.select(dn < 0.0, dn, zs * 0.0 - 1.0)
-                inside = (k + sgn >= 0.0) & (k + sgn <= last) & (dn < 0.0)
-                pts.append((view_point(jj, ii, zn), B.select(inside, B.abs(zn - zs), zs * 0.0 + BIG)))
-            (pa, ga), (pb, gb) = pts
-            use_b = gb <= ga
-            other = V3(*(B.select(use_b, u, v) for u, v in zip((pb.x, pb.y, pb.z), (pa.x, pa.y, pa.z))))
-            sgn = B.select(use_b, zs * 0.0 + 1.0, zs * 0.0 - 1.0)
-            ok = B.minimum(ga, gb) < BIG
-            tangents.append((other - c) * B.select(ok, sgn, sgn * 0.0))
-        (ax, ay) = tangents
-        n = V3(ax.y * ay.z - ax.z * ay.y, ax.z * ay.x - ax.x * ay.z, ax.x * ay.y - ax.y * ay.x)
-        n = n * B.select(
-            n.dot(c) > 0.0, zs * 0.0 - 1.0, zs * 0.0 + 1.0
-        )  # a surface on screen faces the camera
+        # ------------------------------------------------------------- the normal: the G-buffer's, or from depth
+        if getattr(scr, "has_normals", False):
+            nw = scr.fetch_normal(j, i)
+            n = V3(
+                *(
+                    nw[0] * float(a[0]) + nw[1] * float(a[1]) + nw[2] * float(a[2])
+                    for a in (scr.right, scr.up, scr.forward)
+                )
+            )
+        else:
+            n = depth_normal(B, scr, j, i, zs)
         back = (n.x * r.Rc[0] + n.y * r.Rc[1] + n.z * r.Rc[2]) > 1e-6 * B.length(n)
         # ------------------------------------------------------------- distance to the surface, border fade
         zh = -1.0 / B.select(pd < 0.0, pd, pd * 0.0 - 1e-30)
@@ -340,7 +357,10 @@ class SSRHiZ(TracingMethod):
             c = B.select((den > 0.0) & B.isfinite(s), c, zero)
             shown = x + R * B.select(c > 0.0, s, zero)
             rgb = rgbz[:3]
-            spent = reads + B.select(r.start, zero + 5.0, zero)
+            checks = (
+                2.0 if getattr(scr, "has_normals", False) else 5.0
+            )  # the hit's rgbz, its normal (or 4 depths)
+            spent = reads + B.select(r.start, zero + checks, zero)
         else:  # no camera buffer: nothing on screen
             c, shown, rgb, spent = zero, x * 0.0, [zero] * 3, zero
         screen = c >= 0.5
