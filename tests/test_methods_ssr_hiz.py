@@ -205,14 +205,14 @@ def test_bench_times_the_screen_march_frozen(room, name):
     frozen function) the screen methods march on screen (more lookups than their fallback alone), the frozen call,
     replayed, gives the plain call's points, and both match numpy on ≥ 99 % of the rays; probe_blend freezes with
     the impostor as its only probe."""
-    from study.bench.timing import bench_screen, method_runner, screen_depth
+    from study.bench.timing import bench_screen, camera_depth, method_runner
 
     s, tracer, o, _ = room
     x, d, _, _, _ = _rays(s, tracer, o, n=1000)
     lo, hi = np.asarray(s.room.min) - o, np.asarray(s.room.max) - o
     tex = analytic.box_impostor(32, lo, hi)
     info = {"reference": tuple(o), "room": (s.room.min, s.room.max)}
-    depth = screen_depth(s.camera, tracer)
+    depth = camera_depth(s.camera, tracer)
     m = methods.make(name)
     out = {}
     for nm, frozen in (("llvm", False), ("llvm", True), ("numpy", False)):

@@ -44,10 +44,10 @@ from study.bench.timing import (
     QUERIES,
     Exact,
     bench_screen,
+    camera_depth,
     mitsuba_variant,
     ms_per_frame,
     rate_row,
-    screen_depth,
     time_method,
 )
 from study.codehash import code_hash
@@ -209,7 +209,7 @@ def run_bench(
     info_env = env_info(scene)
     want_screen = any(m.views_needed().screen for m in methods)
     for b in batches:
-        depth = screen_depth(b.camera, exact.tracer) if want_screen and b.camera is not None else None
+        depth = camera_depth(b.camera, exact.tracer) if want_screen and b.camera is not None else None
         for nm in names:
             B = backends.get(nm)
             scr = bench_screen(depth, b.camera, o, B) if depth is not None else None

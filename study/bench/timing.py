@@ -71,7 +71,7 @@ def rate_row(base: dict, seconds: float, rays: int) -> dict:
 
 
 # ---------------------------------------------------------------------------------------------- methods
-def screen_depth(camera, tracer: Tracer) -> np.ndarray:
+def camera_depth(camera, tracer: Tracer) -> np.ndarray:
     """The (H, W) z-depth buffer of ``camera`` (a scene's camera) into the bench's triangles (no object)."""
     return depth_buffer(SimpleNamespace(camera=camera), tracer)
 
