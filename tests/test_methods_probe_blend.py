@@ -124,14 +124,22 @@ def test_ghosting_where_probes_disagree_around_a_column():
     assert ok(shown) > ok(box)  # probes nearer the rays see more of what o cannot
 
 
-def test_rows_carry_the_ghost_column(tmp_path):
+TINY = {"render.cube_res": 16, "camera.width": 32, "camera.height": 32}
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("probe-blend-cache")  # the two evaluate tests share renders
+
+
+def test_rows_carry_the_ghost_column(cache):
     """Through study.evaluate (a tiny case): probe_blend's row has ghost_fraction in [0, 1], other methods' rows
     none; ssr_hiz's row its lookups within its bound."""
     res = study.evaluate(
         small_scene_dict(columns=[COLUMN]),
         [methods.make("probe_blend", grid=(1, 1, 2)), "ssr_hiz", "classical"],
-        overrides={"render.cube_res": 16, "camera.width": 32, "camera.height": 32},
-        cache=tmp_path,
+        overrides=TINY,
+        cache=cache,
     )
     t = res.table.set_index("method")
     assert 0.0 <= t.loc["probe_blend", PB.GHOST] <= 1.0
@@ -152,7 +160,7 @@ class _Flagged(PB.ProbeBlend):
         return dataclasses.replace(super().search(B, env, x, R), flags=self.make_flags(x))
 
 
-def test_flags_must_be_masks_of_declared_columns(tmp_path):
+def test_flags_must_be_masks_of_declared_columns(cache):
     """A method's flags are boolean masks, one per ray (else one line naming the method), of declared columns (else
     one line naming the column, from the case)."""
     B = backends.get("numpy")
@@ -164,8 +172,8 @@ def test_flags_must_be_masks_of_declared_columns(tmp_path):
     assert np.array_equal(B.numpy(tr.flags[PB.GHOST]), (x[:, 0] > 0) & B.numpy(tr.valid))
     with pytest.raises(StudyError, match="flags the column 'no_such_column', which is not declared"):
         study.evaluate(
-            small_scene_dict(),
-            [_Flagged(lambda x: {"no_such_column": x.x > 0.0}, grid=(1, 1, 1))],
-            overrides={"render.cube_res": 16, "camera.width": 32, "camera.height": 32},
-            cache=tmp_path,
+            small_scene_dict(columns=[COLUMN]),
+            [_Flagged(lambda x: {"no_such_column": x.x > 0.0}, grid=(1, 1, 2))],
+            overrides=TINY,
+            cache=cache,
         )
