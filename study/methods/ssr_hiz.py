@@ -40,9 +40,9 @@ and no hit elsewhere. Shown point (the outcome classes, as for ``ssr``): the ray
 (the screen's answer weighs most), the fallback's elsewhere. On a bare impostor without a camera buffer every ray
 goes to the fallback. Cost per ray (``Trace.lookups``): the pyramid reads the march made, 2 for the validation of a
 ray that started (the hit pixel's depth and colour, one fetch; its normal; 5 where four neighbours' depths stand in
-for the normal), and the fallback's lookups
-on rays with c < 1 (the blend needs the environment); :meth:`SSRHiZ.lookups_per_ray` bounds it with
-``max_iterations`` reads. :func:`hiz_march_ref` is the march's slow twin (one ray, the minima taken from level 0).
+for the normal), and the fallback's lookups on rays with c < 1 (the blend needs the environment);
+:meth:`SSRHiZ.lookups_per_ray` bounds it with ``max_iterations`` reads. ``thickness`` defaults to ``ssr``'s 0.25 m.
+:func:`hiz_march_ref` is the march's slow twin (one ray, the minima taken from level 0).
 """
 
 from __future__ import annotations
