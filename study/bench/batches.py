@@ -7,6 +7,8 @@ Batches
                 secondary rays);
     synthetic : origins uniform in a cube of ±``extent`` m around the reference point, uniform unit directions,
                 fixed seed; and the same rays sorted by direction (:func:`direction_sorted`, ray reordering).
+Each batch names the camera whose depth buffer the screen-space methods search (``ssr``, ``ssr_hiz``): the frame
+its rays were made in (the synthetic batches: the scene's camera at the fig4 batch's resolution).
 Impostor: exact distances from the reference point through every texel centre (:func:`study.impostor.capture.
 distances_from`, Embree on the same triangles); the RGB channels are a stand-in (|direction|): what a lookup
 costs does not depend on texel values.
@@ -16,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -32,6 +35,7 @@ class Batch:
     name: str
     x: np.ndarray  # (N, 3) world-space origins
     R: np.ndarray  # (N, 3) unit directions
+    camera: Any = None  # the camera of the screen buffer (study.scene camera), None: none
 
 
 def scene_rays(scene: Scene, position, res: int) -> Batch:
@@ -41,7 +45,7 @@ def scene_rays(scene: Scene, position, res: int) -> Batch:
     )
     r = object_rays(sc)
     p = ", ".join(f"{c:g}" for c in position)
-    return Batch(f"fig4 ({p}) {res}²", r.x, r.R)
+    return Batch(f"fig4 ({p}) {res}²", r.x, r.R, sc.camera)
 
 
 def closeup_rays(scene: Scene, position, res: int) -> Batch:
@@ -63,12 +67,12 @@ def closeup_rays(scene: Scene, position, res: int) -> Batch:
     )
     r = object_rays(sc)
     p = ", ".join(f"{v:g}" for v in position)
-    return Batch(f"fig4 close-up ({p}) {res}²", r.x, r.R)
+    return Batch(f"fig4 close-up ({p}) {res}²", r.x, r.R, sc.camera)
 
 
-def synthetic_rays(scene: Scene, n: int, *, extent: float = 0.6, seed: int = 0) -> Batch:
+def synthetic_rays(scene: Scene, n: int, *, extent: float = 0.6, seed: int = 0, camera=None) -> Batch:
     x, d = analytic.random_rays(n, extent=extent, seed=seed)
-    return Batch(f"synthetic {n}", x + np.asarray(scene.reference.point), d)
+    return Batch(f"synthetic {n}", x + np.asarray(scene.reference.point), d, camera)
 
 
 def direction_sorted(b: Batch, res: int = 64) -> Batch:
@@ -79,7 +83,7 @@ def direction_sorted(b: Batch, res: int = 64) -> Batch:
         u * res, res - 1
     ).astype(np.int64)
     order = np.argsort(key, kind="stable")
-    return Batch(f"{b.name} sorted by direction", b.x[order], b.R[order])
+    return Batch(f"{b.name} sorted by direction", b.x[order], b.R[order], b.camera)
 
 
 def heightfield(scene: Scene, triangles: int) -> tuple[np.ndarray, np.ndarray]:

@@ -41,7 +41,17 @@ from study.bench.batches import (
 )
 from study.bench.machine import available_backends, machine_info
 from study.bench.scaling import knob_values, scaling_rows
-from study.bench.timing import FRAME, QUERIES, Exact, mitsuba_variant, ms_per_frame, rate_row, time_method
+from study.bench.timing import (
+    FRAME,
+    QUERIES,
+    Exact,
+    bench_screen,
+    camera_depth,
+    mitsuba_variant,
+    ms_per_frame,
+    rate_row,
+    time_method,
+)
 from study.codehash import code_hash
 from study.errors import StudyError
 from study.harness import budget
@@ -137,8 +147,8 @@ def run_bench(
     batches = [
         scene_rays(scene, opt.position, opt.scene_res),
         closeup_rays(scene, opt.position, opt.scene_res),
-        synthetic_rays(scene, opt.synthetic),
     ]
+    batches.append(synthetic_rays(scene, opt.synthetic, camera=batches[0].camera))
     batches.append(direction_sorted(batches[-1]))  # ray reordering of the incoherent batch
     rows = []
 
@@ -199,9 +209,12 @@ def run_bench(
 
     # ------------------------------------------------------------------ every method on every backend
     info_env = env_info(scene)
+    want_screen = any(m.views_needed().screen for m in methods)
     for b in batches:
+        depth = camera_depth(b.camera, exact.tracer) if want_screen and b.camera is not None else None
         for nm in names:
             B = backends.get(nm)
+            scr = bench_screen(depth, b.camera, o, B) if depth is not None else None
             k = len(b.x) if nm != "numpy" else opt.numpy_max_rays
             x, R = b.x[:k] - o, b.R[:k]
             paths = ["frozen"] if nm != "numpy" else ["plain"]
@@ -226,6 +239,7 @@ def run_bench(
                             info=info_env,
                             spent=spent,
                             kernel=kernel,
+                            screen=scr,
                         )
                     except Exception as err:  # e.g. a method whose arrays a frozen function cannot see
                         log(f"{m.label} on {nm} ({path}) failed: {str(err).splitlines()[0][:160]}")
@@ -243,6 +257,7 @@ def run_bench(
                             info=info_env,
                             spent=spent,
                             kernel=kernel,
+                            screen=scr,
                         )
                     row = rate_row(
                         {

@@ -17,12 +17,15 @@ import dataclasses
 import gc
 import math
 import time
+from types import SimpleNamespace
 
 import numpy as np
 
 from study.impostor.envmap import EnvMap
+from study.impostor.screen import ScreenView, depth_buffer
 from study.impostor.sdf import room_field
 from study.impostor.views import Captured
+from study.methods.ssr_hiz import hiz_of
 from study.reference import mitsuba as mitsuba_ref
 from study.reference.embree import Tracer
 
@@ -68,15 +71,29 @@ def rate_row(base: dict, seconds: float, rays: int) -> dict:
 
 
 # ---------------------------------------------------------------------------------------------- methods
-def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None):
+def camera_depth(camera, tracer: Tracer) -> np.ndarray:
+    """The (H, W) z-depth buffer of ``camera`` (a scene's camera) into the bench's triangles (no object)."""
+    return depth_buffer(SimpleNamespace(camera=camera), tracer)
+
+
+def bench_screen(depth: np.ndarray, camera, reference, B) -> ScreenView:
+    """The camera's buffer for the screen-space methods: ``depth`` and a stand-in colour (zeros: what a fetch costs
+    does not depend on texel values), its Hi-Z pyramid built here, outside any recording."""
+    scr = ScreenView(depth, np.zeros(depth.shape + (3,), np.float32), camera, reference, B)
+    hiz_of(scr)
+    return scr
+
+
+def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None, screen=None):
     """(call, finish) for one method on one backend: call() traces (or replays) and returns the outputs.
 
     The method gets a :class:`~study.impostor.views.Captured` with ``info``, the scene knowledge (``reference``,
     ``room``), and with ``fallback`` set: a method that searches several layers gets a copy of the impostor as each
     layer (the bench times lookups; texel values do not change their cost), so its textures still come in through
-    the frozen function's arguments; probe sets and the camera's buffer are not captured, so ``multi_probe`` and
-    ``ssr`` are timed on their fallbacks (the impostor as the only probe; every ray to the fallback method); a
-    distance field is the room box's (:func:`study.impostor.sdf.room_field`: the cost of a 3D fetch does not
+    the frozen function's arguments; probe sets are not captured, so ``multi_probe`` and ``probe_blend`` are timed
+    with the impostor as the only probe; the camera's buffer is ``screen`` (:func:`bench_screen`; None: every ray of
+    ``ssr`` and ``ssr_hiz`` goes to their fallbacks), its texture and Hi-Z pyramid arguments too; a distance field
+    is the room box's (:func:`study.impostor.sdf.room_field`: the cost of a 3D fetch does not
     depend on the values), its texture an argument too."""
     env = EnvMap(tex_np, B)
     pyramid = env.pyramid  # built here, outside the recording; its data comes in through the arguments
@@ -90,11 +107,19 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
     fields = [room_field(views, spec) for spec in m.views_needed().sdfs]
     if fields:
         views = dataclasses.replace(views, sdfs=dict(zip(m.views_needed().sdfs, fields)))
+    scr = screen if screen is not None and m.views_needed().screen else None
+    hz = hiz_of(scr) if scr is not None else None  # (bound either way: a frozen function reads its closure)
+    if scr is not None:
+        views = dataclasses.replace(views, screen=scr)
     X, RR = B.vec(x), B.vec(R)
     B.eval(X.x, X.y, X.z, RR.x, RR.y, RR.z)
 
-    def trace(tex, dist, pyr, X, RR, vol):  # textures as arguments: a frozen function sees only those
+    def trace(
+        tex, dist, pyr, X, RR, vol, on_screen
+    ):  # textures as arguments: a frozen function sees only those
         env.tex, env.dist, pyramid.data = tex, dist, pyr
+        if scr is not None:
+            scr.tex, hz.data = on_screen
         if layer is not None:
             layer.tex, layer.dist = tex, dist
         for f, t in zip(fields, vol):
@@ -115,7 +140,8 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None)
             B.eval(s.x, s.y, s.z, r.x, r.y, r.z, ratio, valid, spent)
 
     pyr = pyramid.data
-    return (lambda: fn(tex, dist, pyr, X, RR, vol)), finish
+    on_screen = (scr.tex, hz.data) if scr is not None else ()
+    return (lambda: fn(tex, dist, pyr, X, RR, vol, on_screen)), finish
 
 
 def kernel_seconds(dr, call, finish, *, repeats: int) -> float:
@@ -158,6 +184,7 @@ def time_method(
     info: dict | None = None,
     spent: list | None = None,
     kernel: list | None = None,
+    screen=None,
 ) -> float:
     """Median seconds per call of ``m`` on the rays; with ``spent``, the mean lookups per ray that the calls
     measured (``Trace.lookups``) is appended to it; with ``kernel``, the seconds per call spent in the device's
@@ -168,7 +195,7 @@ def time_method(
     B.sync()
     gc.disable()
     try:
-        call, finish = method_runner(m, B, tex_np, x, R, frozen=frozen, info=info)
+        call, finish = method_runner(m, B, tex_np, x, R, frozen=frozen, info=info, screen=screen)
         last = []
 
         def kept():

@@ -25,6 +25,20 @@ from study.scene import Scene
 from study.scene.camera import camera_rays, look_at_basis
 
 
+def normal_buffer(scene: Scene, tracer: Tracer) -> np.ndarray:
+    """Unit geometric normals of the environment (no object) through every pixel centre, turned towards the camera
+    (a surface the camera sees faces it): (H, W, 3) float32, world axes (0 where nothing is hit) — a G-buffer's."""
+    o, d = camera_rays(scene.camera, 1)
+    o, d = o.reshape(-1, 3), d.reshape(-1, 3)
+    prim = tracer.intersect(o, d)["prim"]
+    tri = tracer.mesh.vertices[tracer.mesh.faces[np.maximum(prim, 0)]].astype(np.float64)
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    n *= np.where(np.sum(n * d, axis=1) > 0, -1.0, 1.0)[:, None]
+    n[prim < 0] = 0.0
+    return n.reshape(scene.camera.height, scene.camera.width, 3).astype(np.float32)
+
+
 def depth_buffer(scene: Scene, tracer: Tracer) -> np.ndarray:
     """z-depth of the environment (no object) through every pixel centre: (H, W) float32 (inf: nothing hit)."""
     o, d = camera_rays(scene.camera, 1)
@@ -40,9 +54,10 @@ class ScreenView:
     ``project(p)`` → (px, py, z) of points p relative to o; ``fetch(j, i)`` → [r, g, b, z] of pixel (row i, column j)
     (integer-valued float arrays, on screen); ``eye``, ``forward``, ``right``, ``up`` (numpy, relative to o),
     ``width``, ``height``. The buffer is one square face of side max(W, H) (padding never read), sampled at texel
-    centres, so a fetch returns the stored values."""
+    centres, so a fetch returns the stored values. ``normals`` (optional, (H, W, 3), :func:`normal_buffer`): a
+    G-buffer's normals, read by ``fetch_normal(j, i)``; ``has_normals`` says whether there are any."""
 
-    def __init__(self, depth: np.ndarray, colour: np.ndarray, camera, reference, B: Backend):
+    def __init__(self, depth: np.ndarray, colour: np.ndarray, camera, reference, B: Backend, normals=None):
         self.B, self.height, self.width = B, depth.shape[0], depth.shape[1]
         f, r, u = look_at_basis(camera.eye, camera.target, camera.up)
         self.eye = np.asarray(camera.eye, float) - np.asarray(reference, float)
@@ -54,11 +69,18 @@ class ScreenView:
         buf[0, : self.height, : self.width, :3] = colour
         buf[0, : self.height, : self.width, 3] = np.where(np.isfinite(depth), depth, 3e38)
         self.tex = B.texture(buf)
+        self.has_normals = normals is not None
+        if normals is not None:
+            nb = np.zeros((1, self.side, self.side, 3), np.float32)
+            nb[0, : self.height, : self.width] = normals
+            self.normal_tex = B.texture(nb)
 
     @classmethod
     def of_scene(cls, scene: Scene, colour: np.ndarray, tracer: Tracer, B: Backend) -> ScreenView:
-        """The buffer of ``scene``'s camera: depth by :func:`depth_buffer`, ``colour`` (H, W, 3) the background."""
-        return cls(depth_buffer(scene, tracer), colour, scene.camera, scene.reference.point, B)
+        """The buffer of ``scene``'s camera: depth by :func:`depth_buffer`, ``colour`` (H, W, 3) the background,
+        normals by :func:`normal_buffer`."""
+        return cls(depth_buffer(scene, tracer), colour, scene.camera, scene.reference.point, B,
+                   normals=normal_buffer(scene, tracer))  # fmt: skip
 
     def camera_space(self, p: V3):
         """(X, Y, z) of points p relative to o."""
@@ -80,6 +102,11 @@ class ScreenView:
     def fetch(self, j, i) -> list:
         s = float(self.side)
         return self.B.sample(self.tex, j * 0.0, (j + 0.5) / s, (i + 0.5) / s)
+
+    def fetch_normal(self, j, i) -> list:
+        """[nx, ny, nz] (world axes) of pixel (row i, column j): one fetch."""
+        s = float(self.side)
+        return self.B.sample(self.normal_tex, j * 0.0, (j + 0.5) / s, (i + 0.5) / s)
 
     def on_screen(self, px, py):
         return (px >= 0.0) & (px < float(self.width)) & (py >= 0.0) & (py < float(self.height))

@@ -152,6 +152,7 @@ class Traced:
     seconds: float = 0.0
     reference: str = ""  # "oracle_map" / "truth_at_hit" for the references' rows
     over: np.ndarray | None = None  # pixels its image columns are taken over (None: every object pixel)
+    flags: dict = field(default_factory=dict)  # the method's declared diagnostics: column → fraction of rays
 
 
 def _exact(scene: Scene, tracer, rays, o: np.ndarray) -> ExactHits:
@@ -186,7 +187,15 @@ def _trace(m: Method, B, env, x, R, rays, o: np.ndarray, F: np.ndarray, backgrou
             key="method",
         )
     image = shading.composite(rays, np.nan_to_num(rad) * F, background)
-    return Traced(m.name, m.label, knob_columns(m), shown, image, ratio, valid, lookups, bound, seconds)
+    flags = {
+        k: float(np.mean(B.numpy(v).astype(bool))) if len(shown) else np.nan
+        for k, v in (tr.flags or {}).items()
+    }
+    for k in flags:  # a method's diagnostics are declared columns, as a producer's
+        if columns.declared(k) is None:
+            raise StudyError(f"method {m.name!r} flags the column {k!r}, which is not declared", key="method")
+    return Traced(m.name, m.label, knob_columns(m), shown, image, ratio, valid, lookups, bound, seconds,
+                  flags=flags)  # fmt: skip
 
 
 def _reference_trace(name: str, image: np.ndarray, exact: ExactHits, over: np.ndarray) -> Traced:
@@ -386,6 +395,7 @@ def _row(
         **outcomes.offscreen_columns(oc, exact.offscreen),
         **image_cols,
         **extra,
+        **t.flags,
         "valid_fraction": float(t.valid.mean()),
         "ratio_residual_median": float(np.nanmedian(np.abs(t.ratio - 1))),
         "lookups_per_ray": t.lookups,

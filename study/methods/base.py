@@ -20,7 +20,9 @@ A method implements one of two searches:
         environment surface). A zero lookup vector counts as no hit.
     search(B, env, x, R) → :class:`Found` (l, shown, radiance, ratio, valid, lookups): a method that reads another
         view than the impostor (``layered``, ``ssr``, ``multi_probe``, subclasses of :class:`TracingMethod`) finds
-        the shown point and reads its radiance from the view that saw it.
+        the shown point and reads its radiance from the view that saw it; optionally ``flags``, per-ray diagnostics
+        of its own ({column: boolean mask}, each column declared in :mod:`study.columns`; the row gets the fraction
+        of rays where it holds, e.g. ``probe_blend``'s ghosting).
 :meth:`Method.trace` then finishes every method alike (escape rule of open environments, origin check, NaN for
 invalid rays) and returns a :class:`Trace` with the lookups each ray spent. Answers of the wrong shape or type are
 one StudyError line naming the method (plug-ins are checked like the methods of this package).
@@ -95,6 +97,9 @@ class Found:
     ratio: Any
     valid: Any
     lookups: Any
+    flags: dict | None = (
+        None  # {declared column: per-ray bool mask}: the row's column is its fraction of rays
+    )
 
 
 @dataclass
@@ -105,6 +110,7 @@ class Trace:
     ratio: Any  # final |l| / |l'|
     valid: Any  # hit found
     lookups: Any = None  # per ray: the lookups spent (≤ lookups_per_ray(res))
+    flags: dict | None = None  # the search's per-ray diagnostics (Found.flags)
 
 
 class Method(ABC):
@@ -275,7 +281,8 @@ class Method(ABC):
         rad = V3(*(B.select(valid, c, nan) for c in (rad.x, rad.y, rad.z)))
         if self.ratio_where_valid:
             ratio = B.select(valid, ratio, nan)
-        return Trace(l, shown, rad, ratio, valid, f.lookups)
+        flags = {k: v & valid for k, v in f.flags.items()} if f.flags else None  # on the rays it answers
+        return Trace(l, shown, rad, ratio, valid, f.lookups, flags)
 
     # ---------------------------------------------------------------------------------------------- plug-ins
     def _guarded(self, call):
@@ -303,6 +310,8 @@ class Method(ABC):
         self._check_array(B, ans.valid, n, "valid", "bool")
         if ans.lookups is not None:
             self._check_array(B, ans.lookups, n, "lookups", "float")
+        for name, mask in (getattr(ans, "flags", None) or {}).items():
+            self._check_array(B, mask, n, f"flags[{name!r}]", "bool")
 
     def _check_array(self, B: Backend, a, n: int, name: str, kind: str) -> None:
         shape = B.shape_of(a)
