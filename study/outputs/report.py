@@ -216,7 +216,7 @@ def _claims_section(tables: dict[str, list[dict]]) -> list[tuple]:
         (
             "p",
             "Each claim is checked on every table it applies to (study/outputs/claims.py), on the rays or pixels "
-            "it is about (*subset*, *n*) and on tails — wrong fractions with their 95 % Wilson interval over rays, "
+            "it is about (*subset*, *n*) and on tails — wrong fractions with their 95 % interval over rays, "
             "95th percentiles — not medians; a claim that does not hold says so first (fails: …).",
         ),
         ("table", rows, ["claim", "paper", "table", "holds", "subset", "n", "evidence"]),
@@ -241,9 +241,9 @@ def _decomposition_section(tables: dict[str, list[dict]]) -> list[tuple]:
             "means; first-order extrapolation); dec_noise = "
             "truth_at_hit's own noise (two seeds); dec_cross = 2·(method − oracle)·(oracle − truth). dec_residual "
             "= total − the parts; dec_sums = 1 where the parts add up to the total within their 95 % intervals "
-            "(percentile bootstrap over blocks of pixels — the tiles of a 64 × 64 grid over the frame — "
-            "scipy.stats.bootstrap, 1000 resamples, in the results tables as "
-            "dec_*_lo / _hi). rmse_truth_held / _unheld: RMSE against the truth on the pixels whose hits the views "
+            "(over the spatially correlated pixels: mean ± t·√variance from each term's autocovariance, "
+            "study/measure/spatial.py; in the results tables as dec_*_lo / _hi). "
+            "rmse_truth_held / _unheld: RMSE against the truth on the pixels whose hits the views "
             "hold / do not hold. *_debiased = √max(0, RMSE² − σ²) with σ the reference's noise; rmse_mitsuba is "
             "against Mitsuba's own camera render with the object (two seeds), which differs from what the methods "
             "are asked by the object's shadow and one bounce on the reflected path.",
