@@ -31,5 +31,6 @@ t0=$(date +%s)
 printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' \
   | xargs -P 2 -I CMD bash -c 'set -o pipefail; '"$S"' CMD 2>&1 | sed -u "s|^|[CMD] |"'
 PYTHONPATH=. .venv/bin/python scripts/glossy_split.py reports/fig_glossy   # the glossy error split
+PYTHONPATH=. .venv/bin/python scripts/calibration.py                       # the intervals' coverage
 $S report
 echo "reproduce: every report written in $(( $(date +%s) - t0 )) s"

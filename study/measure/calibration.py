@@ -15,6 +15,8 @@ split term          a signed cross term 2·a·b of two correlated fields (truth 
                     call, as the error split's terms are (:func:`study.measure.spatial.mean_intervals`)
 ray fraction        4 rays per pixel, each wrong with probability Φ(−1.5 + z) for a correlated field z (rays of
                     neighbouring pixels share texels): the wrong fraction (truth Φ(−1.5/√2))
+ray percentile      4 rays per pixel, each 0.8·z + 0.6·(own noise), so N(0, 1): the 95th percentile (truth
+                    1.645), as the angle and distance percentiles
 case median         12 cases drawn lognormal (truth: the median 1): the median over cases with its interval
 case range          3 cases: below 10 cases the study prints their range, not a CI (coverage 1 − 2/2ⁿ, told)
 paired difference   12 paired differences, symmetric about 0: the Wilcoxon signed-rank test keeps the null
@@ -184,6 +186,17 @@ def _ray_fraction(rng, before: bool, rays_per_pixel: int = 4):
     return float(wrong.mean()), now, stats.fraction_ci(int(wrong.sum()), wrong.size) if before else None
 
 
+def _ray_percentile(rng, before: bool, rays_per_pixel: int = 4):
+    mask = _disc()
+    z = np.repeat(correlated_field(rng)[mask], rays_per_pixel)
+    pix = np.repeat(np.flatnonzero(mask), rays_per_pixel)
+    v = 0.8 * z + 0.6 * rng.normal(
+        size=z.size
+    )  # N(0, 1) per ray, 64 % of its variance shared by the pixel's area
+    now = stats.quantile_ci(v, 95, pixels=pix, shape=mask.shape)
+    return float(np.percentile(v, 95)), now, stats.quantile_ci(v, 95) if before else None
+
+
 def _case_median(rng, before: bool, n: int):
     v = rng.lognormal(0.0, 1.0, n)
     med, lo, hi, _, _ = stats.case_interval(v)
@@ -219,6 +232,7 @@ ROWS = {
     "debiased RMSE": (lambda r, b: _pixel_error(r, b, True), math.sqrt(1.25), "pixels of a 40 px disc", True),
     "split term (signed)": (_split_term, 1.0, "pixels of a 40 px disc", True),
     "ray fraction": (_ray_fraction, float(sps.norm.cdf(-1.5 / math.sqrt(2))), "4 rays × 5024 pixels", True),
+    "ray percentile (p95)": (_ray_percentile, float(sps.norm.ppf(0.95)), "4 rays × 5024 pixels", True),
     "case median": (lambda r, b: _case_median(r, b, 12), 1.0, "12 cases", True),
     "case range (n < 10)": (lambda r, b: _case_median(r, False, 3), 1.0, "3 cases", False),
     "paired difference": (lambda r, b: _paired(r, 12), 0.0, "12 cases", True),

@@ -195,3 +195,22 @@ def fraction_intervals(flags, pixels, shape, level: float) -> tuple[list[tuple[f
         cis.append(wilson(float(pi), n / d, float(zi)))
         deffs.append(d)
     return cis, deffs
+
+
+def quantile_interval(values, p: float, pixels, shape, level: float) -> tuple[float, float]:
+    """The ``level`` interval of the ``p``-th percentile (0–100) of per-ray ``values`` clustered by pixel
+    (Woodruff 1952): the share of rays at or below the sample percentile gets its clustered Wilson interval
+    (:func:`fraction_intervals`: the design effect of rays sharing pixels), whose ends are read back as order
+    statistics. An end the sample cannot give is ``inf`` above, the smallest value below. NaN values are dropped;
+    none left: (NaN, NaN)."""
+    x = np.asarray(values, float)
+    keep = ~np.isnan(x)
+    x, pix = x[keep], np.asarray(pixels)[keep]
+    n = x.size
+    if n == 0:
+        return math.nan, math.nan
+    q = np.percentile(x, p)
+    ((a, b),), _ = fraction_intervals([x <= q], pix, shape, level)
+    s = np.sort(x)
+    hi = math.ceil(b * n)
+    return float(s[min(n - 1, max(0, math.floor(a * n) - 1))]), (math.inf if hi >= n else float(s[hi]))

@@ -91,11 +91,14 @@ def fraction_ci(k: int, n: int, level: float = LEVEL) -> tuple[float, float]:
     return _wilson(int(k), int(n), float(level))
 
 
-def quantile_ci(data, p: float, level: float = LEVEL) -> tuple[float, float]:
+def quantile_ci(data, p: float, level: float = LEVEL, *, pixels=None, shape=None) -> tuple[float, float]:
     """Distribution-free interval of the ``p``-th percentile (0–100) of ``data`` (NaN dropped): the binomial
-    order-statistic interval of ``scipy.stats.quantile_test`` (exact coverage, no resampling, O(n log n)). A bound
-    the sample cannot give (too few values beyond the quantile) is ``inf`` above, NaN below; an empty sample
-    (NaN, NaN)."""
+    order-statistic interval of ``scipy.stats.quantile_test`` (exact coverage for independent values, no
+    resampling, O(n log n)). A bound the sample cannot give (too few values beyond the quantile) is ``inf`` above,
+    NaN below; an empty sample (NaN, NaN). With ``pixels`` (each value's flat pixel index) and ``shape``: rays
+    clustered by pixel (:func:`study.measure.spatial.quantile_interval`)."""
+    if pixels is not None:
+        return spatial.quantile_interval(data, p, pixels, shape, level)
     x = np.asarray(data, float)
     x = x[~np.isnan(x)]
     if x.size == 0:
@@ -164,8 +167,8 @@ def ray_columns(outcomes, angle, hidden, x, exact, *, pixels=None, shape=None) -
         rays that ``angle_*`` / ``dist_*`` leave out (no hit; for dist also points at infinity);
         ``angle_p95_all_deg``: the 95th percentile of the angle with dropped rays as infinite error (inf when more
         than 5 % are dropped); ``angle_median_deg_lo``/``_hi``, ``angle_p95_deg_lo``/``_hi``,
-        ``dist_p95_lo``/``_hi``: order-statistic intervals (:func:`quantile_ci`) over the rays the statistic
-        keeps.
+        ``dist_p95_lo``/``_hi``: order-statistic intervals (:func:`quantile_ci`, clustered by pixel with
+        ``pixels``) over the rays the statistic keeps.
     """
     from study.measure.outcomes import CORRECT
 
@@ -197,12 +200,13 @@ def ray_columns(outcomes, angle, hidden, x, exact, *, pixels=None, shape=None) -
     out["dist_dropped"] = float(1 - fd.mean()) if c.size else math.nan
     full = np.where(fa, ang, np.inf)
     out["angle_p95_all_deg"] = float(np.percentile(full, 95, method="inverted_cdf")) if c.size else math.nan
-    for name, v, p in (
-        ("angle_median_deg", ang[fa], 50),
-        ("angle_p95_deg", ang[fa], 95),
-        ("dist_p95", np.asarray(outcomes.dist)[fd], 95),
+    px = (lambda sel: None) if pixels is None else (lambda sel: np.asarray(pixels)[sel])
+    for name, v, p, sel in (
+        ("angle_median_deg", ang[fa], 50, fa),
+        ("angle_p95_deg", ang[fa], 95, fa),
+        ("dist_p95", np.asarray(outcomes.dist)[fd], 95, fd),
     ):
-        out[f"{name}_lo"], out[f"{name}_hi"] = quantile_ci(v, p)
+        out[f"{name}_lo"], out[f"{name}_hi"] = quantile_ci(v, p, pixels=px(sel), shape=shape)
     return out
 
 
