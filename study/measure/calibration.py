@@ -133,9 +133,10 @@ def _disc() -> np.ndarray:
     return (yy - c) ** 2 + (xx - c) ** 2 < DISC**2
 
 
-def correlated_field(rng, shape=(SIZE, SIZE), sigma: float = FIELD_SIGMA) -> np.ndarray:
+def correlated_field(rng, shape=None, sigma: float = FIELD_SIGMA) -> np.ndarray:
     """A stationary Gaussian field of unit variance: white noise filtered by a Gaussian of ``sigma`` px
-    (periodic), rescaled by the filter's norm."""
+    (periodic), rescaled by the filter's norm; ``shape`` default (:data:`SIZE`, :data:`SIZE`)."""
+    shape = (SIZE, SIZE) if shape is None else shape
     delta = np.zeros(shape)
     delta[shape[0] // 2, shape[1] // 2] = 1
     norm = np.sqrt(np.sum(ndimage.gaussian_filter(delta, sigma, mode="wrap") ** 2))
@@ -145,11 +146,11 @@ def correlated_field(rng, shape=(SIZE, SIZE), sigma: float = FIELD_SIGMA) -> np.
 def _pixel_error(rng, before: bool, debias: bool):
     mask = _disc()
     err = 0.5 + correlated_field(rng)
-    ref = np.zeros((SIZE, SIZE, 3))
+    ref = np.zeros((*mask.shape, 3))
     img = ref + err[..., None]
     sigma = 0.0
     if debias:  # a noisy reference, its noise measured on the pixels as the study does (study.measure.truth)
-        noise = rng.normal(0, 0.5, (SIZE, SIZE, 1))
+        noise = rng.normal(0, 0.5, (*mask.shape, 1))
         ref = ref + noise
         sigma = float(np.sqrt(np.mean(noise[mask] ** 2)))
     se = np.mean((img - ref)[mask] ** 2, axis=-1)
