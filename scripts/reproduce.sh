@@ -34,6 +34,7 @@ commands=(
 t0=$(date +%s)
 printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' \
   | xargs -P "$J" -I CMD bash -c 'set -o pipefail; '"$S"' CMD 2>&1 | sed -u "s|^|[CMD] |"'
+PYTHONPATH=. ${STUDY_PYTHON:-.venv/bin/python} scripts/calibration.py   # the intervals' coverage → reports/calibration.md
 $S pareto   # error vs measured ms per 1080p frame (the committed benches), fronts, budgets → reports/pareto/
 $S report
 echo "reproduce: every report written in $(( $(date +%s) - t0 )) s"

@@ -133,6 +133,11 @@ TABLE: list[TableColumn] = [
     C("seconds", "s", LOW, note="wall time of the trace (measured, never in a baseline)"),
     # ------------------------------------------------------------------ counts and intervals (study.measure.stats)
     C("n_rays", "count"),
+    C(
+        "rays_deff",
+        note="design effect of wrong_fraction: its variance with rays clustered by pixel over the "
+        "binomial variance of independent rays; the fractions' intervals use n_rays / rays_deff rays",
+    ),
     C("n_hidden", "count"),
     C("n_wrong", "count"),
     C("wrong_fraction_texel", F, LOW, interval=True, note="wrong with ε = max(1 cm, one texel at the hit)"),
@@ -173,7 +178,13 @@ TABLE: list[TableColumn] = [
     C("rmse_mitsuba_debiased", "linear RGB", LOW),
     C("mitsuba_noise_rmse", "linear RGB"),
     C("n_pixels", "count"),
-    C("n_blocks", "count", note="pixel blocks resampled for the pixel intervals"),
+    C("n_blocks", "count", note="pixel blocks resampled for the pixel intervals (tables before corr_px)"),
+    C(
+        "corr_px",
+        "px",
+        note="correlation length of the squared error over the pixels (autocorrelation 1/e); the "
+        "pixel intervals sum its covariance over a lag window that follows it",
+    ),
     C("rmse_truth_trim", "linear RGB", LOW, note="RMSE without the worst 0.1 % of pixels"),
     C("rmse_truth_debiased_trim", "linear RGB", LOW),
     C("sqerr_top_share_truth", F, note="share of the squared error the worst 0.1 % of pixels carry"),

@@ -36,7 +36,9 @@ def _fmt(v):
     if isinstance(v, float):
         if math.isnan(v):
             return ""
-        return repr(v) if math.isfinite(v) else ("inf" if v > 0 else "-inf")
+        return (
+            repr(float(v)) if math.isfinite(v) else ("inf" if v > 0 else "-inf")
+        )  # np.float64's repr names it
     return v
 
 

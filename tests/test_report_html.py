@@ -368,3 +368,10 @@ def test_a_figure_with_an_error_split_shows_it(tmp_path):
         "prefiltering",
         "localization",
     ]
+
+
+def test_numpy_floats_are_written_as_plain_numbers():
+    """numpy 2's repr of np.float64 is 'np.float64(0.5)': a table cell is the number alone."""
+    from study.tables import to_csv
+
+    assert "np.float64" not in to_csv([{"a": np.float64(0.5), "b": 0.25}])

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy import stats as sps
 
 from study.measure import stats
 from study.outputs import claims, plots, power, summary
@@ -152,10 +153,24 @@ def test_detectable_fraction_matches_cohens_table():
 
 
 def test_detectable_shift_over_cases_and_too_few_cases():
-    """Below 6 cases Wilcoxon's smallest two-sided p (2/2ⁿ) is ≥ 5 %: nothing is detectable; at 48 cases the
-    normal approximation with efficiency 3/π gives 2.8016/√(48·3/π)."""
+    """Below 6 cases Wilcoxon's smallest two-sided p (2/2ⁿ) is ≥ 5 %: nothing is detectable. At 6 cases only all
+    six of one sign reach it (p = 2/64), so the power at a shift δ is Φ(δ)⁶ + Φ(−δ)⁶ and 80 % needs
+    δ = Φ⁻¹(0.8^(1/6)) = 1.79 (the normal approximation said 1.17: 46 % power); above 100 cases the normal
+    approximation with efficiency 3/π; in between, scipy's own test finds the shift ≈ 80 % of the time."""
     assert stats.detectable_shift(5) == np.inf and np.isfinite(stats.detectable_shift(6))
-    assert np.isclose(stats.detectable_shift(48), 2.801585 / np.sqrt(48 * 3 / np.pi), rtol=1e-5)
+    assert np.isclose(stats.detectable_shift(6), sps.norm.ppf(0.8 ** (1 / 6)), rtol=0.03)
+    assert np.isclose(stats.detectable_shift(120), 2.801585 / np.sqrt(120 * 3 / np.pi), rtol=1e-5)
+    rng = np.random.default_rng(5)
+    d = rng.normal(stats.detectable_shift(12), 1.0, (600, 12))
+    found = np.mean([sps.wilcoxon(x).pvalue < 0.05 for x in d])
+    assert 0.74 < found < 0.86, found
+    a = np.arange(12.0)
+    assert np.isclose(
+        stats.detectable_difference(a + 1 + rng.normal(0, 0.5, 12), a),
+        stats.detectable_shift(12) * 0.5,
+        rtol=0.5,
+    )
+    assert stats.detectable_difference(a[:5], a[:5] + 1) == np.inf
 
 
 def test_detectable_rows_state_n_and_hidden_cases():
@@ -302,7 +317,7 @@ def test_tables_of_rough_objects_stay_out_of_the_wrong_hit_headline():
 
 def test_fewer_than_ten_cases_give_their_range_not_a_ci():
     """A percentile bootstrap over 3 cases is just [min, max] and covers 52–87 %: below stats.MIN_CASES_CI cases the
-    table says "range over n = 3" and gives the cases' min and max; from 10 cases on, the bootstrap's 95 % CI."""
+    table says "range over n = 3" and gives the cases' min and max; from 10 cases on, the median's 95 % CI."""
 
     def table(n):
         rows = []

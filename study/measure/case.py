@@ -24,7 +24,7 @@ from study.cache import Cache
 from study.errors import StudyError
 from study.impostor.envmap import EnvMap
 from study.impostor.views import Lobe
-from study.measure import metrics, outcomes, split, stats, truth
+from study.measure import metrics, outcomes, spatial, split, stats, truth
 from study.measure.inputs import camera_render, capture_views, impostor, second_captures
 from study.methods import Method
 from study.optics import shading
@@ -291,7 +291,7 @@ def run_case(
             ctx = RayContext(rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image, ref.image,
                              mask, t.label)  # fmt: skip
             extra = {**extra, **_produced(ctx)}
-        out.rows.append(_row(t, base, rays.x, ang, oc, exact, cols, extra))
+        out.rows.append(_row(t, base, rays, ang, oc, exact, cols, extra))
         if keep_images and not t.reference:
             out.images[t.label] = t.image
             out.angle_maps[t.label] = rays.per_pixel(ang, fill=np.nan)
@@ -369,7 +369,9 @@ def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool) -> 
         **metrics.image_errors(r.mitsuba, img, mask=over, suffix="mitsuba", backend=backend,
                                with_flip="mitsuba" in r.against),
         **truth.columns(img, r.truth, r.mitsuba, mask=over, backend=backend),
-        **stats.pixel_columns(img, r.truth.image, mask=over, sigma=r.sigma, rel_eps=truth.REL_EPS, emap=fmap),
+        **stats.pixel_columns(img, r.truth.image, mask=over,  # σ over the same pixels as truth.columns
+                              sigma=truth.noise_rms(r.truth.noise, over),
+                              rel_eps=truth.REL_EPS, emap=fmap),
         **split.split_columns(img, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
                               mask=over, held_px=r.held_px, intervals=intervals),  # sweeps: values only
     }  # fmt: skip
@@ -378,9 +380,7 @@ def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool) -> 
     return cols
 
 
-def _row(
-    t: Traced, base: dict, x: np.ndarray, ang, oc, exact: ExactHits, image_cols: dict, extra: dict
-) -> dict:
+def _row(t: Traced, base: dict, rays, ang, oc, exact: ExactHits, image_cols: dict, extra: dict) -> dict:
     """One trace's row: the case's columns, the method's knobs, geometry (angle, distance), outcome classes and
     their intervals, off-screen hits, image columns, then validity, the search's residual and its cost."""
     return {
@@ -391,7 +391,15 @@ def _row(
         **metrics.value_stats(ang, "angle", "_deg"),
         "dist_median": float(np.nanmedian(np.linalg.norm(t.shown - exact.point, axis=-1))),
         **outcomes.outcome_columns(oc, exact.occluded, ang),
-        **stats.ray_columns(oc, ang, exact.occluded, x, exact.point),  # counts, intervals, fixed tolerances
+        **stats.ray_columns(
+            oc,
+            ang,
+            exact.occluded,
+            rays.x,
+            exact.point,  # counts, intervals, fixed tolerances
+            pixels=spatial.ray_pixels(rays.hit, rays.src),
+            shape=rays.hit.shape[:2],
+        ),
         **outcomes.offscreen_columns(oc, exact.offscreen),
         **image_cols,
         **extra,

@@ -63,9 +63,10 @@ whether the search's error and the map's are unrelated. ``tests/test_split_plant
 a cube map of a known room (shifted views, a wall hidden, a blurred impostor, noisy truth): each lands in its own
 term.
 
-Each term has a 95 % percentile-bootstrap interval over blocks of pixels (``scipy.stats.bootstrap``, paired: one draw of
-blocks for all terms, :func:`study.measure.stats.mean_cis` on :func:`study.measure.stats.pixel_blocks`), written
-``dec_<term>_lo``/``_hi``. ``dec_sums`` is 1 when the parts add up to the total within their intervals: the parts'
+Each term has a 95 % interval over the object's spatially correlated pixels (the mean ± t·√variance, the variance
+from the term's own autocovariance over a lag window sized by its correlation length:
+:func:`study.measure.spatial.mean_intervals`), written ``dec_<term>_lo``/``_hi``. ``dec_sums`` is 1 when the
+parts add up to the total within their intervals: the parts'
 summed interval [Σ lo, Σ hi] meets the total's. ``dec_residual``'s own interval is the stricter, paired check (it
 excludes 0 where the map misses more than seed and resolution explain, e.g. at the edge of an emitter, where texel
 filtering errs more than first order). No term is defined from another: the representation is measured against O₂ and
@@ -79,7 +80,8 @@ import math
 import numpy as np
 
 from study.impostor.cubemap import FAR
-from study.measure.stats import mean_cis, pixel_blocks
+from study.measure.spatial import mean_intervals
+from study.measure.stats import LEVEL
 
 #: The colour of oracle_map pixels whose hits the views do not hold (linear RGB).
 MARK = (1.0, 0.0, 1.0)
@@ -228,7 +230,7 @@ def split_columns(
         )
     parts = {**{f"dec_{k}": t[k] for k in names}, "held": t["total"] * h, "unheld": t["total"] * ~h}
     cis = (
-        dict(zip(parts, mean_cis(*parts.values(), blocks=pixel_blocks(mask))))
+        dict(zip(parts, mean_intervals(list(parts.values()), mask, LEVEL)[0]))
         if intervals
         else dict.fromkeys(parts, nan2)
     )

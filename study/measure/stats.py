@@ -1,25 +1,28 @@
 """Numbers with their uncertainty: intervals per case (over rays, over blocks of pixels), intervals over a table's
 cases, paired comparisons of two methods, and the wrong fraction at tolerances with one meaning.
 
-Resampling units (each an independent draw of the quantity a column averages):
+Units of uncertainty (what a column averages, and what is correlated within it); each interval's coverage is
+measured by simulation with a known truth (:mod:`study.measure.calibration`, ``reports/calibration.md``):
 
 * **rays** for per-ray columns (``wrong_fraction*``, ``angle_*``, ``dist_*``): the object's secondary rays of one
-  case. Fractions get a Wilson score interval (:func:`fraction_ci`: ``scipy.stats.binomtest(k, n).proportion_ci``;
-  it is what a bootstrap of a Bernoulli mean approximates and stays honest at 0 % and 100 %); percentiles get a
-  distribution-free order-statistic interval over the rays (:func:`quantile_ci`, exact and cheap).
-* **blocks of pixels** for image columns (``rmse_*``, ``relmse_*``, ``flip_*``, the error split's ``dec_*``): the
-  object's pixels of one case, grouped into the tiles of a :data:`BLOCK_GRID` × :data:`BLOCK_GRID` grid over the
-  frame (:func:`pixel_blocks`), each tile's summed error and pixel count resampled together (a block bootstrap of
-  the mean: neighbouring pixels see the same surfaces, so their errors are correlated, and a wrong reflection is a
-  blob of pixels, not independent evidence per pixel). The tiles are a fixed share of the frame, so the interval
-  means the same at 256² and at 1024², and its cost does not grow with the resolution (:func:`pixel_columns`).
-* **cases** for a table's summary: the median over cases with a bootstrap interval (:func:`over_cases`), and
-  paired comparisons of two methods over the same cases (:func:`paired`: Wilcoxon signed-rank).
+  case. Neighbouring rays share texels and surfaces, so they are not independent draws: fractions get a Wilson
+  score interval at the effective number of rays, n over the design effect measured from the per-pixel counts'
+  spatial autocovariance (:func:`fraction_cis`, :func:`study.measure.spatial.fraction_intervals`; it stays honest
+  at 0 % and 100 %); percentiles get a distribution-free order-statistic interval over the rays
+  (:func:`quantile_ci`, exact for independent rays).
+* **pixels** for image columns (``rmse_*``, ``relmse_*``, ``flip_*``, the error split's ``dec_*``): the object's
+  pixels of one case, spatially correlated (a wrong reflection is a blob of pixels, not independent evidence per
+  pixel): the mean ± t·√variance, the variance summed from the image's own autocovariance over a lag window sized
+  by its measured correlation length (:func:`study.measure.spatial.mean_intervals`; ``corr_px``). RMSE-like
+  columns take the interval of the mean squared error and transform its ends, so each interval contains its
+  estimate.
+* **cases** for a table's summary: the median over cases with the interpolated order-statistic interval
+  (:func:`median_ci`) from :data:`MIN_CASES_CI` cases on, else their range (:func:`case_interval`), and paired
+  comparisons of two methods over the same cases (:func:`paired`: Wilcoxon signed-rank), with the smallest shift
+  such a comparison detects (:func:`detectable_shift`).
 
-Rays of one pixel are not quite independent (sub-pixel rays see nearby surfaces), so the per-case intervals are a
-little narrow where supersampling is high; they are meant to say which differences are noise, not to be exact.
-Every bootstrap is percentile, :data:`N_RESAMPLES` resamples, seed :data:`SEED` (deterministic), level
-:data:`LEVEL`.
+A bootstrap (:func:`bootstrap_ci`, for statistics without a closed form) is percentile, :data:`N_RESAMPLES`
+resamples, seed :data:`SEED` (deterministic), level :data:`LEVEL`.
 """
 
 from __future__ import annotations
@@ -29,6 +32,8 @@ import math
 
 import numpy as np
 from scipy import stats as sps
+
+from study.measure import spatial
 
 LEVEL = 0.95
 N_RESAMPLES = 1000
@@ -44,73 +49,9 @@ TOLERANCES_CI = ("1cm", "3cm", "10cm")
 ANGLE_TOL_DEG = 0.5
 #: The share of worst pixels ``*_trim`` columns leave out (0.1 %, at least one pixel).
 TRIM = 0.001
-#: Pixel intervals resample the tiles of a BLOCK_GRID × BLOCK_GRID grid over the frame (:func:`pixel_blocks`):
-#: 4×4-pixel tiles at 256², 16×16 at 1024².
-BLOCK_GRID = 64
 
 
 # ---------------------------------------------------------------------------------------------- intervals
-def pixel_blocks(mask) -> np.ndarray:
-    """(P,) int: the block (tile of the :data:`BLOCK_GRID` × :data:`BLOCK_GRID` grid over the frame; square tiles
-    of round(max(H, W) / BLOCK_GRID) ≥ 1 pixels) of each of the P True pixels of ``mask`` (H, W), in the order of
-    ``mask``'s True pixels (``img[mask]``), numbered 0 … (blocks used − 1)."""
-    mask = np.asarray(mask, bool)
-    h, w = mask.shape
-    t = max(1, round(max(h, w) / BLOCK_GRID))
-    ys, xs = np.nonzero(mask)
-    return np.unique((ys // t) * (-(-w // t)) + xs // t, return_inverse=True)[1].reshape(-1)
-
-
-def mean_cis(*samples, blocks=None, level: float = LEVEL, n_resamples: int = N_RESAMPLES, seed: int = SEED):
-    """[(lo, hi), …]: percentile-bootstrap intervals of the means of several samples of the same units (e.g. one
-    value per pixel each), resampled together (``scipy.stats.bootstrap`` drawing the blocks, as its ``paired=True``
-    does: one draw of units for all, so one pass). Units where any sample is NaN are dropped; fewer than two
-    resampled units give (mean, mean).
-
-    ``blocks``: (P,) int, the block of each unit (e.g. :func:`pixel_blocks`): blocks are resampled, not units (a
-    block bootstrap: each block's sum and count drawn together, the statistic the ratio of the drawn sums to the
-    drawn counts, which is the mean over the drawn units). None: every unit its own block."""
-    xs = np.asarray(samples, float).reshape(len(samples), -1)
-    keep = ~np.isnan(xs).any(axis=0)
-    xs = xs[:, keep]
-    mean = xs.mean(axis=1) if xs.shape[1] else np.full(len(samples), math.nan)
-    b = np.arange(xs.shape[1]) if blocks is None else np.asarray(blocks).reshape(-1)[keep]
-    _, b = np.unique(b, return_inverse=True)
-    nb = int(b.max()) + 1 if b.size else 0
-    if nb < 2:
-        return [(float(v), float(v)) for v in mean]
-    # per block: its pixel count and the summed values of each sample, (nb, 1 + k)
-    table = np.stack(
-        [np.bincount(b, minlength=nb)] + [np.bincount(b, weights=x, minlength=nb) for x in xs], 1
-    )
-
-    def ratio_of_drawn_sums(i, axis=-1):  # i (..., nb): drawn block numbers, one row per resample
-        rows = np.asarray(i, np.intp).reshape(-1, nb)
-        m = len(rows)
-        drawn = np.bincount((np.arange(m)[:, None] * nb + rows).ravel(), minlength=m * nb).reshape(m, nb)
-        t = drawn @ table  # (m, 1 + k): drawn counts and sums, as one matrix product
-        return (t[:, 1:] / t[:, :1]).T.reshape(len(xs), *np.shape(i)[:-1])
-
-    # scipy draws the block numbers (as its paired=True does, with the same draws), the statistic sums the drawn
-    # blocks by a matrix product instead of gathering every sample: 6× faster, equal to 1e-15
-    res = sps.bootstrap(
-        (np.arange(nb),),
-        ratio_of_drawn_sums,
-        vectorized=True,
-        axis=-1,
-        n_resamples=n_resamples,
-        batch=max(1, min(n_resamples, int(2e7 // nb))),  # the drawn-count matrix is (batch, nb)
-        method="percentile",
-        confidence_level=level,
-        random_state=np.random.default_rng(seed),
-    )
-    lo, hi = np.atleast_1d(res.confidence_interval.low), np.atleast_1d(res.confidence_interval.high)
-    # a constant sample has a degenerate bootstrap (NaN): its interval is its value
-    return [
-        (float(m if np.isnan(a) else a), float(m if np.isnan(b_) else b_)) for m, a, b_ in zip(mean, lo, hi)
-    ]
-
-
 def bootstrap_ci(data, statistic, *, level: float = LEVEL, n_resamples: int = N_RESAMPLES, seed: int = SEED):
     """(lo, hi): percentile-bootstrap interval of ``statistic`` over the 1-d sample ``data`` (NaN dropped).
 
@@ -150,11 +91,14 @@ def fraction_ci(k: int, n: int, level: float = LEVEL) -> tuple[float, float]:
     return _wilson(int(k), int(n), float(level))
 
 
-def quantile_ci(data, p: float, level: float = LEVEL) -> tuple[float, float]:
+def quantile_ci(data, p: float, level: float = LEVEL, *, pixels=None, shape=None) -> tuple[float, float]:
     """Distribution-free interval of the ``p``-th percentile (0–100) of ``data`` (NaN dropped): the binomial
-    order-statistic interval of ``scipy.stats.quantile_test`` (exact coverage, no resampling, O(n log n)). A bound
-    the sample cannot give (too few values beyond the quantile) is ``inf`` above, NaN below; an empty sample
-    (NaN, NaN)."""
+    order-statistic interval of ``scipy.stats.quantile_test`` (exact coverage for independent values, no
+    resampling, O(n log n)). A bound the sample cannot give (too few values beyond the quantile) is ``inf`` above,
+    NaN below; an empty sample (NaN, NaN). With ``pixels`` (each value's flat pixel index) and ``shape``: rays
+    clustered by pixel (:func:`study.measure.spatial.quantile_interval`)."""
+    if pixels is not None:
+        return spatial.quantile_interval(data, p, pixels, shape, level)
     x = np.asarray(data, float)
     x = x[~np.isnan(x)]
     if x.size == 0:
@@ -182,16 +126,17 @@ def tolerance_curve(err: np.ndarray, tolerances=tuple(TOLERANCES.values())) -> n
     return np.array([np.mean(e > t) if e.size else math.nan for t in tolerances])
 
 
-def _frac_cols(name: str, wrong, n_only=False) -> dict:
-    w = np.asarray(wrong, bool)
-    k, n = int(w.sum()), int(w.size)
-    out = {name: k / n if n else math.nan}
-    if not n_only:
-        out[f"{name}_lo"], out[f"{name}_hi"] = fraction_ci(k, n)
-    return out
+def fraction_cis(flags, pixels=None, shape=None) -> tuple[list[tuple[float, float]], list[float]]:
+    """([(lo, hi), …], [design effect, …]) of the fractions of several per-ray flags (k, N) of the same rays:
+    clustered by pixel (:func:`study.measure.spatial.fraction_intervals`) when ``pixels`` (N,) (each ray's flat
+    pixel index) and ``shape`` (H, W) are given, else Wilson's over independent rays (design effect NaN)."""
+    flags = np.asarray(flags, bool).reshape(len(flags), -1)
+    if pixels is None:
+        return [fraction_ci(int(f.sum()), f.size) for f in flags], [math.nan] * len(flags)
+    return spatial.fraction_intervals(flags, pixels, shape, LEVEL)
 
 
-def ray_columns(outcomes, angle, hidden, x, exact) -> dict[str, float]:
+def ray_columns(outcomes, angle, hidden, x, exact, *, pixels=None, shape=None) -> dict[str, float]:
     """The columns with counts, intervals and fixed tolerances of one method in one case (resampling unit: rays).
 
     Parameters
@@ -204,20 +149,26 @@ def ray_columns(outcomes, angle, hidden, x, exact) -> dict[str, float]:
         The exact hit is hidden from the reference point.
     x, exact : (N, 3) arrays
         The rays' origins (shading points) and exact hits.
+    pixels, shape : (N,) int array and (H, W), optional
+        Each ray's flat pixel index in the frame (:func:`study.measure.spatial.ray_pixels`): the fractions'
+        intervals are then clustered by pixel (:func:`fraction_cis`; neighbouring rays share texels), else over
+        independent rays.
 
     Returns
     -------
     dict
-        ``n_rays``, ``n_hidden``, ``n_wrong`` (counts behind every fraction); ``wrong_fraction_texel`` (= the
-        texel-relative ``wrong_fraction``: ε = max(1 cm, one texel)) with ``_lo``/``_hi``, and ``_lo``/``_hi`` of
+        ``n_rays``, ``n_hidden``, ``n_wrong`` (counts behind every fraction); ``rays_deff``: the design effect
+        of ``wrong_fraction`` (its variance over the binomial one, NaN without ``pixels``);
+        ``wrong_fraction_texel`` (= the texel-relative ``wrong_fraction``: ε = max(1 cm, one texel)) with
+        ``_lo``/``_hi``, and ``_lo``/``_hi`` of
         ``wrong_fraction_visible``/``_hidden``; ``wrong_fraction_<tol>`` for each fixed tolerance of
         :data:`TOLERANCES` (no hit = wrong), with intervals for :data:`TOLERANCES_CI`; ``wrong_fraction_0p5deg``
         (angular tolerance :data:`ANGLE_TOL_DEG` seen from x); ``angle_dropped`` / ``dist_dropped``: the share of
         rays that ``angle_*`` / ``dist_*`` leave out (no hit; for dist also points at infinity);
         ``angle_p95_all_deg``: the 95th percentile of the angle with dropped rays as infinite error (inf when more
         than 5 % are dropped); ``angle_median_deg_lo``/``_hi``, ``angle_p95_deg_lo``/``_hi``,
-        ``dist_p95_lo``/``_hi``: order-statistic intervals (:func:`quantile_ci`) over the rays the statistic
-        keeps.
+        ``dist_p95_lo``/``_hi``: order-statistic intervals (:func:`quantile_ci`, clustered by pixel with
+        ``pixels``) over the rays the statistic keeps.
     """
     from study.measure.outcomes import CORRECT
 
@@ -227,28 +178,35 @@ def ray_columns(outcomes, angle, hidden, x, exact) -> dict[str, float]:
     err = error_distance(outcomes, x, exact)
     ang = np.asarray(angle, float)
     out = {"n_rays": int(c.size), "n_hidden": int(hidden.sum()), "n_wrong": int(wrong.sum())}
-    out.update(_frac_cols("wrong_fraction_texel", wrong))
-    for part, sel in (("visible", ~hidden), ("hidden", hidden)):
-        cols = _frac_cols(f"wrong_fraction_{part}", wrong[sel])
-        out.update({k: v for k, v in cols.items() if k.endswith(("_lo", "_hi"))})
-    for name, tol in TOLERANCES.items():
-        out.update(_frac_cols(f"wrong_fraction_{name}", err > tol, n_only=name not in TOLERANCES_CI))
     reach = np.linalg.norm(np.asarray(exact, float) - np.asarray(x, float), axis=-1)
     with np.errstate(invalid="ignore"):
-        out.update(
-            _frac_cols("wrong_fraction_0p5deg", ~(err <= reach * math.tan(math.radians(ANGLE_TOL_DEG))))
-        )
+        flags = {
+            "wrong_fraction_texel": wrong,
+            **{f"wrong_fraction_{name}": err > tol for name, tol in TOLERANCES.items()},
+            "wrong_fraction_0p5deg": ~(err <= reach * math.tan(math.radians(ANGLE_TOL_DEG))),
+        }
+    for name, f in flags.items():
+        out[name] = float(f.mean()) if c.size else math.nan
+    ci = ["wrong_fraction_texel", *(f"wrong_fraction_{t}" for t in TOLERANCES_CI), "wrong_fraction_0p5deg"]
+    cis, deff = fraction_cis([flags[k] for k in ci], pixels, shape)
+    out["rays_deff"] = float(deff[0])
+    for part, sel in (("visible", ~hidden), ("hidden", hidden)):
+        ci.append(f"wrong_fraction_{part}")
+        cis += fraction_cis([wrong[sel]], None if pixels is None else np.asarray(pixels)[sel], shape)[0]
+    for name, (lo, hi) in zip(ci, cis):
+        out[f"{name}_lo"], out[f"{name}_hi"] = lo, hi
     fa, fd = np.isfinite(ang), np.isfinite(np.asarray(outcomes.dist, float))
     out["angle_dropped"] = float(1 - fa.mean()) if c.size else math.nan
     out["dist_dropped"] = float(1 - fd.mean()) if c.size else math.nan
     full = np.where(fa, ang, np.inf)
     out["angle_p95_all_deg"] = float(np.percentile(full, 95, method="inverted_cdf")) if c.size else math.nan
-    for name, v, p in (
-        ("angle_median_deg", ang[fa], 50),
-        ("angle_p95_deg", ang[fa], 95),
-        ("dist_p95", np.asarray(outcomes.dist)[fd], 95),
+    px = (lambda sel: None) if pixels is None else (lambda sel: np.asarray(pixels)[sel])
+    for name, v, p, sel in (
+        ("angle_median_deg", ang[fa], 50, fa),
+        ("angle_p95_deg", ang[fa], 95, fa),
+        ("dist_p95", np.asarray(outcomes.dist)[fd], 95, fd),
     ):
-        out[f"{name}_lo"], out[f"{name}_hi"] = quantile_ci(v, p)
+        out[f"{name}_lo"], out[f"{name}_hi"] = quantile_ci(v, p, pixels=px(sel), shape=shape)
     return out
 
 
@@ -271,12 +229,14 @@ def _debiased_root(mse: float, sigma: float) -> float:
 
 
 def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str = "truth", emap=None) -> dict:
-    """Intervals and robust variants of one image's errors against ``ref`` over ``mask`` (unit: blocks of pixels,
-    :func:`pixel_blocks`).
+    """Intervals and robust variants of one image's errors against ``ref`` over ``mask`` (pixels, spatially
+    correlated: :mod:`study.measure.spatial`).
 
-    Returns ``n_pixels``, ``n_blocks``; ``rmse_<suffix>_lo``/``_hi`` (block bootstrap of the mean squared error, then
-    √), ``rmse_<suffix>_debiased_lo``/``_hi`` (the same bounds debiased by the reference's noise σ, taken as
-    known: √max(0, b² − σ²)), ``relmse_<suffix>_lo``/``_hi`` (relMSE with ε = ``rel_eps``), ``flip_<suffix>_lo``/
+    Returns ``n_pixels``, ``corr_px`` (the squared error's correlation length, pixels); ``rmse_<suffix>_lo``/
+    ``_hi`` (the interval of the mean squared error, :func:`study.measure.spatial.mean_intervals`, then √),
+    ``rmse_<suffix>_debiased_lo``/``_hi`` (the same bounds debiased by the reference's noise σ, taken as known:
+    √max(0, b² − σ²); σ must be measured over the same ``mask`` as the estimate's),
+    ``relmse_<suffix>_lo``/``_hi`` (relMSE with ε = ``rel_eps``), ``flip_<suffix>_lo``/
     ``_hi`` (when the FLIP map ``emap`` is given); ``rmse_<suffix>_trim`` / ``rmse_<suffix>_debiased_trim``: the
     RMSE without the worst :data:`TRIM` of pixels (≥ 1 pixel); ``sqerr_top_share_<suffix>``: the share of the
     summed squared error that those worst pixels carry (near 1: the RMSE is decided by a handful of pixels)."""
@@ -284,14 +244,17 @@ def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str =
     d, r = (img - ref)[mask], ref[mask]
     se = np.mean(d * d, axis=-1)  # per pixel, mean over channels: mean(se) = RMSE²
     rel = np.mean(d * d / (r * r + rel_eps), axis=-1)
-    blocks = pixel_blocks(mask)
-    out = {"n_pixels": int(se.size), "n_blocks": int(blocks.max()) + 1 if blocks.size else 0}
     names, samples = [f"rmse_{suffix}", f"relmse_{suffix}"], [se, rel]
     if emap is not None:
         names.append(f"flip_{suffix}")
         samples.append(np.asarray(emap, float)[mask])
-    cis = dict(zip(names, mean_cis(*samples, blocks=blocks)))
+    intervals, length = (
+        spatial.mean_intervals(samples, mask, LEVEL) if se.size else ([(math.nan,) * 2] * 3, math.nan)
+    )
+    out = {"n_pixels": int(se.size), "corr_px": length}
+    cis = dict(zip(names, intervals))
     lo, hi = cis.pop(f"rmse_{suffix}")
+    lo = max(lo, 0.0)
     out[f"rmse_{suffix}_lo"], out[f"rmse_{suffix}_hi"] = math.sqrt(lo), math.sqrt(hi)
     for k, b in (("lo", lo), ("hi", hi)):
         out[f"rmse_{suffix}_debiased_{k}"] = _debiased_root(b, sigma)
@@ -307,13 +270,37 @@ def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str =
 
 
 # ---------------------------------------------------------------------------------------------- over cases
+def median_ci(values, level: float = LEVEL) -> tuple[float, float]:
+    """The distribution-free interval of the median of ``values`` (NaN dropped), interpolated between order
+    statistics (Hettmansperger & Sheather 1986): [X₍ₖ₎, X₍ₙ₋ₖ₊₁₎] covers the median with probability γₖ =
+    P(k ≤ Bin(n, ½) ≤ n − k); k is the last with γₖ ≥ ``level``, and each end moves towards the next order statistic
+    by λ = (n − k)·I / (k + (n − 2k)·I), I = (γₖ − level) / (γₖ − γₖ₊₁), so the coverage is ``level`` for any
+    continuous distribution instead of the next γₖ above it (97.9 % at n = 10). Too few values for γ₁ ≥ ``level``
+    (n ≤ 5 at 95 %): their range. It contains the sample median."""
+    x = np.sort(np.asarray(values, float)[~np.isnan(np.asarray(values, float))])
+    n = x.size
+    if n == 0:
+        return math.nan, math.nan
+    gamma = [1 - 2 * sps.binom.cdf(k - 1, n, 0.5) for k in range(1, n // 2 + 2)]
+    k = max([i + 1 for i, g in enumerate(gamma) if g >= level], default=1)
+    if gamma[k - 1] < level or k >= n - k + 1:
+        return float(x[0]), float(x[-1])
+    frac = (gamma[k - 1] - level) / (gamma[k - 1] - gamma[k])
+    lam = (n - k) * frac / (k + (n - 2 * k) * frac)
+    return float((1 - lam) * x[k - 1] + lam * x[k]), float((1 - lam) * x[n - k] + lam * x[n - k - 1])
+
+
 def over_cases(values, statistic=np.median) -> tuple[float, float, float, int]:
-    """(statistic, lo, hi, n) of the finite per-case ``values``: the bootstrap interval over cases."""
+    """(statistic, lo, hi, n) of the finite per-case ``values``: the median's interval :func:`median_ci`, another
+    statistic's the percentile bootstrap over cases."""
     v = np.asarray(values, float)
     v = v[np.isfinite(v)]
     if v.size == 0:
         return math.nan, math.nan, math.nan, 0
-    lo, hi = bootstrap_ci(v, lambda x, axis=-1: statistic(x, axis=axis))
+    if statistic is np.median:
+        lo, hi = median_ci(v)
+    else:
+        lo, hi = bootstrap_ci(v, lambda x, axis=-1: statistic(x, axis=axis))
     return float(statistic(v)), lo, hi, int(v.size)
 
 
@@ -323,8 +310,8 @@ MIN_CASES_CI = 10
 
 
 def case_interval(values) -> tuple[float, float, float, int, str]:
-    """(median, lo, hi, n, kind) of per-case values: ``kind`` "ci", the bootstrap's 95 % interval over the cases
-    (:func:`over_cases`), from :data:`MIN_CASES_CI` cases on; else "range", their min and max."""
+    """(median, lo, hi, n, kind) of per-case values: ``kind`` "ci", the median's 95 % interval over the cases
+    (:func:`median_ci`), from :data:`MIN_CASES_CI` cases on; else "range", their min and max."""
     v = np.asarray(values, float)
     v = v[np.isfinite(v)]
     if 0 < v.size < MIN_CASES_CI:  # no bootstrap to throw away
@@ -358,6 +345,19 @@ def paired(a, b) -> dict:
     return out
 
 
+def detectable_difference(a, b, alpha: float = 1 - LEVEL, power: float = 0.8) -> float:
+    """The smallest difference between two methods' per-case values ``a`` and ``b`` (over the cases where both are
+    finite) that :func:`paired` detects at ``alpha`` with ``power``: :func:`detectable_shift` × the standard
+    deviation of the differences, in the values' unit (``inf`` with too few cases to reach ``alpha``, NaN with
+    fewer than two differences)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    d = (a - b)[np.isfinite(a) & np.isfinite(b)]
+    shift = detectable_shift(int(d.size), alpha, power)
+    if math.isinf(shift):
+        return math.inf
+    return float(shift * np.std(d, ddof=1)) if d.size > 1 else math.nan
+
+
 def min_p(n: int) -> float:
     """The smallest two-sided p-value a Wilcoxon signed-rank test on n cases can give (2/2ⁿ): below 6 cases no
     difference can be significant at 5 %."""
@@ -389,11 +389,50 @@ def detectable_fraction(n: float, p0: float, alpha: float = 1 - LEVEL, power: fl
     return (1.0 if a >= math.pi / 2 else math.sin(a) ** 2) - p0
 
 
+#: Draws of the Monte Carlo power in :func:`detectable_shift` (fixed seed :data:`SEED`: deterministic).
+POWER_DRAWS = 2000
+
+
+def _signed_rank_null(n: int) -> np.ndarray:
+    """P(W⁺ = w), w = 0 … n(n+1)/2: the exact null distribution of the Wilcoxon signed-rank statistic."""
+    counts = np.zeros(n * (n + 1) // 2 + 1)
+    counts[0] = 1.0
+    for k in range(1, n + 1):
+        counts[k:] = counts[k:] + counts[:-k].copy()
+    return counts / counts.sum()
+
+
+@functools.lru_cache(maxsize=256)
 def detectable_shift(n: int, alpha: float = 1 - LEVEL, power: float = 0.8) -> float:
-    """The smallest shift of paired per-case differences, in their standard deviations, that a two-sided Wilcoxon
-    signed-rank test over ``n`` cases detects at ``alpha`` with ``power`` (normal approximation, Wilcoxon's
-    efficiency 3/π against the paired t-test: (z₁₋α/₂ + z_power) / √(3n/π)); ``inf`` where no p-value it can give
-    reaches ``alpha`` (:func:`min_p` = 2/2ⁿ ≥ alpha: fewer than 6 cases at 5 %)."""
+    """The smallest shift of paired per-case differences, in their standard deviations, that the two-sided Wilcoxon
+    signed-rank test over ``n`` cases (:func:`paired`) detects at ``alpha`` with ``power``, for normal
+    differences: the exact null distribution of W⁺ gives the test's rejection region, the power is counted over
+    :data:`POWER_DRAWS` draws of n normal differences (seed :data:`SEED`), shifted until it reaches ``power``
+    (bisection; the same draws for every shift, so the power rises with it). Above 100 cases the normal
+    approximation (z₁₋α/₂ + z_power) / √(3n/π) (Wilcoxon's efficiency 3/π against the paired t-test). ``inf`` where
+    no p-value it can give reaches ``alpha`` (:func:`min_p` = 2/2ⁿ ≥ alpha: fewer than 6 cases at 5 %)."""
     if n < 1 or min_p(n) >= alpha:
         return math.inf
-    return float((sps.norm.ppf(1 - alpha / 2) + sps.norm.ppf(power)) / math.sqrt(3 * n / math.pi))
+    if n > 100:
+        return float((sps.norm.ppf(1 - alpha / 2) + sps.norm.ppf(power)) / math.sqrt(3 * n / math.pi))
+    pmf = _signed_rank_null(n)
+    cdf = np.cumsum(pmf)
+    sf = cdf[-1] - np.concatenate([[0.0], cdf[:-1]])  # P(W⁺ ≥ w)
+    p = np.minimum(1.0, 2 * np.minimum(cdf, sf))  # two-sided p-value of each w
+    z = np.random.default_rng(SEED).normal(size=(POWER_DRAWS, n))
+    ranks = np.arange(1, n + 1)
+
+    def found(shift: float) -> float:
+        d = z + shift
+        order = np.argsort(np.abs(d), axis=1)
+        w = np.sum(np.where(np.take_along_axis(d, order, 1) > 0, ranks, 0), axis=1)
+        return float(np.mean(p[w] < alpha))
+
+    approx = (sps.norm.ppf(1 - alpha / 2) + sps.norm.ppf(power)) / math.sqrt(3 * n / math.pi)
+    lo, hi = 0.5 * approx, 2 * approx
+    while found(hi) < power:
+        lo, hi = hi, 2 * hi
+    for _ in range(12):  # to 2⁻¹² of the bracket
+        mid = (lo + hi) / 2
+        lo, hi = (lo, mid) if found(mid) >= power else (mid, hi)
+    return float(hi)

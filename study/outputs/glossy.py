@@ -1,9 +1,9 @@
 """Glossy reflections: the split of the engines' error into its parts, from a glossy figure's outputs.
 
 Per case (an ``object.alpha`` × object position of ``configs/fig_glossy.toml``), over the object's pixels
-(``mask``), each part is an RMSE between two images of the case's EXR, with a 95 % percentile-bootstrap interval
-over blocks of pixels (:func:`study.measure.stats.mean_cis` on the per-pixel squared errors, blocks
-:func:`study.measure.stats.pixel_blocks`, the interval's ends square-rooted):
+(``mask``), each part is an RMSE between two images of the case's EXR, with a 95 % interval over the spatially
+correlated pixels (:func:`study.measure.spatial.mean_intervals` on the per-pixel squared errors, the interval's ends
+square-rooted):
 
 ==============  =======================================  ===================================================
 part            images                                   what differs
@@ -33,7 +33,8 @@ import numpy as np
 import pandas as pd
 
 from study.io import atomic_write, file_stem, read_exr_layers
-from study.measure.stats import mean_cis, pixel_blocks
+from study.measure.spatial import mean_intervals
+from study.measure.stats import LEVEL
 from study.tables import markdown
 
 #: (part, first image, second image, pixels): image names are file stems of labels (``study.io.file_stem``)
@@ -73,7 +74,7 @@ def case_split(exr: Path) -> dict:
     for part, a, b, where in PARTS:
         px = mask if where == "all" else hidden
         sq = np.mean((layers[names[a]] - layers[names[b]]) ** 2, axis=-1)[px]
-        ((lo, hi),) = mean_cis(sq, blocks=pixel_blocks(px)) if sq.size else [(np.nan, np.nan)]
+        ((lo, hi),) = mean_intervals([sq], px, LEVEL)[0] if sq.size else [(np.nan, np.nan)]
         out[part] = float(np.sqrt(sq.mean())) if sq.size else np.nan
         out[f"{part}_lo"], out[f"{part}_hi"] = float(np.sqrt(lo)), float(np.sqrt(hi))
         out[f"{part}_pixels"] = int(px.sum())

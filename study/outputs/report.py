@@ -136,7 +136,7 @@ def _claims_section(tables: dict[str, list[dict]]) -> list[tuple]:
         (
             "p",
             "Each claim is checked on every table it applies to (study/outputs/claims.py), on the rays or pixels "
-            "it is about (*subset*, *n*) and on tails — wrong fractions with their 95 % Wilson interval over rays, "
+            "it is about (*subset*, *n*) and on tails — wrong fractions with their 95 % interval over rays, "
             "95th percentiles — not medians; a claim that does not hold says so first (fails: …); a claim the paper "
             "gives no number for is *measured* (no verdict). Each claim's words, place and threshold: "
             "[claims.md](claims.md).",
@@ -166,10 +166,9 @@ def _decomposition_section(tables: dict[str, list[dict]]) -> list[tuple]:
             "Each part from its own experiment: dec_representation_direct = oracle_map against truth_at_hit on the "
             "held pixels, noise removed (the exact hit shaded from the impostor vs from the scene); dec_sums_direct "
             "= 1 where search + visibility + representation_direct + noise meet the total within their intervals "
-            "(what is left is the cross term); intervals "
-            "(percentile bootstrap over blocks of pixels — the tiles of a 64 × 64 grid over the frame — "
-            "scipy.stats.bootstrap, 1000 resamples, in the results tables as "
-            "dec_*_lo / _hi). rmse_truth_held / _unheld: RMSE against the truth on the pixels whose hits the views "
+            "(what is left is the cross term); intervals over the spatially correlated pixels: mean ± t·√variance "
+            "from each term's autocovariance (study/measure/spatial.py; in the results tables as dec_*_lo / _hi). "
+            "rmse_truth_held / _unheld: RMSE against the truth on the pixels whose hits the views "
             "hold / do not hold. *_debiased = √max(0, RMSE² − σ²) with σ the reference's noise; rmse_mitsuba is "
             "against Mitsuba's own camera render with the object (two seeds), which differs from what the methods "
             "are asked by the object's shadow and one bounce on the reflected path.",

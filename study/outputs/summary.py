@@ -3,7 +3,8 @@
 Everything here reads results tables (one row per case × method) and nothing else. Per table:
 
 * **the best** method for a metric is the one with the lowest median over the table's cases; its median comes
-  with a bootstrap interval over the cases and its worst case (a median hides failures);
+  with an order-statistic interval over the cases (their range below 10 cases) and its worst case (a median
+  hides failures);
 * **the runner-up** is compared with it over the same cases (:func:`study.measure.stats.paired`: Wilcoxon
   signed-rank, two-sided, with the count of cases each wins): "significant at 1 %/5 %" or "no significant
   difference"; below 6 cases no difference can reach 5 % (:func:`study.measure.stats.min_p`), and the headline
@@ -322,6 +323,7 @@ INTERVAL_COLUMNS = [
     "wrong_max",
     "worse_cases",
     "p_vs_best",
+    "mdd_vs_best",
     "rmse",
     "rmse_lo",
     "rmse_hi",
@@ -330,10 +332,13 @@ INTERVAL_COLUMNS = [
 
 def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
     """Per table and method: the median over cases of the wrong fraction and of the debiased RMSE with their
-    intervals over the cases (``_lo``/``_hi``: the bootstrap's 95 % CI, or the cases' range below
+    intervals over the cases (``_lo``/``_hi``: the median's 95 % CI, or the cases' range below
     ``stats.MIN_CASES_CI`` cases; ``interval`` says which), the worst case (``wrong_max``), the cases where the
-    method's wrong fraction lies above the best's beyond both rays' intervals (``worse_cases``) and the Wilcoxon
-    p-value of its wrong fractions against the best's over the same cases (``p_vs_best``)."""
+    method's wrong fraction lies above the best's beyond both rays' intervals (``worse_cases``), the Wilcoxon
+    p-value of its wrong fractions against the best's over the same cases (``p_vs_best``) and the smallest
+    difference from the best's that those cases could detect (``mdd_vs_best``,
+    :func:`study.outputs.power.detectable`; inf below 6
+    cases)."""
     out = []
     for name, tab in tables.items():
         rank = ranking(tab, WRONG)
@@ -357,6 +362,7 @@ def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
                     "wrong_max": r["max"],
                     "worse_cases": 0 if same else separated(tab, r["label"], best)[1],
                     "p_vs_best": math.nan if same else versus(tab, r["label"], best, WRONG)["p"],
+                    "mdd_vs_best": math.nan if same else power.detectable(tab, r["label"], best, WRONG),
                     "rmse": i.get("median", math.nan),
                     "rmse_lo": i.get("lo", math.nan),
                     "rmse_hi": i.get("hi", math.nan),
@@ -380,15 +386,18 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
         ("list", items),
         (
             "p",
-            "Intervals: 95 %; per case over the rays (Wilson) or blocks of pixels (bootstrap), over cases a "
-            f"bootstrap of the median from {stats.MIN_CASES_CI} cases on, else the cases' range (a bootstrap over "
-            "2–4 cases covers the truth 52–87 % of the time; study/measure/stats.py); *wrong hits* use the "
+            "Intervals: 95 %, their coverage measured by simulation (reports/calibration.md); per case over the rays "
+            "(Wilson at the rays' effective number, clustered by pixel) or over the spatially correlated pixels, "
+            f"over cases the median's order-statistic interval from {stats.MIN_CASES_CI} cases on, else the cases' "
+            "range (an interval over 2–4 cases covers the truth 52–87 % of the time; study/measure/stats.py); "
+            "*wrong hits* use the "
             "texel-relative tolerance ε = max(1 cm, one texel); the fixed-tolerance columns (wrong_fraction_1cm, "
             "_3cm, _10cm) keep one meaning at every cube resolution. The table: per table and method (best first), "
             "the medians over the cases with their interval over the cases (*interval* says which), the worst "
-            "case, the cases where the method is wrong more often than the best beyond both rays' intervals, and "
-            "the Wilcoxon p-value "
-            "against the best over the same cases.",
+            "case, the cases where the method is wrong more often than the best beyond both rays' intervals, "
+            "the Wilcoxon p-value against the best over the same cases, and *mdd_vs_best*: the smallest difference "
+            "in wrong fraction from the best that those cases could detect (80 % power, 5 %, from the spread of the "
+            "per-case differences; inf below 6 cases).",
         ),
         ("table", interval_rows(tables), INTERVAL_COLUMNS),
         *power.power_blocks(
@@ -404,10 +413,12 @@ def column_notes() -> list[str]:
         "at the hit), so it tightens as the map gets finer; *wrong_fraction_1cm / _3cm / _10cm*: the same "
         "distance at every resolution; *wrong_fraction_0p5deg*: |shown − exact| subtends > 0.5° seen from the "
         "shading point. A ray with no hit is wrong at every tolerance.",
-        "*_lo / _hi*: 95 % interval of the column within its case: over the rays (fractions: Wilson; angle and "
-        "dist percentiles: order-statistic interval) or over blocks of pixels (rmse, relmse, flip: bootstrap over "
-        "the tiles of a 64 × 64 grid on the frame, 1000 resamples, fixed seed). *n_rays*, *n_hidden*, *n_wrong*, "
-        "*n_pixels*, *n_blocks*: the counts behind them.",
+        "*_lo / _hi*: 95 % interval of the column within its case: over the rays (fractions: Wilson at the "
+        "effective number of rays, n_rays / rays_deff, the design effect measured with rays clustered by pixel; "
+        "angle and dist percentiles: order-statistic interval) or over the pixels (rmse, relmse, flip: mean ± "
+        "t·√variance, the variance from the error image's autocovariance over a lag window that follows its "
+        "correlation length corr_px). *n_rays*, *n_hidden*, *n_wrong*, *n_pixels*: the counts behind them; "
+        "their coverage: reports/calibration.md.",
         "*angle_dropped* / *dist_dropped*: the share of rays that angle_* / dist_* leave out (no hit; for dist "
         "also points at infinity): angle_* and dist_* describe only the rays that remain. "
         "*angle_p95_all_deg* counts the dropped rays as infinite error instead.",
@@ -416,9 +427,9 @@ def column_notes() -> list[str]:
         "decide the RMSE). *relmse_truth*: mean of (test − truth)² / (truth² + 0.01).",
         "*_oracle* columns (and the *oracle_map* row) are over the pixels whose every hit the reference point's "
         "views hold (*held_pixels*); *oracle_map* has no value on the others (*unheld_pixels*). *dec_**: the error "
-        "split over all object pixels (study/measure/split.py), each with a pixel-bootstrap interval.",
+        "split over all object pixels (study/measure/split.py), each with a pixel interval.",
         "In these tables the value per table and method is the median over cases; the summary above gives it "
-        "with a bootstrap interval over the cases and tests differences between methods over the same cases "
+        "with an interval over the cases and tests differences between methods over the same cases "
         "(Wilcoxon signed-rank).",
     ]
 

@@ -53,7 +53,7 @@ def motion_claim_section(d: Path, table: Path, rel: str = "animation") -> list[t
             "sequence against Mitsuba's in JOD (10: no visible difference; "
             f"1 JOD less: about 75 % of viewers prefer the reference) on its {m.get('jod_display', 'standard_fhd')}"
             " display (24-inch Full HD, 200 cd/m², office light, 0.6 m); truth_at_hit is the noise floor (exact "
-            "hits, Mitsuba's shading). Intervals: bootstrap over 4 runs of consecutive frames. The claim holds "
+            "hits, Mitsuba's shading). Intervals: Student's t over 4 runs of consecutive frames. The claim holds "
             "for a method within 0.5 JOD of the floor."
         )
     else:

@@ -1,0 +1,216 @@
+"""The uncertainty of a mean over an image's pixels whose values are spatially correlated: the variance of a ratio
+Σ num / Σ den over the masked pixels, from the image's own autocovariance, summed over a lag window sized by its
+measured correlation length.
+
+A mean over pixels is a ratio estimator r = Σᵢ numᵢ / Σᵢ denᵢ (image errors: num = the pixel's value, den = 1; ray
+fractions: num = the pixel's wrong rays, den = its rays). Linearised, its variance is Var(Σᵢ eᵢ) / (Σ den)² with the
+residuals eᵢ = numᵢ − r·denᵢ, and Var(Σ eᵢ) = Σ over lags h of the summed products eᵢ·eᵢ₊ₕ (:func:`lag_sums`, one
+FFT): independent pixels keep only h = 0; correlated ones (a wrong reflection is a blob of pixels, neighbouring
+rays share a texel) add their neighbours' covariance. The sum runs over a flat-top lag window (Politis & Romano
+1995): weight 1 up to :data:`WINDOW_LENGTHS` correlation lengths, falling linearly to 0 at twice that. It is the
+block bootstrap's variance with blocks a few correlation lengths wide, moved pixel by pixel instead of cut from a
+fixed grid, without the Bartlett taper that makes non-overlapping blocks miss the covariance across their edges
+(with blocks three correlation lengths wide that bias alone halves the variance).
+
+The correlation length (:func:`correlation_length`) is where the radially averaged autocorrelation of the residuals
+first falls below 1/e (pixels, interpolated between rings). A window that sums to less than the independent
+pixels' variance is raised to it: correlation is never credited with narrowing an interval.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: The lag window is flat (weight 1) out to where the correlogram falls below this, tapering to 0 at twice that.
+WINDOW_LEVEL = 0.1
+#: The flat part of the window reaches at least this many pixels.
+MIN_WINDOW = 2.0
+#: The centring correction divides by at least this (a window as wide as the region would divide by 0).
+MIN_KEPT = 0.25
+#: The correlation length is at most this share of the masked region's smaller extent (a window larger than the
+#: region would sum lags no pixel pair has).
+MAX_LENGTH_SHARE = 0.125
+
+
+def _fft_shape(h: int, w: int) -> tuple[int, int]:
+    from scipy.fft import next_fast_len
+
+    return next_fast_len(2 * h, True), next_fast_len(2 * w, True)
+
+
+def lag_sums(fields: np.ndarray) -> np.ndarray:
+    """(k, H', W') the summed products fᵢ·fᵢ₊ₕ of each (H, W) field over every lag h (zero-padded, so no wrap;
+    lag (dy, dx) at index (dy mod H', dx mod W'))."""
+    from scipy import fft
+
+    f = np.asarray(fields, float)
+    shape = _fft_shape(*f.shape[-2:])
+    F = fft.rfft2(f, s=shape, axes=(-2, -1))
+    return fft.irfft2(F.real**2 + F.imag**2, s=shape, axes=(-2, -1))
+
+
+def _radii(shape: tuple[int, int]) -> np.ndarray:
+    hh, ww = shape
+    dy = np.minimum(np.arange(hh), hh - np.arange(hh))[:, None]
+    dx = np.minimum(np.arange(ww), ww - np.arange(ww))[None, :]
+    return np.hypot(dy, dx)
+
+
+def correlogram(sums: np.ndarray, pairs: np.ndarray, radii: np.ndarray, top: int) -> np.ndarray:
+    """(top + 1,) the radially averaged autocorrelation at integer rings 0 … ``top`` (``sums`` / ``pairs`` per lag,
+    over its value at lag 0; NaN where no pixel pair has that lag, or where the field is constant)."""
+    ring = np.rint(radii).astype(int)
+    sel = (ring <= top) & (pairs > 0.5)
+    acf = np.bincount(ring[sel], weights=(sums[sel] / pairs[sel]), minlength=top + 1)
+    count = np.bincount(ring[sel], minlength=top + 1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return acf / count / (sums.flat[0] / pairs.flat[0])
+
+
+def crossing(rho: np.ndarray, level: float) -> float:
+    """Where the correlogram ``rho`` first falls below ``level``, interpolated between rings (at least 0.5; its
+    last ring if it never does)."""
+    for r in range(1, len(rho)):
+        if not rho[r] >= level:  # NaN (no pairs at that ring) ends it too
+            prev = rho[r - 1]
+            frac = (prev - level) / (prev - rho[r]) if np.isfinite(rho[r]) and prev > rho[r] else 0.0
+            return float(max(0.5, r - 1 + frac))
+    return float(len(rho) - 1)
+
+
+def window(radii: np.ndarray, reach: float) -> np.ndarray:
+    """The flat-top lag weights: 1 out to ``reach`` pixels (at least :data:`MIN_WINDOW`), linearly to 0 at twice
+    that (lag 0 always 1)."""
+    m = max(MIN_WINDOW, reach)
+    return np.clip(2.0 - radii / m, 0.0, 1.0)
+
+
+def ratio_variance(nums, den, mask) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(ratios, variances, correlation lengths): per sample of ``nums`` (k, H, W) (or one (H, W)), the ratio
+    Σ num / Σ den over ``mask`` (H, W), the variance of that ratio under spatial correlation (module docstring)
+    and the residuals' correlation length in pixels. ``den`` (H, W): the weight of each pixel (1 for a mean over
+    pixels). Pixels where a sample is NaN count as outside the mask for every sample. Fewer than two pixels, or
+    Σ den = 0: NaN variance."""
+    mask = np.asarray(mask, bool)
+    nums = np.asarray(nums, float)
+    one = nums.ndim == 2
+    nums = nums.reshape(-1, *mask.shape)
+    den = np.broadcast_to(np.asarray(den, float), mask.shape)
+    mask = mask & ~np.isnan(nums).any(axis=0)
+    k = len(nums)
+    ys, xs = np.nonzero(mask)
+    total = float(den[mask].sum()) if ys.size else 0.0
+    if ys.size < 2 or total <= 0:
+        r = np.array([float(n[mask].sum() / total) if total > 0 else math.nan for n in nums])
+        out = (r, np.full(k, math.nan), np.full(k, math.nan), np.full(k, math.nan))
+        return tuple(v[0] for v in out) if one else out
+    y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1  # the mask's bounding box only
+    m, d = mask[y0:y1, x0:x1], den[y0:y1, x0:x1]
+    sub = np.where(m, nums[:, y0:y1, x0:x1], 0.0)
+    r = sub.sum(axis=(1, 2)) / total
+    resid = np.where(m, sub - r[:, None, None] * d, 0.0)
+    sums = lag_sums(np.concatenate([resid, m[None].astype(float)]))
+    pairs, sums = sums[-1], sums[:-1]
+    radii = _radii(pairs.shape)
+    limit = max(1.0, MAX_LENGTH_SHARE * min(m.shape))
+    lengths, var, dof = np.empty(k), np.empty(k), np.empty(k)
+    n = float(m.sum())
+    for i in range(k):
+        rho = correlogram(sums[i], pairs, radii, int(limit) + 1)
+        lengths[i] = min(limit, crossing(rho, math.exp(-1)))
+        w = window(radii, min(limit, crossing(rho, WINDOW_LEVEL)))
+        # the residuals are centred on the estimated ratio, which takes (Σ w·pairs / n²) of the window's sum away
+        share = float(np.sum(w * pairs)) / (n * n)
+        dof[i] = max(1.0, 1.0 / share - 1.0)
+        keep = max(MIN_KEPT, 1.0 - share)
+        v = float(np.sum(w * sums[i])) / keep
+        var[i] = max(v, float(sums[i].flat[0])) / (total * total)  # never below independent pixels
+    return (r[0], var[0], lengths[0], dof[0]) if one else (r, var, lengths, dof)
+
+
+def _quantile(level: float, dof) -> np.ndarray:
+    from scipy import stats as sps
+
+    return sps.t.ppf(0.5 + level / 2, np.maximum(1.0, np.nan_to_num(np.asarray(dof, float), nan=1.0)))
+
+
+def mean_intervals(samples, mask, level: float) -> tuple[list[tuple[float, float]], float]:
+    """([(lo, hi), …], correlation length): the ``level`` intervals of the means of several per-pixel samples
+    (each (P,), the values of ``mask``'s P True pixels in ``img[mask]`` order), each its mean ± t·√variance
+    (:func:`ratio_variance`, Student's t with the window's degrees of freedom: the region holds about
+    1/share windows, share = Σ weight·pairs / n²; a sample of values ≥ 0 has its lower end at 0 or above); the
+    correlation length is the first sample's, in pixels. Fewer than two pixels: (mean, mean)."""
+    mask = np.asarray(mask, bool)
+    xs = np.asarray(samples, float).reshape(len(samples), -1)
+    imgs = np.zeros((len(xs), *mask.shape))
+    imgs[:, mask] = xs
+    r, var, lengths, dof = ratio_variance(imgs, 1.0, mask)
+    half = _quantile(level, dof) * np.sqrt(var)
+    floor = np.where((xs >= 0).all(axis=1), 0.0, -np.inf)  # a mean of values ≥ 0 is ≥ 0
+    out = [
+        (float(m), float(m)) if not h == h else (float(max(f, m - h)), float(m + h))
+        for m, h, f in zip(r, half, floor)
+    ]
+    return out, float(lengths[0])
+
+
+def wilson(p: float, n: float, z: float) -> tuple[float, float]:
+    """The Wilson score interval of a fraction ``p`` out of ``n`` (real: an effective count) at normal quantile
+    ``z``, without continuity correction (scipy's ``binomtest(…).proportion_ci(method="wilson")`` for whole n)."""
+    z2 = z * z
+    centre = (p + z2 / (2 * n)) / (1 + z2 / n)
+    half = z / (1 + z2 / n) * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n))
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def ray_pixels(hit: np.ndarray, src: np.ndarray | None = None) -> np.ndarray:
+    """(N,) the flat pixel index (row-major over (H, W)) of each ray: ``hit`` (H, W, S) the sub-pixel rays that
+    met the object (their order is the rays' order), ``src`` the camera ray of each secondary ray (dielectrics)."""
+    pix = np.flatnonzero(np.asarray(hit, bool)) // np.shape(hit)[-1]
+    return pix if src is None else pix[np.asarray(src)]
+
+
+def fraction_intervals(flags, pixels, shape, level: float) -> tuple[list[tuple[float, float]], list[float]]:
+    """([(lo, hi), …], [design effect, …]): Wilson intervals of the fractions of several per-ray flags (k, N) bool
+    of the same N rays, clustered by pixel: each fraction's variance under spatial correlation
+    (:func:`ratio_variance` of the per-pixel counts over the per-pixel rays) over the binomial one is its design
+    effect d (at least 1), and the interval is Wilson's at the effective count n / d, quantile Student's t as in
+    :func:`mean_intervals`. A fraction of 0 or 1 has no variance to measure: d = 1. No rays: (NaN, NaN)."""
+    flags = np.asarray(flags, bool).reshape(len(flags), np.size(pixels))
+    n = flags.shape[1]
+    if n == 0:
+        return [(math.nan, math.nan)] * len(flags), [math.nan] * len(flags)
+    size = int(np.prod(shape))
+    pix = np.asarray(pixels, np.intp)
+    rays = np.bincount(pix, minlength=size).reshape(shape).astype(float)
+    counts = np.stack([np.bincount(pix, weights=f, minlength=size) for f in flags]).reshape(-1, *shape)
+    p, var, _, dof = ratio_variance(counts, rays, rays > 0)
+    z = _quantile(level, dof)
+    cis, deffs = [], []
+    for pi, vi, zi in zip(p, var, z):
+        binom = pi * (1 - pi) / n
+        d = max(1.0, vi / binom) if binom > 0 and vi == vi else 1.0
+        cis.append(wilson(float(pi), n / d, float(zi)))
+        deffs.append(d)
+    return cis, deffs
+
+
+def quantile_interval(values, p: float, pixels, shape, level: float) -> tuple[float, float]:
+    """The ``level`` interval of the ``p``-th percentile (0–100) of per-ray ``values`` clustered by pixel
+    (Woodruff 1952): the share of rays at or below the sample percentile gets its clustered Wilson interval
+    (:func:`fraction_intervals`: the design effect of rays sharing pixels), whose ends are read back as order
+    statistics. An end the sample cannot give is ``inf`` above, the smallest value below. NaN values are dropped;
+    none left: (NaN, NaN)."""
+    x = np.asarray(values, float)
+    keep = ~np.isnan(x)
+    x, pix = x[keep], np.asarray(pixels)[keep]
+    n = x.size
+    if n == 0:
+        return math.nan, math.nan
+    q = np.percentile(x, p)
+    ((a, b),), _ = fraction_intervals([x <= q], pix, shape, level)
+    s = np.sort(x)
+    hi = math.ceil(b * n)
+    return float(s[min(n - 1, max(0, math.floor(a * n) - 1))]), (math.inf if hi >= n else float(s[hi]))
