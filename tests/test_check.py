@@ -1,14 +1,15 @@
-"""`study check` fails, naming the metric, on a planted regression (the localized method forced to fewer
-iterations); that it passes on unmodified code is what `.ci/run` checks, once. `study report` builds from results
-only."""
+"""`study check` against the committed baseline: every planted regression of tests/check_plants.py fails, naming
+the metrics that catch it, and a seed the baseline never saw passes (slow tier: the real check sweep); that it
+passes on unmodified code is what `.ci/run` checks, once. A malformed baseline is one line (exit 2). `study
+report` builds from results only."""
 
 from pathlib import Path
 
 import pytest
+from check_plants import PLANTS
 from typer.testing import CliRunner
 
 from study.cli import app
-from study.methods.localized import Localized
 from study.outputs.check import Tolerance, compare
 
 runner = CliRunner()
@@ -19,19 +20,33 @@ def cache(tmp_path_factory):
     return tmp_path_factory.mktemp("check-cache")
 
 
+#: Which compared metrics each planted regression (tests/check_plants.py) moves beyond its tolerance in the real
+#: check against the committed baseline (measured: `python tests/check_plants.py PLANT`).
+CAUGHT_BY = {
+    "radiance ×1.02": {"rmse_oracle"},
+    "radiance ×1.05": {"rmse_oracle"},
+    "shown point one texel off": {"angle_median_deg", "dist_median", "wrong_fraction"},
+    "localized one iteration fewer": {"angle_median_deg", "angle_p95_deg"},
+    "truth at half its samples": {"truth_noise_rmse"},
+    "Mitsuba at half its samples": {"mitsuba_noise_rmse"},
+}
+
+
 @pytest.mark.slow
-def test_planted_regression_fails_naming_the_metric(cache, monkeypatch):
-    original = Localized.localize
-
-    def fewer_iterations(self, B, env, x, R):
-        return original(Localized(iterations=self.params.iterations // 4), B, env, x, R)
-
-    monkeypatch.setattr(Localized, "localize", fewer_iterations)
+@pytest.mark.parametrize("plant", CAUGHT_BY)
+def test_planted_regression_fails_naming_the_metric(plant, cache, monkeypatch):
+    PLANTS[plant](monkeypatch)
     res = runner.invoke(app, ["check", "--cache", str(cache)])
     assert res.exit_code == 1, res.output
-    out = res.output.replace("\n", " ")
-    assert "regression: angle_median_deg of localized(iterations=10)" in out
-    assert "tolerance ±" in out and "check failed" in out
+    caught = {ln.split()[1] for ln in res.output.splitlines() if ln.startswith("regression: ")}
+    assert caught >= CAUGHT_BY[plant], (plant, caught)
+    assert "tolerance ±" in res.output and "check failed" in res.output
+
+
+@pytest.mark.slow
+def test_a_seed_the_baseline_never_saw_passes(cache):
+    res = runner.invoke(app, ["check", "--cache", str(cache), "--seed", "7"])
+    assert res.exit_code == 0 and "check passed" in res.output, res.output
 
 
 def test_compare_tolerances():

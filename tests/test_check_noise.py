@@ -1,7 +1,8 @@
 """`study check` against a baseline of measured seed noise, on a tiny check of its own (one box room, one
-position, the real check's 96² camera): the baseline is written by `study check --update` from three seeds; a run
-at a seed the baseline never saw passes; every planted regression of tests/check_plants.py fails, each caught by
-the metrics named here (which are the ones the check's message names)."""
+position, the real check's 96² camera): the baseline is written by `study check --update` from three seeds; a
+run at a seed the baseline never saw passes; every planted regression of tests/check_plants.py but one (the
+truth at half its samples: the slow tier, tests/test_check.py) fails, each caught by the metrics named here (the
+ones the check's messages name)."""
 
 from pathlib import Path
 
@@ -52,9 +53,11 @@ CAUGHT_BY = {
     "radiance ×1.05": {"rmse_oracle"},
     "shown point one texel off": {"angle_median_deg", "angle_p95_deg", "dist_median", "wrong_fraction"},
     "localized one iteration fewer": {"angle_median_deg", "angle_p95_deg", "dist_median"},
-    "truth at half its samples": {"truth_noise_rmse"},
     "Mitsuba at half its samples": {"mitsuba_noise_rmse"},
 }
+# "truth at half its samples" is left to the slow tier (tests/test_check.py, the real check's four cases): its
+# noise × √2 came out +32 % over this one case's 3-seed mean, 5.0 of its sd (6.5 %), too close to k = 5 for one
+# case to decide; in the real check it fails in all four cases (+34 % in c0000: 5.5 sd).
 
 
 @pytest.fixture(scope="module")
@@ -83,7 +86,7 @@ def test_a_new_seed_passes(tiny):
     assert "at seed 11" in res.output and "check passed" in res.output
 
 
-@pytest.mark.parametrize("plant", PLANTS)
+@pytest.mark.parametrize("plant", CAUGHT_BY)
 def test_every_planted_regression_fails(plant, tiny, monkeypatch):
     PLANTS[plant](monkeypatch)
     res = _check(tiny)
