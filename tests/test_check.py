@@ -28,8 +28,9 @@ CAUGHT_BY = {
     "shown point one texel off": {"angle_median_deg", "dist_median", "wrong_fraction"},
     "localized one iteration fewer": {"angle_median_deg", "angle_p95_deg"},
     "truth at half its samples": {"truth_noise_rmse"},
-    "Mitsuba at half its samples": {"mitsuba_noise_rmse"},
 }
+# Not caught: "Mitsuba at half its samples" (mitsuba_noise_rmse varies 9–13 % from seed to seed at this
+# check's 170–340 object pixels, so 5 sd exceeds the +41 % of noise × √2).
 
 
 @pytest.mark.slow

@@ -1,7 +1,7 @@
 """`study check` against a baseline of measured seed noise, on a tiny check of its own (one box room, one
 position, the real check's 96² camera): the baseline is written by `study check --update` from three seeds; a
-run at a seed the baseline never saw passes; every planted regression of tests/check_plants.py but one (the
-truth at half its samples: the slow tier, tests/test_check.py) fails, each caught by the metrics named here (the
+run at a seed the baseline never saw passes; the planted regressions of tests/check_plants.py in the method
+code (radiance, shown point, iterations) fail, each caught by the metrics named here (the
 ones the check's messages name)."""
 
 from pathlib import Path
@@ -38,11 +38,11 @@ seeds = [0, 1, 2]
 k = 5.0
 
 [tolerance]
-angle_median_deg = { abs = 1e-5, rel = 1e-5 }
-angle_p95_deg = { abs = 1e-5, rel = 1e-5 }
-dist_median = { abs = 1e-6, rel = 1e-5 }
+angle_median_deg = { abs = 5e-5, rel = 0.0 }
+angle_p95_deg = { abs = 5e-5, rel = 0.0 }
+dist_median = { abs = 2e-6, rel = 0.0 }
 wrong_fraction = { abs = 1e-9, rel = 0.0 }
-rmse_oracle = { abs = 1e-3, rel = 0.0 }
+rmse_oracle = { abs = 1e-4, rel = 2e-5 }
 truth_noise_rmse = { abs = 1e-4, rel = 0.0 }
 mitsuba_noise_rmse = { abs = 1e-4, rel = 0.0 }
 """
@@ -53,11 +53,12 @@ CAUGHT_BY = {
     "radiance ×1.05": {"rmse_oracle"},
     "shown point one texel off": {"angle_median_deg", "angle_p95_deg", "dist_median", "wrong_fraction"},
     "localized one iteration fewer": {"angle_median_deg", "angle_p95_deg", "dist_median"},
-    "Mitsuba at half its samples": {"mitsuba_noise_rmse"},
 }
-# "truth at half its samples" is left to the slow tier (tests/test_check.py, the real check's four cases): its
-# noise × √2 came out +32 % over this one case's 3-seed mean, 5.0 of its sd (6.5 %), too close to k = 5 for one
-# case to decide; in the real check it fails in all four cases (+34 % in c0000: 5.5 sd).
+# The references at half their samples are left to the slow tier (tests/test_check.py: the real check's four
+# cases). Their noise × √2 is +41 % in expectation; the noise measures vary by 6.5 % (truth) and 9.5 % (Mitsuba)
+# from seed to seed in this one case, so 5 sd is 32–48 %: one case cannot decide (here the truth's came out +32 %,
+# 5.0 sd). In the real check the truth's fails in all four cases (+34 % in c0000: 5.5 sd) and Mitsuba's in none
+# (its noise measure varies 9–13 %, pooled 10.8 %: 5 sd = 54 %).
 
 
 @pytest.fixture(scope="module")
