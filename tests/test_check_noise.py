@@ -129,3 +129,13 @@ def test_a_metric_nan_at_some_seeds_only_has_no_baseline():
     runs = [[{"case": "c0", "label": "m", "x": v}] for v in (1.0, float("nan"), 3.0)]
     with pytest.raises(StudyError, match="x of m in c0 is NaN at seed 5 but 1 at seed 4"):
         spread_table(runs, ["x"], [4, 5, 6], "check.toml")
+
+
+def test_seed_and_update_together_is_one_line(tmp_path):
+    (tmp_path / "check.toml").write_text(CHECK)
+    res = runner.invoke(app, ["check", "--config", str(tmp_path / "check.toml"), "--update", "--seed", "3"])
+    assert res.exit_code == 2, res.output
+    assert (
+        "seeds: --seed 3 with --update: the baseline is written at the check file's seeds (0, 1, 2)"
+        in " ".join(res.output.split())
+    )

@@ -222,6 +222,13 @@ def run_check(
     and failures are empty; else the sweep runs once, at ``seed`` (None: the sweep's own)."""
     cfg, sweep_path, base_dir = load_check(path)
     metrics = list(cfg.tolerance)
+    if update and seed is not None:
+        raise StudyError(
+            f"--seed {seed} with --update: the baseline is written at the check file's seeds "
+            f"({', '.join(map(str, cfg.seeds))})",
+            file=str(path),
+            key="seeds",
+        )
     if update:
         return [], _update(cfg, Path(path), sweep_path, base_dir, backend=backend, cache=cache)
     base = read_baseline(base_dir / SPREAD, metrics)  # a missing or malformed baseline stops before the sweep
