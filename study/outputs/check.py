@@ -10,13 +10,15 @@ A check runs the sweep once (its own seed, or ``seed``) and a metric passes when
 
     |new − mean| ≤ k · sd + abs + rel · |mean|          (NaN equals NaN)
 
-The floor (``abs``, ``rel``) is for what the seed does not move (the geometric metrics: Embree's hits and the
-methods' searches are exactly deterministic, sd = 0): it covers the rounding a platform may change, bounded by the
-difference between the numpy (float64) and Dr.Jit LLVM (float32) backends on the same sweep (configs/check.toml
-states the measured numbers). Rows are matched by (case, label); a row missing on either side is a failure. A
-malformed baseline is bad input (a StudyError naming the file and its first offending cell, exit 2: not UTF-8, a
-NUL byte, a column or a (case, label) twice, an infinite compared metric, a negative or infinite spread), never a
-regression (exit 1).
+with sd the row's own, or the metric's relative sd pooled over the rows × |mean| where that is larger
+(:func:`pooled_relative_sd`: a few seeds of a heavy-tailed image metric can underestimate one row's). The floor
+(``abs``, ``rel``) is for what the seed does not move (the geometric metrics: Embree's hits and the methods'
+searches are exactly deterministic, sd = 0): it covers the rounding a platform may change, bounded by the difference
+between the numpy and Dr.Jit LLVM backends (both float32, their operations in another order) on the same sweep
+(configs/check.toml states the measured numbers). Rows are matched by (case, label); a row missing on either side is
+a failure. A malformed baseline is bad input (a StudyError naming the file and its first offending cell, exit 2: not
+UTF-8, a NUL byte, a column or a (case, label) twice, an infinite compared metric, a negative or infinite spread),
+never a regression (exit 1).
 """
 
 from __future__ import annotations
