@@ -316,8 +316,9 @@ def bench_args(w: Path, *opts: str) -> list[str]:
 
 
 def check_args(w: Path, baseline: str | bytes, tolerance: str = "abs = 0.1, rel = 0.0") -> list[str]:
-    """A check file whose baseline (under out/, beside the earlier results) holds ``baseline``."""
-    (w / "out" / "results.csv").write_bytes(baseline.encode() if isinstance(baseline, str) else baseline)
+    """A check file whose baseline (its spread table, under out/, beside the earlier results) holds
+    ``baseline``."""
+    (w / "out" / "spread.csv").write_bytes(baseline.encode() if isinstance(baseline, str) else baseline)
     cfg = w / "check.toml"
     cfg.write_text(
         f'sweep = "{ROOT / "configs" / "check_sweep.toml"}"\nbaseline = "out"\n'
@@ -591,19 +592,19 @@ MORE_CASES = [
     (
         "check-baseline-not-utf8",
         lambda w, mp: check_args(w, b"case,label\n\xff\xfe\n"),
-        "results.csv: not UTF-8 text, expected a results table",
+        "spread.csv: not UTF-8 text, expected a spread table",
         2,
     ),
     (
         "check-baseline-no-columns",
         lambda w, mp: check_args(w, "a,b\n1,2\n"),
-        "results.csv: malformed results table: no column 'case'",
+        "spread.csv: malformed spread table: no column 'case'",
         2,
     ),
     (
         "check-baseline-ragged",
         lambda w, mp: check_args(w, BASE_HEADER + "c0,m,m,1.0,extra\n"),
-        "malformed results table: line 2 has 5 cells, the header 4",
+        "malformed spread table: line 2 has 5 cells, the header 4",
         2,
     ),
     (
@@ -612,7 +613,7 @@ MORE_CASES = [
         "line 2, column 'angle_median_deg' holds 'fast', not a number",
         2,
     ),
-    ("check-baseline-empty", lambda w, mp: check_args(w, ""), "malformed results table: no column 'case'", 2),
+    ("check-baseline-empty", lambda w, mp: check_args(w, ""), "malformed spread table: no column 'case'", 2),
     (
         "check-tolerance-bool",
         lambda w, mp: check_args(w, BASE_HEADER, "abs = true, rel = 0.0"),

@@ -56,7 +56,7 @@ def test_plugin_method_reaches_sweep_figure_check_report_bench(tmp_path, plugin)
         'scene = "scene.toml"\npositions = [[0.6, 1.2, 0.3]]\ngrid = ["classical", "throwaway_probe"]\n'
     )
     (tmp_path / "check.toml").write_text(
-        'sweep = "sweep.toml"\nbaseline = "baseline"\n\n[tolerance]\n'
+        'sweep = "sweep.toml"\nbaseline = "baseline"\nseeds = [0, 1, 2]\n\n[tolerance]\n'
         "angle_median_deg = { abs = 1e-6, rel = 0.0 }\n"
     )
     run = CliRunner().invoke

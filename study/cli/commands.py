@@ -139,14 +139,25 @@ def sweep(
 @guarded(llvm=True)
 def check(
     config: Path = typer.Option(Path("configs/check.toml"), help="check file: sweep, baseline, tolerances"),
-    update: bool = typer.Option(False, "--update", help="rewrite the baseline instead of comparing"),
+    update: bool = typer.Option(
+        False,
+        "--update",
+        "--update-baseline",
+        help="rewrite the baseline: the sweep at each of the check file's seeds, mean and sd per metric",
+    ),
+    seed: int | None = typer.Option(
+        None, help="run the check at this seed instead of the sweep's own", min=0
+    ),
     backend: str = typer.Option("numpy", help="numpy | llvm | cuda"),
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
 ):
-    """CI regression: run a small fixed sweep and compare every metric with the committed baseline."""
+    """CI regression: run a small fixed sweep and compare every metric with the committed baseline (its mean over
+    seeds, within k × its seed-to-seed sd + a floor)."""
     from study.outputs.check import run_check
 
-    fails, lines = run_check(shipped(config), update=update, cache=cache, backend=backend)  # progress: stderr
+    fails, lines = run_check(  # progress: stderr
+        shipped(config), update=update, cache=cache, backend=backend, seed=seed
+    )
     for line in lines:
         console.print(line, highlight=False)
     if fails:
