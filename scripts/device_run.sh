@@ -181,9 +181,11 @@ print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' 
   reproduce)  # scripts/reproduce.sh's commands on this host's CPU cores (numpy methods, Mitsuba on LLVM: the
               # committed tables' backends), $REPRODUCE_JOBS at a time; the reports back as reports-part-*.tar.xz
     export HOME=$W/home-repro; mkdir -p "$HOME"
-    STUDY="python3 -m study.cli" STUDY_PYTHON=python3 REPRODUCE_JOBS=${REPRODUCE_JOBS:-8} timed reproduce bash scripts/reproduce.sh \
-      --no-setup 2>&1 | tail -60 | tee "$OUT/log-reproduce.txt"
-    tar cJf "$W/reports.tar.xz" --exclude=cases --exclude=exr reports
+    STUDY="python3 -m study.cli" STUDY_PYTHON=python3 REPRODUCE_JOBS=${REPRODUCE_JOBS:-8} \
+      REPRODUCE_SKIP=${REPRODUCE_SKIP:-animate} REPRODUCE_SKIP_CALIBRATION=1 \
+      timeout "${REPRODUCE_LIMIT:-500}" bash scripts/reproduce.sh --no-setup > "$OUT/log-reproduce.txt" 2>&1
+    echo "reproduce,rc=$?" | tee -a "$OUT/times.csv"; tail -30 "$OUT/log-reproduce.txt"
+    tar cJf "$W/reports.tar.xz" --exclude=cases --exclude=exr --exclude=animation --exclude=performance reports
     split -b 15M -d "$W/reports.tar.xz" "$OUT/reports-part-" ;;
   pixels)   # the image columns on the GPU (study/measure/pixels.py) against scikit-image/numpy, and side by side
     timed pixels python3 scripts/pixels_cuda.py 2>&1 | tee "$OUT/log-pixels.txt" ;;

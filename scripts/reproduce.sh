@@ -32,9 +32,11 @@ commands=(
   "convergence"                                 # localized's iterations 0…30, the marches' steps → reports/convergence/
 )
 t0=$(date +%s)
-printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' \
+# $REPRODUCE_SKIP: an extended regex of commands left out (a lent host without the video extra skips "animate")
+printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$" \
   | xargs -P "$J" -I CMD bash -c 'set -o pipefail; '"$S"' CMD 2>&1 | sed -u "s|^|[CMD] |"'
-PYTHONPATH=. ${STUDY_PYTHON:-.venv/bin/python} scripts/calibration.py   # the intervals' coverage → reports/calibration.md
+[ -n "${REPRODUCE_SKIP_CALIBRATION:-}" ] \
+  || PYTHONPATH=. ${STUDY_PYTHON:-.venv/bin/python} scripts/calibration.py   # the intervals' coverage → reports/calibration.md
 $S pareto   # error vs measured ms per 1080p frame (the committed benches), fronts, budgets → reports/pareto/
 $S report
 echo "reproduce: every report written in $(( $(date +%s) - t0 )) s"
