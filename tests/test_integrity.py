@@ -65,7 +65,7 @@ def fake_study(tmp_path, monkeypatch):
         for fn in (codehash._source, codehash._imports, codehash._study_closure):
             fn.cache_clear()
 
-    monkeypatch.setattr(codehash, "ROOT", root)
+    monkeypatch.setattr(codehash, "PACKAGE_DIR", root)
     clear()
     yield root, clear
     monkeypatch.undo()
