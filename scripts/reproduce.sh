@@ -28,6 +28,7 @@ commands=(
   "figure fig_glossy"                           # rough objects against the lobe's truth, and the error split
   "sweep configs/sweep_glossy.toml"
   "figure fig_attic"                            # unequal roof slopes, an off-centre reference point
+  "figure fig_hitcache"                         # hit lighting: the exact hit shaded from a radiance cache, over res
   "figure fig_probes"                           # screen-space and multi-probe tracing beside the paper's
   "convergence"                                 # localized's iterations 0…30, the marches' steps → reports/convergence/
 )

@@ -35,6 +35,7 @@ FIGURES = [
     "fig_atrium",
     "fig_attic",
     "fig_glossy",
+    "fig_hitcache",
 ]
 SWEEPS = ["sweep", "sweep_cornell", "sweep_lroom", "sweep_atrium", "sweep_glossy"]
 

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: surface points per side that fill a study's caches (all resolutions share them): 2 × 2¹⁶ path-traced rays
+FILL_SAMPLES = 1 << 16
 #: the offset of a fill ray's origin from its surface point along the normal (m): above float32 noise at 10 m
 FILL_OFFSET = 1e-3
 

@@ -72,6 +72,7 @@ class Views:
     shade: bool = False
     prefiltered: bool = False  # the GGX-prefiltered mip chain of the impostor (study.impostor.prefilter)
     hits: bool = False  # the exact tracer's first hits (not a view: the scene's own triangles, Captured.hits)
+    caches: tuple[int, ...] = ()  # hit-lighting caches at these grid resolutions (Captured.cached)
 
     @staticmethod
     def merge(*requests: Views) -> Views:
@@ -85,6 +86,7 @@ class Views:
             shade=any(r.shade for r in requests),
             prefiltered=any(r.prefiltered for r in requests),
             hits=any(r.hits for r in requests),
+            caches=tuple(sorted({c for r in requests for c in r.caches})),
         )
 
 
@@ -115,6 +117,8 @@ class Captured:
     hits       the exact query, not an image-based view: a function (origins, dirs), world (N, 3) numpy arrays →
                (N, 3) first hits on the environment's triangles (the case's exact tracer, Embree or OptiX;
                non-finite where the ray leaves the scene), or None
+    cached     hit-lighting caches (:mod:`study.impostor.hitcache`): a function (res, origins, dirs) → (N, 3)
+               radiance the cache of grid resolution ``res`` holds at each ray's exact hit, or None
     reference  o in world coordinates (None: unknown; methods then take the origin)
     room       the room box (min, max), world coordinates: ``reference.box`` where given, else the environment's
                bounds (None: unknown; proxies then fit a box or sphere to the impostor's own distances)
@@ -136,6 +140,8 @@ class Captured:
     sdfs: Mapping[SdfSpec, Any] = field(default_factory=dict)  # SdfGrid (sdf.py imports this module)
     shade: Any = None  # (origins, dirs) world (N, 3) numpy → (N, 3) radiance along each ray, path traced
     hits: Any = None  # (origins, dirs) world (N, 3) numpy → (N, 3) exact first hits (non-finite: no hit)
+    cached: Any = None  # (res, origins, dirs) → (N, 3) radiance of the hit-lighting cache at the exact hit
+    #   (study.impostor.hitcache at grid resolution res), NaN where the ray hits nothing
     reference: tuple[float, float, float] | None = None
     room: tuple[Vec3, Vec3] | None = None
     open: bool = False
@@ -236,6 +242,12 @@ class Captured:
         if self.shade is not None or self.fallback:
             return self.shade
         raise self._missing(method, "exact shading (Captured.shade)")
+
+    def need_cached(self, method: str):
+        """The hit-lighting caches' reads (:attr:`cached`); None on a fallback Captured without them."""
+        if self.cached is not None or self.fallback:
+            return self.cached
+        raise self._missing(method, "a hit-lighting cache (Captured.cached)")
 
     def need_hits(self, method: str):
         """The exact tracer's first hits; None on a fallback Captured without them."""

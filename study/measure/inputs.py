@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from study.cache import Cache, content_key
-from study.impostor import prefilter, probes, screen
+from study.impostor import hitcache, prefilter, probes, screen
 from study.impostor.capture import Impostor, capture_distance, impostor_key, render_cube
 from study.impostor.cubemap import FAR_MIN
 from study.impostor.envmap import EnvMap
@@ -124,6 +124,7 @@ def capture_views(
         return radiance_along(scene, origins, dirs, spp=scene.render.spp, seed=seed)
 
     pre = prefiltered(scene, cache, imp, B) if views.prefiltered else None
+    cached = hit_caches(scene, cache, tracer, views.caches) if views.caches else None
     return Captured(
         impostor=EnvMap(imp.texels(), B),
         layers=layers,
@@ -132,6 +133,7 @@ def capture_views(
         sdfs=fields,
         shade=shade if views.shade else None,
         hits=(lambda origins, dirs: tracer.intersect(origins, dirs)["point"]) if views.hits else None,
+        cached=cached,
         open=open_environment(imp),
         prefiltered=pre,
         lobe=lobe,
@@ -161,3 +163,37 @@ def second_captures(scene: Scene, cache: Cache, imp: Impostor) -> tuple[np.ndarr
 def open_environment(imp: Impostor) -> bool:
     """Whether some texels of the impostor see no surface (distance FAR: an open environment)."""
     return bool(np.any(imp.distance >= FAR_MIN))
+
+
+def hit_caches(scene: Scene, cache: Cache, tracer, resolutions: tuple[int, ...]):
+    """The hit-lighting caches at ``resolutions`` (:mod:`study.impostor.hitcache`), filled once from the same
+    path-traced surface samples (cached: ``hitcache.FILL_SAMPLES`` points per side at ``render.spp``), as a function
+    (res, origins, dirs) → the radiance each cache holds at the rays' exact hits (NaN on a miss of the scene)."""
+    mesh = tracer.mesh
+    s = key_fields(scene)
+    s["render"] = {k: v for k, v in s["render"].items() if k not in ("cube_res", "cube_spp", "object_res")}
+    key = content_key(s, hitcache.FILL_SAMPLES, "hit-cache-samples-v1")
+    seed = scene.render.seed + 3 * truth.SEED_OFFSET  # a stream of its own
+
+    def samples():
+        p, n = hitcache.surface_samples(mesh.vertices, mesh.faces, hitcache.FILL_SAMPLES, seed)
+        L = radiance_along(scene, p + hitcache.FILL_OFFSET * n, -n, spp=scene.render.spp, seed=seed)
+        return np.concatenate([p, n, np.asarray(L, float)], axis=1)
+
+    pnl = cache.get("hit_cache", key, samples, code=(hitcache.surface_samples, radiance_along)).reshape(-1, 9)
+    lo, hi = mesh.vertices.min(0), mesh.vertices.max(0)
+    grids = {}
+    for res in resolutions:
+        grids[res] = hitcache.GridCache.empty(lo, hi, res)
+        grids[res].add(pnl[:, :3], pnl[:, 3:6], pnl[:, 6:])
+
+    def read(res, origins, dirs):
+        hit = tracer.intersect(origins, dirs)
+        ok = hit["prim"] >= 0
+        out = np.full((len(origins), 3), np.nan)
+        if ok.any():
+            nrm = hitcache.hit_normals(mesh.vertices, mesh.faces, hit["prim"][ok], np.asarray(dirs)[ok])
+            out[ok] = grids[res].query(hit["point"][ok], nrm)[0]
+        return out
+
+    return read

@@ -83,8 +83,13 @@ def make(name: str, **params) -> Method:
 
 
 def all_methods() -> list[Method]:
-    """Every registered mirror method (not ``glossy``) with its default parameters, in name order."""
-    return [make(n) for n in names() if not getattr(REGISTRY[n], "glossy", False)]
+    """Every registered mirror method (not ``glossy``) with its default parameters, in name order, but those that
+    are an experiment of their own (``in_all`` False: ``hit_cache``, measured in fig_hitcache)."""
+    return [
+        make(n)
+        for n in names()
+        if not getattr(REGISTRY[n], "glossy", False) and getattr(REGISTRY[n], "in_all", True)
+    ]
 
 
 def glossy_methods() -> list[Method]:
