@@ -54,7 +54,13 @@ def test_motion_claim_verdicts():  # the verdicts' logic: no cvvdp needed
     )
     s = video.motion_claim(rows)
     assert s[0].startswith("ball: noise floor 9.80 JOD") and "within a third of the 1-JOD bound" in s[0]
-    assert "smallest difference between two methods is 0.70 JOD (good vs edge)" in s[0]
+    assert (
+        "smallest difference between two methods beyond it is 0.70 JOD (good vs edge), the floor at most"
+        in s[0]
+    )
+    assert "within the floor of each other" not in s[0]
+    tie = video.motion_claim(rows + _rows((9.8, 9.75, 9.85), [("twin", 9.59, 0.1, 0.3)])[1:])[0]
+    assert "good, twin lie within the floor of each other (at most 0.01 JOD apart" in tie
     assert "good:" in s[1] and "the claim holds" in s[1] and "1 JND" in s[1]
     assert "bad:" in s[2] and "the claim fails" in s[2]
     assert "edge:" in s[3] and "straddles the 1-JOD bound" in s[3]

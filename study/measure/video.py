@@ -111,8 +111,9 @@ def motion_claim(rows: list[dict], *, bound: float = BOUND_JOD) -> list[str]:
     the floor's row is :data:`FLOOR`). Per method: holds where the gap's interval lies below ``bound`` (one JND),
     fails where it lies above, undecided where it straddles the bound or no interval exists (one seed). Where the
     floor itself costs more than a third of the bound (10 − floor > bound / 3) the references' noise would hide an
-    error of that size and every verdict is undecided. Per sequence first a sentence on the floor and the smallest
-    difference between two methods (the floor should be at most a third of it to order them)."""
+    error of that size and every verdict is undecided. Per sequence first a sentence on the floor: the methods
+    closer to each other than the floor costs (tied), and the smallest difference between two methods beyond it
+    (the floor should be at most a third of it to order them)."""
     out = []
     for seq in dict.fromkeys(r.get("sequence", "") for r in rows):
         mine = [r for r in rows if r.get("sequence", "") == seq]
@@ -128,16 +129,24 @@ def motion_claim(rows: list[dict], *, bound: float = BOUND_JOD) -> list[str]:
             for b in methods[i + 1 :]
         )
         head = (
-            f"{name}noise floor {f:.2f} JOD (truth_at_hit of another seed; {floor.get('seeds', '?')} seeds, 95 % CI "
+            f"{name}noise floor {f:.2f} JOD (truth_at_hit of another seed; {_f(floor.get('seeds')):.0f} seeds, 95 % CI "
             f"{_f(floor['jod_lo']):.2f}–{_f(floor['jod_hi']):.2f}): the references' noise costs {loss:.2f} JOD, "
             + ("within" if loss <= bound / 3 else "more than")
             + f" a third of the {bound:g}-JOD bound"
         )
-        if gaps:
-            d, a, b = gaps[0]
+        tied = [(d, a, b) for d, a, b in gaps if d <= loss]  # closer than the noise floor: not to be ordered
+        apart = [(d, a, b) for d, a, b in gaps if d > loss]
+        if tied:
+            names = sorted({x for _, a, b in tied for x in (a, b)})
             head += (
-                f"; the smallest difference between two methods is {d:.2f} JOD ({a} vs {b}), the floor "
-                + ("within a third of it" if loss <= d / 3 else "too noisy to order them")
+                f"; {', '.join(names)} lie within the floor of each other (at most {tied[-1][0]:.2f} JOD apart, "
+                "less than the references' noise costs: not ordered)"
+            )
+        if apart:
+            d, a, b = apart[0]
+            head += (
+                f"; the smallest difference between two methods beyond it is {d:.2f} JOD ({a} vs {b}), the floor "
+                + ("at most a third of it" if loss <= d / 3 else "more than a third of it: raise render.spp")
             )
         if not np.isfinite(f):
             head = f"{name}no noise floor: one seed (give two seeds or more)"
