@@ -1,4 +1,5 @@
-"""Motion: the sphere of Figure 4 moving along a path, every method side by side with its errors, as an animation.
+"""Motion: curved objects (Figure 4's sphere, a torus) moving along a path, every method side by side with its
+errors, as an animation, judged on the object's pixels over seed replicates.
 
 Config (``configs/motion.toml``)::
 
@@ -7,6 +8,8 @@ Config (``configs/motion.toml``)::
     frames = 24                                     # positions, evenly spaced along the path by arc length
     fps = 8
     methods = [{ name = "classical" }, { name = "localized", iterations = 10 }]
+    seeds = [0, 1, 2]                               # replicates (render.seed of each)
+    sequences = [{ name = "sphere" }, { name = "torus", "object.shape" = "torus" }]   # one per object
     [overrides]                                     # dotted scene keys (camera size, cube_res, spp, …)
 
 Each sequence (``sequences``: an object with its scene keys) is rendered once per seed (``seeds``: replicates,
