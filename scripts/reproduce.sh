@@ -24,7 +24,7 @@ commands=(
   "sweep configs/sweep_cornell.toml"
   "sweep configs/sweep_atrium.toml"
   "sweep configs/sweep_lroom.toml"
-  "animate"                                     # the sphere in motion → reports/animation/
+  "animate"                                     # sphere and torus in motion, 3 seeds (~20 min) → reports/animation/
   "figure fig_glossy"                           # rough objects against the lobe's truth, and the error split
   "sweep configs/sweep_glossy.toml"
   "figure fig_attic"                            # unequal roof slopes, an off-centre reference point

@@ -20,6 +20,8 @@ scene = "{ROOM}"
 path = [[0.0, 1.5, 0.0], [0.75, 1.05, 0.5], [1.5, 0.6, 1.0]]
 frames = 3
 methods = [{{ name = "classical" }}, {{ name = "localized", iterations = 10 }}]
+seeds = [0, 1]
+sequences = [{{ name = "ball" }}, {{ name = "ring", "object.shape" = "torus", "object.rotation" = [60.0, 0.0, 20.0] }}]
 {{extra}}
 [overrides]
 "camera.width" = 32
@@ -69,15 +71,17 @@ def test_animation_files_decode_with_the_right_frames(tiny):
 
     out = tiny / "out"
     gif = iio.imread(out / "motion.gif")
-    assert gif.ndim == 4 and gif.shape[0] == 3 and gif.shape[-1] in (3, 4)
+    assert gif.ndim == 4 and gif.shape[0] == 6 and gif.shape[-1] in (3, 4)  # 3 frames of each object
     with iio2.get_reader(out / "motion.mp4", format="FFMPEG") as reader:
         mp4 = np.stack(list(reader.iter_data()))
-    assert mp4.shape[0] == 3
+    assert mp4.shape[0] == 6
     assert mp4.shape[1:3] == gif.shape[1:3]  # frames are even-sized already
     for frames in (gif[..., :3].astype(float), mp4.astype(float)):
         frames = frames[:, frames.shape[1] // 5 :]  # below the title (frame number, position)
         assert np.abs(frames[1] - frames[0]).mean() > 1 and np.abs(frames[2] - frames[1]).mean() > 1
-    rows = read_csv(out / "frames.csv")
+    every = read_csv(out / "frames.csv")
+    assert {(r["sequence"], r["seed"]) for r in every} == {("ball", 0), ("ball", 1), ("ring", 0), ("ring", 1)}
+    rows = [r for r in every if r["sequence"] == "ball" and r["seed"] == 0]
     assert sorted({r["frame"] for r in rows}) == [0, 1, 2]
     labels = ["classical", "localized(iterations=10)"]
     assert [r["label"] for r in rows if r["frame"] == 0 and r["label"] in labels] == labels
@@ -91,17 +95,27 @@ def test_animation_files_decode_with_the_right_frames(tiny):
 
 
 def test_motion_table_has_the_temporal_error_of_every_sequence(tiny):
-    """Torch-free, with or without study[video]: motion.csv has per-frame FLIP and E_warp for each method and the
-    noise floor, frames.csv each step's E_warp (none for the first frame, which has no frame before it)."""
+    """Torch-free, with or without study[video]: motion.csv has, per object, per-frame FLIP and E_warp on the
+    object for each method and the noise floor as means over the seeds with their interval; frames.csv each
+    step's E_warp (none for the first frame, which has no frame before it)."""
     out = tiny / "out"
-    rows = {r["label"]: r for r in read_csv(out / "motion.csv")}
-    assert set(rows) == {"classical", "localized(iterations=10)", "truth_at_hit"}
+    rows = {(r["sequence"], r["label"]): r for r in read_csv(out / "motion.csv")}
+    labels = {"classical", "localized(iterations=10)", "truth_at_hit"}
+    assert set(rows) == {(s, lab) for s in ("ball", "ring") for lab in labels}
     for r in rows.values():
-        assert r["frames"] == 3 and r["ewarp_l2"] >= 0 and 0 <= r["ewarp_flip"] <= 1, r
-    assert rows["truth_at_hit"]["flip_truth"] == 0 and rows["classical"]["flip_truth"] > 0
-    steps = [r for r in read_csv(out / "frames.csv") if r["label"] == "classical"]
-    assert np.isnan(steps[0]["ewarp_l2"]) and all(r["ewarp_pixels"] > 0 for r in steps[1:])
-    assert np.mean([r["ewarp_l2"] for r in steps[1:]]) == pytest.approx(rows["classical"]["ewarp_l2"])
+        assert r["frames"] == 3 and r["seeds"] == 2 and r["ewarp_l2"] >= 0 and 0 <= r["ewarp_flip"] <= 1, r
+        assert r["ewarp_l2_lo"] <= r["ewarp_l2"] <= r["ewarp_l2_hi"] and 0 < r["object_pixels"] < 32 * 32, r
+    assert rows[("ball", "truth_at_hit")]["flip_truth"] == 0 and rows[("ball", "classical")]["flip_truth"] > 0
+    frames = read_csv(out / "frames.csv")
+    per_seed = []
+    for seed in (0, 1):
+        steps = [
+            r for r in frames if r["label"] == "classical" and r["sequence"] == "ball" and r["seed"] == seed
+        ]
+        assert np.isnan(steps[0]["ewarp_l2"]) and all(r["ewarp_pixels"] > 0 for r in steps[1:])
+        per_seed.append(np.mean([r["ewarp_l2"] for r in steps[1:]]))
+    assert per_seed[0] != per_seed[1]  # the replicates differ
+    assert np.mean(per_seed) == pytest.approx(rows[("ball", "classical")]["ewarp_l2"])
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["temporal_metric"] == animation.TEMPORAL_METRIC
     assert not (out / "jod.csv").exists()  # one table
@@ -115,12 +129,21 @@ def test_motion_jod_table_and_claim(tiny):
     if not video.available():
         pytest.skip("needs the extra study[video] (cvvdp, PyTorch): bash scripts/setup.sh --video")
     out = tiny / "out"
-    rows = {r["label"]: r for r in read_csv(out / "motion.csv")}
-    assert set(rows) == {"classical", "localized(iterations=10)", "truth_at_hit"}
+    rows = {(r["sequence"], r["label"]): r for r in read_csv(out / "motion.csv")}
+    assert len(rows) == 6
     assert all(0 < r["jod"] <= 10 and r["display"] == video.CVVDP_DISPLAY for r in rows.values())
+    for seq in ("ball", "ring"):  # the floor is the truth against a replicate of itself: close to 10
+        floor, cl = rows[(seq, "truth_at_hit")], rows[(seq, "classical")]
+        assert floor["jod_lo"] <= floor["jod"] <= floor["jod_hi"] and floor["jod"] > cl["jod"]
+        assert cl["gap"] == pytest.approx(floor["jod"] - cl["jod"], abs=1e-9)
     meta = json.loads((out / "metadata.json").read_text())
-    assert meta["video_metric"] == f"ColorVideoVDP (cvvdp {video.VERSION})"
-    assert len(meta["motion_claim"]) == 2 and all("the claim" in c for c in meta["motion_claim"])
+    assert meta["video_metric"] == f"ColorVideoVDP (cvvdp {video.VERSION})" and meta["jod_bound"] == 1.0
+    claims = meta["motion_claim"]
+    assert (
+        len(claims) == 6
+        and sum("the claim" in c for c in claims) == 4
+        and claims[0].startswith("ball: noise")
+    )
     from study.outputs.kinds.animation import motion_claim_section
 
     text = " ".join(str(p) for block in motion_claim_section(out, out / "motion.csv") for p in block)
@@ -135,9 +158,11 @@ def test_without_cvvdp_the_jod_columns_say_so(tiny, monkeypatch):
 
     monkeypatch.setattr(video, "available", lambda: False)
     reports = tiny / "reports"
+    one = "\n".join(ln for ln in TINY.splitlines() if not ln.startswith(("seeds", "sequences", "frames")))
+    (tiny / "one.toml").write_text("frames = 2\n" + one.replace("{extra}", ""))  # the cached ends, one seed
     res = runner.invoke(
         app,
-        ["animate", "--config", str(tiny / "motion.toml"), "--out", str(reports / "animation"),
+        ["animate", "--config", str(tiny / "one.toml"), "--out", str(reports / "animation"),
          "--cache", str(tiny / "cache")],
     )  # fmt: skip
     assert res.exit_code == 0, res.output
@@ -157,13 +182,21 @@ def test_without_cvvdp_the_jod_columns_say_so(tiny, monkeypatch):
         ("fps = 0", "motion.toml: fps: Input should be greater than 0"),
         ('formats = ["avi"]', "motion.toml: formats"),
         ("speed = 2", "motion.toml: speed"),
+        ("seeds = []", "motion.toml: seeds"),
+        ("seeds = [1, 1]", "seeds: [1, 1] repeats a seed"),
+        ('sequences = [{ name = "a/b" }]', "sequences[0].name: 'a/b' must be a plain, distinct name"),
     ],
 )
 def test_bad_config_is_one_line_and_keeps_outputs(tmp_path, extra, words):
     out = tmp_path / "out"
     out.mkdir()
     (out / "motion.gif").write_bytes(b"earlier")
-    (tmp_path / "motion.toml").write_text(TINY.replace("{extra}", extra))
+    text = TINY.replace("{extra}", extra)
+    key = extra.split(" ")[0]
+    if key in ("seeds", "sequences"):  # instead of the tiny config's own line (top-level keys come first)
+        text = extra + "\n" + "\n".join(ln for ln in TINY.splitlines() if not ln.startswith(key))
+        text = text.replace("{extra}", "")
+    (tmp_path / "motion.toml").write_text(text)
     res = runner.invoke(
         app,
         [
@@ -183,11 +216,15 @@ def test_bad_config_is_one_line_and_keeps_outputs(tmp_path, extra, words):
 
 
 def test_shipped_motion_config_is_valid():
-    cfg, scenes, methods, _ = animation.load_motion_config(ROOM.parents[1] / "configs" / "motion.toml")
-    assert len(scenes) == cfg.frames >= 24
+    cfg, runs, methods, _ = animation.load_motion_config(ROOM.parents[1] / "configs" / "motion.toml")
+    assert len(cfg.seeds) >= 3 and len(runs) == len(cfg.seeds) * len(cfg.sequences)
+    shapes = {r.sequence: r.scenes[0][1].object.shape for r in runs}
+    assert shapes["sphere"] == "sphere" and len(set(shapes.values())) == 2  # two curved objects
     assert [m.name for m in methods] == ["classical", "localized", "proxy_box", "layered"]
-    np.testing.assert_allclose(scenes[0][1].object.center, cfg.path[0])
-    np.testing.assert_allclose(scenes[-1][1].object.center, cfg.path[-1])
+    for run in runs:
+        assert len(run.scenes) == cfg.frames and all(sc.render.seed == run.seed for _, sc in run.scenes)
+        np.testing.assert_allclose(run.scenes[0][1].object.center, cfg.path[0])
+        np.testing.assert_allclose(run.scenes[-1][1].object.center, cfg.path[-1])
 
 
 def test_crop_box_holds_the_object_in_every_frame():

@@ -387,6 +387,7 @@ LONG_FUNCTIONS = {
     "study/harness/runner.py::run_cases": 92,
     "study/measure/case.py::run_case": 93,  # the pipeline, a banner per stage (as prb_basic.sample)
     "study/methods/multi_probe.py::search": 91,
+    "study/outputs/animation.py::_animate": 87,
     "study/methods/search.py::first_entry": 126,
     "study/outputs/figures.py::image_grid": 112,
     "study/outputs/figures.py::_figure": 96,

@@ -1,15 +1,25 @@
-"""Video quality of a method's motion sequence: ColorVideoVDP (``cvvdp``, pinned in the optional extra
-``study[video]``) of the method's frames against Mitsuba's, in JOD.
+"""Video quality of a method's motion sequence on the object's pixels: ColorVideoVDP (``cvvdp``, pinned in the
+optional extra ``study[video]``) of the method's frames against ``truth_at_hit``'s (every ray's exact hit shaded by
+Mitsuba), in JOD.
 
-JOD (just-objectionable differences): 10 means no visible difference from the reference; each unit less means
-that about 75 % of viewers would prefer the reference. The frames are the animation's own (sRGB, 8 bit after
-:func:`study.measure.metrics.to_ldr`), shown on ColorVideoVDP's display model :data:`CVVDP_DISPLAY` — a 24-inch Full HD
-SDR monitor, 200 cd/m² peak, contrast 1000:1, 250 lux office light, seen from 0.6 m (its ``standard_fhd``) — at
-the animation's frame rate. The interval comes from the sequence's ``segments`` equal runs of consecutive frames
-(:func:`segment_interval`: the whole sequence's JOD ± Student's t over the segments' standard error; a percentile
-bootstrap over 4 segments covered 74 % of the time): it says how much the verdict depends on which part of the
-motion is watched, not how observers scatter. The noise floor is the JOD of ``truth_at_hit`` (every ray's
-exact hit shaded by Mitsuba) against Mitsuba's render: what Monte Carlo noise alone costs.
+JOD (just-objectionable differences): 10 means no visible difference from the reference; on ColorVideoVDP's scale
+a difference of 1 JOD between two conditions means that 75 % of observers choose the one with the higher score,
+i.e. one JND (Mantiuk et al., "ColorVideoVDP: A visual difference predictor for image, video and display
+distortions", SIGGRAPH 2024, and the cvvdp README). That is the bound of the motion claim (:data:`BOUND_JOD`): an
+error less than one JND beyond what the references' own noise already costs can "hardly be recognized visually".
+The paper itself gives no number.
+
+Only the object is judged (:func:`on_object`): outside the pixels fully on the object the method's frames take the
+reference's values (no difference there), and every frame is cut to one square around the object's pixels in every
+frame (the view stays still while the object moves) — frame-wide, 93–98 % of each frame is the room, whose
+path-tracing noise would set the score. The frames are sRGB, 8 bit after :func:`study.measure.metrics.to_ldr`,
+shown on ColorVideoVDP's display model :data:`CVVDP_DISPLAY` — a 24-inch Full HD SDR monitor, 200 cd/m² peak, contrast
+1000:1, 250 lux office light, seen from 0.6 m (its ``standard_fhd``) — at the animation's frame rate.
+
+Intervals come from seed replicates (the whole sequence rendered again with another ``render.seed``: impostor
+captures, truth_at_hit and Mitsuba all drawn anew): a 95 % Student-t interval of the mean over the seeds
+(:func:`seed_interval`). The noise floor is the JOD of truth_at_hit of the next seed against truth_at_hit of this
+one: what Monte Carlo noise alone costs.
 """
 
 from __future__ import annotations
@@ -24,6 +34,10 @@ import numpy as np
 CVVDP_DISPLAY = "standard_fhd"
 #: cvvdp's version the numbers were made with (v0.6 retrained the model: pin it).
 VERSION = "0.5.7"
+#: the motion claim's bound: 1 JOD, the difference 75 % of observers notice (one JND on ColorVideoVDP's scale)
+BOUND_JOD = 1.0
+#: the label of the noise floor's row (truth_at_hit of another seed against truth_at_hit)
+FLOOR = "truth_at_hit"
 
 
 def available() -> bool:
@@ -60,21 +74,6 @@ def jod(test: np.ndarray, ref: np.ndarray, *, fps: float, metric=None) -> float:
     return float(q)
 
 
-def jod_with_interval(
-    test: np.ndarray, ref: np.ndarray, *, fps: float, segments: int = 4, metric=None
-) -> tuple[float, float, float]:
-    """(JOD of the whole sequence, 95 % interval low, high) — the interval from ``segments`` runs of
-    consecutive frames (see the module docstring); (jod, nan, nan) when the sequence is too short to split."""
-    m = metric or _metric()
-    whole = jod(test, ref, fps=fps, metric=m)
-    F = len(test)
-    if F < 2 * segments:
-        return whole, float("nan"), float("nan")
-    edges = np.linspace(0, F, segments + 1).astype(int)
-    parts = np.array([jod(test[a:b], ref[a:b], fps=fps, metric=m) for a, b in zip(edges[:-1], edges[1:])])
-    return (whole, *segment_interval(whole, parts))
-
-
 def segment_interval(whole: float, parts, level: float = 0.95) -> tuple[float, float]:
     """(lo, hi): the ``level`` interval of a whole sequence's score from its k segments' scores ``parts``: ``whole``
     ± t₍ₖ₋₁₎ · sd(parts) / √k (the segments as independent draws of the score, the whole as their mean; it
@@ -88,40 +87,108 @@ def segment_interval(whole: float, parts, level: float = 0.95) -> tuple[float, f
     return float(whole) - half, float(whole) + half
 
 
-def motion_rows(sequences: dict[str, np.ndarray], reference: np.ndarray, *, fps: float) -> list[dict]:
-    """One row per sequence (label → frames) against ``reference``: label, jod, jod_lo, jod_hi, frames, display."""
-    m = _metric()
-    rows = []
-    for label, frames in sequences.items():
-        q, lo, hi = jod_with_interval(frames, reference, fps=fps, metric=m)
-        rows.append({"label": label, "jod": q, "jod_lo": lo, "jod_hi": hi, "frames": len(frames),
-                     "display": CVVDP_DISPLAY, "cvvdp": VERSION})  # fmt: skip
-    return rows
+def on_object(
+    test: np.ndarray, ref: np.ndarray, masks: np.ndarray, crop: tuple[slice, slice]
+) -> tuple[np.ndarray, np.ndarray]:
+    """(test, ref) of (F, H, W, 3) frames judged on the object only: ``test`` keeps its pixels where ``masks``
+    (F, H, W) is set and takes ``ref``'s elsewhere; both cut to ``crop`` (rows, columns)."""
+    t = np.where(np.asarray(masks, bool)[..., None], test, ref)
+    return t[:, crop[0], crop[1]], np.asarray(ref)[:, crop[0], crop[1]]
 
 
-def motion_claim(
-    rows: list[dict], *, floor_label: str = "truth_at_hit", within: float = 0.5, quiet_floor: float = 9.0
-) -> list[str]:
+def object_jod(test, ref, masks, crop, *, fps: float, metric=None) -> float:
+    """:func:`jod` of ``test`` against ``ref`` on the object's pixels (:func:`on_object`)."""
+    t, r = on_object(test, ref, masks, crop)
+    return jod(t, r, fps=fps, metric=metric)
+
+
+def seed_interval(values) -> tuple[float, float, float]:
+    """(mean, 95 % low, high) of per-seed values: Student-t over the seeds (the replicates are independent);
+    (mean, nan, nan) from one seed; NaN values are left out."""
+    from scipy.stats import t as student
+
+    v = np.asarray([x for x in values if np.isfinite(x)], float)
+    if v.size == 0:
+        return np.nan, np.nan, np.nan
+    mean = float(v.mean())
+    if v.size < 2:
+        return mean, np.nan, np.nan
+    half = float(student.ppf(0.975, v.size - 1) * v.std(ddof=1) / np.sqrt(v.size))
+    return mean, mean - half, mean + half
+
+
+def motion_claim(rows: list[dict], *, bound: float = BOUND_JOD) -> list[str]:
     """The paper's claim for moving curved objects — localization errors "can hardly be recognized visually" —
-    judged per method: holds where the method's JOD is no more than ``within`` JOD below the noise floor's (what
-    Monte Carlo noise alone costs), its interval included. Where the floor itself lies below ``quiet_floor`` JOD the
-    references' noise would hide any error of that size, and every verdict is "undecided" (a claim tested where
-    it cannot fail is not tested). One sentence per method."""
-    floor = next((r for r in rows if r["label"] == floor_label), None)
-    if floor is None:
-        return []
+    judged per sequence (object) and method on the object's pixels, from ``motion.csv``'s rows (``sequence``,
+    ``label``, ``jod`` and ``gap``, the floor's JOD minus the method's, each with its seed interval ``_lo``/``_hi``;
+    the floor's row is :data:`FLOOR`). Per method: holds where the gap's interval lies below ``bound`` (one JND),
+    fails where it lies above, undecided where it straddles the bound or no interval exists (one seed). Where the
+    floor itself costs more than a third of the bound (10 − floor > bound / 3) the references' noise would hide an
+    error of that size and every verdict is undecided. Per sequence first a sentence on the floor: the methods
+    closer to each other than the floor costs (tied), and the smallest difference between two methods beyond it
+    (the floor should be at most a third of it to order them)."""
     out = []
-    for r in rows:
-        if r["label"] == floor_label:
+    for seq in dict.fromkeys(r.get("sequence", "") for r in rows):
+        mine = [r for r in rows if r.get("sequence", "") == seq]
+        floor = next((r for r in mine if r["label"] == FLOOR), None)
+        methods = [r for r in mine if r["label"] != FLOOR and np.isfinite(_f(r.get("jod")))]
+        if floor is None or not methods:
             continue
-        gap = floor["jod"] - r["jod"]
-        lo_gap = floor["jod"] - (r["jod_hi"] if np.isfinite(r["jod_hi"]) else r["jod"])
-        verdict = "holds" if gap <= within else ("fails" if lo_gap > within else "undecided")
-        if floor["jod"] < quiet_floor:
-            verdict = f"is undecided: the references' own noise already costs {10 - floor['jod']:.1f} JOD"
-        out.append(
-            f"{r['label']}: {r['jod']:.2f} JOD (95 % CI over segments {r['jod_lo']:.2f}–{r['jod_hi']:.2f}) "
-            f"against the noise floor's {floor['jod']:.2f}: {gap:+.2f} below it, the claim {verdict} "
-            f"(bound {within} JOD)"
+        f, loss = _f(floor["jod"]), 10 - _f(floor["jod"])
+        name = f"{seq}: " if seq else ""
+        gaps = sorted(
+            (abs(_f(a["jod"]) - _f(b["jod"])), a["label"], b["label"])
+            for i, a in enumerate(methods)
+            for b in methods[i + 1 :]
         )
+        head = (
+            f"{name}noise floor {f:.2f} JOD (truth_at_hit of another seed; {_f(floor.get('seeds')):.0f} seeds, 95 % CI "
+            f"{_f(floor['jod_lo']):.2f}–{_f(floor['jod_hi']):.2f}): the references' noise costs {loss:.2f} JOD, "
+            + ("within" if loss <= bound / 3 else "more than")
+            + f" a third of the {bound:g}-JOD bound"
+        )
+        tied = [(d, a, b) for d, a, b in gaps if d <= loss]  # closer than the noise floor: not to be ordered
+        apart = [(d, a, b) for d, a, b in gaps if d > loss]
+        if tied:
+            names = sorted({x for _, a, b in tied for x in (a, b)})
+            head += (
+                f"; {', '.join(names)} lie within the floor of each other (at most {tied[-1][0]:.2f} JOD apart, "
+                "less than the references' noise costs: not ordered)"
+            )
+        if apart:
+            d, a, b = apart[0]
+            head += (
+                f"; the smallest difference between two methods beyond it is {d:.2f} JOD ({a} vs {b}), the floor "
+                + ("at most a third of it" if loss <= d / 3 else "more than a third of it: raise render.spp")
+            )
+        if not np.isfinite(f):
+            head = f"{name}no noise floor: one seed (give two seeds or more)"
+        out.append(head)
+        for r in methods:
+            gap, lo, hi = _f(r["gap"]), _f(r.get("gap_lo")), _f(r.get("gap_hi"))
+            if not np.isfinite(loss):
+                verdict = "is undecided: one seed gives no noise floor"
+            elif loss > bound / 3:
+                verdict = f"is undecided: the references' own noise already costs {loss:.2f} JOD"
+            elif not (np.isfinite(lo) and np.isfinite(hi)):
+                verdict = "is undecided: one seed gives no interval"
+            elif hi < bound:
+                verdict = "holds"
+            elif lo > bound:
+                verdict = "fails"
+            else:
+                verdict = f"is undecided: its interval straddles the {bound:g}-JOD bound"
+            out.append(
+                f"{name}{r['label']}: {_f(r['jod']):.2f} JOD on the object against truth_at_hit (95 % CI over seeds "
+                f"{_f(r['jod_lo']):.2f}–{_f(r['jod_hi']):.2f}), {gap:+.2f} JOD below the noise floor (CI "
+                f"{lo:+.2f}–{hi:+.2f}): the claim {verdict} (bound {bound:g} JOD = 1 JND, the difference 75 % of "
+                "observers notice)"
+            )
     return out
+
+
+def _f(x) -> float:
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return float("nan")

@@ -72,7 +72,7 @@ PANELS = (
     ("rmse_truth", "RMSE vs truth_at_hit", True),
 )
 #: Below this a fraction is drawn at it on the log axis (0 wrong).
-FLOOR = 1e-4
+LOG_FLOOR = 1e-4
 
 
 class LadderSpec(BaseModel):
@@ -210,7 +210,7 @@ def convergence_plot(rows: list[dict], ladders: list[Ladder]) -> bytes:
                 rs = sorted((r for r in sel if r["case"] == c), key=lambda r: r["value"])
                 y = np.array([r.get(col, math.nan) for r in rs], float)
                 if col.startswith("wrong_fraction"):
-                    y = np.maximum(y, FLOOR)
+                    y = np.maximum(y, LOG_FLOOR)
                 k = scenes.index(rs[0]["scene"])
                 ax.plot([r["value"] for r in rs], y, "-o", ms=2.5, lw=1, color=colour(k), alpha=0.8,
                         label=rs[0]["scene"])  # fmt: skip
@@ -241,7 +241,7 @@ def convergence_page(cfg_path, reach: list[dict], causes: list[dict], n_cases: i
         f"Made by `study convergence {cfg_path}` from {n_cases} cases. Each rung of each ladder is measured as a "
         "method of the case (study.measure.case.run_case): curves.csv holds every column per case and rung, "
         "convergence.png draws them (a line per case, a colour per scene; the dotted lines are 5 % and 1 %; a "
-        f"wrong fraction of 0 is drawn at {FLOOR:g}).",
+        f"wrong fraction of 0 is drawn at {LOG_FLOOR:g}).",
         "",
         "![curves](convergence.png)",
         "",
