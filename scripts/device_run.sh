@@ -184,9 +184,12 @@ print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' 
     STUDY="python3 -m study.cli" STUDY_PYTHON=python3 REPRODUCE_JOBS=${REPRODUCE_JOBS:-8} \
       REPRODUCE_SKIP=${REPRODUCE_SKIP:-animate} REPRODUCE_SKIP_CALIBRATION=1 \
       timeout "${REPRODUCE_LIMIT:-500}" bash scripts/reproduce.sh --no-setup > "$OUT/log-reproduce.txt" 2>&1
-    echo "reproduce,rc=$?" | tee -a "$OUT/times.csv"; tail -30 "$OUT/log-reproduce.txt"
-    tar cJf "$W/reports.tar.xz" --exclude=cases --exclude=exr --exclude=animation --exclude=performance reports
-    split -b 15M -d "$W/reports.tar.xz" "$OUT/reports-part-" ;;
+    rc=$?; echo "reproduce,rc=$rc" | tee -a "$OUT/times.csv"; tail -30 "$OUT/log-reproduce.txt"
+    if [ "$rc" = 0 ] || [ -n "${REPRODUCE_PACK:-}" ]; then   # a run the limit stopped is run again (caches kept)
+      tar cf - --exclude=cases --exclude=exr --exclude=animation --exclude=performance reports | xz -T0 -3 \
+        > "$W/reports.tar.xz"
+      split -b 15M -d "$W/reports.tar.xz" "$OUT/reports-part-"
+    fi ;;
   pixels)   # the image columns on the GPU (study/measure/pixels.py) against scikit-image/numpy, and side by side
     timed pixels python3 scripts/pixels_cuda.py 2>&1 | tee "$OUT/log-pixels.txt" ;;
   *) echo "unknown part $part"; exit 2 ;;
