@@ -29,7 +29,11 @@ from study.tables import read_csv
 needs_llvm = pytest.mark.skipif("llvm" not in BACKENDS, reason="needs Dr.Jit's LLVM backend")
 
 #: the methods benched by default: every mirror method (glossy ones are asked for by name)
-MIRROR = [n for n in methods.names() if not methods.REGISTRY[n].glossy]
+MIRROR = [
+    n
+    for n in methods.names()
+    if not methods.REGISTRY[n].glossy and getattr(methods.REGISTRY[n], "in_all", True)
+]
 
 
 @pytest.mark.slow

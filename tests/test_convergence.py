@@ -238,3 +238,23 @@ def test_causes_read_the_guesses_before_the_last():
     other = convergence.Ladder("linear_secant", "secant_steps", (0, 1, 2, 3))
     got = convergence.causes(seen["r3"], np.zeros(6, bool), {j: f"r{j}" for j in ratios}, 3, other, geo, seen)
     assert [convergence.CAUSES[i] for i in got[:3]] == ["missed (held)"] * 3
+
+
+def test_convergence_is_a_figure_kind_with_its_report_section(tmp_path):
+    """configs/convergence.toml names its kind; a folder with curves.csv and reach.csv is found as it, and its
+    section shows the curves and the reach table (the report places it among the figures)."""
+    from study.outputs import kinds
+
+    assert kinds.config_kind("configs/convergence.toml").name == "convergence"
+    d = tmp_path / "convergence"
+    d.mkdir()
+    (d / "curves.csv").write_text("scene,case,ladder,param,value\nfig4,fig4-p0,localized,iterations,3\n")
+    (d / "reach.csv").write_text(
+        "scene,ladder,column,target,value_to_reach\nfig4,localized,wrong_fraction_texel,0.05,3\n"
+    )
+    (d / "convergence.png").write_bytes(b"png")
+    ((k, found),) = kinds.found(tmp_path)
+    assert k.name == "convergence" and found == d
+    blocks = k.section(tmp_path, d, [], [])
+    assert ("img", "convergence/convergence.png", "convergence") in blocks
+    assert blocks[-1][0] == "table" and blocks[-1][1][0]["value_to_reach"] == 3

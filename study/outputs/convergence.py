@@ -36,7 +36,7 @@ import json
 import math
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -85,6 +85,7 @@ class LadderSpec(BaseModel):
 
 class ConvergenceConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+    kind: Literal["convergence"] = "convergence"  # the figure kind (study.outputs.kinds.convergence)
     figures: list[str] = Field(min_length=1)
     ladders: list[LadderSpec] = Field(min_length=1)
     targets: list[float] = [0.05, 0.01]
