@@ -285,9 +285,9 @@ def scene_plot(name: str, points: list[dict], devices: list[DeviceTimes], metric
             ax.axvline(b, color="0.7", lw=0.8, ls=":", zorder=0)
             ax.annotate(f"{b:g} ms", (b, 0), xycoords=("data", "axes fraction"), xytext=(2, 4),
                         textcoords="offset points", fontsize=6, color="0.4")  # fmt: skip
-        for label, t in _exact_times(d).items():  # what tracing the rays costs, in the table or not
-            ax.axvline(t, color="black", lw=1.0, ls="-.", zorder=0)
-            ax.annotate(f"{label} (exact query): {_fmt(t)} ms", (t, 0.5), xycoords=("data", "axes fraction"),
+        for t in sorted(set(_exact_times(d).values())):  # what tracing the rays costs, in the table or not
+            ax.axvline(t, color="black", lw=1.0, ls="-.", zorder=0)  # (traced and hit_cache share one query)
+            ax.annotate(f"traced (exact query): {_fmt(t)} ms", (t, 0.5), xycoords=("data", "axes fraction"),
                         xytext=(-4, 0), textcoords="offset points", fontsize=6.5, rotation=90, ha="right",
                         va="center")  # fmt: skip
         ax.set_xscale("log")
@@ -321,11 +321,16 @@ def write_pareto(reports: Path, out: Path, benches: list[Path], *, metric: str =
     if not tables:
         raise StudyError("no figure or sweep tables here (reports/fig*/metrics.csv, reports/sweep-*/results.csv)",
                          file=str(reports))  # fmt: skip
-    files, sections, skipped = {}, [], []
+    files, sections, skipped, exact = {}, [], [], []
     for name, path in tables.items():
         points, note = table_points(read_csv(path), metric)
         if not any(p["label"] in d.ms for p in points for d in devices):
             skipped.append(name)
+            continue
+        if all(
+            not p[metric] > FLOORS.get(metric, 0.0) for p in points
+        ):  # every method exact: no front to draw
+            exact.append(name)
             continue
         sections.append(scene_section(name, points, devices, metric, note))
         files[f"{name}.png"] = scene_plot(name, points, devices, metric)
@@ -352,5 +357,7 @@ def write_pareto(reports: Path, out: Path, benches: list[Path], *, metric: str =
     ]
     if skipped:
         head += [f"No benched method in: {', '.join(skipped)} (glossy methods are not in the bench).", ""]
+    if exact:
+        head += [f"Every method at `{metric}` = 0 (nothing to trade): {', '.join(exact)}.", ""]
     files["pareto.md"] = "\n".join(head) + "\n" + "\n".join(sections)
     return write_set(out, files, lock=lock)
