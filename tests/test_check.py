@@ -165,7 +165,7 @@ MALFORMED = {
     ),
     "every row twice, the first forged": (
         _forged_twice,
-        "line 58 repeats case 'c0000', label 'oracle_map' of line 2",
+        "line 70 repeats case 'c0000', label 'oracle_map' of line 2",
     ),
     "NUL in the header": (
         _renamed_header("angle\0_median_deg"),
@@ -187,7 +187,7 @@ MALFORMED = {
 def test_malformed_baseline_is_bad_input_naming_the_cell(case, tmp_path, monkeypatch):
     """A baseline that is not one finite value per (case, label) and metric is refused before the sweep runs:
     exit 2, one line naming the first offending cell — not a pass (an infinite cell made its tolerance
-    infinite; with a row twice the last copy won) and not 56 regressions (a NUL in the header)."""
+    infinite; with a row twice the last copy won) and not 68 regressions (a NUL in the header)."""
     edit, expected = MALFORMED[case]
     config, baseline = _planted_baseline(tmp_path, edit)
     monkeypatch.setattr("study.outputs.check.run_sweep", lambda *a, **k: pytest.fail("the sweep ran"))
@@ -205,9 +205,9 @@ def test_the_committed_baseline_is_well_formed(tmp_path):
     cfg, _, base_dir = load_check("configs/check.toml")
     rows = read_baseline(base_dir / "spread.csv", list(cfg.tolerance))
     check_baseline(rows, list(cfg.tolerance), base_dir / "spread.csv")
-    assert len(rows) == 56 and {r["seeds"] for r in rows} == {len(cfg.seeds)} and len(cfg.seeds) >= 3
+    assert len(rows) == 68 and {r["seeds"] for r in rows} == {len(cfg.seeds)} and len(cfg.seeds) >= 3
     assert all(f"{m}_sd" in rows[0] for m in cfg.tolerance)
-    assert len(read_table(base_dir / "results.csv")) == 56  # the first seed's table, for the report
+    assert len(read_table(base_dir / "results.csv")) == 68  # the first seed's table, for the report
 
 
 def test_an_infinite_baseline_value_is_matched_exactly():

@@ -74,7 +74,7 @@ def test_an_unknown_kind_is_one_line(scratch):
     assert res.exit_code == 2
     line = res.output.strip()
     assert (
-        "fig_x.toml: kind: unknown figure kind 'tallly'; allowed: animation, caustics, glossy, grid" in line
+        "fig_x.toml: kind: unknown figure kind 'tallly'; allowed: animation, caustics, convergence, glossy, grid" in line
     )
     assert len(line.splitlines()) == 1 and not (scratch / "reports").exists()
 

@@ -333,3 +333,13 @@ def test_fewer_than_ten_cases_give_their_range_not_a_ci():
     many = summary.ranking(table(12), summary.WRONG)[0]
     assert many["kind"] == "ci" and "95 % CI over cases" in summary.table_sentence("t", table(12))
     assert {r["interval"] for r in summary.interval_rows({"t": table(3)})} == {"range"}
+
+
+def test_the_headline_ranks_stand_ins_not_the_rows_that_trace_the_rays():
+    """traced (and hit_cache) are exact by construction: the ranking of stand-ins leaves them out."""
+    rows = [
+        {"case": c, "label": lab, "method": m, "wrong_fraction": w, "lookups_per_ray": 1.0}
+        for c in ("a", "b")
+        for lab, m, w in (("traced", "traced", 0.0), ("proxy_box", "proxy_box", 0.1), ("oracle_map", "", 0.0))
+    ]
+    assert [r["label"] for r in summary.ranking(rows, "wrong_fraction")] == ["proxy_box"]

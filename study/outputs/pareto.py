@@ -180,8 +180,10 @@ def pareto_front(rows: list[dict], cost: str, err: str) -> list[dict]:
 
 
 def _exact_times(d: DeviceTimes) -> dict[str, float]:
-    """Label → ms of the methods that are the exact query, on device ``d``."""
-    return {k: d.ms[k] for k in exact_priced() if k in d.ms}
+    """Label → ms of the methods that are the exact query itself (``traced``; not ``hit_cache``, which makes the
+    same query and shades from its cache), on device ``d``."""
+    own = {registry.make(n).label for n in registry.names() if "bench_query" in vars(registry.REGISTRY[n])}
+    return {k: d.ms[k] for k in exact_priced() if k in d.ms and k in own}
 
 
 def at_budget(front: list[dict], budget: float, cost: str) -> dict | None:

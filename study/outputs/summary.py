@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 
+from study import methods as registry
 from study.measure import stats
 from study.outputs import power
 from study.outputs.markup import code, md_esc
@@ -63,7 +64,10 @@ def _per_ray(*costs) -> str:
 
 
 def _labels(tab: list[dict]) -> list[str]:
-    return [lab for lab in dict.fromkeys(r["label"] for r in tab) if lab not in REFERENCE_ROWS]
+    """The stand-ins: no reference, no row that traces the rays (traced, hit_cache: see ``study pareto``)."""
+    exact = {r["label"] for r in tab if getattr(registry.REGISTRY.get(r.get("method")), "bench_query", None)}
+    exact |= set(REFERENCE_ROWS)
+    return [lab for lab in dict.fromkeys(r["label"] for r in tab) if lab not in exact]
 
 
 def _values(tab: list[dict], label: str, col: str, cases: list[str]) -> np.ndarray:
