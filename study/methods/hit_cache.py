@@ -16,11 +16,9 @@ from __future__ import annotations
 
 from typing import Annotated
 
-import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from study.backend import V3, Backend
-from study.impostor.cubemap import FAR
 from study.impostor.views import Captured, Views
 from study.methods.base import Found, Knob, register
 from study.methods.traced import ExactQuery
@@ -48,20 +46,11 @@ class HitCache(ExactQuery):
         if hits is None or cached is None:  # a bare impostor: the room box's exact hit, as traced
             return self._box(B, env, x, R)
         shade = env.need_shade(self.name)
-        o = env.origin()
-        xw = B.to_numpy(x).astype(np.float64) + o
-        d = B.to_numpy(R).astype(np.float64)
-        ok = np.isfinite(xw).all(-1) & np.isfinite(d).all(-1)
-        shown, rad = np.full_like(xw, np.nan), np.full_like(xw, np.nan)
-        if ok.any():
-            pts = np.asarray(hits(xw[ok], d[ok]), np.float64)
-            escapes = ~np.isfinite(pts).all(-1)
-            pts[escapes] = xw[ok][escapes] + d[ok][escapes] * FAR
-            shown[ok] = pts - o
-            r = cached(self.params.res, xw[ok], d[ok])
+
+        def radiance(xw, d, escapes):
+            r = cached(self.params.res, xw, d)
             if escapes.any():  # no surface to cache: the radiance along the ray
-                r[escapes] = shade(xw[ok][escapes], d[ok][escapes])
-            rad[ok] = r
-        valid = B.array(ok.astype(np.float32)) > 0.5
-        one = x.x * 0.0 + 1.0
-        return Found(B.vec(shown), B.vec(shown), B.vec(rad), one, valid, one)
+                r[escapes] = shade(xw[escapes], d[escapes])
+            return r
+
+        return self._exact(B, env, x, R, radiance)

@@ -117,6 +117,12 @@ def _sel(B, m, a: V3, b: V3) -> V3:
     return V3(B.select(m, a.x, b.x), B.select(m, a.y, b.y), B.select(m, a.z, b.z))
 
 
+def probe_spec(p) -> ProbeSpec:
+    """The probe set a method's parameters name (``grid``, ``points``, ``clearance``)."""
+    pts = tuple(tuple(float(c) for c in q) for q in p.points) if p.points is not None else None
+    return ProbeSpec(grid=tuple(p.grid), points=pts, clearance=p.clearance)
+
+
 @register
 class MultiProbe(TracingMethod):
     name = "multi_probe"
@@ -125,9 +131,7 @@ class MultiProbe(TracingMethod):
     knob = Knob("steps_per_texel", (0.25, 0.5, 1.0, 2.0))
 
     def spec(self) -> ProbeSpec:
-        p = self.params
-        pts = tuple(tuple(float(c) for c in q) for q in p.points) if p.points is not None else None
-        return ProbeSpec(grid=tuple(p.grid), points=pts, clearance=p.clearance)
+        return probe_spec(self.params)
 
     def views_needed(self) -> Views:
         return Views(probes=(self.spec(),))

@@ -45,6 +45,7 @@ from study.backend import V3, Backend
 from study.impostor import analytic
 from study.impostor.views import Captured, ProbeSpec, Views
 from study.methods.base import Found, Knob, TracingMethod, register
+from study.methods.multi_probe import probe_spec
 from study.methods.proxy_box import room_box
 from study.methods.proxy_sphere import fibonacci_directions
 
@@ -157,9 +158,7 @@ class ProbeBlend(TracingMethod):
     knob = Knob("blend", (0.0, 0.1, 0.25, 0.5))
 
     def spec(self) -> ProbeSpec:
-        p = self.params
-        pts = tuple(tuple(float(c) for c in q) for q in p.points) if p.points is not None else None
-        return ProbeSpec(grid=tuple(p.grid), points=pts, clearance=p.clearance)
+        return probe_spec(self.params)  # the probes of multi_probe's grid: one capture serves both
 
     def views_needed(self) -> Views:
         return Views(probes=(self.spec(),))

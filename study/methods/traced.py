@@ -59,11 +59,15 @@ class ExactQuery(TracingMethod):
         return B.isfinite(B.length(x))
 
     def search(self, B: Backend, env: Captured, x: V3, R: V3) -> Found:
-        hits = env.need_hits(self.name)
-        if hits is None:
+        if env.need_hits(self.name) is None:
             return self._box(B, env, x, R)
         shade = env.need_shade(self.name)
-        o = env.origin()
+        return self._exact(B, env, x, R, lambda xw, d, escapes: shade(xw, d))
+
+    def _exact(self, B: Backend, env: Captured, x: V3, R: V3, radiance) -> Found:
+        """The exact hits of the rays (escaping ones at infinity along them) with ``radiance(xw, d, escapes)``:
+        (n, 3) for the finite rays' world origins, directions and which of them leave the scene."""
+        hits, o = env.need_hits(self.name), env.origin()
         xw = B.to_numpy(x).astype(np.float64) + o
         d = B.to_numpy(R).astype(np.float64)
         ok = np.isfinite(xw).all(-1) & np.isfinite(d).all(-1)
@@ -76,7 +80,7 @@ class ExactQuery(TracingMethod):
             )  # the ray leaves the scene: "no surface", at infinity along it
             pts[escapes] = xw[ok][escapes] + d[ok][escapes] * FAR
             shown[ok] = pts - o
-            rad[ok] = shade(xw[ok], d[ok])
+            rad[ok] = radiance(xw[ok], d[ok], escapes)
         valid = B.array(ok.astype(np.float32)) > 0.5
         one = x.x * 0.0 + 1.0
         return Found(B.vec(shown), B.vec(shown), B.vec(rad), one, valid, one)
