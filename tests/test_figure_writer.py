@@ -33,3 +33,14 @@ def test_case_files_are_made_beside_the_next_case(tmp_path, monkeypatch):
     entries = json.loads((tmp_path / "o" / viewer.MANIFEST).read_text())["cases"]
     assert [e["exposure_ev"] for e in entries] == [round(meta["exposure_ev"], 2)] * 3
     assert len(list((tmp_path / "o" / "exr").glob("*.exr"))) == 3
+
+
+def test_panel_titles_wrap_long_parameter_lists():
+    """A label's parameters break after a comma once a line would pass 26 characters (fig_probes' ssr with its
+    fallback ran into the next panel's title)."""
+    from study.outputs.figures import _wrap
+
+    assert _wrap("proxy_box") == "proxy_box"
+    assert _wrap("localized(iterations=10)") == "localized\n(iterations=10)"
+    assert _wrap("ssr(max_steps=512, fallback='localized')") == "ssr\n(max_steps=512,\nfallback='localized')"
+    assert all(len(line) <= 26 for line in _wrap("ssr(max_steps=512, fallback='localized')").splitlines())

@@ -35,9 +35,20 @@ from study.scene.environment import describe
 from study.tables import table_files
 
 
-def _wrap(label: str) -> str:
-    """A method label on two lines (name, then its parameters), so that panel titles do not run into each other."""
-    return label.replace("(", "\n(", 1)
+def _wrap(label: str, width: int = 26) -> str:
+    """A method label on lines of at most ``width`` characters where it can (name, then its parameters, broken
+    after a comma), so that panel titles do not run into each other."""
+    name, _, params = label.partition("(")
+    if not params:
+        return name
+    lines, cur = [], "("
+    for part in params.split(", "):
+        if len(cur) > 1 and len(cur) + len(part) + 2 > width:
+            lines.append(cur + ",")
+            cur = part
+        else:
+            cur += (", " if len(cur) > 1 else "") + part
+    return "\n".join([name, *lines, cur])
 
 
 def _outcome_legend(fig, first, last) -> None:
