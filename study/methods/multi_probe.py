@@ -48,7 +48,7 @@ from __future__ import annotations
 from typing import Annotated
 
 import numpy as np
-from pydantic import Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from study.backend import V3, Backend
 from study.impostor import cubemap
@@ -60,7 +60,10 @@ from study.methods.search import arc_samples, first_crossing, refine, secant_poi
 Vec3 = tuple[float, float, float]
 
 
-class Params(TexelMarchParams):  # + steps_per_texel, max_steps
+class ProbeGridParams(BaseModel):
+    """Where the probes stand (shared with ``probe_blend``, so one capture serves both): :func:`probe_spec`."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
     grid: tuple[
         Annotated[int, Field(ge=1, le=8)],
         Annotated[int, Field(ge=1, le=8)],
@@ -70,6 +73,9 @@ class Params(TexelMarchParams):  # + steps_per_texel, max_steps
     clearance: Annotated[
         float, Field(ge=0, le=10, description="grid probes at least this far from surfaces, metres")
     ] = 0.1
+
+
+class Params(ProbeGridParams, TexelMarchParams):  # steps_per_texel, max_steps, then the probes' place
     secant_steps: Annotated[int, Field(ge=0, le=100, description="Illinois steps on each crossing")] = 4
     thickness: Annotated[float, Field(ge=0, le=10, description="HIT tolerance, metres (+ the slack)")] = 0.05
     slack: Annotated[

@@ -38,18 +38,17 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from study import columns
 from study.backend import V3, Backend
 from study.impostor import analytic
 from study.impostor.views import Captured, ProbeSpec, Views
 from study.methods.base import Found, Knob, TracingMethod, register
-from study.methods.multi_probe import probe_spec
+from study.methods.multi_probe import ProbeGridParams, probe_spec
 from study.methods.proxy_box import room_box
 from study.methods.proxy_sphere import fibonacci_directions
 
-Vec3 = tuple[float, float, float]
 #: A probe with at least this weight whose answer differs from the shown point makes the ray a ghost.
 GHOST_WEIGHT = 0.1
 GHOST = "ghost_fraction"
@@ -65,17 +64,7 @@ if columns.declared(GHOST) is None:
     )
 
 
-class Params(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-    grid: tuple[
-        Annotated[int, Field(ge=1, le=8)],
-        Annotated[int, Field(ge=1, le=8)],
-        Annotated[int, Field(ge=1, le=8)],
-    ] = Field((2, 2, 2), description="probes at the centres of a grid of cells in the environment's bounds")
-    points: tuple[Vec3, ...] | None = Field(None, description="or probes at these world points (besides o)")
-    clearance: Annotated[
-        float, Field(ge=0, le=10, description="grid probes at least this far from surfaces, metres")
-    ] = 0.1
+class Params(ProbeGridParams):  # the probes of multi_probe's grid, then how they are blended
     projection: Literal["box", "sphere"] = Field(
         "box", description="parallax correction of each probe's lookup"
     )

@@ -232,13 +232,13 @@ def tables_of(reports: Path) -> dict[str, list[dict]]:
     return tables
 
 
-def blocks(reports: Path) -> list[tuple]:
+def blocks(reports: Path, tables: dict[str, list[dict]] | None = None) -> list[tuple]:
     """The report as blocks (see :func:`markdown_text` and :func:`study.outputs.html.page`)."""
     made = kinds.found(reports)  # figures of every kind, by the files their runs write (study.outputs.kinds)
     figs, sweeps = [d for k, d in made if k.tables], _sweeps(reports)
     runs = sections.find_runs(reports)  # by their own files, whatever the folder's name
     numeric = ["cube_res", *SUMMARY]
-    tables = tables_of(reports)
+    tables = tables_of(reports) if tables is None else tables  # build_report reads them once for both pages
 
     out = _claims_section(tables) + _comparison_section(tables) + _decomposition_section(tables)
     for k, d in made:
@@ -320,7 +320,8 @@ def build_report(reports: str | Path = "reports") -> Path | None:
         )
     with locked(reports), pg.task("report", None):  # stage lines (study.progress)
         with pg.stage("sections"):  # the tables read, the claims checked, the viewers' images listed
-            bl = blocks(reports)
+            tables = tables_of(reports)
+            bl = blocks(reports, tables)
         if not bl:
             return None
         with pg.stage("pages"):
@@ -328,7 +329,7 @@ def build_report(reports: str | Path = "reports") -> Path | None:
                 "index.md": markdown_text(bl, reports),
                 "index.html": html.page(bl, reports, title=TITLE),
                 "claims.md": register_markdown(
-                    tables_of(reports),
+                    tables,
                     motion_sentences(reports),
                     bench_sentence(reports / "performance" / "bench-gpu.csv"),
                 ),
