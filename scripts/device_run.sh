@@ -2,7 +2,7 @@
 # The GPU measurements of reports/performance.md (issue 15), run on a lent GPU machine from the repository root:
 #
 #   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3] [hier] [fig4paper]
-#                              [side] [reproduce] [pixels]
+#                              [side] [fig4prof] [reproduce] [pixels]
 #                                                                                   (default: bench studies)
 #
 #   bench   : `study bench --backends cuda` — methods, exact queries (ray_intersect, _preliminary, ray_test) and
@@ -150,6 +150,15 @@ print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' 
     timed fig4-paper-kernels-warm $S figure fig4 --quality paper --backend cuda --cache "$W/pc2" \
       --out "$W/paper-warm/fig4" > /dev/null 2>&1
     tar czf "$OUT/results-paper.tgz" -C "$W" --exclude=exr --exclude=viewer paper ;;
+  fig4prof)  # this commit's fig4 at paper quality, cold under cProfile (per-stage split: the callees of run_case,
+             # sorted by cumulative time → profile-fig4prof.txt), then with the kernel cache warm
+    export HOME=$W/home-fp; mkdir -p "$HOME"
+    timed fig4prof-paper-cold python3 -m cProfile -o "$OUT/fp.prof" -m study.cli figure fig4 --quality paper \
+      --backend cuda --cache "$W/fp1" --out "$W/fp/fig4" > "$OUT/log-fig4prof.txt" 2>&1
+    python3 -c "import pstats,sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(90)
+s.print_callees('run_case')" "$OUT/fp.prof" > "$OUT/profile-fig4prof.txt" 2>&1; rm -f "$OUT/fp.prof"
+    timed fig4prof-paper-kernels-warm $S figure fig4 --quality paper --backend cuda --cache "$W/fp2" \
+      --out "$W/fp/fig4-warm" > /dev/null 2>&1 ;;
   side)    # issue-41 targets, the commit before ($OLD, default .devold: `git archive <rev> study configs scenes
            # pyproject.toml | tar x -C .devold`) and this one side by side on one host, each cold (fresh study and
            # kernel caches): fig4 at paper quality cold and with the kernels warm, then the 256² fig4 + fig5 + fig6 +
