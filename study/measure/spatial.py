@@ -34,21 +34,23 @@ MIN_KEPT = 0.25
 MAX_LENGTH_SHARE = 0.125
 
 
-def _fft_shape(h: int, w: int) -> tuple[int, int]:
-    from scipy.fft import next_fast_len
-
-    return next_fast_len(2 * h, True), next_fast_len(2 * w, True)
-
-
-def lag_sums(fields: np.ndarray) -> np.ndarray:
-    """(k, H', W') the summed products fᵢ·fᵢ₊ₕ of each (H, W) field over every lag h (zero-padded, so no wrap;
-    lag (dy, dx) at index (dy mod H', dx mod W'))."""
+def lag_sums(fields: np.ndarray, reach: int | None = None) -> np.ndarray:
+    """(k, H', W') the summed products fᵢ·fᵢ₊ₕ of each (H, W) field over the lags h (lag (dy, dx) at index
+    (dy mod H', dx mod W')): every lag, or with ``reach`` only those within ``reach`` pixels along each axis come
+    out exact (zero-padded to H + reach + 1, so none of them wraps; the others are not meaningful)."""
     from scipy import fft
 
     f = np.asarray(fields, float)
-    shape = _fft_shape(*f.shape[-2:])
-    F = fft.rfft2(f, s=shape, axes=(-2, -1))
-    return fft.irfft2(F.real**2 + F.imag**2, s=shape, axes=(-2, -1))
+    pad = [2 * n if reach is None else min(2 * n, n + reach + 1) for n in f.shape[-2:]]
+    shape = tuple(fft.next_fast_len(n, True) for n in pad)
+    F = fft.rfft2(f, s=shape, axes=(-2, -1), workers=-1)
+    return fft.irfft2(F.real**2 + F.imag**2, s=shape, axes=(-2, -1), workers=-1)
+
+
+def _near_lags(shape: tuple[int, int], reach: int) -> tuple[np.ndarray, np.ndarray]:
+    """The row and column indices of the lags within ``reach`` pixels along each axis (lag 0 first; each lag once)."""
+    rows, cols = (np.unique(np.r_[0 : min(reach, n - 1) + 1, max(1, n - reach) : n]) for n in shape)
+    return rows[:, None], cols[None, :]
 
 
 def _radii(shape: tuple[int, int]) -> np.ndarray:
@@ -111,10 +113,13 @@ def ratio_variance(nums, den, mask) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     sub = np.where(m, nums[:, y0:y1, x0:x1], 0.0)
     r = sub.sum(axis=(1, 2)) / total
     resid = np.where(m, sub - r[:, None, None] * d, 0.0)
-    sums = lag_sums(np.concatenate([resid, m[None].astype(float)]))
-    pairs, sums = sums[-1], sums[:-1]
-    radii = _radii(pairs.shape)
     limit = max(1.0, MAX_LENGTH_SHARE * min(m.shape))
+    # only the lags that the correlogram (rings ≤ limit + 1) or the window (< 2 · max(MIN_WINDOW, limit)) reach
+    reach = math.ceil(max(2 * max(MIN_WINDOW, limit), int(limit) + 1.5))
+    sums = lag_sums(np.concatenate([resid, m[None].astype(float)]), reach)
+    near = _near_lags(sums.shape[-2:], reach)
+    sums, radii = sums[:, near[0], near[1]], _radii(sums.shape[-2:])[near]
+    pairs, sums = sums[-1], sums[:-1]
     lengths, var, dof = np.empty(k), np.empty(k), np.empty(k)
     n = float(m.sum())
     for i in range(k):
