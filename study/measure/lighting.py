@@ -70,7 +70,8 @@ def firefly_note(rows: list[dict], spp: int) -> str:
         return ""
     return (
         f"the picture shows fireflies: {f:.1%} of Mitsuba's pixels differ between its two seeds by more than "
-        f"{FIREFLY_STEP:g} of the display range (limit {FIREFLY_LIMIT:.0%}); raise render.spp (now {spp})"
+        f"{FIREFLY_STEP:g} of the display range (limit {FIREFLY_LIMIT:.0%})"
+        + (f"; raise render.spp (now {spp})" if spp else "")
     )
 
 
@@ -89,8 +90,8 @@ def noise_note(rows: list[dict], spp: int) -> str:
     need = math.ceil(spp * share / REFERENCE_NOISE_SHARE) if math.isfinite(share) else math.inf
     return (
         f"the truth's own noise is {share:.0%} of the best method's relMSE after exposure (limit "
-        f"{REFERENCE_NOISE_SHARE:.0%}): differences under it are the reference's noise; render.spp ≥ {need} "
-        f"(now {spp}) would bring it under"
+        f"{REFERENCE_NOISE_SHARE:.0%}): differences under it are the reference's noise"
+        + (f"; render.spp ≥ {need} (now {spp}) would bring it under" if spp else "")
     )
 
 
@@ -106,5 +107,5 @@ def picture_label(rows: list[dict]) -> str:
 
 def notes(rows: list[dict], scene) -> list[str]:
     """The run's lines about its light and samples (module docstring), in that order; empty where all is well."""
-    spp = scene.render.spp
+    spp = getattr(getattr(scene, "render", None), "spp", 0)  # 0: not known (a figure's case without a scene)
     return [s for s in (light_note(rows, scene), firefly_note(rows, spp), noise_note(rows, spp)) if s]
