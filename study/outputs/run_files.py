@@ -16,7 +16,7 @@ from study.outputs import figures, html, viewer
 #: The one case of a run: its file names (exr/run.exr, viewer/run.js, run.png).
 CASE = "run"
 #: A run's images are exposed as a person would set them for the whole picture (not for the object's highlights):
-#: :func:`study.outputs.viewer.auto_exposure` of Mitsuba's render, stated in the PNG's title and index.json.
+#: :func:`study.measure.exposure.auto_exposure` of Mitsuba's render, stated in the PNG's title and index.json.
 RUN_EXPOSURE_RULE = f"Mitsuba image: {viewer.FRAME_RULE}"
 
 

@@ -267,7 +267,8 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
 
 def image_column(tab: list[dict]) -> str:
     """The column image error is ranked on: :data:`RELATIVE` where the table has it, else :data:`IMAGE`."""
-    return RELATIVE if any(math.isfinite(r.get(RELATIVE, math.nan)) for r in tab) else IMAGE
+    have = (v for r in tab if isinstance(v := r.get(RELATIVE), int | float))
+    return RELATIVE if any(math.isfinite(v) for v in have) else IMAGE
 
 
 def _image_text(tab: list[dict]) -> str | None:
@@ -289,7 +290,9 @@ def _image_text(tab: list[dict]) -> str | None:
         ra, rb = absolute[a["label"]]["median"], absolute[b["label"]]["median"]
         text += f" (absolute RMSE, noise-debiased: {fmt_number(ra)} vs {fmt_number(rb)})"
         if rb < ra:
-            text += f"; **by absolute RMSE {code(b['label'])} is lower: its errors lie in darker pixels**"
+            text += (
+                f"; **by absolute RMSE {code(b['label'])} is lower** (absolute errors scale with brightness)"
+            )
     abs_rank, trim = ranking(tab, IMAGE), ranking(tab, f"{IMAGE}_trim")
     by = "" if col == IMAGE else " by RMSE"  # tables before RELATIVE: the words as they were
     if trim and abs_rank and trim[0]["label"] != abs_rank[0]["label"]:
@@ -363,7 +366,7 @@ INTERVAL_COLUMNS = [
 ]
 
 
-RELMSE_KEYS = (("", "median"), ("_lo", "lo"), ("_hi", "hi"))
+_RELMSE_KEYS = (("", "median"), ("_lo", "lo"), ("_hi", "hi"))
 
 
 def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
@@ -403,7 +406,7 @@ def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
                     "rmse": i.get("median", math.nan),
                     "rmse_lo": i.get("lo", math.nan),
                     "rmse_hi": i.get("hi", math.nan),
-                    **{f"relmse{k}": rel.get(r["label"], {}).get(v, math.nan) for k, v in RELMSE_KEYS},
+                    **{f"relmse{k}": rel.get(r["label"], {}).get(v, math.nan) for k, v in _RELMSE_KEYS},
                 }
             )
     return out
