@@ -273,6 +273,12 @@ class Result:
             f"{len(self.table) - len(REFERENCE_ROWS)} method(s)"
         )
 
+    def notes(self) -> list[str]:
+        """What the run says about its light and samples (:func:`study.measure.lighting.notes`)."""
+        from study.measure.lighting import notes
+
+        return notes(self.table.to_dict("records"), self.scene)
+
     def shown(self):
         """The table's leading columns (the declared view "run" of :mod:`study.columns`) for display."""
         return self.table[[c for c in columns.view("run") if c in self.table.columns]]

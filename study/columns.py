@@ -173,7 +173,48 @@ TABLE: list[TableColumn] = [
         interval=True,
         note="√max(0, RMSE² − σ²): the truth's noise out",
     ),
-    C("relmse_truth", "", LOW, interval=True, note="relative MSE, (img − ref)² / (ref² + ε)"),
+    C(
+        "relmse_truth",
+        "",
+        LOW,
+        interval=True,
+        note="relative MSE, (img − ref)² / (ref² + ε), ε = 0.01 absolute",
+    ),
+    C(
+        "relmse_truth_exposed",
+        "",
+        LOW,
+        "relMSE exp.",
+        ("run",),
+        True,
+        "relMSE after exposure: images × 2^truth_exposure_ev, then (img − ref)² / (ref² + ε), ε = 0.01 (√ε about "
+        "half of middle grey: darker pixels count about absolutely, so their noise cannot dominate); the same for a "
+        "scene × k, so it ranks methods alike in dark and bright scenes (study/measure/exposure.py); the summary "
+        "ranks image error on it",
+    ),
+    C(
+        "truth_noise_relmse",
+        "",
+        note="the truth's own noise in relmse_truth_exposed's unit: its part of every row's",
+    ),
+    C(
+        "truth_exposure_ev",
+        "EV",
+        note="exposure of the truth over the object's pixels (median → 0.18, p95 ≤ 1)",
+    ),
+    C(
+        "firefly_fraction",
+        F,
+        LOW,
+        note="pixels of Mitsuba's render whose displayed luminance (its exposure, clipped at 1) differs between "
+        "its two seeds by > 0.25: over 0.02 the picture is labelled FIREFLIES",
+    ),
+    C(
+        "own_light_share",
+        F,
+        note="the file's own lights' power over study's point light's (luminance, W); under 0.05 they are weak and "
+        "study's point light is added unless light.enabled is given (study/scene/lights.py); NaN: not judged",
+    ),
     C("truth_noise_rmse", "linear RGB", note="the truth's own noise σ"),
     C("rmse_mitsuba_debiased", "linear RGB", LOW),
     C("mitsuba_noise_rmse", "linear RGB"),
@@ -221,7 +262,7 @@ LEAD = [c.name for c in TABLE[: [c.name for c in TABLE].index("seconds") + 1]]
 #: the views a printed table may name, in the order of :data:`TABLE` unless :data:`ORDER` says otherwise
 ORDER = {
     "run": ["label", "wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95",
-            "angle_median_deg", "rmse_truth", "flip_truth", "rmse_mitsuba", "lookups_per_ray"],
+            "angle_median_deg", "rmse_truth", "relmse_truth_exposed", "flip_truth", "rmse_mitsuba", "lookups_per_ray"],
     "figure": ["case", "label", "angle_median_deg", "angle_p95_deg", "rmse_oracle", "rmse_mitsuba", "flip_truth",
                "occluded_fraction"],
 }  # fmt: skip

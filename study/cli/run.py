@@ -98,6 +98,8 @@ def run(
                 sc, methods, backend=backend, cache=cache, source=str(scene), allow_mismatch=allow_mismatch
             )
         progress.advance(file_stem(scene.stem))
+        for line in res.notes():  # weak lights, fireflies, a noisy truth (study.measure.lighting)
+            typer.echo(f"note: {line}", err=True)
         shown = res.shown()
         t = Table(title=res.summary())
         headers = columns.headers()  # the declared short headers (the files keep the names)

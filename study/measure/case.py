@@ -24,7 +24,7 @@ from study.cache import Cache
 from study.errors import StudyError
 from study.impostor.envmap import EnvMap
 from study.impostor.views import Lobe
-from study.measure import metrics, outcomes, spatial, split, stats, truth
+from study.measure import lighting, metrics, outcomes, spatial, split, stats, truth
 from study.measure.inputs import camera_render, capture_views, impostor, second_captures
 from study.methods import Method
 from study.optics import shading
@@ -352,6 +352,7 @@ def _base_columns(scene: Scene, case_id: str, backend: str, rays, exact: ExactHi
         "rays": len(rays.x),
         "occluded_fraction": float(exact.occluded.mean()) if len(exact.occluded) else np.nan,
         **rays.stats,
+        **lighting.light_columns(scene),  # the file's own lights against study's (study.scene.lights)
     }
 
 

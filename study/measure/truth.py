@@ -18,7 +18,9 @@ sampling) and composited over the same object-free background:
   reflected path. Also rendered with two seeds, so its noise is stated too.
 
 Noise-debiased RMSE: √max(0, RMSE² − σ²), σ² the mean squared noise of the reference over the same pixels
-(σ² of a two-seed mean from the seeds' half difference). relMSE: mean((a − b)² / (b² + ε)), ε = :data:`REL_EPS`.
+(σ² of a two-seed mean from the seeds' half difference). relMSE: mean((a − b)² / (b² + ε)), ε = :data:`REL_EPS`
+(absolute: in a dark scene it is the MSE / ε). The relMSE after exposure, the same in a scene and in that scene
+× k, the truth's noise in its unit, and the picture's fireflies: :mod:`study.measure.exposure`.
 
 The split of a method's error into search, visibility, representation and noise, over every object pixel, and
 the oracle (``oracle_map``) are in :mod:`study.measure.split`.
@@ -33,6 +35,7 @@ import numpy as np
 from study import backend as backends
 from study.cache import Cache, content_key
 from study.impostor import ggx
+from study.measure import exposure, spatial, stats
 from study.measure.metrics import _crop, image_backend, rmse
 from study.optics import shading
 from study.reference.mitsuba import radiance_along
@@ -49,6 +52,7 @@ class Truth:
     noise: np.ndarray  # (H, W, 3) its noise: half the two seeds' difference (Fresnel-weighted)
     along: np.ndarray  # (K, 3) the radiance along each exact secondary ray (two seeds' mean, no Fresnel)
     mitsuba_noise: np.ndarray  # (H, W, 3) the same for Mitsuba's camera render with the object
+    ev: float = 0.0  # the truth's exposure over the object's pixels (study.measure.exposure.object_exposure)
 
 
 def truth_at_hit(scene: Scene, cache: Cache, rays: shading.ObjectRays) -> tuple[np.ndarray, np.ndarray]:
@@ -113,11 +117,13 @@ def build(
     """The truth image and the noise images (module docstring); ``mitsuba`` = the camera render's two seeds."""
     t1, t2 = truth_at_hit(scene, cache, rays)
     zero = np.zeros_like(background)
+    image = shading.composite(rays, (t1 + t2) / 2 * F, background)
     return Truth(
-        image=shading.composite(rays, (t1 + t2) / 2 * F, background),
+        image=image,
         noise=shading.composite(rays, (t1 - t2) / 2 * F, zero),
         along=(t1 + t2) / 2,
         mitsuba_noise=(mitsuba[0] - mitsuba[1]) / 2,
+        ev=exposure.object_exposure(image, rays.full),
     )
 
 
@@ -145,7 +151,9 @@ def columns(
 ) -> dict[str, float]:
     """The truth columns of one method's image (or the oracle's) over ``mask``: errors against truth_at_hit (raw,
     debiased, relMSE) and against Mitsuba debiased (module docstring); measured on
-    :func:`study.measure.metrics.image_backend` of ``backend`` (numpy: the functions above)."""
+    :func:`study.measure.metrics.image_backend` of ``backend`` (numpy: the functions above). Then, on numpy, the
+    columns of :mod:`study.measure.exposure`: relMSE after exposure with its pixel interval, the truth's noise in
+    its unit, and the fireflies of Mitsuba's render."""
     box = None  # only the mask's bounding box travels
     if backend != "numpy" and mask.any():
         box = _crop(mask, 0, img, truth.image, mitsuba, truth.noise, truth.mitsuba_noise)
@@ -168,4 +176,13 @@ def columns(
         "truth_noise_rmse": sigma,
         "rmse_mitsuba_debiased": debiased(rmse_mitsuba, sigma_m),
         "mitsuba_noise_rmse": sigma_m,
+        **exposure.exposed_columns(
+            img, truth.image, truth.noise, mask=mask, ev=truth.ev, interval=_interval(mask)
+        ),
+        "firefly_fraction": exposure.firefly_fraction(mitsuba, truth.mitsuba_noise),
     }
+
+
+def _interval(mask: np.ndarray):
+    """The 95 % interval of the mean of per-pixel samples over ``mask`` (spatially correlated pixels)."""
+    return lambda samples: spatial.mean_intervals([samples], mask, stats.LEVEL)[0][0]

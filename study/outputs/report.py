@@ -23,7 +23,7 @@ from study import progress as pg
 from study.errors import StudyError
 from study.io import locked, write_set
 from study.outputs import claims as claim_registry
-from study.outputs import html, kinds, sections, summary
+from study.outputs import html, kinds, sections, summary, table_notes
 from study.outputs.check import read_table
 from study.outputs.markup import Md, link, md_esc
 from study.outputs.register import bench_sentence, motion_sentences, register_markdown
@@ -194,7 +194,7 @@ def _comparison_section(tables: dict[str, list[dict]]) -> list[tuple]:
             "single lookup is the radiance read at the exact hit).",
         ),
         ("table", rows, ["table", "method", "cases", *COMPARISON]),
-        ("list", summary.column_notes()),
+        ("list", table_notes.column_notes()),
     ]
 
 

@@ -1,6 +1,8 @@
 """What ``study run`` and :meth:`study.api.Result.save` write for one scene, like a figure's outputs: the image grid
 PNG, one multi-layer EXR, the viewer's images, and a page that shows them (``index.html``, offline, the report's
-viewer). Made in memory (relative path → bytes) for :func:`study.io.write_set`."""
+viewer), with the run's notes on its light and samples (:func:`study.measure.lighting.notes`: on the page, in
+``index.json``; a picture that is mostly fireflies says so in its titles). Made in memory (relative path →
+bytes) for :func:`study.io.write_set`."""
 
 from __future__ import annotations
 
@@ -8,12 +10,13 @@ import hashlib
 from pathlib import Path
 
 from study.io import file_stem
+from study.measure import lighting
 from study.outputs import figures, html, viewer
 
 #: The one case of a run: its file names (exr/run.exr, viewer/run.js, run.png).
 CASE = "run"
 #: A run's images are exposed as a person would set them for the whole picture (not for the object's highlights):
-#: :func:`study.outputs.viewer.auto_exposure` of Mitsuba's render, stated in the PNG's title and index.json.
+#: :func:`study.measure.exposure.auto_exposure` of Mitsuba's render, stated in the PNG's title and index.json.
 RUN_EXPOSURE_RULE = f"Mitsuba image: {viewer.FRAME_RULE}"
 
 
@@ -41,6 +44,8 @@ def result_files(
     table; ``labels``: the methods; ``name``: the scene file's (titles its viewer). Returns the files and the
     viewer manifest entry's layer names (``{"exr": …, "layers": {group: {label: layer}}}``) for ``index.json``."""
     exposure = run_exposure(res)
+    said = lighting.notes(rows, res.scene)  # weak lights, fireflies, a noisy truth: stated with the images
+    title = f"{title} — {label}" if (label := lighting.picture_label(rows)) else title
     files: dict[str, bytes | str] = dict(
         figures.image_grids(
             CASE,
@@ -67,6 +72,7 @@ def result_files(
         ),
         *[("img", p, p) for p in files if p.endswith(".png")],
         ("p", html.SHADOW_NOTE),
+        *[("p", f"**Note:** {line}.") for line in said],
         ("viewer", ".", f"{name or 'the scene'}: images per case"),
         ("table", rows, list(dict.fromkeys(k for r in rows for k in r))),
     ]
@@ -76,6 +82,7 @@ def result_files(
         "layers": {},
         "exposure_ev": round(exposure, 4),
         "exposure_rule": RUN_EXPOSURE_RULE,
+        "notes": said,  # study.measure.lighting.notes
     }
     for la in entry["layers"]:
         index["layers"].setdefault(la["layer"], {})[la["source"]] = la["exr_layer"]

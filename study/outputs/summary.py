@@ -14,8 +14,10 @@ Everything here reads results tables (one row per case × method) and nothing el
 * **the recommendation** is the cheapest method (cube-map lookups per ray) that is *as good as the best* in
   wrong hits: separated above the best's in no case, and not significantly worse over the cases (p ≥ 5 %).
 
-Ranking by RMSE is also redone on ``rmse_truth_debiased_trim`` (the worst 0.1 % of pixels left out) where a table
-has it; a changed winner is flagged.
+Image error is ranked on the relative column ``relmse_truth_exposed`` (relMSE after exposure, ε = 0.01:
+:mod:`study.measure.exposure`), which means the same in a dark scene as in a bright one, with the absolute
+noise-debiased RMSE told beside it; tables written before that column rank on the RMSE. Ranking by RMSE is also
+redone on ``rmse_truth_debiased_trim`` (the worst 0.1 % of pixels left out); a changed winner is flagged.
 """
 
 from __future__ import annotations
@@ -26,12 +28,14 @@ import numpy as np
 
 from study import methods as registry
 from study.measure import stats
-from study.outputs import power
+from study.outputs import power, table_notes
 from study.outputs.markup import code, md_esc
 from study.outputs.power import SIGNIFICANCE, WRONG
 from study.tables import REFERENCE_ROWS, fmt_number
 
 IMAGE = "rmse_truth_debiased"
+#: The image error the summary ranks on where a table has it: relative, the same for a scene × k (module docstring).
+RELATIVE = "relmse_truth_exposed"
 COST = "lookups_per_ray"
 #: Comparison columns: fixed tolerances (one meaning at every cube resolution) and robust image errors.
 COMPARED = [
@@ -39,6 +43,7 @@ COMPARED = [
     "wrong_fraction_10cm",
     "wrong_fraction_0p5deg",
     "relmse_truth",
+    RELATIVE,
     "rmse_truth_debiased_trim",
     "sqerr_top_share_truth",
 ]
@@ -253,25 +258,49 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
             "cost → wrong hits (medians), each step buying fewer: "
             + " → ".join(f"{code(r['label'])} {_cost(r['cost'])}: {_pct(r['median'])}" for r in front)
         )
-    img = ranking(tab, IMAGE)
-    if len(img) > 1:
-        a, b = img[0], img[1]
-        cmp = versus(tab, a["label"], b["label"], IMAGE)
-        text = (
-            f"lowest image error (RMSE vs truth, noise-debiased): {code(a['label'])} {fmt_number(a['median'])} vs "
-            f"{code(b['label'])} {fmt_number(b['median'])}, lower in {cmp['a_better']} of {cmp['n']} cases, "
-            f"{_verdict(cmp)}"
-        )
-        trim = ranking(tab, f"{IMAGE}_trim")
-        if trim and trim[0]["label"] != a["label"]:
-            text += f"; **without the worst 0.1 % of pixels the winner is {code(trim[0]['label'])}**"
-        swaps, pairs = swapped_pairs(img, trim)
-        if swaps:
-            text += f"; without them {swaps} of {pairs} pairs of methods swap places"
+    if text := _image_text(tab):
         parts.append(text)
     hid = _hidden(tab)
     where = "nothing hidden from the reference point" if hid == 0 else f"median hidden rays {_pct(hid)}"
     return f"**{md_esc(name)}** ({n} case{'s' if n != 1 else ''}, {where}): " + "; ".join(parts) + "."
+
+
+def image_column(tab: list[dict]) -> str:
+    """The column image error is ranked on: :data:`RELATIVE` where the table has it, else :data:`IMAGE`."""
+    have = (v for r in tab if isinstance(v := r.get(RELATIVE), int | float))
+    return RELATIVE if any(math.isfinite(v) for v in have) else IMAGE
+
+
+def _image_text(tab: list[dict]) -> str | None:
+    """The image-error winner against its runner-up, on :func:`image_column`, the absolute RMSE beside it, and
+    whether leaving out the worst 0.1 % of pixels changes the RMSE's order."""
+    col = image_column(tab)
+    img, absolute = ranking(tab, col), {r["label"]: r for r in ranking(tab, IMAGE)}
+    if len(img) < 2:
+        return None
+    a, b = img[0], img[1]
+    cmp = versus(tab, a["label"], b["label"], col)
+    what = "relMSE after exposure, ε = 0.01" if col == RELATIVE else "RMSE vs truth, noise-debiased"
+    text = (
+        f"lowest image error ({what}): {code(a['label'])} {fmt_number(a['median'])} vs "
+        f"{code(b['label'])} {fmt_number(b['median'])}, lower in {cmp['a_better']} of {cmp['n']} cases, "
+        f"{_verdict(cmp)}"
+    )
+    if col == RELATIVE and a["label"] in absolute and b["label"] in absolute:
+        ra, rb = absolute[a["label"]]["median"], absolute[b["label"]]["median"]
+        text += f" (absolute RMSE, noise-debiased: {fmt_number(ra)} vs {fmt_number(rb)})"
+        if rb < ra:
+            text += (
+                f"; **by absolute RMSE {code(b['label'])} is lower** (absolute errors scale with brightness)"
+            )
+    abs_rank, trim = ranking(tab, IMAGE), ranking(tab, f"{IMAGE}_trim")
+    by = "" if col == IMAGE else " by RMSE"  # tables before RELATIVE: the words as they were
+    if trim and abs_rank and trim[0]["label"] != abs_rank[0]["label"]:
+        text += f"; **without the worst 0.1 % of pixels the winner{by} is {code(trim[0]['label'])}**"
+    swaps, pairs = swapped_pairs(abs_rank, trim)
+    if swaps:
+        text += f"; without them {swaps} of {pairs} pairs of methods swap places{by}"
+    return text
 
 
 def headline(tables: dict[str, list[dict]]) -> str | None:
@@ -331,7 +360,13 @@ INTERVAL_COLUMNS = [
     "rmse",
     "rmse_lo",
     "rmse_hi",
+    "relmse",
+    "relmse_lo",
+    "relmse_hi",
 ]
+
+
+_RELMSE_KEYS = (("", "median"), ("_lo", "lo"), ("_hi", "hi"))
 
 
 def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
@@ -342,7 +377,7 @@ def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
     p-value of its wrong fractions against the best's over the same cases (``p_vs_best``) and the smallest
     difference from the best's that those cases could detect (``mdd_vs_best``,
     :func:`study.outputs.power.detectable`; inf below 6
-    cases)."""
+    cases); ``relmse``/``_lo``/``_hi`` the same for :data:`RELATIVE` (NaN for tables without it)."""
     out = []
     for name, tab in tables.items():
         rank = ranking(tab, WRONG)
@@ -350,6 +385,7 @@ def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
             continue
         best = rank[0]["label"]
         img = {r["label"]: r for r in ranking(tab, IMAGE)}
+        rel = {r["label"]: r for r in ranking(tab, RELATIVE)}
         for r in rank:
             i = img.get(r["label"], {})
             same = r["label"] == best
@@ -370,6 +406,7 @@ def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
                     "rmse": i.get("median", math.nan),
                     "rmse_lo": i.get("lo", math.nan),
                     "rmse_hi": i.get("hi", math.nan),
+                    **{f"relmse{k}": rel.get(r["label"], {}).get(v, math.nan) for k, v in _RELMSE_KEYS},
                 }
             )
     return out
@@ -388,53 +425,11 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
         ("h", 2, "Summary"),
         ("p", head),
         ("list", items),
-        (
-            "p",
-            "Intervals: 95 %, their coverage measured by simulation (reports/calibration.md); per case over the rays "
-            "(Wilson at the rays' effective number, clustered by pixel) or over the spatially correlated pixels, "
-            f"over cases the median's order-statistic interval from {stats.MIN_CASES_CI} cases on, else the cases' "
-            "range (an interval over 2–4 cases covers the truth 52–87 % of the time; study/measure/stats.py); "
-            "*wrong hits* use the "
-            "texel-relative tolerance ε = max(1 cm, one texel); the fixed-tolerance columns (wrong_fraction_1cm, "
-            "_3cm, _10cm) keep one meaning at every cube resolution. The table: per table and method (best first), "
-            "the medians over the cases with their interval over the cases (*interval* says which), the worst "
-            "case, the cases where the method is wrong more often than the best beyond both rays' intervals, "
-            "the Wilcoxon p-value against the best over the same cases, and *mdd_vs_best*: the smallest difference "
-            "in wrong fraction from the best that those cases could detect (80 % power, 5 %, from the spread of the "
-            "per-case differences; inf below 6 cases).",
-        ),
+        ("p", table_notes.interval_note()),
         ("table", interval_rows(tables), INTERVAL_COLUMNS),
         *power.power_blocks(
             [power.row(name, tab, rank) for name, tab in tables.items() if (rank := ranking(tab, WRONG))]
         ),
-    ]
-
-
-def column_notes() -> list[str]:
-    """What the uncertainty columns of a results table mean (:mod:`study.measure.stats`), for the report."""
-    return [
-        "*wrong_fraction* (= *wrong_fraction_texel*): tolerance texel-relative, ε = max(1 cm, one cube-map texel "
-        "at the hit), so it tightens as the map gets finer; *wrong_fraction_1cm / _3cm / _10cm*: the same "
-        "distance at every resolution; *wrong_fraction_0p5deg*: |shown − exact| subtends > 0.5° seen from the "
-        "shading point. A ray with no hit is wrong at every tolerance.",
-        "*_lo / _hi*: 95 % interval of the column within its case: over the rays (fractions: Wilson at the "
-        "effective number of rays, n_rays / rays_deff, the design effect measured with rays clustered by pixel; "
-        "angle and dist percentiles: order-statistic interval) or over the pixels (rmse, relmse, flip: mean ± "
-        "t·√variance, the variance from the error image's autocovariance over a lag window that follows its "
-        "correlation length corr_px). *n_rays*, *n_hidden*, *n_wrong*, *n_pixels*: the counts behind them; "
-        "their coverage: reports/calibration.md.",
-        "*angle_dropped* / *dist_dropped*: the share of rays that angle_* / dist_* leave out (no hit; for dist "
-        "also points at infinity): angle_* and dist_* describe only the rays that remain. "
-        "*angle_p95_all_deg* counts the dropped rays as infinite error instead.",
-        "*rmse_truth_trim*, *rmse_truth_debiased_trim*: RMSE without the worst 0.1 % of pixels; "
-        "*sqerr_top_share_truth*: the share of the squared error those pixels carry (near 1: a handful of pixels "
-        "decide the RMSE). *relmse_truth*: mean of (test − truth)² / (truth² + 0.01).",
-        "*_oracle* columns (and the *oracle_map* row) are over the pixels whose every hit the reference point's "
-        "views hold (*held_pixels*); *oracle_map* has no value on the others (*unheld_pixels*). *dec_**: the error "
-        "split over all object pixels (study/measure/split.py), each with a pixel interval.",
-        "In these tables the value per table and method is the median over cases; the summary above gives it "
-        "with an interval over the cases and tests differences between methods over the same cases "
-        "(Wilcoxon signed-rank).",
     ]
 
 

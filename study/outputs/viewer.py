@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from study.io import file_stems, json_text, layers_exr_bytes
+from study.measure.exposure import FRAME_RULE, auto_exposure  # noqa: F401  (re-exported: the viewer's rule)
 from study.measure.outcomes import NAMES as OUTCOME_NAMES
 
 #: Colours of the outcome classes (study.measure.outcomes codes 0..3): correct, wrong depth, wrong surface, no hit.
@@ -79,26 +80,7 @@ HIDDEN_NAMES = ("visible from the reference point", "hidden from the reference p
 
 
 # ---------------------------------------------------------------------------------------------- exposure
-#: Exposure from an image as a whole, as a person (or tev) would set it: the median of its visible luminance (the
-#: pixels that show any light) at middle grey, unless that puts more than 5 % of them above 1 (then their 95th
-#: percentile at 1).
-MIDDLE_GREY, HIGH_PERCENTILE = 0.18, 95.0
-FRAME_RULE = f"median of the visible luminance → {MIDDLE_GREY:g}, its p{HIGH_PERCENTILE:g} ≤ 1"
-REC709 = (0.2126, 0.7152, 0.0722)
-
-
-def auto_exposure(rgb: np.ndarray | None) -> float | None:
-    """The exposure (EV: image × 2^EV) of :data:`FRAME_RULE` for an (H, W, 3) or (H, W) linear image; None where
-    no pixel shows light."""
-    if rgb is None:
-        return None
-    a = np.asarray(rgb, np.float64)
-    lum = a @ np.asarray(REC709) if a.ndim == 3 and a.shape[-1] == 3 else a.reshape(a.shape[:2])
-    lum = lum[np.isfinite(lum) & (lum > 0)]
-    if lum.size == 0:
-        return None
-    mid, high = np.percentile(lum, [50.0, HIGH_PERCENTILE])
-    return float(min(np.log2(MIDDLE_GREY / mid), np.log2(1.0 / high)))
+# auto_exposure and FRAME_RULE: study.measure.exposure (the errors after exposure use the same rule)
 
 
 #: The viewer's exposure slider spans at least this (EV), and this much beyond any image's own exposure.

@@ -16,6 +16,7 @@ left out, and only those (:data:`KEYS`), suggested by ray casting with Embree (:
   object) whose intensity scales with the squared diagonal of the bounds: 6 W/sr × (diag / 6.4 m)². The
   irradiance I / r² at walls a fixed fraction of the diagonal away is then the same as in the default
   4 m × 3 m × 4 m room (diagonal 6.4 m) with its 6 W/sr light.
+  Where the file's own lights are weak (:mod:`study.scene.lights`), ``light.enabled`` is on beside them.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+import study.scene.lights as lights
 import study.scene.placement as placement
 from study.errors import StudyError
 from study.scene.environment import geometry
@@ -173,7 +175,8 @@ def suggest(env, given: dict[str, Any] | None = None) -> dict[str, Any]:
         out["camera.fov"] = env.sensor["fov"]
     if env.point_light:
         if want("light.enabled"):
-            out["light.enabled"] = not env.lit or any(k.startswith("light.") for k in given)
+            weak = env.lit and lights.weak(env, light_intensity(lo, hi))
+            out["light.enabled"] = not env.lit or weak or any(k.startswith("light.") for k in given)
         if want("light.position"):
             c = (lo + hi) / 2
             try:

@@ -1,0 +1,111 @@
+"""What a run says about its light and its samples: the file's own lights against study's point light, a picture
+that is mostly fireflies, and a truth too noisy to rank the methods by.
+
+* ``own_light_share`` (:func:`light_columns`): :func:`study.scene.lights.own_share` of the environment against
+  the point light automatic placement suggests; under :data:`study.scene.lights.WEAK_SHARE` the file's lights are
+  weak and study's point light is rendered beside them (unless ``light.enabled`` was given): :func:`notes` says so.
+* fireflies: ``firefly_fraction`` (:mod:`study.measure.exposure`) over
+  :data:`study.measure.exposure.FIREFLY_LIMIT` labels the picture.
+* the truth's noise: ``truth_noise_relmse`` over :data:`REFERENCE_NOISE_SHARE` of the best method's
+  ``relmse_truth_exposed`` (the reference's own noise is then a quarter or more of the smallest error it is to
+  tell apart) labels the ranking, with the ``render.spp`` that would bring it under (the noise's relMSE falls as
+  1/spp).
+
+:func:`notes` returns these as lines: ``study run`` prints them, and the run's page, ``index.json`` and viewer
+title carry them (:mod:`study.outputs.run_files`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from study.measure.exposure import FIREFLY_LIMIT, FIREFLY_STEP
+from study.scene import lights
+from study.tables import REFERENCE_ROWS
+
+#: The truth's own noise (relMSE after exposure) may be at most this share of the best method's error.
+REFERENCE_NOISE_SHARE = 0.25
+
+
+def light_columns(scene) -> dict[str, float]:
+    """``own_light_share`` of the scene's environment (NaN for the box, and where the file has no light)."""
+    from study.scene.autoplace import light_intensity
+    from study.scene.environment import geometry
+
+    env = geometry(scene)
+    if not env.point_light or env.bounds is None:
+        return {"own_light_share": math.nan}
+    return {"own_light_share": lights.own_share(env, light_intensity(*env.bounds))}
+
+
+def _first(rows: list[dict], col: str) -> float:
+    v = [float(r[col]) for r in rows if isinstance(r.get(col), int | float) and math.isfinite(r[col])]
+    return v[0] if v else math.nan
+
+
+def light_note(rows: list[dict], scene) -> str:
+    """The weak-light line ('' where the file's lights are not weak or not judged)."""
+    share = _first(rows, "own_light_share")
+    if not share < lights.WEAK_SHARE:
+        return ""
+    head = (
+        f"the file's own lights are weak: {share:.2%} of the power of study's point light (under "
+        f"{lights.WEAK_SHARE:.0%})"
+    )
+    if scene.lamp():
+        i, p = scene.light.intensity, ", ".join(f"{v:.3g}" for v in scene.light.position)
+        return (
+            f"{head}; study's point light is added beside them ({max(i):.3g} W/sr at ({p})); light.enabled=false "
+            "leaves it out"
+        )
+    return f"{head}, and study's point light is off (light.enabled = false): expect a dark, noisy render"
+
+
+def firefly_note(rows: list[dict], spp: int) -> str:
+    """The firefly label ('' where the picture passes :data:`~study.measure.exposure.FIREFLY_LIMIT`)."""
+    f = _first(rows, "firefly_fraction")
+    if not f > FIREFLY_LIMIT:
+        return ""
+    return (
+        f"the picture shows fireflies: {f:.1%} of Mitsuba's pixels differ between its two seeds by more than "
+        f"{FIREFLY_STEP:g} of the display range (limit {FIREFLY_LIMIT:.0%})"
+        + (f"; raise render.spp (now {spp})" if spp else "")
+    )
+
+
+def noise_note(rows: list[dict], spp: int) -> str:
+    """The reference-noise label ('' where the truth's noise is under :data:`REFERENCE_NOISE_SHARE` of the best
+    method's relMSE after exposure)."""
+    noise = _first(rows, "truth_noise_relmse")
+    errs = [r.get("relmse_truth_exposed", math.nan) for r in rows if r.get("label") not in REFERENCE_ROWS]
+    errs = np.array([e for e in errs if isinstance(e, int | float)], float)
+    if not (np.isfinite(errs).any() and noise == noise):
+        return ""
+    best = float(np.nanmin(errs))
+    share = noise / best if best > 0 else math.inf
+    if not share > REFERENCE_NOISE_SHARE:
+        return ""
+    need = math.ceil(spp * share / REFERENCE_NOISE_SHARE) if math.isfinite(share) else math.inf
+    return (
+        f"the truth's own noise is {share:.0%} of the best method's relMSE after exposure (limit "
+        f"{REFERENCE_NOISE_SHARE:.0%}): differences under it are the reference's noise"
+        + (f"; render.spp ≥ {need} (now {spp}) would bring it under" if spp else "")
+    )
+
+
+def picture_label(rows: list[dict]) -> str:
+    """A few words for a picture's title where it is mostly fireflies ('' where it passes)."""
+    f = _first(rows, "firefly_fraction")
+    return (
+        f"FIREFLIES: {f:.1%} of pixels differ between seeds (limit {FIREFLY_LIMIT:.0%})"
+        if f > FIREFLY_LIMIT
+        else ""
+    )
+
+
+def notes(rows: list[dict], scene) -> list[str]:
+    """The run's lines about its light and samples (module docstring), in that order; empty where all is well."""
+    spp = getattr(getattr(scene, "render", None), "spp", 0)  # 0: not known (a figure's case without a scene)
+    return [s for s in (light_note(rows, scene), firefly_note(rows, spp), noise_note(rows, spp)) if s]
