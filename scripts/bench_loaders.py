@@ -4,7 +4,7 @@ A grid of 1 M triangles (501 × 1001 vertices) written as OBJ in three forms —
 with tabs and indentation (study's former slow path, now read alike), and with ``v/vt`` corners — and each read
 ``--repeat`` times by :func:`study.scene.obj.read_obj` and by ``trimesh.load(force="mesh", process=False)``; the
 medians and their ratio go to ``reports/performance/loaders.md`` (target: study ≤ 2× trimesh). trimesh is not timed
-on the tab form, which it misreads (tests/test_real_files.py).
+on the tab form, which it misreads (tests/scene/test_real_files.py).
 
     PYTHONPATH=. .venv/bin/python scripts/bench_loaders.py            # about 2 minutes on 2 cores
 """

@@ -1,4 +1,4 @@
-"""The report's headline and per-table verdicts (study.outputs.summary) from the committed tables under
+"""The report's headline and per-table verdicts (study.report.summary) from the committed tables under
 reports/, printed as Markdown; with ``--curves DIR`` also the wrong-fraction-versus-tolerance plot of every table
 that has the fixed-tolerance columns (written by code after issue 24).
 
@@ -10,8 +10,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from study.outputs import plots, summary
-from study.outputs.check import read_table
+from study.outputs import plots
+from study.report import summary
+from study.report.check import read_table
 from study.tables import markdown
 
 

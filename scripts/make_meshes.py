@@ -1,5 +1,5 @@
 """Make the small test meshes shipped in ``scenes/meshes/`` (nothing downloaded; the output is byte-for-byte the
-same on every run, which ``tests/test_objects_mesh.py`` checks).
+same on every run, which ``tests/scene/test_objects_mesh.py`` checks).
 
     python scripts/make_meshes.py            # (re)write scenes/meshes/bunny.obj
     python scripts/make_meshes.py --check    # exit 1 if the committed files differ from what this makes

@@ -1,5 +1,5 @@
 """sdf on the GPU (Dr.Jit CUDA, the field a hardware-filtered ``Texture3f``) against numpy on the same grid and rays:
-fig5's room at 64³ and 128³, 3000 rays (tests/test_methods_sdf.py's set). CUDA's texture units interpolate with
+fig5's room at 64³ and 128³, 3000 rays (tests/methods/test_methods_sdf.py's set). CUDA's texture units interpolate with
 fixed-point weights (1/256 steps), so hits may move by a fraction of a millimetre; the script prints the fractions
 of rays whose shown points agree within 1 mm and 1 cm, the lookups, and the traced rays per second of a frozen,
 replayed call. Run on a GPU machine: ``.venv/bin/python scripts/sdf_gpu_check.py``."""

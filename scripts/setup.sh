@@ -49,7 +49,7 @@ if ! ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* >/dev/null 2>&1 && ! ls /usr/li
     .venv/bin/python -m pip install -q karellen-llvm-core
   fi
 fi
-# A browser for the report's test (tests/test_html_browser.py drives it through Playwright): Debian's chromium, as
+# A browser for the report's test (tests/report/test_html_browser.py drives it through Playwright): Debian's chromium, as
 # root; without it that test is skipped and says why.
 if ! command -v chromium >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
   (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) \

@@ -18,7 +18,7 @@ from study.cache import Cache
 from study.harness.config import load_figure_config
 from study.measure.case import run_case
 from study.measure.split import TERMS
-from study.outputs.claims import judge_claims
+from study.report.claims import judge_claims
 
 SMALL = {
     "camera.width": 64,
@@ -82,7 +82,7 @@ def main() -> int:
                 + " | ".join(cells)
                 + f" | {'yes' if r['dec_sums'] == 1 else 'no'} |"
             )
-    print("\n## The claims on these cases (study/outputs/claims.py)")
+    print("\n## The claims on these cases (study/report/claims.py)")
     for cl, v in judge_claims(every):
         print(f"- {cl.id}: {'holds' if v.ok else 'FAILS'} — {v.subset}; {v.n}; {v.number}")
     return 0

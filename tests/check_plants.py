@@ -1,6 +1,6 @@
 """Planted regressions for `study check` (a test-only helper, not a test module): each one patches the running
 code (pytest's monkeypatch, or any object with its ``setattr``) the way a bug would change a number, without
-editing a method's source. Used by tests/test_check_noise.py; a by-hand run:
+editing a method's source. Used by tests/measure/test_check_noise.py; a by-hand run:
 ``python tests/check_plants.py PLANT [--seed N]`` runs the check with one planted and prints what fails."""
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ class _Patch:
 
 
 if __name__ == "__main__":  # python tests/check_plants.py "radiance ×1.02" [--seed N] [--cache DIR]
-    from study.outputs.check import run_check
+    from study.report.check import run_check
 
     args = sys.argv[1:]
     opt = {a: args[args.index(a) + 1] for a in ("--seed", "--cache") if a in args}

@@ -1,7 +1,9 @@
 """Shared fixtures. Reference values are computed analytically (study.impostor.analytic) unless a test says
 otherwise."""
 
+import hashlib
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -88,3 +90,29 @@ PROGRESS_LINE = re.compile(r"^\[\s*\d+\.\d s\] ")
 def error_output(res) -> str:
     """A command's output without its progress lines: what one-line-error checks read."""
     return "\n".join(ln for ln in res.output.splitlines() if not PROGRESS_LINE.match(ln)).strip()
+
+
+def run_cli(*args, **kw):
+    """``study ARGS…`` run in this process (typer's CliRunner, output and exit code captured): the result with
+    ``.exit_code``, ``.output`` and ``.exception``. Arguments may be paths or numbers (made text); keyword arguments
+    go to ``CliRunner.invoke`` (``input=``, ``env=``, ``catch_exceptions=``)."""
+    from typer.testing import CliRunner
+
+    from study.cli import app
+
+    return CliRunner().invoke(app, [str(a) for a in args], **kw)
+
+
+def digest(d: Path) -> dict:
+    """{file name: sha256} of every file under ``d``: what a refused command must leave unchanged."""
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(d.rglob("*")) if p.is_file()}
+
+
+def assert_one_line_error(res, words, before, out, code=2):
+    """A refused command: exit ``code``, one ``error:`` line holding ``words``, no traceback, ``out`` unchanged."""
+    text = error_output(res)  # the error is one line; progress lines on stderr may precede it
+    assert res.exit_code == code, res.output
+    assert text.startswith("error: ") and "\n" not in text, text
+    assert words in text, text
+    assert "Traceback" not in text
+    assert digest(out) == before

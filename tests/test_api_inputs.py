@@ -2,16 +2,12 @@
 never a bare TypeError or a message about an internal union branch."""
 
 import pytest
-from conftest import error_output
-from typer.testing import CliRunner
+from conftest import error_output, run_cli
 
 import study
-from study.cli import app
 from study.errors import StudyError
 from study.harness.sweep import SweepConfig
 from study.validation import validate
-
-runner = CliRunner()
 
 
 @pytest.mark.parametrize(
@@ -58,9 +54,8 @@ def test_sweep_axis_errors_name_the_axis_key(axes, words):
 
 
 def test_run_refusal_names_the_scene_file(tmp_path):
-    res = runner.invoke(
-        app,
-        [
+    res = run_cli(
+        *[
             "run",
             "scenes/room.toml",
             "-m",

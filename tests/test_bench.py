@@ -10,8 +10,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import BACKENDS, BOX_HI, BOX_LO
-from typer.testing import CliRunner
+from conftest import BACKENDS, BOX_HI, BOX_LO, run_cli
 
 from study import backend as backends
 from study import methods
@@ -19,7 +18,6 @@ from study.bench.batches import distance_texels, room_triangles
 from study.bench.output import write_outputs
 from study.bench.run import BenchOptions, bench_methods, run_bench
 from study.bench.timing import median_time, method_runner
-from study.cli import app
 from study.codehash import code_hash
 from study.impostor import analytic
 from study.impostor.envmap import EnvMap
@@ -42,9 +40,8 @@ def test_bench_cli_tiny_writes_tables(tmp_path):
     row per registered method (its defaults) × backend × batch, plus the plain path of localized on Dr.Jit,
     positive times, and speed-ups finite and consistent with the exact rows."""
     names = ",".join(BACKENDS)
-    res = CliRunner().invoke(
-        app,
-        [
+    res = run_cli(
+        *[
             "bench",
             "--out",
             str(tmp_path),
@@ -155,14 +152,13 @@ def test_method_list_is_every_method_at_every_knob_value():
 
 
 def test_bench_bad_backend_is_one_line_error(tmp_path):
-    res = CliRunner().invoke(app, ["bench", "--out", str(tmp_path), "--backends", "vulkan", "--no-scaling"])
+    res = run_cli("bench", "--out", str(tmp_path), "--backends", "vulkan", "--no-scaling")
     assert res.exit_code == 2 and "unknown backend 'vulkan'" in res.output
 
 
 def test_bench_unknown_method_is_one_line_error(tmp_path):
-    res = CliRunner().invoke(
-        app,
-        [
+    res = run_cli(
+        *[
             "bench",
             "--out",
             str(tmp_path),

@@ -4,9 +4,8 @@ import tomllib
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
+from conftest import run_cli
 
-from study.cli import app
 from study.tables import read_csv
 
 SMALL = """
@@ -30,16 +29,14 @@ name = "localized"
 iterations = {iterations}
 """
 
-runner = CliRunner()
-
 
 @pytest.fixture(scope="module")
 def fig4_small(tmp_path_factory):
     d = tmp_path_factory.mktemp("fig4")
     cfg = d / "small.toml"
     cfg.write_text(SMALL.format(iterations="[0, 1, 3, 10]"))
-    res = runner.invoke(
-        app, ["figure", "fig4", "--config", str(cfg), "--out", str(d / "out"), "--cache", str(d / "cache")]
+    res = run_cli(
+        *["figure", "fig4", "--config", str(cfg), "--out", str(d / "out"), "--cache", str(d / "cache")]
     )
     assert res.exit_code == 0, res.output
     return d, read_csv(d / "out" / "metrics.csv")
@@ -117,9 +114,8 @@ def test_fig4_small_paper_claims(fig4_small):
 
 def test_fig4_warm_cache_gives_identical_table(fig4_small, tmp_path):
     d, rows = fig4_small
-    res = runner.invoke(
-        app,
-        [
+    res = run_cli(
+        *[
             "figure",
             "fig4",
             "--config",
@@ -151,7 +147,7 @@ def test_fig4_warm_cache_gives_identical_table(fig4_small, tmp_path):
     ],
 )
 def test_cli_errors_are_one_line(args, words):
-    res = runner.invoke(app, args)
+    res = run_cli(*args)
     assert res.exit_code == 2
     assert words in res.output
     assert "Traceback" not in res.output
@@ -160,7 +156,7 @@ def test_cli_errors_are_one_line(args, words):
 def test_bad_method_parameter_in_config(tmp_path):
     cfg = tmp_path / "bad.toml"
     cfg.write_text(SMALL.format(iterations="[-1]"))
-    res = runner.invoke(app, ["figure", "fig4", "--config", str(cfg), "--out", str(tmp_path / "o")])
+    res = run_cli("figure", "fig4", "--config", str(cfg), "--out", str(tmp_path / "o"))
     assert res.exit_code == 2
     assert "bad.toml: methods[1].iterations" in res.output.replace("\n", ""), res.output
 
@@ -198,9 +194,8 @@ def test_figure_with_cases_runs_and_names_rows(tmp_path):
         '"render.refraction" = "single"\n\n[[cases]]\nname = "torus"\n"object.shape" = "torus"\n'
     )
     cfg.write_text(base + cases)
-    res = runner.invoke(
-        app,
-        [
+    res = run_cli(
+        *[
             "figure",
             "fig6",
             "--config",
@@ -218,7 +213,7 @@ def test_figure_with_cases_runs_and_names_rows(tmp_path):
     ) == 8  # 2 references + 2 methods
     assert (tmp_path / "o" / "fig6.png").exists()
     cfg.write_text("positions = [[0.0, 1.5, 0.0]]\n" + base + cases)
-    res = runner.invoke(app, ["figure", "fig6", "--config", str(cfg), "--out", str(tmp_path / "o2")])
+    res = run_cli("figure", "fig6", "--config", str(cfg), "--out", str(tmp_path / "o2"))
     assert res.exit_code == 2 and "either positions or cases" in res.output
 
 

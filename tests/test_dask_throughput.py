@@ -7,10 +7,10 @@ localized 0/3, seed 0), run once in this process and once on a local Dask cluste
 import json
 
 import pytest
-from test_sweep import per_case, same_table, write
 
 from study.harness.cluster import throughput, timing_line
 from study.harness.runner import run_sweep
+from tests.test_sweep import per_case, same_table, write
 
 
 def test_throughput_splits_fixed_cost_from_steady_rate():

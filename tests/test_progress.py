@@ -9,12 +9,10 @@ import json
 import re
 
 import pytest
-from typer.testing import CliRunner
 
 from study import progress
-from study.cli import app
 from study.cli.progress import Bar, Lines, duration
-from tests.conftest import scene_toml, small_scene_dict
+from tests.conftest import run_cli, scene_toml, small_scene_dict
 
 CASE = ["load", "capture", "probes", "references", "methods", "metrics"]
 STAMP = re.compile(r"^\[\s*\d+\.\d s\] ")
@@ -39,9 +37,9 @@ def figure_run(tmp_path_factory):
         "--cache",
         str(tmp / "c"),
     ]
-    loud = CliRunner().invoke(app, args)
+    loud = run_cli(*args)
     meta = json.loads((tmp / "out" / "metadata.json").read_text())
-    quiet = CliRunner().invoke(app, ["--quiet", *args])
+    quiet = run_cli("--quiet", *args)
     return loud, quiet, meta
 
 

@@ -4,14 +4,11 @@ to reports/<preset>/<name>/ by default, and an unknown preset is one line naming
 
 import json
 
-from test_bad_inputs import DEFAULT, FIG
-from typer.testing import CliRunner
+from conftest import run_cli
 
-from study.cli import app
 from study.harness import config
 from study.io import read_exr_layers
-
-runner = CliRunner()
+from tests.robustness.test_bad_inputs import DEFAULT, FIG
 
 
 def test_paper_preset_is_1024_squared():
@@ -23,9 +20,7 @@ def test_a_preset_reaches_every_case(tmp_path, monkeypatch):
     monkeypatch.setitem(config.QUALITY, "tiny", {"camera.width": 20, "camera.height": 20})
     cfg = tmp_path / "f.toml"
     cfg.write_text(FIG.format(**DEFAULT))
-    res = runner.invoke(
-        app, ["figure", "--config", str(cfg), "--out", str(tmp_path / "o"), "--quality", "tiny"]
-    )
+    res = run_cli("figure", "--config", str(cfg), "--out", str(tmp_path / "o"), "--quality", "tiny")
     assert res.exit_code == 0, res.output
     meta = json.loads((tmp_path / "o" / "metadata.json").read_text())
     assert meta["quality"] == "tiny"
@@ -34,7 +29,7 @@ def test_a_preset_reaches_every_case(tmp_path, monkeypatch):
 
 
 def test_unknown_preset_is_one_line(tmp_path):
-    res = runner.invoke(app, ["figure", "fig4", "--quality", "ultra", "--out", str(tmp_path / "o")])
+    res = run_cli("figure", "fig4", "--quality", "ultra", "--out", str(tmp_path / "o"))
     assert res.exit_code == 2 and res.output.strip() == (
         "error: --quality: unknown quality 'ultra'; allowed: preview, paper"
     ), res.output
@@ -47,13 +42,13 @@ def test_report_shows_the_paper_resolution_figures(tmp_path):
     d.mkdir(parents=True)
     (d / "metadata.json").write_text(json.dumps({"command": "study figure fig9", "seconds": 12.5}))
     (d / "fig9.png").write_bytes(b"\x89PNG")
-    assert runner.invoke(app, ["report", "--reports", str(tmp_path)]).exit_code == 0
+    assert run_cli("report", "--reports", str(tmp_path)).exit_code == 0
     assert not (tmp_path / "index.md").exists()  # a preview figure there is not one: nothing to report
     (d / "metadata.json").write_text(
         json.dumps({"command": "study figure fig9 --quality paper", "seconds": 12.5, "quality": "paper"})
     )
     (d / "fig9.png").write_bytes(b"\x89PNG")
-    res = runner.invoke(app, ["report", "--reports", str(tmp_path)])
+    res = run_cli("report", "--reports", str(tmp_path))
     assert res.exit_code == 0, res.output
     md = (tmp_path / "index.md").read_text()
     assert (

@@ -17,7 +17,7 @@ from rich.console import Console
 
 from study import progress
 from study.cli.progress import Lines
-from tests.conftest import scene_toml, small_scene_dict
+from tests.conftest import run_cli, scene_toml, small_scene_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 STAMP = re.compile(r"^\[\s*(\d+\.\d) s\] (.*)$")
@@ -119,10 +119,8 @@ def test_the_layered_impostor_leaks_no_numpy_warning():
 
 @pytest.mark.parametrize("key", ["object.radiu", "camera.widht"])
 def test_the_api_names_the_valid_keys_as_the_cli_does(key, tmp_path):
-    from typer.testing import CliRunner
 
     import study
-    from study.cli import app
     from study.errors import StudyError
 
     with pytest.raises(StudyError) as err:
@@ -132,7 +130,7 @@ def test_the_api_names_the_valid_keys_as_the_cli_does(key, tmp_path):
     assert f"{key}: unknown scene key; allowed: " in msg, msg
     allowed = msg.split("allowed: ", 1)[1]
     assert ("radius" if table == "object" else "width") in allowed and "center" in allowed or "eye" in allowed
-    res = CliRunner().invoke(
-        app, ["run", str(ROOT / "scenes" / "room.toml"), "--set", f"{key}=0.3", "--out", str(tmp_path / "o")]
+    res = run_cli(
+        *["run", str(ROOT / "scenes" / "room.toml"), "--set", f"{key}=0.3", "--out", str(tmp_path / "o")]
     )
     assert res.exit_code == 2 and msg in res.output, (msg, res.output)

@@ -80,7 +80,7 @@ class CausticConfig(BaseModel):
     )
     caustic: CausticParams = CausticParams()
     mitsuba: MitsubaParams = MitsubaParams()
-    kind: Literal["caustics"] = "caustics"  # the figure kind (study.outputs.kinds.caustics)
+    kind: Literal["caustics"] = "caustics"  # the figure kind (study.report.kinds.caustics)
 
     @field_validator("resolutions")
     @classmethod

@@ -53,9 +53,9 @@ def figure(
     name = plain_name(name) if name else file_stem(config.stem)  # one folder under reports/, never a path
     out = out or (Path("reports") / name if quality == "preview" else Path("reports") / quality / name)
     t0 = time.perf_counter()
-    from study.outputs.kinds import config_kind
+    from study.report.kinds import config_kind
 
-    kind = config_kind(config)  # the config's `kind` (grid by default): study/outputs/kinds/
+    kind = config_kind(config)  # the config's `kind` (grid by default): study/report/kinds/
     takes = "images" in inspect.signature(kind.run).parameters  # the grid's per-case images, viewer and EXRs
     rows = kind.run(config, out, name=name, backend=backend, cache=cache, quality=quality,
                     **({"images": images} if takes else {}))  # fmt: skip
@@ -153,7 +153,7 @@ def check(
 ):
     """CI regression: run a small fixed sweep and compare every metric with the committed baseline (its mean over
     seeds, within k × its seed-to-seed sd + a floor)."""
-    from study.outputs.check import run_check
+    from study.report.check import run_check
 
     fails, lines = run_check(  # progress: stderr
         shipped(config), update=update, cache=cache, backend=backend, seed=seed
@@ -179,7 +179,7 @@ def report(
 ):
     """Build reports/index.md and reports/index.html (tables, image viewers) from the results tables: figures,
     tables, the paper's claims, versions."""
-    from study.outputs.report import build_report
+    from study.report.report import build_report
 
     path = build_report(reports)
     if path is None:  # one line on stderr, and no page of empty tables
@@ -218,7 +218,7 @@ def pareto(
 ):
     """The equal-cost front per figure and sweep: error (median over cases, with its interval) against measured ms
     per 1080p frame on each benched device, the Pareto front, and the method to use at a few budgets."""
-    from study.outputs.pareto import write_pareto
+    from study.report.pareto import write_pareto
 
     paths = [Path(b.strip()) for b in benches.split(",") if b.strip()]
     written = write_pareto(reports, out, paths, metric=metric, batch=batch, clock=clock)
@@ -292,7 +292,7 @@ def bench(
 
 
 def _caustics(config, out, backend, cache, *, sweep: bool):
-    from study.outputs.kinds.caustics import caustics_figure, caustics_lines
+    from study.report.kinds.caustics import caustics_figure, caustics_lines
 
     t0 = time.perf_counter()
     rows = caustics_figure(config, out, backend=backend, cache=cache, sweep=sweep)

@@ -55,7 +55,7 @@ class FigureConfig(BaseModel):
     grid: list[str] | None = None
     occlusion_panel: StrictBool = False  # add a column showing which rays' exact hits are hidden from o
     outcome_panel: StrictBool = False  # add per grid method a map of its per-ray outcome classes
-    #: the figure kind that makes it (study.outputs.kinds): "grid", "glossy", or a plug-in's
+    #: the figure kind that makes it (study.report.kinds): "grid", "glossy", or a plug-in's
     kind: str = "grid"
 
     @model_validator(mode="after")

@@ -8,7 +8,7 @@ contrast-sensitivity Gaussians (separated: one pass along x, one along y, edges 
 (clamped to [0, 1]), to CIELab with the Hunt adjustment, and takes the HyAB distance, raised to q_c = 0.7 and
 re-mapped to [0, 1]; the feature pipeline filters the normalised luminance with first and second derivatives of a
 Gaussian (edges and points) and raises the larger difference to q_f = 0.5; the error is ΔE_c^(1 − ΔE_f).
-``flip-evaluator`` stays the reference: ``tests/test_flip.py`` checks this module against it within 1e-4 in the
+``flip-evaluator`` stays the reference: ``tests/measure/test_flip.py`` checks this module against it within 1e-4 in the
 mean and in the per-pixel 99th percentile, on study images and synthetic ones. HDR-FLIP is not implemented: the
 study measures LDR images only (:mod:`study.measure.metrics`).
 

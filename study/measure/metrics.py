@@ -89,14 +89,16 @@ def flip_map(ref: np.ndarray, test: np.ndarray, backend: str = "numpy") -> np.nd
         Linear RGB radiance; both are turned into sRGB LDR images first (:func:`to_ldr`).
     backend : str
         'numpy': flip-evaluator (NVIDIA's C++ code, the reference); 'llvm' or 'cuda': the array implementation
-        :mod:`study.measure.flip` on that Dr.Jit backend (within 1e-4 of the reference, ``tests/test_flip.py``).
+        :mod:`study.measure.flip` on that Dr.Jit backend (within 1e-4 of the reference, ``tests/measure/test_flip.py``).
 
     Returns
     -------
     (H, W) float32 array
         FLIP error per pixel, in [0, 1] (0: indistinguishable).
     """
-    if backend != "numpy":  # the sRGB encoding on the device too (float32; within 1e-4, tests/test_flip.py)
+    if (
+        backend != "numpy"
+    ):  # the sRGB encoding on the device too (float32; within 1e-4, tests/measure/test_flip.py)
         from study.measure.flip import ldr_flip_image
 
         return ldr_flip_image(ref, test, backend, linear=True)

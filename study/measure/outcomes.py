@@ -172,7 +172,7 @@ def classify(x, R, shown, exact, *, eps, exact_origin=None) -> Outcomes:
 
 def classify_on(B, x, R, shown, exact, *, eps, exact_origin=None) -> Outcomes:
     """:func:`classify` on the backend ``B`` (Dr.Jit's LLVM or CUDA: one kernel over the rays, in float64 so that
-    the classes are numpy's to rounding; ``tests/test_outcomes.py`` compares them). Same parameters and result;
+    the classes are numpy's to rounding; ``tests/measure/test_outcomes.py`` compares them). Same parameters and result;
     on the numpy backend it is :func:`classify`."""
     if B.name == "numpy":  # numpy's select is float32 (as the methods compute): classify is the numpy path
         return classify(x, R, shown, exact, eps=eps, exact_origin=exact_origin)

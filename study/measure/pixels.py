@@ -4,7 +4,7 @@ measures its images where its methods ran, as :mod:`study.measure.flip` does FLI
 Each function here has a twin that stays the reference and the path of backend ``numpy``: RMSE, PSNR and SSIM of
 :mod:`study.measure.metrics` (PSNR and SSIM by scikit-image) and the truth's columns of
 :mod:`study.measure.truth` (relMSE, the noise RMS, the debiased RMSE). The array code follows them step by step
-in float64, over the very pixels they use, so the values agree to float64 rounding (``tests/test_pixels.py``:
+in float64, over the very pixels they use, so the values agree to float64 rounding (``tests/measure/test_pixels.py``:
 within 1e-5, seen ≤ 1e-12):
 
 * RMSE of linear radiance and the LDR MSE behind PSNR (:func:`study.measure.metrics.to_ldr`: clip to [0, 1],

@@ -59,9 +59,9 @@ an experiment of its own: search = the method against the oracle on the same vie
 pixels whose hits the views do not hold against the truth there, representation = O against T, noise = the two
 seeds. ``dec_sums_direct`` is 1 when search + visibility + representation_direct + noise meets the total within
 their intervals: what is left is the cross term 2(img − O)(O − T) (:data:`TERMS`' ``cross``), so the check asks
-whether the search's error and the map's are unrelated. ``tests/test_split_planted.py`` plants each kind of error in
-a cube map of a known room (shifted views, a wall hidden, a blurred impostor, noisy truth): each lands in its own
-term.
+whether the search's error and the map's are unrelated. ``tests/measure/test_split_planted.py`` plants each kind of
+error in a cube map of a known room (shifted views, a wall hidden, a blurred impostor, noisy truth): each lands in
+its own term.
 
 Each term has a 95 % interval over the object's spatially correlated pixels (the mean ± t·√variance, the variance
 from the term's own autocovariance over a lag window sized by its correlation length:

@@ -26,7 +26,7 @@ found.
 Why not the paper's false position on each layer: on the layer that holds a column top (seen from below), a ray
 coming down onto the top first crosses the skin along the top's silhouette edge and then the top itself; false
 position converges on the skin (the first root of its first bracket) and never reaches the top (see
-tests/test_methods_layered.py). Why not the first two sign changes of each layer, each tested against the jump
+tests/methods/test_methods_layered.py). Why not the first two sign changes of each layer, each tested against the jump
 channel, nearest clean one kept: a uniform 30-step search in t steps over the thin
 crossing near the column's top edge on 45 % of the rays whose hit o does not see (fig5 p0); with 2000 steps 14 %
 stay wrong, as the jump test rejects true top hits within a texel of the edge and a third crossing goes unrecorded;

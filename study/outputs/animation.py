@@ -76,7 +76,7 @@ class MotionConfig(BaseModel):
         {"name": "layered"},
     ]
     formats: list[Literal["gif", "mp4"]] = Field(["gif", "mp4"], min_length=1)
-    kind: Literal["animation"] = "animation"  # the figure kind (study.outputs.kinds.animation)
+    kind: Literal["animation"] = "animation"  # the figure kind (study.report.kinds.animation)
     #: the replicates: the whole sequence rendered once per seed (``render.seed``); intervals come from them
     seeds: list[int] = Field([0], min_length=1, max_length=16)
     #: the objects moved along the path, one sequence each: a name and dotted scene keys (``object.shape``, …)

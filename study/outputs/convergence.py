@@ -85,7 +85,7 @@ class LadderSpec(BaseModel):
 
 class ConvergenceConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-    kind: Literal["convergence"] = "convergence"  # the figure kind (study.outputs.kinds.convergence)
+    kind: Literal["convergence"] = "convergence"  # the figure kind (study.report.kinds.convergence)
     figures: list[str] = Field(min_length=1)
     ladders: list[LadderSpec] = Field(min_length=1)
     targets: list[float] = [0.05, 0.01]

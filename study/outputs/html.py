@@ -1,4 +1,4 @@
-"""``reports/index.html``: the report's blocks (:func:`study.outputs.report.blocks`) as one page that works offline.
+"""``reports/index.html``: the report's blocks (:func:`study.report.report.blocks`) as one page that works offline.
 
 The page is self-contained apart from files under ``reports/`` it names by relative paths (figure PNGs, plots, each
 figure's viewer scripts ``<fig>/viewer/<case>.js`` and EXRs): no CDN, no server, opened as ``file://``. Its script and

@@ -1,0 +1,131 @@
+"""The declared columns (study/columns.py, issue 41): every column a case writes is declared, the printed tables and
+the API read their columns from the table, and a column added by a plug-in — one declaration, one producer — reaches
+the CSV, the Parquet, the API's table and shown columns and ``study run``'s printed table with no other file touched."""
+
+import subprocess
+import sys
+import textwrap
+import tomllib
+from pathlib import Path
+
+import pytest
+from conftest import scene_toml, small_scene_dict
+
+from study import columns
+from study.tables import COLUMNS
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_the_leading_columns_are_the_results_tables_order():
+    assert COLUMNS[:3] == ["case", "method", "label"] and COLUMNS[-1] == "seconds"
+    assert len(set(columns.column_names())) == len(columns.column_names())  # one declaration per name
+
+
+def test_directions_follow_what_the_columns_measure():
+    for c in columns.TABLE:
+        n = c.name
+        if n.startswith(("wrong_fraction", "rmse_", "flip_", "dist_p", "dec_search", "relmse")):
+            assert c.lower_is_better is True, n
+        if n.startswith(("psnr_", "ssim_", "correct_")):
+            assert c.lower_is_better is False, n
+
+
+def test_every_column_a_case_writes_is_declared():
+    """A mirror, a rough and a glass object: each key of each row (intervals through their column) is declared."""
+    from study.harness.config import expand_methods
+    from study.measure.case import run_case
+    from study.scene import scene_from_dict
+
+    obj = small_scene_dict()["object"]
+    objects = [obj, {**obj, "alpha": 0.2}, {**obj, "material": {"type": "dielectric", "ior": 1.5}}]
+    meths = [["classical", "localized", "layered", "ssr"], ["glossy"], ["classical"]]
+    undeclared = set()
+    for o, m in zip(objects, meths):
+        sc = scene_from_dict(small_scene_dict(object=o), source="s.toml")
+        for row in run_case(sc, expand_methods(m, source="x"), keep_images=False).rows:
+            undeclared |= {k for k in row if columns.declared(k) is None}
+    refraction = {
+        "refraction",
+        "exit",
+        "exit_lookups_per_ray",
+        "tir_fraction",
+        "dropped_fraction",
+    }  # rays.stats
+    assert undeclared <= refraction, sorted(undeclared - refraction)
+
+
+def test_check_tolerances_name_declared_columns():
+    tol = tomllib.loads((ROOT / "configs" / "check.toml").read_text())["tolerance"]
+    assert not [k for k in tol if columns.declared(k) is None]
+
+
+def test_the_printed_tables_read_the_declared_views():
+    from study.api import Result  # noqa: F401 - the API reads the view when it shows a table
+
+    assert columns.view("run")[0] == "label" and "wrong_fraction" in columns.view("run")
+    assert columns.headers()["wrong_fraction"] == "wrong"
+
+
+PLUGIN = textwrap.dedent(
+    """
+    import numpy as np
+    from study.columns import TableColumn, declare
+    from study.measure.case import producer
+
+    declare(TableColumn("above_fraction", "fraction", None, "above", ("run",), note="shown point above the object"))
+
+    @producer
+    def above(ctx):
+        return {"above_fraction": float(np.mean(ctx.shown[:, 1] > ctx.x[:, 1]))}
+    """
+)
+
+
+def test_a_column_from_a_plugin_reaches_every_output(tmp_path):
+    """One declaration and one producer in a scratch module: the column is in the CSV and the Parquet, in the API's
+    table and its shown columns, and in ``study run``'s printed table under its header."""
+    (tmp_path / "colplug.py").write_text(PLUGIN)
+    (tmp_path / "s.toml").write_text(scene_toml(small_scene_dict()))
+    env = {"PYTHONPATH": f"{tmp_path}:{ROOT}", "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
+    code = textwrap.dedent(
+        f"""
+        import colplug, study, pandas as pd
+        res = study.evaluate(study.load_scene({str(tmp_path / "s.toml")!r}), methods=["classical"])
+        assert "above_fraction" in res.table.columns and "above_fraction" in res.shown().columns
+        assert res.table["above_fraction"].between(0, 1).all()
+        res.save({str(tmp_path / "api")!r})
+        assert "above_fraction" in pd.read_parquet({str(tmp_path / "api" / "table.parquet")!r}).columns
+        assert "above_fraction" in open({str(tmp_path / "api" / "table.csv")!r}).readline()
+        print("ok")
+        """
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path,
+                       timeout=600)  # fmt: skip
+    assert r.returncode == 0 and "ok" in r.stdout, r.stderr[-3000:]
+    cli = [sys.executable, "-m", "study.cli", "--plugin", "colplug", "run", str(tmp_path / "s.toml"), "-m",
+           "classical", "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "c")]  # fmt: skip
+    r = subprocess.run(cli, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert (
+        "above" in r.stdout and "above_fraction" in (tmp_path / "o" / "table.csv").read_text().splitlines()[0]
+    )
+
+
+def test_an_undeclared_column_from_a_producer_is_one_line(tmp_path):
+    (tmp_path / "badplug.py").write_text(
+        "from study.measure.case import producer\n@producer\ndef f(ctx):\n    return {'mystery': 1.0}\n"
+    )
+    (tmp_path / "s.toml").write_text(scene_toml(small_scene_dict()))
+    env = {"PYTHONPATH": f"{tmp_path}:{ROOT}", "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
+    cli = [sys.executable, "-m", "study.cli", "--plugin", "badplug", "run", str(tmp_path / "s.toml"), "-m",
+           "classical", "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "c")]  # fmt: skip
+    r = subprocess.run(cli, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    assert r.returncode == 2 and "badplug.f writes the column 'mystery', which is not declared" in r.stderr, (
+        r.stderr[-2000:]
+    )
+
+
+@pytest.mark.parametrize("name", ["wrong_fraction_texel_lo", "dec_search_hi"])
+def test_an_interval_column_resolves_to_its_column(name):
+    assert columns.declared(name) is columns.declared(name.rsplit("_", 1)[0])

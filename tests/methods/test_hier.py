@@ -1,0 +1,295 @@
+"""The hierarchical search (study.impostor.pyramid, study.methods.march) against the texel march it replaces: the
+pyramid's bound against its slow twin, the same shown points as the texel march (``hierarchical=False``, the brute
+force kept) on a one-texel-wide pillar, on grazing rays along the walls, on random rays in a room with a column and
+on Embree-peeled depth layers, with fewer lookups, as many as reported and no more than the bound.
+
+Provenance: box impostors from study.impostor.analytic (exact ray–box distances through texel centres); the column
+rooms of tests/methods/test_methods_linear_secant.py and tests/methods/test_methods_layered.py (Embree captures,
+128²)."""
+
+import numpy as np
+import pytest
+from conftest import small_scene_dict
+
+from study import methods
+from study.impostor import analytic, cubemap, layers
+from study.impostor.envmap import EnvMap
+from study.impostor.pyramid import MinPyramid, bound_ref, min_pyramid
+from study.impostor.views import Captured
+from study.reference.embree import Tracer
+from study.scene import scene_from_dict
+
+LO, HI = [-2.0, -1.5, -2.0], [2.0, 1.5, 2.0]
+
+
+def _trace(name, B, env, x, d, **kw):
+    """(shown (N, 3), valid, lookups per ray, bound) of method ``name`` traced on ``env``."""
+    m = methods.make(name, **kw)
+    with np.errstate(all="ignore"):
+        tr = m.trace(B, env, B.vec(x), B.vec(d))
+    res = env.res if isinstance(env, (EnvMap, Captured)) else 0
+    return (
+        B.to_numpy(tr.shown).astype(float),
+        B.numpy(tr.valid).astype(bool),
+        B.numpy(tr.lookups).astype(float),
+        m.lookups_per_ray(res),
+    )
+
+
+def _same_as_texel_march(name, B, env, x, d, tol=1e-3, **kw):
+    """Both searches on the same rays: the same valid rays and shown points within ``tol`` (relative) on all but
+    0.5 % of them; each ray's lookups ≤ the bound. Returns (texel march, hierarchical) results."""
+    flat = _trace(name, B, env, x, d, hierarchical=False, **kw)
+    hier = _trace(name, B, env, x, d, hierarchical=True, **kw)
+    np.testing.assert_array_equal(flat[1], hier[1])
+    v = flat[1]
+    rel = np.linalg.norm(flat[0][v] - hier[0][v], axis=1) / np.linalg.norm(flat[0][v], axis=1)
+    assert np.mean(rel > tol) <= 0.005, np.sort(rel)[-5:]
+    assert flat[2].max() <= flat[3] and hier[2].max() <= hier[3]
+    return flat, hier
+
+
+# ---------------------------------------------------------------------------------------------- the pyramid
+@pytest.mark.parametrize("res", [16, 13])
+def test_pyramid_bound_is_a_lower_bound_of_the_lookups_and_not_a_loose_one(res, B):
+    """Random segments on random faces of random distances (res 16 and an odd 13): the bound never exceeds the
+    smallest texel the bilinear lookups along the segment read (bound_ref), and on short segments (≤ 2 texels)
+    it is above the face's minimum on most (it reads a small block, not the whole face)."""
+    rng = np.random.default_rng(res)
+    dist = rng.uniform(1.0, 5.0, (6, res, res)).astype(np.float32)
+    n = 300
+    face = rng.integers(0, 6, n)
+    uv0 = rng.uniform(0, 1, (n, 2))
+    short = np.arange(n) < n // 2
+    uv1 = np.where(short[:, None], uv0 + rng.uniform(-2, 2, (n, 2)) / res, rng.uniform(0, 1, (n, 2)))
+    uv1 = np.clip(uv1, 0, 1)
+    pyr = MinPyramid(dist, B)
+    f = B.array(face.astype(np.float32))
+    got = B.numpy(
+        pyr.bound(f, B.array(uv0[:, 0]), B.array(uv0[:, 1]), f, B.array(uv1[:, 0]), B.array(uv1[:, 1]))
+    )
+    want = np.array([bound_ref(dist, face[i], uv0[i], uv1[i]) for i in range(n)])
+    assert np.all(got <= want)
+    assert np.mean(got[short] > dist[face[short]].reshape(-1, res * res).min(1) + 1e-3) > 0.8
+    other = B.array(((face + 1) % 6).astype(np.float32))  # two faces: no bound
+    no = pyr.bound(f, B.array(uv0[:, 0]), B.array(uv0[:, 1]), other, B.array(uv1[:, 0]), B.array(uv1[:, 1]))
+    assert np.all(B.numpy(no) < 0)
+
+
+def test_pyramid_levels_hold_the_minimum_of_their_texels():
+    """Level q, dilated, at texel (i, j) holds the minimum over level-0 texels [i 2^q, (i + 2) 2^q) × [j 2^q, …)
+    (brute force on random distances, res 12, padded odd sides included)."""
+    rng = np.random.default_rng(1)
+    dist = rng.uniform(1.0, 5.0, (6, 12, 12)).astype(np.float32)
+    flat, offsets = min_pyramid(dist)
+    for q, (o, s) in enumerate(offsets):
+        lev = flat[o : o + 6 * s * s].reshape(6, s, s)
+        for i in range(s):
+            for j in range(s):
+                a, b = i * 2**q, j * 2**q
+                want = dist[:, a : a + 2 ** (q + 1), b : b + 2 ** (q + 1)].min(axis=(1, 2))
+                np.testing.assert_array_equal(lev[:, i, j], want)
+    assert offsets[-1][1] == 1
+
+
+def test_the_bound_reads_the_lowest_level_that_covers_its_box(B):
+    """Boxes of every whole width 2..R − 4 texels along one row (R = 256 and an odd 13; the bilinear lookups of a
+    segment from column 3.25 to 3.25 + width − 2 touch columns 3 … width + 2, rows 5 and 6): the bound equals the
+    dilated level q = the least with width ≤ 2^q + 1 (brute force) at the box's first texel, on a map whose texels
+    all differ, so a level one too low or too high, or a wrong texel, shows (Backend.exponent picks q)."""
+    for res in (256, 13):
+        dist = np.linspace(2.0, 1.0, 6 * res * res, dtype=np.float32).reshape(6, res, res)
+        flat, offsets = min_pyramid(dist)
+        pyr = MinPyramid(dist, B)
+        width = np.arange(2, res - 3)
+        u0, u1 = np.full(len(width), 3.75 / res), (3.75 + width - 2) / res  # coordinates c = u R − 0.5
+        v = np.full(len(width), 5.75 / res)
+        f = B.array(np.full(len(width), 2.0, np.float32))
+        got = B.numpy(pyr.bound(f, B.array(u0), B.array(v), f, B.array(u1), B.array(v)))
+        for w, g in zip(width, got):
+            q = next(q for q in range(len(offsets)) if w <= 2**q + 1)
+            o, s = offsets[q]
+            want = flat[o : o + 6 * s * s].reshape(6, s, s)[2, 5 >> q, 3 >> q] * (1 - 1e-5)
+            assert g == pytest.approx(want, rel=1e-7), (res, w)
+
+
+# ---------------------------------------------------------------------------------------------- thin crossings
+def _pillar(res=64, near=0.5):
+    """A box impostor with a pillar one texel wide: on face +x, texel column j0 holds ``near`` of the wall's
+    distance on every row. Returns (texels, pillar directions (res, 3), their distances)."""
+    tex = analytic.box_impostor(res, LO, HI)
+    j0 = res // 2 + 3
+    tex[0, :, j0, -1] *= near
+    dirs = cubemap.texel_directions(res)[0, :, j0]
+    return tex, dirs, tex[0, :, j0, -1]
+
+
+def test_a_one_texel_pillar_is_found_by_the_hierarchical_search_as_by_the_texel_march(B):
+    """Rays from random points behind o aimed at points 0.4 m behind the pillar's texel centres (rows 8..56): each
+    crosses the pillar's bilinear tent, one texel of arc to either side of its centre, in front of the wall. The
+    texel march shows a point within 1.5 texels of the pillar's direction and ≥ 0.3 m nearer than the wall on
+    ≥ 90 % of them; the hierarchical search shows the same points, from at least 4× fewer lookups on average."""
+    res = 64
+    tex, dirs, dist = _pillar(res)
+    rng = np.random.default_rng(3)
+    n = 400
+    rows = rng.integers(8, 56, n)
+    tgt = dirs[rows] * (dist[rows, None] + 0.4)
+    x = rng.uniform(-0.6, 0.6, (n, 3))
+    x[:, 0] = rng.uniform(-1.5, -0.5, n)
+    d = (tgt - x) / np.linalg.norm(tgt - x, axis=1, keepdims=True)
+    env = EnvMap(tex, B)
+    flat, hier = _same_as_texel_march("linear_secant", B, env, x, d)
+    shown = flat[0] / np.linalg.norm(flat[0], axis=1, keepdims=True)
+    off = np.arccos(np.clip((shown * dirs[rows]).sum(1), -1, 1))  # from the pillar's direction
+    near = np.linalg.norm(flat[0], axis=1) < dist[rows] / 0.5 - 0.3  # the wall is at dist / 0.5
+    assert np.mean((off < 1.5 * 2 / res) & near) >= 0.9
+    assert hier[2].mean() * 4 <= flat[2].mean()
+
+
+def test_grazing_rays_along_the_walls_give_the_texel_march_s_hits(B):
+    """Rays 2–8 cm from a wall of the box room, at 0.5–3° to it: the ray point stays within a few texels of
+    the wall's surface for metres (the pyramid proves little there) and the hit is on the far wall; the
+    hierarchical search shows the texel march's points, within 1 cm of the exact box hit (median) and 6 cm on
+    ≥ 99 % (bilinear interpolation of a 64² map at grazing angles)."""
+    rng = np.random.default_rng(5)
+    n = 400
+    tex = analytic.box_impostor(64, LO, HI)
+    axis = rng.integers(0, 3, n)
+    sign = rng.choice([-1, 1], n)
+    x = rng.uniform(-1.0, 1.0, (n, 3))
+    lo, hi = np.array(LO), np.array(HI)
+    gap = rng.uniform(0.02, 0.08, n)
+    x[np.arange(n), axis] = np.where(sign > 0, hi[axis] - gap, lo[axis] + gap)
+    along = rng.normal(size=(n, 3))
+    along[np.arange(n), axis] = 0
+    along /= np.linalg.norm(along, axis=1, keepdims=True)
+    ang = np.radians(rng.uniform(0.5, 3.0, n))
+    d = along * np.cos(ang)[:, None]
+    d[np.arange(n), axis] = sign * np.sin(ang)
+    env = EnvMap(tex, B)
+    flat, hier = _same_as_texel_march("linear_secant", B, env, x, d)
+    exact = analytic.box_hit(x, d, LO, HI)
+    err = np.linalg.norm(hier[0] - exact, axis=1)
+    assert np.median(err) < 0.01 and np.mean(err < 0.06) >= 0.99  # 64² bilinear: cm at grazing angles
+
+
+# ---------------------------------------------------------------------------------------------- captured rooms
+@pytest.fixture(scope="module")
+def column_room():
+    """The small room with one column taller than o; three Embree-peeled layers (128²); layer 0 is the impostor."""
+    s = scene_from_dict(
+        small_scene_dict(columns=[{"center": [-0.8, 0.3], "footprint": [0.5, 0.5], "height": 2.0}])
+    )
+    o = np.asarray(s.reference.point)
+    tracer = Tracer(s.mesh())
+    res = 128
+    dist, point, _, _ = layers.peel(tracer, o, cubemap.texel_directions(res).reshape(-1, 3), 3)
+    d = dist.reshape(3, 6, res, res)
+    tex = np.concatenate(
+        [point.reshape(3, 6, res, res, 3), layers.depth_jump(d)[..., None], d[..., None]], -1
+    )
+    return o, tracer, tex.astype(np.float32)
+
+
+def test_random_rays_in_a_room_with_a_column_linear_secant_and_layered(column_room, B):
+    """2000 random rays from within 0.5 m of o: linear_secant on the impostor and layered on the three layers
+    show the texel march's points with the hierarchical search (≥ 99.5 % within 0.1 %), from ≥ 4× fewer lookups
+    on average."""
+    o, tracer, tex = column_room
+    x, d = analytic.random_rays(2000, extent=0.5, seed=4)
+    imp = tex[0][..., [0, 1, 2, 4]]  # RGB, distance
+    env = Captured(impostor=EnvMap(imp, B), reference=o, layers=tuple(EnvMap(t, B) for t in tex))
+    for name in ("linear_secant", "layered"):
+        flat, hier = _same_as_texel_march(name, B, env, x, d)
+        assert hier[2].mean() * 4 <= flat[2].mean(), name
+
+
+def test_every_sample_a_block_jump_skips_is_in_front_of_the_surface(column_room, B):
+    """The skipper's reach against brute force: 3000 random rays from within 0.6 m of o in the column room, each
+    with a random block (k, k_b]: every sample of k + 1 … reach that the march would skip has g < 0 (the ray
+    point nearer than the bilinear lookup there: linear_secant's g at t = Samples.direct), so a skip never steps
+    over a crossing. The reach is not vacuous: it clears whole blocks on some rays and jumps part of the way on
+    others (the bound holds the ray off the surface up to a point inside the block)."""
+    from study.methods import linear_secant
+    from study.methods.search import arc_samples
+
+    o, _, tex = column_room
+    env = EnvMap(tex[0][..., [0, 1, 2, 4]], B)
+    n = linear_secant.march_steps(env.res, linear_secant.TexelMarchParams())
+    rng = np.random.default_rng(5)
+    m = 3000
+    xn, dn = analytic.random_rays(m, extent=0.6, seed=6)
+    x, R = B.vec(xn), B.vec(dn)
+    a = B.maximum(B.length(x), 1e-6)
+    skip = linear_secant.skipper(B, env.pyramid, x, R, a, n)
+    smp = arc_samples(B, x.dot(R) / a, n)
+    k = rng.integers(0, n - 1, m).astype(np.float32)
+    kb = np.minimum(k + 2.0 ** rng.integers(1, 9, m), n).astype(np.float32)
+    kb = np.minimum(kb, B.numpy(skip.edge(B.array(k))))
+    t_at = lambda kk: B.minimum(smp.direct(B.array(kk)), 1.0)  # noqa: E731
+    reach = B.numpy(skip.reach(B.array(k), B.array(kb), t_at(k + 1.0), t_at(kb)))
+    assert np.all((reach >= k) & (reach <= kb))
+    for j in range(1, int((reach - k).max()) + 1):  # every skipped sample, the j-th after k
+        on = k + j <= reach
+        t = t_at(np.where(on, k + j, k + 1.0).astype(np.float32))
+        p = x * (1.0 - t) + R * (a * t)
+        g = B.numpy(B.length(p) - (1.0 - t) * env.distance(p))
+        assert np.all(g[on] < 0.0), j
+    whole, part = reach == kb, (reach > k) & (reach < kb)
+    assert whole.mean() > 0.05 and part.mean() > 0.05, (whole.mean(), part.mean())
+
+
+# ---------------------------------------------------------------------------------------------- face edges
+def test_exit_angle_is_where_a_dense_walk_along_the_circle_changes_face():
+    """cubemap.exit_angle against its slow twin: 300 random great circles and start angles, walked in steps of
+    π/20000 from the start; the first step on another face (cubemap.face_uv) lies within a step of the computed
+    angle (float32 trigonometry: 2e-4 rad), never before it."""
+    from study import backend
+
+    nb = backend.get("numpy")
+    rng = np.random.default_rng(11)
+    e1 = rng.normal(size=(300, 3))
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = rng.normal(size=(300, 3))
+    e2 -= e1 * (e1 * e2).sum(1, keepdims=True)
+    e2 /= np.linalg.norm(e2, axis=1, keepdims=True)
+    phi = rng.uniform(0, np.pi, 300)
+    got = cubemap.exit_angle(nb, nb.vec(e1), nb.vec(e2), phi.astype(np.float32)).astype(float)
+    walk = phi[:, None] + np.linspace(0, np.pi, 20001)[None, :]  # (300, 20001)
+    d = np.cos(walk)[..., None] * e1[:, None] + np.sin(walk)[..., None] * e2[:, None]
+    face = cubemap.face_uv(nb, d[..., 0], d[..., 1], d[..., 2])[0]
+    first = np.argmax(face != face[:, :1], axis=1)  # every half turn changes face at least once
+    assert (first > 0).all()
+    true = walk[np.arange(300), first]
+    assert np.all(got <= true + 2e-4), np.max(got - true)
+    assert np.all(got >= walk[np.arange(300), first - 1] - 2e-4), np.min(got - true)
+
+
+def test_blocks_cut_at_face_edges_give_the_same_points_from_fewer_lookups(column_room, B, monkeypatch):
+    """The march with blocks cut at the cube's face edges (Skip.edge) against the same march without the cut (the
+    pyramid never clears a block across an edge; it halves the block instead): the same shown points on the random
+    rays of the column room, and fewer lookups on average for linear_secant and layered (measured: 35 against 46
+    on fig4's close-up batch)."""
+    from study.methods import layered, linear_secant
+
+    o, tracer, tex = column_room
+    x, d = analytic.random_rays(2000, extent=0.5, seed=4)
+    imp = tex[0][..., [0, 1, 2, 4]]
+    env = Captured(impostor=EnvMap(imp, B), reference=o, layers=tuple(EnvMap(t, B) for t in tex))
+    cut = {n: _trace(n, B, env, x, d, hierarchical=True) for n in ("linear_secant", "layered")}
+    plain = linear_secant.skipper
+
+    def uncut(*a):
+        s = plain(*a)
+        s.edge = None
+        return s
+
+    monkeypatch.setattr(linear_secant, "skipper", uncut)
+    monkeypatch.setattr(layered, "skipper", uncut)
+    for name, (shown, valid, lookups, bound) in cut.items():
+        u_shown, u_valid, u_lookups, _ = _trace(name, B, env, x, d, hierarchical=True)
+        np.testing.assert_array_equal(valid, u_valid)
+        np.testing.assert_allclose(shown[valid], u_shown[valid], rtol=1e-5, atol=1e-6)
+        assert lookups.max() <= bound
+        assert lookups.mean() < 0.95 * u_lookups.mean(), (name, lookups.mean(), u_lookups.mean())
