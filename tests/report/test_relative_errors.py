@@ -1,4 +1,4 @@
-"""Errors that mean the same in a dark scene (study.measure.exposure, study.outputs.summary).
+"""Errors that mean the same in a dark scene (study.measure.exposure, study.report.summary).
 
 ``relmse_truth_exposed`` is relMSE after the exposure normalisation (the truth's median at 0.18, ε = 0.01): a scene
 × 1e-3 keeps every value and ranking while RMSE and the absolute-ε relMSE move; the summary ranks image error on it,
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from study.measure import exposure, truth
-from study.outputs import summary
+from study.report import summary
 
 ROOT = Path(__file__).resolve().parents[2]
 CORNELL = ROOT / "tests/assets/corpus/obj/mcguire-cornell"
