@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from study import runtime
-from study.scene import Scene
+from study.scene import Scene, sky
 from study.scene.environment import geometry
 from study.scene.objects import object_mesh as make_object_mesh
 
@@ -112,10 +112,14 @@ def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dic
             "position": list(scene.light.position),
             "intensity": {"type": "rgb", "value": list(scene.light.intensity)},
         }
+    given = scene.environment.sky is not None  # the user's sky replaces the file's own (one per scene)
     for i, e in enumerate(
         env.emitters
     ):  # a Mitsuba scene's own emitters (area lights come with their shapes)
-        d[f"emitter_{i}"] = e
+        if not (given and m.has_flag(e.flags(), m.EmitterFlags.Infinite)):
+            d[f"emitter_{i}"] = e
+    if sky.emitter(scene.environment.sky) is not None:  # what escaping rays see (study.scene.sky)
+        d["sky"] = sky.emitter(scene.environment.sky)
     for i, li in enumerate(env.lights):  # a mesh file's punctual lights
         d[f"file_light_{i}"] = punctual(m, li)
     mesh = env.mesh
