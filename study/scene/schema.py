@@ -116,7 +116,6 @@ from study.scene.room import RoomMesh
 from study.scene.sources import SOURCES, BoxEnv, Environment
 from study.validation import KeyedError, first_error
 
-
 #: Keys whose update places anew every key automatic placement chose (the rest of the placement follows from them:
 #: the object's spot and the camera's depend on the reference point and the object's size), as loading a mesh file
 #: with them given would.
