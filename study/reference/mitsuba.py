@@ -3,7 +3,8 @@
 The environment is built from :func:`study.scene.environment.geometry` (the very triangles Embree intersects): the
 box room's surfaces with their procedural textures, a mesh file's parts with their textures or colours (two-sided
 diffuse BSDFs), or a Mitsuba scene's own shapes, BSDFs and emitters; box and mesh environments get the point
-light; the object is a Mitsuba sphere with
+light; the sky the user gives (``environment.sky``, :mod:`study.scene.sky`) replaces the file's environment
+emitter; the object is a Mitsuba sphere with
 its real material (``conductor`` with per-channel eta and k, a perfect mirror, or a ``dielectric``), or a mesh with
 smooth vertex normals for mesh shapes. A dielectric object gets ``max_depth + 2`` (in and out of the glass).
 Rendering uses the

@@ -1,15 +1,23 @@
 """Automatic placement in an environment nobody placed things in (mesh files, Mitsuba scenes): the keys the user
 left out, and only those (:data:`KEYS`), suggested by ray casting with Embree (:mod:`study.scene.placement`).
 
-* ``reference.point``: the free, enclosed point of a 5³ grid inside the bounds farthest from every surface (the
-  grid is ranked by the nearest hit of 128 rays from each point, then checked exactly);
+* ``reference.point``: of a 5³ grid inside the bounds, the free point (seeing some surface, at least half of its
+  128 rays hitting one, clearance ≥ :data:`MIN_CLEARANCE` of the diagonal) of the highest rough clearance (the
+  nearest hit of its rays) × enclosure² (the share of them that hit): in a closed room the point farthest from
+  every surface, as ever; in a room with an open side (the Cornell box's front, a missing ceiling) a point away
+  from the opening. No grid point qualifies (a single object seen from outside, :func:`_beside`): a point beside
+  the bounds, level with their middle, half their largest extent away, on the side that sees most of them;
 * ``object.radius``: a quarter of the reference point's clearance, at most 8 % of the bounds' diagonal;
   ``object.center``: a little below the reference point (on the camera's view axis, before the first surface
   it meets, where the scene has a camera: a Mitsuba sensor or a glTF camera), moved to the nearest free spot
   where the sphere touches nothing;
-* the camera: the scene's own where it has one (Mitsuba sensor, glTF camera); else the eye, of 64 directions
-  around the object at a distance of 1.75 × the clearance, that sees the object unblocked (every sampled ray
-  from the eye to the object's near side arrives), preferring eyes level with the object on the reference point's side;
+* the camera: the scene's own where it has one (Mitsuba sensor, glTF camera); else, of the free eyes around the
+  object (64 directions × distances of 3, 4 and 5.5 object radii and 1.75 × the clearance) that see it unblocked,
+  aimed at the object (and, for an object seen from outside, also halfway to the bounds' middle), the one of the
+  highest :func:`score` (:data:`WEIGHTS`): the object's share of the frame (counted up to :data:`FILL`; below
+  :data:`MIN_OBJECT` ranks last), minus the void (pixels whose ray leaves the scene: the sky), the void the
+  object mirrors, the tilt from level, plus a little for the reference point's side (:mod:`study.scene.framing`);
+  the choice is one line (:attr:`Suggestion.line`, printed by ``study run``) naming the terms;
 * the light, where ``[light]`` lights the environment: ``light.enabled`` is off when the file brings light of its
   own (emitters, emissive materials, punctual lights); else a point light at the centre of the bounds (0.6 ×
   the clearance above the reference point when the centre is not free, or is the reference point or the

@@ -55,7 +55,9 @@ A scene is a TOML file (or dict) validated on load; y is up, units are metres. E
 The environment is the box ``[room]`` with its ``[[columns]]`` unless ``[environment]`` names another source
 (:mod:`study.scene.sources`): ``type = "mesh"`` with ``file = "rooms/l_room.ply"`` (any format trimesh reads; its
 colours and textures are used) or ``type = "mitsuba"`` with ``file = "scene.xml"`` or ``builtin = "cornell_box"``
-(its own shapes, BSDFs and emitters; ``[light]`` lights it only where it has no emitter). There, the placement
+(its own shapes, BSDFs and emitters; ``[light]`` lights it only where it has no emitter). Any environment takes
+``sky = "#rrggbb" | [r, g, b] | "sky.exr"``: what rays that leave the scene see (:mod:`study.scene.sky`; left out:
+the file's own, else black). There, the placement
 keys a scene leaves out are suggested (:mod:`study.scene.autoplace`) and every placement is checked by ray casting
 (:mod:`study.scene.placement`); ``light.enabled = false`` leaves the point light out;
 ``reference.box = [[x0, y0, z0], [x1, y1, z1]]`` gives the proxy methods a box
