@@ -92,6 +92,8 @@ def run(
         t_load = time.perf_counter() - t0
         if sc.load_summary():  # what the environment's file held, and what was ignored (stderr)
             typer.echo(sc.load_summary(), err=True)
+        if sc.placement_line():  # automatic placement's choice, its score terms named (stderr)
+            typer.echo(sc.placement_line(), err=True)
         out = out or default_folder(scene)  # reports/run-<stem>-<hash of the path>: one per scene file
         with progress.item(file_stem(scene.stem)):
             res = evaluate(

@@ -71,22 +71,16 @@ class Impostor:
         return cls(ref, np.ascontiguousarray(a[..., :3]), np.ascontiguousarray(a[..., 3]))
 
 
-#: At most this fraction of the texel rays from the reference point may leave the scene (an open side).
-MAX_OPEN = 0.5
-
-
 def distances_from(tracer: Tracer, o, res: int, *, key: str = "reference.point") -> np.ndarray:
     """Exact distances from the point ``o`` through every texel centre of a res² cube map, by ``tracer``:
-    (6, R, R) float32; :data:`study.impostor.cubemap.FAR` where a texel ray leaves the scene ("no surface").
-    More than :data:`MAX_OPEN` of them leaving is a StudyError on ``key`` (no closed region around ``o``)."""
+    (6, R, R) float32; :data:`study.impostor.cubemap.FAR` where a texel ray leaves the scene ("no surface": its
+    radiance is the sky's, :mod:`study.scene.sky`). Every one of them leaving is a StudyError on ``key``."""
     dirs = cubemap.texel_directions(res).reshape(-1, 3)
     t = tracer.distance(np.broadcast_to(np.asarray(o, float), dirs.shape), dirs)
     open_ = ~np.isfinite(t)
-    if open_.mean() > MAX_OPEN:
+    if open_.all():
         raise StudyError(
-            f"no closed region around it: {100 * open_.mean():.0f} % of the texel rays leave the scene "
-            f"(at most {100 * MAX_OPEN:.0f} % may)",
-            key=key,
+            "sees no surface: every texel ray leaves the scene; move it near the geometry", key=key
         )
     return np.where(open_, cubemap.FAR, t).reshape(6, res, res).astype(np.float32)
 

@@ -3,7 +3,8 @@
 The environment is built from :func:`study.scene.environment.geometry` (the very triangles Embree intersects): the
 box room's surfaces with their procedural textures, a mesh file's parts with their textures or colours (two-sided
 diffuse BSDFs), or a Mitsuba scene's own shapes, BSDFs and emitters; box and mesh environments get the point
-light; the object is a Mitsuba sphere with
+light; the sky the user gives (``environment.sky``, :mod:`study.scene.sky`) replaces the file's environment
+emitter; the object is a Mitsuba sphere with
 its real material (``conductor`` with per-channel eta and k, a perfect mirror, or a ``dielectric``), or a mesh with
 smooth vertex normals for mesh shapes. A dielectric object gets ``max_depth + 2`` (in and out of the glass).
 Rendering uses the
@@ -15,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from study import runtime
-from study.scene import Scene
+from study.scene import Scene, sky
 from study.scene.environment import geometry
 from study.scene.objects import object_mesh as make_object_mesh
 
@@ -112,10 +113,14 @@ def scene_dict(scene: Scene, *, with_object: bool, sensor: dict, integrator: dic
             "position": list(scene.light.position),
             "intensity": {"type": "rgb", "value": list(scene.light.intensity)},
         }
+    given = scene.environment.sky is not None  # the user's sky replaces the file's own (one per scene)
     for i, e in enumerate(
         env.emitters
     ):  # a Mitsuba scene's own emitters (area lights come with their shapes)
-        d[f"emitter_{i}"] = e
+        if not (given and m.has_flag(e.flags(), m.EmitterFlags.Infinite)):
+            d[f"emitter_{i}"] = e
+    if sky.emitter(scene.environment.sky) is not None:  # what escaping rays see (study.scene.sky)
+        d["sky"] = sky.emitter(scene.environment.sky)
     for i, li in enumerate(env.lights):  # a mesh file's punctual lights
         d[f"file_light_{i}"] = punctual(m, li)
     mesh = env.mesh

@@ -3,8 +3,9 @@
 * a point (the reference point, the light) must lie in free space: of the rays cast from it in 128 directions,
   most that hit something must hit the *front* of a surface (normals face free space: a room's walls face in,
   a column's or a cube's faces out); a point inside a solid sees back faces;
-* the reference point must be enclosed: at least half of those rays must hit a surface (an open side such as the
-  Cornell box's front is fine; a point outside the model is not);
+* the reference point must see the environment: at least one of those rays must hit a surface (open scenes are
+  fine: a ray that leaves the scene sees the sky, :mod:`study.scene.sky`); probes must be enclosed (at least half
+  of them hit);
 * the object (its bounding sphere) must not touch the environment: the nearest triangle is farther than its radius.
 
 Rays are cast by Embree (embreex, as in :mod:`study.reference.embree`), so that placement stays fast on meshes of
@@ -126,6 +127,22 @@ def check_free(mesh: RoomMesh, p, key: str, *, enclosed: bool = False) -> None:
         )
 
 
+def check_reference(mesh: RoomMesh, p, key: str = "reference.point") -> None:
+    """The reference point lies in free space and sees some surface (else its impostor holds nothing but sky)."""
+    check_free(mesh, p, key)
+    t, _ = cast(mesh, np.asarray(p, float)[None], directions())
+    if not np.isfinite(t).any():
+        raise KeyedError(
+            key, "sees no surface: every direction from it leaves the scene; move it near the geometry"
+        )
+
+
+def enclosure(mesh: RoomMesh, p) -> float:
+    """Share of the directions from ``p`` that hit a surface (1: enclosed; a room with an open side: less)."""
+    t, _ = cast(mesh, np.asarray(p, float)[None], directions())
+    return float(np.isfinite(t).mean())
+
+
 def check_object(mesh: RoomMesh, center, radius: float, what: str) -> None:
     """The object's bounding sphere lies in free space and touches no triangle."""
     check_free(mesh, center, "object.center")
@@ -149,7 +166,7 @@ def check_scene(scene) -> None:
     mesh, obj = scene.mesh(), scene.object
     r = obj.radius
     what = f"{obj.shape} (bounding radius {r})" if obj.shape != "sphere" else f"sphere (radius {r})"
-    check_free(mesh, scene.reference.point, "reference.point", enclosed=True)
+    check_reference(mesh, scene.reference.point)
     check_object(mesh, obj.center, r, what)
     lamp = scene.lamp()  # the point light lights the environment
     if lamp:

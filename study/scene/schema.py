@@ -55,7 +55,9 @@ A scene is a TOML file (or dict) validated on load; y is up, units are metres. E
 The environment is the box ``[room]`` with its ``[[columns]]`` unless ``[environment]`` names another source
 (:mod:`study.scene.sources`): ``type = "mesh"`` with ``file = "rooms/l_room.ply"`` (any format trimesh reads; its
 colours and textures are used) or ``type = "mitsuba"`` with ``file = "scene.xml"`` or ``builtin = "cornell_box"``
-(its own shapes, BSDFs and emitters; ``[light]`` lights it only where it has no emitter). There, the placement
+(its own shapes, BSDFs and emitters; ``[light]`` lights it only where it has no emitter). Any environment takes
+``sky = "#rrggbb" | [r, g, b] | "sky.exr"``: what rays that leave the scene see (:mod:`study.scene.sky`; left out:
+the file's own, else black). There, the placement
 keys a scene leaves out are suggested (:mod:`study.scene.autoplace`) and every placement is checked by ray casting
 (:mod:`study.scene.placement`); ``light.enabled = false`` leaves the point light out;
 ``reference.box = [[x0, y0, z0], [x1, y1, z1]]`` gives the proxy methods a box
@@ -116,6 +118,11 @@ from study.scene.room import RoomMesh
 from study.scene.sources import SOURCES, BoxEnv, Environment
 from study.validation import KeyedError, first_error
 
+#: Keys whose update places anew every key automatic placement chose (the rest of the placement follows from them:
+#: the object's spot and the camera's depend on the reference point and the object's size), as loading a mesh file
+#: with them given would.
+REPLACING = ("reference.point", "object.radius")
+
 
 class Scene(_Strict):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, arbitrary_types_allowed=True)
@@ -130,6 +137,9 @@ class Scene(_Strict):
     camera: Camera = Camera()
     render: Render = Render()
     _suggested: frozenset = PrivateAttr(default=frozenset())  # placement keys chosen by automatic placement
+    _placement: str = PrivateAttr(
+        default=""
+    )  # automatic placement's choice in one line (autoplace.Suggestion)
 
     @field_validator("columns", mode="before")
     @classmethod
@@ -176,6 +186,7 @@ class Scene(_Strict):
             out[table] = {**(out.get(table) or {}), key: v}
         if ctx is not None:
             ctx["suggested"] = set(ctx.get("suggested") or ()) | set(suggested)
+            ctx["placement"] = getattr(suggested, "line", "")
         return out
 
     @model_validator(mode="after")
@@ -189,6 +200,7 @@ class Scene(_Strict):
     def _placement(self, info: ValidationInfo):
         if isinstance(info.context, dict) and info.context.get("suggested"):
             self._suggested = frozenset(info.context["suggested"])
+            self._placement = info.context.get("placement") or ""
         if self.environment.type != "box":
             return self._placement_any()
         lo, hi = np.array(self.room.min), np.array(self.room.max)
@@ -247,6 +259,10 @@ class Scene(_Strict):
         """The placement keys automatic placement chose (the user left them out)."""
         return self._suggested
 
+    def placement_line(self) -> str:
+        """Automatic placement's choice in one line, its score terms named; empty where it chose nothing."""
+        return self._placement
+
     # ------------------------------------------------------------------ derived geometry
     def with_updates(self, updates: dict[str, Any], *, source: str = "<override>") -> Scene:
         """A new scene with dotted-key overrides (``{"object.center": [1, 1, 0]}``), validated again."""
@@ -265,7 +281,13 @@ class Scene(_Strict):
                     node = node[p]
             node[parts[-1]] = value
         keep = frozenset(k for k in self._suggested if k not in updates)
-        return scene_from_dict(data, source=source, suggested=keep)
+        if keep and any(k in updates for k in REPLACING):  # placed anew around what the user gave
+            for k in keep:
+                table, key = k.split(".")
+                data[table].pop(key, None)
+            keep = frozenset()
+        line = self._placement if keep == self._suggested else ""
+        return scene_from_dict(data, source=source, suggested=keep, placement=line)
 
     def mesh(self) -> RoomMesh:
         """The environment as triangles (:func:`study.scene.environment.geometry`): the box room and its columns,
@@ -301,14 +323,23 @@ def _box_sphere_distance(lo, hi, p) -> float:
 
 # ---------------------------------------------------------------------------------------------- loading
 def scene_from_dict(
-    data: dict, *, source: str = "<scene>", base: str | Path | None = None, suggested=frozenset()
+    data: dict,
+    *,
+    source: str = "<scene>",
+    base: str | Path | None = None,
+    suggested=frozenset(),
+    placement="",
 ) -> Scene:
     """Validate a scene dict; the first problem is one StudyError naming ``source`` and the dotted key. Relative
     ``file`` paths resolve against ``base`` (the scene file's directory; the working directory by default).
     In mesh and Mitsuba environments the placement keys ``data`` leaves out are suggested (automatic placement,
     :mod:`study.scene.autoplace`); ``suggested``: keys of ``data`` that automatic placement chose earlier."""
     try:
-        ctx = {"base": str(base) if base is not None else None, "suggested": set(suggested)}
+        ctx = {
+            "base": str(base) if base is not None else None,
+            "suggested": set(suggested),
+            "placement": placement,
+        }
         return Scene.model_validate(data, context=ctx)
     except ValidationError as err:
         key, msg = first_error(err, Scene, skip=("mirror", "conductor", "dielectric"))

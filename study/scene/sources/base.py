@@ -32,12 +32,13 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, ValidationInfo
+from pydantic import BaseModel, ConfigDict, ValidationInfo, field_validator
 from pydantic_core import PydanticCustomError
 
 from study.errors import StudyError, plugin_guard
 from study.scene.parts import Part
 from study.scene.room import RoomMesh
+from study.scene.sky import validate_sky
 from study.validation import KeyedError
 
 
@@ -85,6 +86,12 @@ class Source(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
     type: str
     placed: ClassVar[bool] = True  # automatic placement fills the placement keys a scene leaves out
+    sky: str | tuple[float, float, float] | None = None  # what escaping rays see (study.scene.sky)
+
+    @field_validator("sky", mode="before")
+    @classmethod
+    def _sky(cls, v, info: ValidationInfo):
+        return validate_sky(v, info)
 
     def build(self, scene: Any) -> EnvGeometry:
         raise NotImplementedError

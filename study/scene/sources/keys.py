@@ -65,11 +65,15 @@ def key_fields(model: BaseModel | dict) -> dict:
             return {
                 k: (
                     file_digest(x)
-                    if k in ("file", "filename") and isinstance(x, str) and Path(x).is_file()
+                    if k in ("file", "filename", "sky") and isinstance(x, str) and Path(x).is_file()
                     else walk(x)
                 )
                 for k, x in v.items()
-                if k not in FRAMING_KEYS and not ("material" in v and LATER_DEFAULTS.get(k, ()) == x)
+                if k not in FRAMING_KEYS
+                and not ("material" in v and LATER_DEFAULTS.get(k, ()) == x)
+                and not (
+                    "type" in v and k == "sky" and x is None
+                )  # an environment without a sky: keys as before
             }
         if isinstance(v, (list, tuple)):
             return [walk(x) for x in v]
