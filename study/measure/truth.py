@@ -193,7 +193,9 @@ def noise_flag(sigma: float, error: float) -> float:
 def frame_noise(noise: np.ndarray) -> float:
     """A robust σ of a noise image (half two seeds' difference) over its whole frame and channels:
     :data:`MAD_TO_SIGMA` × the median absolute value. Over every pixel, not the object's few hundred, and blind
-    to fireflies, so it moves little from seed to seed and × √2 with half the samples (``study check``)."""
+    to fireflies, so it moves little from seed to seed (1.1–1.6 % in ``study check``'s cases) and grows with fewer
+    samples: × √2 for normal noise, +13 % for Mitsuba at half the check's 16 samples (its skewed noise's median
+    moves less than its RMS), 9.7 of those seed-to-seed sd."""
     d = np.abs(np.asarray(noise, float)).reshape(-1)
     d = d[np.isfinite(d)]
     return float(MAD_TO_SIGMA * np.median(d)) if d.size else float("nan")
