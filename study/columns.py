@@ -216,8 +216,19 @@ TABLE: list[TableColumn] = [
         "study's point light is added unless light.enabled is given (study/scene/lights.py); NaN: not judged",
     ),
     C("truth_noise_rmse", "linear RGB", note="the truth's own noise σ"),
+    C(
+        "truth_noise_flag",
+        note="1 where the truth's noise σ exceeds a third of the debiased error it measures (Whittle et al. 2017)",
+    ),
     C("rmse_mitsuba_debiased", "linear RGB", LOW),
-    C("mitsuba_noise_rmse", "linear RGB"),
+    C("mitsuba_noise_rmse", "linear RGB", note="Mitsuba's own noise σ over the same pixels"),
+    C("mitsuba_noise_flag", note="1 where Mitsuba's noise σ exceeds a third of rmse_mitsuba_debiased"),
+    C(
+        "mitsuba_noise_frame",
+        "linear RGB",
+        note="Mitsuba's noise over the whole frame (1.4826 × median |half the seeds' difference|): tight over "
+        "seeds, so `study check` sees a render at half its samples",
+    ),
     C("n_pixels", "count"),
     C("n_blocks", "count", note="pixel blocks resampled for the pixel intervals (tables before corr_px)"),
     C(

@@ -22,11 +22,13 @@ import math
 import numpy as np
 
 from study.measure.exposure import FIREFLY_LIMIT, FIREFLY_STEP
+from study.measure.truth import NOISE_SHARE
 from study.scene import lights
 from study.tables import REFERENCE_ROWS
 
-#: The truth's own noise (relMSE after exposure) may be at most this share of the best method's error.
-REFERENCE_NOISE_SHARE = 0.25
+#: The truth's own noise (relMSE after exposure, a squared unit) may be at most this share of the best method's
+#: error: σ at most a third of the error (:data:`study.measure.truth.NOISE_SHARE`, Whittle et al. 2017), squared.
+REFERENCE_NOISE_SHARE = NOISE_SHARE**2
 
 
 def light_columns(scene) -> dict[str, float]:

@@ -63,9 +63,11 @@ DECOMPOSITION = [
     "rmse_truth",
     "rmse_truth_debiased",
     "truth_noise_rmse",
+    "truth_noise_flag",
     "rmse_mitsuba",
     "rmse_mitsuba_debiased",
     "mitsuba_noise_rmse",
+    "mitsuba_noise_flag",
 ]
 COMPARISON = [
     *OUTCOMES,

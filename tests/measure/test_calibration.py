@@ -83,13 +83,12 @@ def test_independent_rays_keep_wilsons_interval():
 
 @pytest.mark.slow
 def test_every_interval_covers_93_to_97_percent_in_the_slow_tier():
-    """Every interval in 93–97 %, except the clustered ray percentile (Woodruff's inversion): 92.5 % at seed 0 with
-    the right mean width, held to 91–97 % until it is tightened."""
+    """Every interval in 93–97 %, the clustered ray percentile too (92.5 % at seed 0 with Wilson's interval of
+    the share and the window's Gaussian degrees of freedom; 94.5 % with a normal interval and the degrees of
+    freedom lowered for heavy tails, study.measure.spatial.kurtosis_factor)."""
     rows, powers = calibration.coverage_table(calibration.SLOW)
     band = calibration.BANDS[calibration.SLOW]
-    off = [r for r in rows if r.variant == "now" and r.flagged(band)]
-    assert [r.interval for r in off if r.interval != "ray percentile (p95)"] == []
-    assert all(0.91 <= r.coverage <= 0.97 for r in off), off
+    assert [r for r in rows if r.variant == "now" and r.flagged(band)] == []
     assert all(0.75 < p < 0.85 for p in powers.values()), powers
 
 

@@ -25,9 +25,10 @@ CAUGHT_BY = {
     "shown point one texel off": {"angle_median_deg", "dist_median", "wrong_fraction"},
     "localized one iteration fewer": {"angle_median_deg", "angle_p95_deg"},
     "truth at half its samples": {"truth_noise_rmse"},
+    # mitsuba_noise_rmse varies 9–13 % from seed to seed over the check's 170–340 object pixels (5 sd > the +41 %
+    # of noise × √2); mitsuba_noise_frame, a robust σ over the whole 96² frame, varies 1.1–1.6 %
+    "Mitsuba at half its samples": {"mitsuba_noise_frame"},
 }
-# Not caught: "Mitsuba at half its samples" (mitsuba_noise_rmse varies 9–13 % from seed to seed at this
-# check's 170–340 object pixels, so 5 sd exceeds the +41 % of noise × √2).
 
 
 @pytest.mark.slow

@@ -1,0 +1,42 @@
+"""The clustered ray percentile's interval (study.measure.spatial.quantile_interval) and the degrees of freedom of
+heavy-tailed residuals (spatial.kurtosis_factor): rare events make the lag-window variance less certain than its
+count of windows says, and the percentile's misses fall on both sides alike."""
+
+import numpy as np
+from scipy import stats as sps
+
+from study.measure import calibration, spatial
+
+
+def test_gaussian_residuals_keep_their_degrees_of_freedom():
+    rng = np.random.default_rng(0)
+    mask = np.ones((96, 96), bool)
+    f = [spatial.kurtosis_factor(calibration.correlated_field(rng), mask, 40.0) for _ in range(20)]
+    assert np.median(f) > 0.75, f
+
+
+def test_rare_events_lower_the_degrees_of_freedom():
+    """Planted: a field whose pixels are 1 where a correlated field passes its 97th percentile (rare blobs, as
+    the rays beyond a 95th percentile): the tile sums are heavy-tailed, the degrees of freedom fall, and the
+    ratio_variance's dof with them (never below MIN_DOF unless the window count is)."""
+    rng = np.random.default_rng(1)
+    mask = np.ones((96, 96), bool)
+    rare = [(calibration.correlated_field(rng) > 1.88).astype(float) for _ in range(20)]
+    f = [spatial.kurtosis_factor(r - r.mean(), mask, 40.0) for r in rare]
+    assert np.median(f) < 0.5, f
+    _, _, _, dof = spatial.ratio_variance(np.stack(rare), 1.0, mask)
+    assert (dof >= spatial.MIN_DOF).all()
+    g = np.stack([calibration.correlated_field(rng) for _ in range(20)])
+    assert np.median(dof) < 0.6 * np.median(spatial.ratio_variance(g, 1.0, mask)[3])
+
+
+def test_the_percentile_interval_misses_on_both_sides_alike():
+    """400 draws of the calibration's p95 row: each side misses the truth about 2.5 % of the time. Wilson's
+    interval of the share (the one before) leant towards ½ and missed above 5.5 %, below 1 % (2000 draws; on
+    these 400: 4.25 % and 1.0 %, now 1.75 % and 2.5 %)."""
+    draw, truth, _, _ = calibration.ROWS["ray percentile (p95)"]
+    rng = np.random.default_rng([7, 4])
+    cis = np.array([draw(rng, False)[1] for _ in range(400)])
+    above, below = np.mean(cis[:, 1] < truth), np.mean(cis[:, 0] > truth)
+    assert above <= 0.035 and below <= 0.035 and abs(above - below) <= 0.02, (above, below)
+    assert truth == sps.norm.ppf(0.95)
