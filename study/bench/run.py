@@ -289,7 +289,8 @@ def exact_query_row(m: Method, exact: Exact, b: Batch, backend: str, triangles: 
     """The row of a method that is the exact query itself (``traced``: ``m.bench_query``), from the time the bench
     measured for that query on the same rays and device (Mitsuba's variant of the backend's device; Embree on
     every core for numpy, which is the case's tracer there) rather than timed twice. Its path names the query;
-    lookups are its bound (the hit's radiance read, not in the time); no floor (a traversal, not fetches)."""
+    lookups are its bound (the hit's radiance read, not in the time); no floor (a traversal, not fetches). A method
+    of K queries a ray (``queries``: ``traced_glossy``) takes K times the query's time."""
     n = len(b.x)
     if backend == "numpy":
         path, t, kern = "embree", exact.embree(b), math.nan
@@ -297,6 +298,8 @@ def exact_query_row(m: Method, exact: Exact, b: Batch, backend: str, triangles: 
         v = mitsuba_variant(backend)
         path, t = m.bench_query, exact.mitsuba(b, v, m.bench_query)
         kern = exact.mitsuba_kernels(b, v, m.bench_query)
+    k = getattr(m, "queries", 1)  # traced_glossy(samples=K): K queries a ray
+    t, kern = t * k, kern * k
     base = {"batch": b.name, "backend": backend, "path": path, "label": m.label, "triangles": triangles,
             "cube_res": ""}  # fmt: skip
     row = rate_row(base, t, n)
