@@ -11,7 +11,8 @@ CPU one) on one batch (:data:`BATCHES`; by default ``close-up``, a full 1024² f
 scaled to a 1080p frame by the ray count, one secondary ray per pixel: × 1920·1080 / 1024² = 1.978 (on a full
 frame the time grows with the rays; ``scaling-<tag>.csv`` measures it). A method that is the exact query itself
 (``traced``: its class names its ``bench_query``) takes that query's time on the same batch and device, from its
-own bench row where the bench has one, else from the exact query's row (the same number). ``--clock kernel``
+own bench row where the bench has one, else from the exact query's row (the same number); one that makes K queries
+a ray (``traced_glossy(samples=K)``, the glossy tables' exact row: ``queries``) K times that. ``--clock kernel``
 takes the device's time in the kernels instead of the wall clock (:data:`CLOCKS`): a 1080p frame's host share
 (launching, about 0.05 ms per call on the H200) does not grow with the rays, so the wall clock scaled by the ray
 count overstates the cheapest GPU methods, the kernel clock understates a frame's cost. The bench times the
