@@ -14,6 +14,8 @@ wide of both, narrow of the planted biases (a lobe 1.5× too wide, the weights d
 RMSE(16)/RMSE(256) below 3.5.
 """
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -143,16 +145,26 @@ def test_it_is_a_glossy_method_priced_at_k_queries():
     assert {"traced_glossy(samples=1)", "traced_glossy(samples=16)"} <= set(labels)
 
 
+def _write(path, rows):
+    import csv
+
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+
+
 def test_study_pareto_prices_it_at_k_exact_queries_on_a_glossy_table(tmp_path):
     """A glossy table with traced_glossy at K = 1, 4, 16 and a stand-in the bench has no row for: the K rungs are
-    placed at K × the exact query's time (the bench's ray_intersect_preliminary row) and form the front."""
-    import sys
+    placed at K × the exact query's time (the bench's ray_intersect_preliminary row) and form the front.
+    Planted: priced at one query each, K = 1 and 4 would not be on the front (K = 16 dominates them)."""
+    import importlib
 
-    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
-    from test_pareto import _bench, _write
+    import study
 
-    from study.outputs import pareto
-
+    here = Path(study.__file__).parent  # the module's place (study/outputs before the report package took it)
+    pareto = importlib.import_module(next(f"study.{d}.pareto" for d in ("report", "outputs")
+                                          if (here / d / "pareto.py").is_file()))  # fmt: skip
     d = tmp_path / "reports" / "fig_glossy"
     d.mkdir(parents=True)
     errs = {"traced_glossy(samples=1)": 0.4, "traced_glossy(samples=4)": 0.2, "traced_glossy(samples=16)": 0.1,
@@ -160,7 +172,17 @@ def test_study_pareto_prices_it_at_k_exact_queries_on_a_glossy_table(tmp_path):
     rows = [{"case": f"c{c}", "method": lab.split("(")[0], "label": lab, "family": lab.split("(")[0],
              "cube_res": 64, "rmse_truth_debiased": e} for c in range(3) for lab, e in errs.items()]  # fmt: skip
     _write(d / "metrics.csv", rows)
-    gpu = _bench(tmp_path, "gpu", "cuda", {"classical": 0.05}, exact_ms=0.2)
+    batch = "fig4 close-up (1, 1, 1) 1024²"
+    bench = [{"batch": batch, "backend": "cuda", "path": "frozen", "label": "classical", "ms_per_frame": 0.05,
+              "kernel_ms_per_frame": 0.02}]  # fmt: skip
+    bench += [{"batch": batch, "backend": "cuda", "path": q, "label": "exact: Mitsuba cuda_ad_rgb", "ms_per_frame": ms,
+               "kernel_ms_per_frame": ms / 4} for q, ms in (("ray_intersect", 1.8), ("ray_intersect_preliminary", 0.2),
+                                                            ("ray_test", 0.1))]  # fmt: skip
+    gpu = tmp_path / "bench-gpu.csv"
+    _write(gpu, bench)
+    gpu.with_suffix(".md").write_text(
+        "# study bench (gpu)\n\nmachine: Test CPU, 2 cores; GPU: NVIDIA Testcard, 1.0, 10 MiB\n\ncode: abc\n"
+    )
     times = pareto.device_times(gpu)
     scale = 1920 * 1080 / 1024**2
     for k in (1, 4, 16):

@@ -13,7 +13,7 @@ against the truth is the lobe's sampling noise at K rays (falling as 1/√K) and
 its knob, so ``study pareto`` draws its error against K queries' time.
 
 Cost: K lookups per ray (the K hits' radiance reads); ``study bench`` does not time its Python path: its price is
-K times the exact query's (:attr:`queries` × :data:`ExactQuery.bench_query`, :func:`study.outputs.pareto.exact_priced`),
+K times the exact query's (:attr:`queries` × :data:`ExactQuery.bench_query`, ``study pareto``'s ``exact_priced``),
 the shading of the hits not counted, as for ``traced``. The R hit is for the outcome columns only (not priced).
 
 On a bare impostor (no exact tracer, no lobe: the analytic tests' fallback) it is its mirror twin ``traced``
