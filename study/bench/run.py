@@ -45,6 +45,7 @@ from study.bench.timing import (
     FRAME,
     QUERIES,
     Exact,
+    bench_probes,
     bench_screen,
     camera_depth,
     mitsuba_variant,
@@ -55,6 +56,7 @@ from study.bench.timing import (
 from study.codehash import code_hash
 from study.errors import StudyError
 from study.harness import budget
+from study.impostor.views import Views
 from study.measure.inputs import env_info
 from study.methods import Method
 from study.scene import Scene
@@ -116,10 +118,11 @@ def check_options(opt: BenchOptions) -> None:
 
 
 def bench_methods(opt: BenchOptions) -> list[Method]:
-    """The methods timed: each one named (every mirror method by default, as ``"all"``: not the glossy ones) at
-    each knob value of its ladder, or at its defaults only without ``opt.ladder``. An unknown name is a
-    StudyError."""
-    default = [m.name for m in registry.all_methods()]
+    """The methods timed: each one named (every mirror method by default, as ``"all"``, and ``hit_cache``, priced
+    from the exact query: not the glossy ones) at each knob value of its ladder, or at its defaults only without
+    ``opt.ladder``. An unknown name is a StudyError."""
+    exact = [n for n, c in registry.REGISTRY.items() if getattr(c, "bench_query", None) and not c.glossy]
+    default = [m.name for m in registry.all_methods()] + exact  # "all" leaves hit_cache out
     chosen = [registry.make(n) for n in dict.fromkeys(opt.methods or default)]
     return [v for m in chosen for v in (m.ladder() if opt.ladder else [m])]
 
@@ -210,6 +213,9 @@ def run_bench(
     # ------------------------------------------------------------------ every method on every backend
     info_env = env_info(scene)
     want_screen = any(m.views_needed().screen for m in methods)
+    specs = Views.merge(*(m.views_needed() for m in methods)).probes  # the probe methods' sets
+    probe_sets = {nm: {sp: bench_probes(sp, exact.tracer, tex, o, info_env["room"], backends.get(nm)) for sp in specs}
+                  for nm in names}  # fmt: skip
     for b in batches:
         depth = camera_depth(b.camera, exact.tracer) if want_screen and b.camera is not None else None
         for nm in names:
@@ -220,45 +226,24 @@ def run_bench(
             paths = ["frozen"] if nm != "numpy" else ["plain"]
             for m in methods:
                 if getattr(m, "bench_query", None):  # the exact query as a method: its time is the query's
-                    rows.append(with_ratios(exact_query_row(m, exact, b, nm, len(F)), exact, b, nm))
-                    rows[-1].update({"floor_ms_per_frame": "", "x_floor": "", "kernel_x_floor": ""})
+                    rows.append(
+                        with_ratios(exact_query_row(m, exact, b, nm, len(F), floors.get(nm)), exact, b, nm)
+                    )
                     continue
                 extra = ["plain"] if nm != "numpy" and m.label == plain_too else []
                 for path in paths + extra:
                     spent: list = []
                     kernel: list = []
+                    kw = dict(repeats=opt.repeats, info=info_env, spent=spent, kernel=kernel, screen=scr,
+                              probe_sets=probe_sets[nm])  # fmt: skip
                     try:
-                        t = time_method(
-                            m,
-                            B,
-                            tex,
-                            x,
-                            R,
-                            frozen=path == "frozen",
-                            repeats=opt.repeats,
-                            info=info_env,
-                            spent=spent,
-                            kernel=kernel,
-                            screen=scr,
-                        )
+                        t = time_method(m, B, tex, x, R, frozen=path == "frozen", **kw)
                     except Exception as err:  # e.g. a method whose arrays a frozen function cannot see
                         log(f"{m.label} on {nm} ({path}) failed: {str(err).splitlines()[0][:160]}")
                         if path != "frozen":
                             raise
                         path = "plain"
-                        t = time_method(
-                            m,
-                            B,
-                            tex,
-                            x,
-                            R,
-                            frozen=False,
-                            repeats=opt.repeats,
-                            info=info_env,
-                            spent=spent,
-                            kernel=kernel,
-                            screen=scr,
-                        )
+                        t = time_method(m, B, tex, x, R, frozen=False, **kw)
                     row = rate_row(
                         {
                             "batch": b.name,
@@ -285,11 +270,20 @@ def run_bench(
     return rows, scaling, info
 
 
-def exact_query_row(m: Method, exact: Exact, b: Batch, backend: str, triangles: int) -> dict:
+def exact_query_row(
+    m: Method, exact: Exact, b: Batch, backend: str, triangles: int, floors: dict | None = None
+) -> dict:
     """The row of a method that is the exact query itself (``traced``: ``m.bench_query``), from the time the bench
     measured for that query on the same rays and device (Mitsuba's variant of the backend's device; Embree on
     every core for numpy, which is the case's tracer there) rather than timed twice. Its path names the query;
-    lookups are its bound (the hit's radiance read, not in the time); no floor (a traversal, not fetches)."""
+    lookups are its bound (the hit's radiance read, not in the time); no floor (a traversal, not fetches). A method
+    of K queries a ray (``queries``: ``traced_glossy``) takes K times the query's time.
+
+    A method that makes the query and reads something at the hit (``hit_cache``: its cache; it inherits
+    ``bench_query``, declares none) is priced, not timed (its read runs on the host): the query's time plus its
+    lookups as 4-channel fetches at the measured rate of the batch's pattern and the ray's bytes at the measured
+    bandwidth (:func:`study.bench.floors.method_floor`'s terms), which is also its floor (``x_floor`` = 1: nothing
+    above the hardware's rates is modelled); on numpy (no floors measured) the query's time alone."""
     n = len(b.x)
     if backend == "numpy":
         path, t, kern = "embree", exact.embree(b), math.nan
@@ -297,12 +291,29 @@ def exact_query_row(m: Method, exact: Exact, b: Batch, backend: str, triangles: 
         v = mitsuba_variant(backend)
         path, t = m.bench_query, exact.mitsuba(b, v, m.bench_query)
         kern = exact.mitsuba_kernels(b, v, m.bench_query)
+    k = getattr(m, "queries", 1)  # traced_glossy(samples=K): K queries a ray
+    reads = floors and "bench_query" not in vars(type(m))
+    p = batch_pattern(b)
+    read = (
+        n * (m.lookup_bound() / floors[f"fetch_4ch_{p}"] + floor_model.BYTES_PER_RAY / floors["bandwidth"])
+        if reads
+        else 0.0
+    )
+    t, kern = t * k + read, kern * k + read
     base = {"batch": b.name, "backend": backend, "path": path, "label": m.label, "triangles": triangles,
             "cube_res": ""}  # fmt: skip
     row = rate_row(base, t, n)
     row.update(carry.cost_columns(m.lookup_bound(), m.lookup_bound()))
     row["kernel_ms_per_frame"] = ms_per_frame(kern, n)
-    return row
+    if not reads:
+        return {**row, "floor_ms_per_frame": "", "x_floor": "", "kernel_x_floor": ""}
+    fl = ms_per_frame(t, n)  # the query and the read, both at the measured rates: at its floor
+    return {
+        **row,
+        "floor_ms_per_frame": fl,
+        "x_floor": row["ms_per_frame"] / fl,
+        "kernel_x_floor": row["kernel_ms_per_frame"] / fl,
+    }
 
 
 def with_ratios(row: dict, exact: Exact, b: Batch, backend: str) -> dict:

@@ -21,7 +21,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from study.impostor import probes
 from study.impostor.envmap import EnvMap
+from study.impostor.probes import ProbeSet
 from study.impostor.screen import ScreenView, depth_buffer
 from study.impostor.sdf import room_field
 from study.impostor.views import Captured
@@ -84,17 +86,36 @@ def bench_screen(depth: np.ndarray, camera, reference, B) -> ScreenView:
     return scr
 
 
-def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None, screen=None):
+def bench_probes(spec, tracer, tex_np: np.ndarray, reference, room, B) -> ProbeSet:
+    """The probe set ``spec`` for the probe methods (``multi_probe``, ``probe_blend``): probe 0 the impostor
+    ``tex_np``, the others placed in ``room`` as a case places them (:func:`study.impostor.probes.probe_points`),
+    their distances traced by ``tracer`` (a search's steps depend on them), their colour the impostor's (what a
+    fetch costs does not depend on texel values); its min pyramid built here, outside any recording."""
+    pts = probes.probe_points(spec, room, tracer)
+    res = tex_np.shape[1]
+    texels = [tex_np] + [probes.probe_texels(tracer, p, res, tex_np[..., :3]) for p in pts]
+    o = np.asarray(reference, float)
+    ps = ProbeSet.around(
+        np.stack(texels).astype(np.float32), np.concatenate([o[None], pts.reshape(-1, 3)]), o, B
+    )
+    ps.pyramid  # noqa: B018  built now
+    return ps
+
+
+def method_runner(
+    m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None, screen=None, probe_sets: dict | None = None
+):
     """(call, finish) for one method on one backend: call() traces (or replays) and returns the outputs.
 
     The method gets a :class:`~study.impostor.views.Captured` with ``info``, the scene knowledge (``reference``,
     ``room``), and with ``fallback`` set: a method that searches several layers gets a copy of the impostor as each
     layer (the bench times lookups; texel values do not change their cost), so its textures still come in through
-    the frozen function's arguments; probe sets are not captured, so ``multi_probe`` and ``probe_blend`` are timed
-    with the impostor as the only probe; the camera's buffer is ``screen`` (:func:`bench_screen`; None: every ray of
-    ``ssr`` and ``ssr_hiz`` goes to their fallbacks), its texture and Hi-Z pyramid arguments too; a distance field
-    is the room box's (:func:`study.impostor.sdf.room_field`: the cost of a 3D fetch does not
-    depend on the values), its texture an argument too."""
+    the frozen function's arguments; the probe sets the method asks for are ``probe_sets`` (:func:`bench_probes`;
+    one missing: the impostor as the only probe), their textures and pyramids arguments too; the camera's buffer
+    is ``screen`` (:func:`bench_screen`; None: every ray of ``ssr`` and ``ssr_hiz`` goes to their fallbacks), its
+    texture and Hi-Z pyramid arguments too; a distance field is the room box's
+    (:func:`study.impostor.sdf.room_field`: the cost of a 3D fetch does not depend on the values), its texture an
+    argument too."""
     env = EnvMap(tex_np, B)
     pyramid = env.pyramid  # built here, outside the recording; its data comes in through the arguments
     # the layer shares env's textures (a shallow copy): a texture of its own, replaced inside the recording below,
@@ -107,6 +128,9 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None,
     fields = [room_field(views, spec) for spec in m.views_needed().sdfs]
     if fields:
         views = dataclasses.replace(views, sdfs=dict(zip(m.views_needed().sdfs, fields)))
+    sets = {spec: (probe_sets or {})[spec] for spec in m.views_needed().probes if spec in (probe_sets or {})}
+    if sets:
+        views = dataclasses.replace(views, probes=sets)
     scr = screen if screen is not None and m.views_needed().screen else None
     hz = hiz_of(scr) if scr is not None else None  # (bound either way: a frozen function reads its closure)
     if scr is not None:
@@ -115,11 +139,13 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None,
     B.eval(X.x, X.y, X.z, RR.x, RR.y, RR.z)
 
     def trace(
-        tex, dist, pyr, X, RR, vol, on_screen
+        tex, dist, pyr, X, RR, vol, on_screen, on_probes
     ):  # textures as arguments: a frozen function sees only those
         env.tex, env.dist, pyramid.data = tex, dist, pyr
         if scr is not None:
             scr.tex, hz.data = on_screen
+        for ps, (ptex, pdist, ppyr) in zip(sets.values(), on_probes):
+            ps.tex, ps.dist, ps.pyramid.data = ptex, pdist, ppyr
         if layer is not None:
             layer.tex, layer.dist = tex, dist
         for f, t in zip(fields, vol):
@@ -141,7 +167,8 @@ def method_runner(m, B, tex_np, x, R, *, frozen: bool, info: dict | None = None,
 
     pyr = pyramid.data
     on_screen = (scr.tex, hz.data) if scr is not None else ()
-    return (lambda: fn(tex, dist, pyr, X, RR, vol, on_screen)), finish
+    on_probes = tuple((ps.tex, ps.dist, ps.pyramid.data) for ps in sets.values())
+    return (lambda: fn(tex, dist, pyr, X, RR, vol, on_screen, on_probes)), finish
 
 
 def kernel_seconds(dr, call, finish, *, repeats: int) -> float:
@@ -185,6 +212,7 @@ def time_method(
     spent: list | None = None,
     kernel: list | None = None,
     screen=None,
+    probe_sets: dict | None = None,
 ) -> float:
     """Median seconds per call of ``m`` on the rays; with ``spent``, the mean lookups per ray that the calls
     measured (``Trace.lookups``) is appended to it; with ``kernel``, the seconds per call spent in the device's
@@ -195,7 +223,9 @@ def time_method(
     B.sync()
     gc.disable()
     try:
-        call, finish = method_runner(m, B, tex_np, x, R, frozen=frozen, info=info, screen=screen)
+        call, finish = method_runner(
+            m, B, tex_np, x, R, frozen=frozen, info=info, screen=screen, probe_sets=probe_sets
+        )
         last = []
 
         def kept():

@@ -205,6 +205,9 @@ def estimate(
         lookups = sum(m.lookup_bound(r.cube_res) for m in methods)  # bounds: no method spends more
     steps = sum(_host_steps(m, r.cube_res) for m in methods)  # whatever the rays: a loop over samples, …
     shade = int(Views.merge(*(m.views_needed() for m in methods)).shade)  # one more path-traced set of rays
+    shade += sum(
+        getattr(m, "queries", 0) for m in methods if m.glossy
+    )  # traced_glossy: K lobe rays a ray, shaded
     sub_key = "render.supersample" if r.supersample > 1 else "camera.width"
     tris = _triangles(scene)
     mem = {

@@ -168,11 +168,12 @@ def open_environment(imp: Impostor) -> bool:
 def hit_caches(scene: Scene, cache: Cache, tracer, resolutions: tuple[int, ...]):
     """The hit-lighting caches at ``resolutions`` (:mod:`study.impostor.hitcache`), filled once from the same
     path-traced surface samples (cached: ``hitcache.FILL_SAMPLES`` points per side at ``render.spp``), as a function
-    (res, origins, dirs) → the radiance each cache holds at the rays' exact hits (NaN on a miss of the scene)."""
+    (res, origins, dirs) → the radiance each cache holds at the rays' exact hits (NaN on a miss of the scene).
+
+    The fill is the scene's without the object, so its key is the environment's (:func:`fill_key`): every case of
+    a sweep over the object, the camera, the reference point or the cube resolution reads one fill."""
     mesh = tracer.mesh
-    s = key_fields(scene)
-    s["render"] = {k: v for k, v in s["render"].items() if k not in ("cube_res", "cube_spp", "object_res")}
-    key = content_key(s, hitcache.FILL_SAMPLES, "hit-cache-samples-v1")
+    key = fill_key(scene)
     seed = scene.render.seed + 3 * truth.SEED_OFFSET  # a stream of its own
 
     def samples():
@@ -197,3 +198,13 @@ def hit_caches(scene: Scene, cache: Cache, tracer, resolutions: tuple[int, ...])
         return out
 
     return read
+
+
+def fill_key(scene: Scene) -> str:
+    """Content key of the hit-lighting cache's fill: what radiance leaving the environment's surfaces depends on
+    (the environment and its columns, the light, the path tracer's samples, bounces and seed), not the object,
+    the camera, the reference point or the cube maps."""
+    r = scene.render
+    parts = {"environment": env_key(scene), "light": key_fields(scene.light), "lamp": scene.lamp(),
+             "spp": r.spp, "max_depth": r.max_depth, "seed": r.seed}  # fmt: skip
+    return content_key(parts, hitcache.FILL_SAMPLES, "hit-cache-samples-v2")

@@ -11,7 +11,8 @@ CPU one) on one batch (:data:`BATCHES`; by default ``close-up``, a full 1024² f
 scaled to a 1080p frame by the ray count, one secondary ray per pixel: × 1920·1080 / 1024² = 1.978 (on a full
 frame the time grows with the rays; ``scaling-<tag>.csv`` measures it). A method that is the exact query itself
 (``traced``: its class names its ``bench_query``) takes that query's time on the same batch and device, from its
-own bench row where the bench has one, else from the exact query's row (the same number). ``--clock kernel``
+own bench row where the bench has one, else from the exact query's row (the same number); one that makes K queries
+a ray (``traced_glossy(samples=K)``, the glossy tables' exact row: ``queries``) K times that. ``--clock kernel``
 takes the device's time in the kernels instead of the wall clock (:data:`CLOCKS`): a 1080p frame's host share
 (launching, about 0.05 ms per call on the H200) does not grow with the rays, so the wall clock scaled by the ray
 count overstates the cheapest GPU methods, the kernel clock understates a frame's cost. The bench times the
@@ -104,13 +105,17 @@ def _header(md: Path) -> tuple[str, str]:
     return device, code.group(1) if code else "not stated"
 
 
-def exact_priced() -> dict[str, str]:
-    """Label → bench query of every registered method that is the exact query itself (``bench_query``)."""
+def exact_priced() -> dict[str, tuple[str, int]]:
+    """Label → (bench query, queries per ray) of every registered method that is the exact query itself
+    (``bench_query``), at its defaults and at each rung of its knob's ladder: ``traced`` makes one query a ray,
+    ``traced_glossy(samples=K)`` K (``queries``), priced at K times the query's time."""
     out = {}
     for name in registry.names():
         q = getattr(registry.REGISTRY[name], "bench_query", None)
         if q:
-            out[registry.make(name).label] = q
+            m = registry.make(name)
+            for v in [m, *m.ladder()]:
+                out[v.label] = (q, int(getattr(v, "queries", 1)))
     return out
 
 
@@ -140,11 +145,13 @@ def device_times(path: str | Path, *, batch: str = "close-up", clock: str = "wal
     scale = RAYS_1080P / RAYS_BENCH
     ms = {r["label"]: r[col] * scale for r in sel if r["backend"] == backend and r["path"] == "frozen"}
     variant = "cuda_ad_rgb" if backend == "cuda" else "llvm_ad_rgb"
-    for label, query in exact_priced().items():
+    for label, (query, k) in exact_priced().items():
         own = [r for r in sel if r["label"] == label and r["backend"] == backend]
         exact = [r for r in sel if r["label"] == f"exact: Mitsuba {variant}" and r["path"] == query]
-        for r in own or exact:
+        for r in own:  # its own bench row already holds its k queries (study.bench.run.exact_query_row)
             ms[label] = r[col] * scale
+        for r in exact if not own else []:
+            ms[label] = r[col] * scale * k
     tag = path.stem.removeprefix("bench-")
     device, code = _header(path.with_suffix(".md"))
     ms = {k: v for k, v in ms.items() if math.isfinite(v)}
@@ -180,10 +187,10 @@ def pareto_front(rows: list[dict], cost: str, err: str) -> list[dict]:
 
 
 def _exact_times(d: DeviceTimes) -> dict[str, float]:
-    """Label → ms of the methods that are the exact query itself (``traced``; not ``hit_cache``, which makes the
-    same query and shades from its cache), on device ``d``."""
+    """Label → ms of the methods that are one exact query a ray (``traced``; not ``hit_cache``, which makes the
+    same query and shades from its cache, nor ``traced_glossy``'s K queries, placed as points), on device ``d``."""
     own = {registry.make(n).label for n in registry.names() if "bench_query" in vars(registry.REGISTRY[n])}
-    return {k: d.ms[k] for k in exact_priced() if k in d.ms and k in own}
+    return {lab: d.ms[lab] for lab, (_, k) in exact_priced().items() if k == 1 and lab in d.ms and lab in own}
 
 
 def at_budget(front: list[dict], budget: float, cost: str) -> dict | None:
@@ -246,6 +253,10 @@ def scene_section(name: str, points: list[dict], devices: list[DeviceTimes], met
     return "\n".join(lines) + "\n"
 
 
+#: The families drawn as the exact query (black stars): the mirror rays' and the glossy lobe's.
+EXACT_FAMILIES = ("traced", "traced_glossy")
+
+
 def scene_plot(name: str, points: list[dict], devices: list[DeviceTimes], metric: str) -> bytes:
     """One panel per device: every placed method (families coloured, ladders joined), its interval over the cases,
     the front (grey steps, ringed points, labelled), the budgets (dotted). Zero errors sit on the floor as ▽."""
@@ -263,7 +274,9 @@ def scene_plot(name: str, points: list[dict], devices: list[DeviceTimes], metric
             pts = sorted((p for p in placed if p["family"] == fam), key=lambda p: p["ms"])
             if not pts:
                 continue
-            st = style(i) if fam != "traced" else {"color": "black", "marker": "*", "linestyle": "-"}
+            st = (
+                style(i) if fam not in EXACT_FAMILIES else {"color": "black", "marker": "*", "linestyle": "-"}
+            )
             xs = [p["ms"] for p in pts]
             ys = [max(p[metric], floor) for p in pts]
             lo = [max(min(p[metric], p[f"{metric}_lo"]), floor) for p in pts]
@@ -272,7 +285,7 @@ def scene_plot(name: str, points: list[dict], devices: list[DeviceTimes], metric
                         ls=st["linestyle"], marker="none", capsize=2, alpha=0.7)  # fmt: skip
             for x, y, p in zip(xs, ys, pts):
                 zero = p[metric] <= floor
-                ax.plot([x], [y], ls="none", marker="v" if zero else st["marker"], ms=7 if fam == "traced" else 5,
+                ax.plot([x], [y], ls="none", marker="v" if zero else st["marker"], ms=7 if fam in EXACT_FAMILIES else 5,
                         color=st["color"], mfc="none" if zero else st["color"],
                         label=fam if p is pts[0] else None, zorder=3)  # fmt: skip
         front = pareto_front(placed, "ms", metric)
@@ -345,7 +358,8 @@ def write_pareto(reports: Path, out: Path, benches: list[Path], *, metric: str =
         f"{'the wall clock per call' if clock == 'wall' else 'the device time in the kernels alone'}) of the "
         f"methods' Dr.Jit kernels (frozen path) on the `{batch}` batch, × 1920·1080/1024² = "
         f"{RAYS_1080P / RAYS_BENCH:.3f} for a 1080p "
-        "frame (one secondary ray per pixel); `traced` is priced at the exact query it makes (Mitsuba's "
+        "frame (one secondary ray per pixel); `traced` is priced at the exact query it makes, "
+        "`traced_glossy(samples=K)` at K of them (the lobe's rays), the shading of the hits not counted (Mitsuba's "
         "`ray_intersect_preliminary` on the same rays and device: OptiX on CUDA, Embree inside Mitsuba on the "
         "CPU). The bench times at cube resolution 256² on the fig4 room; a method's time is taken as the same "
         "in every scene. At budget B: the front's point with the lowest error within B.",
@@ -358,7 +372,8 @@ def write_pareto(reports: Path, out: Path, benches: list[Path], *, metric: str =
         "",
     ]
     if skipped:
-        head += [f"No benched method in: {', '.join(skipped)} (glossy methods are not in the bench).", ""]
+        head += [f"No benched method in: {', '.join(skipped)} (the bench times mirror methods; glossy tables place "
+                 "only `traced_glossy`, priced from the exact query).", ""]  # fmt: skip
     if exact:
         head += [f"Every method at `{metric}` = 0 (nothing to trade): {', '.join(exact)}.", ""]
     files["pareto.md"] = "\n".join(head) + "\n" + "\n".join(sections)

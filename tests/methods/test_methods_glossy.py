@@ -23,6 +23,7 @@ MIRROR_TWIN = {
     "distance_roughness": "proxy_box",
     "localized_prefiltered": "localized",
     "stochastic(samples=4)": "localized",
+    "traced_glossy(samples=4)": "traced",
 }
 
 
@@ -45,13 +46,21 @@ def rays(n=2000, seed=3):
     return x, nrm, d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
-def captured(B, tex, levels, alpha, nrm):
+def captured(B, tex, levels, alpha, nrm, rad=radiance):
+    """The views of the box room; the exact tracer's hits and exact shading (``traced_glossy``) analytic: the box's
+    hit of each world ray and ``rad`` there (relative to o, as the impostor's texels)."""
+
+    def hit(org, dirs):
+        return org + dirs * analytic.box_hit_t(org - O, dirs, BOX_LO, BOX_HI)[:, None]
+
     return Captured(
         impostor=EnvMap(tex, B),
         prefiltered=prefilter.MipChain(levels, B),
         lobe=Lobe(alpha, B.vec(nrm)),
         reference=tuple(O),
         room=(tuple(O + BOX_LO), tuple(O + BOX_HI)),
+        hits=hit,
+        shade=lambda org, dirs: rad(hit(org, dirs) - O),
     )
 
 
@@ -90,10 +99,11 @@ def test_furnace_every_method_shows_the_uniform_radiance(alpha, B):
     """A uniform environment (same radiance everywhere): every glossy method returns it, whatever α, on every
     backend."""
     c = np.array([0.7, 0.5, 0.3])
-    tex = analytic.box_impostor(RES, BOX_LO, BOX_HI, lambda p: np.broadcast_to(c, p.shape))
+    uniform = lambda p: np.broadcast_to(c, p.shape)  # noqa: E731
+    tex = analytic.box_impostor(RES, BOX_LO, BOX_HI, uniform)
     levels = prefilter.prefilter(tex, samples=16)
     x, nrm, d = rays(500)
-    env = captured(B, tex, levels, alpha, nrm)
+    env = captured(B, tex, levels, alpha, nrm, uniform)
     for spec in MIRROR_TWIN:
         got, _ = run(spec, B, env, x, d)
         ok = np.isfinite(got).all(-1)

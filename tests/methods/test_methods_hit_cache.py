@@ -59,3 +59,39 @@ def test_escaping_rays_read_the_exact_radiance_and_all_leaves_it_out():
     assert rad[:, 0].tolist() == [9.0, 1.0]
     assert "hit_cache" not in [m.name for m in methods.all_methods()]
     assert methods.make("hit_cache", res=8).views_needed().caches == (8,)
+
+
+def test_the_fill_is_keyed_on_the_environment_not_the_case(monkeypatch, tmp_path):
+    """One fill per environment (study.measure.inputs.fill_key): cases that move the object, the camera, the reference
+    point or change the cube resolution read the same cached fill (path traced once); other columns, light,
+    samples or seed make another. Planted: a key holding the object (the key before) fills per case."""
+    from conftest import small_scene_dict
+
+    from study.api import load_scene
+    from study.cache import Cache
+    from study.measure import inputs
+    from study.reference.tracer import make_tracer
+
+    base = load_scene(small_scene_dict())
+    same = [
+        base.with_updates({"object.center": [0.3, 1.0, 0.2]}),
+        base.with_updates({"render.cube_res": 2 * base.render.cube_res, "camera.width": 40}),
+        base.with_updates({"reference.point": [0.1, 1.2, 0.0]}),
+    ]
+    other = [
+        base.with_updates({"render.spp": base.render.spp + 1}),
+        base.with_updates({"render.seed": base.render.seed + 1}),
+        base.with_updates({"columns": [{"center": [-1.0, -0.9], "footprint": [0.3, 0.3], "height": 2.0}]}),
+        base.with_updates({"light.intensity": [14.0, 14.0, 14.0]}),
+    ]
+    assert all(inputs.fill_key(s) == inputs.fill_key(base) for s in same)
+    assert len({inputs.fill_key(s) for s in [base, *other]}) == 1 + len(other)
+    calls = []
+    monkeypatch.setattr(inputs.hitcache, "FILL_SAMPLES", 64)  # a tiny fill: the count is what is tested
+    monkeypatch.setattr(
+        inputs, "radiance_along", lambda sc, o, d, **kw: calls.append(1) or np.ones((len(o), 3))
+    )
+    cache = Cache(tmp_path)
+    for s in [base, *same]:
+        inputs.hit_caches(s, cache, make_tracer(s.mesh()), (4,))
+    assert len(calls) == 1
