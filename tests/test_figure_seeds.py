@@ -126,3 +126,17 @@ def test_a_figure_states_its_time_split(seeded):
     assert cases <= meta["seconds"] + 0.5 and cases >= 0.8 * meta["seconds"] - 0.5, (split, meta["seconds"])
     line = next(ln for ln in res.stdout.splitlines() if "time split" in ln)
     assert "renders" in line and "without renders and probes" in line, line
+
+
+def test_a_run_keeps_its_time_split(tmp_path):
+    """``study run``'s result (the API's evaluate) carries the case's split and writes it into index.json."""
+    from study.api import evaluate
+
+    scene = small_scene_dict()
+    scene["render"].update(cube_res=16, cube_spp=4, spp=4)
+    (tmp_path / "s.toml").write_text(scene_toml(scene))
+    res = evaluate(tmp_path / "s.toml", ["classical"], cache=None)
+    assert list(res.times) == list(progress.CASE_PARTS) and res.times["renders"] > 0, res.times
+    res.save(tmp_path / "out")
+    assert json.loads((tmp_path / "out" / "index.json").read_text())["time_split"] == res.times
+    assert "without renders and probes" in progress.split_line(res.times)
