@@ -99,12 +99,15 @@ class FigureConfig(BaseModel):
         ``picture`` names (all by default)."""
         return list(self.picture if self.picture is not None else range(len(self._rows())))
 
-    def case_list(self) -> list[tuple[str, str, dict[str, Any]]]:
+    def case_list(self, replicates: bool = True) -> list[tuple[str, str, dict[str, Any]]]:
         """(case id suffix, row label, scene overrides) per case: per seed (the first seed first, its ids and
-        labels as without seeds; then ``<id>-s<seed>``), each position or case."""
+        labels as without seeds; then ``<id>-s<seed>``), each position or case; without ``replicates`` the first
+        seed's only (what does not depend on the seed: the geometry's convergence)."""
         rows = self._rows()
         if self.seeds is None:
             return rows
+        if not replicates:
+            return [(sid, lab, {**over, "render.seed": self.seeds[0]}) for sid, lab, over in rows]
         return [
             (sid if j == 0 else f"{sid}-s{seed}", lab if j == 0 else f"{lab} seed {seed}",
              {**over, "render.seed": seed})
