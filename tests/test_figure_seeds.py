@@ -140,3 +140,20 @@ def test_a_run_keeps_its_time_split(tmp_path):
     res.save(tmp_path / "out")
     assert json.loads((tmp_path / "out" / "index.json").read_text())["time_split"] == res.times
     assert "without renders and probes" in progress.split_line(res.times)
+
+
+def test_seeds_multiply_the_cases_and_convergence_reads_the_first_seed_only():
+    from pathlib import Path as P
+
+    from study.outputs.convergence import convergence_cases, load_convergence
+
+    cfg, _, _ = load_figure_config(ROOT / "configs" / "fig5.toml")
+    every, first = cfg.case_list(), cfg.case_list(replicates=False)
+    assert len(every) == len(first) * len(cfg.seeds) and [c[0] for c in first] == [
+        c[0] for c in every[: len(first)]
+    ]
+    assert {o["render.seed"] for _, _, o in first} == {cfg.seeds[0]}
+    assert {o["render.seed"] for _, _, o in every} == set(cfg.seeds)
+    conv, _ = load_convergence(ROOT / "configs" / "convergence.toml")
+    ids = [cid for _, cid, _ in convergence_cases(conv, P(ROOT / "configs" / "convergence.toml"))]
+    assert len(ids) == len(set(ids)) and not any("-s" in i for i in ids) and "fig5-p5" in ids
