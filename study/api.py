@@ -252,6 +252,8 @@ class Result:
     file: str | None = (
         None  # the scene's file (resolved), where it came from one: named in titles and index.json
     )
+    #: the case's wall time by part (:meth:`study.progress.Stages.split`), kept in index.json as "time_split"
+    times: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(
         self,
@@ -330,7 +332,8 @@ class Result:
             title=f"{name}: {self.summary()}" if name else self.summary(),
             name=name,
         )
-        index.update(file=self.file, name=name)  # study report finds the run by this file and names it
+        # study report finds the run by its file and names it; time_split: where the case's time went
+        index.update(file=self.file, name=name, time_split=self.times)
         files.update(
             {
                 "table.csv": to_csv(rows),
@@ -445,6 +448,7 @@ def evaluate(
         backend=backend,
         occluded=None if case.occluded is None else np.asarray(case.occluded, np.float32),
         file=scene_file(named, scene),
+        times=dict(case.times),
     )
 
 

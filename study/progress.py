@@ -214,23 +214,92 @@ def stage(name: str) -> Iterator[None]:
 
 class Stages:
     """Consecutive stages of one unit without nesting the code: ``mark = Stages()``, then ``mark("load")``,
-    ``mark("capture")``, … — each call ends the stage before it — and ``mark.end()`` after the last."""
+    ``mark("capture")``, … — each call ends the stage before it — and ``mark.end()`` after the last.
+
+    Each stage's wall time is kept in ``seconds`` (reporter or not), and the part of it spent in Mitsuba's renders
+    (:func:`rendering`) in ``rendered``: what a case's time split is made of (:func:`study.measure.case.time_split`)."""
 
     def __init__(self) -> None:
         self._name: str | None = None
         self._t0 = 0.0
+        self._told = False  # the reporter was told the stage began
+        self.seconds: dict[str, float] = {}
+        self.rendered: dict[str, float] = {}
 
     def __call__(self, name: str) -> None:
+        global _clock
         self.end()
         checkpoint()
-        if _reporter is not None:
-            self._name, self._t0 = name, time.perf_counter()
+        self._name, self._t0, self._told, _clock = name, time.perf_counter(), _reporter is not None, self
+        if self._told:
             _enter(_current(), name)
 
     def end(self) -> None:
-        if self._name is not None and _reporter is not None:
-            _leave(_current(), self._name, time.perf_counter() - self._t0)
+        global _clock
+        if self._name is not None:
+            dt = time.perf_counter() - self._t0
+            self.seconds[self._name] = self.seconds.get(self._name, 0.0) + dt
+            if self._told and _reporter is not None:
+                _leave(_current(), self._name, dt)
+        if _clock is self:
+            _clock = None
         self._name = None
+
+    def split(self) -> dict[str, float]:
+        """Seconds per :data:`CASE_PARTS` from a case's stages (:data:`STAGES`): ``inputs`` the rays and the
+        impostor's distances (load, placement, capture), ``renders`` Mitsuba's renders outside the probes (the
+        impostor's faces, the camera views, the truth along the exact rays, the oracle's second captures:
+        :func:`rendering`), ``probes`` the views methods search (probes' and layers' path tracing, distance
+        fields, caches), ``exact`` Embree's exact hits and the oracle, ``traces`` the methods, ``columns`` the
+        rows. A cached render costs its read."""
+        sec, ren = self.seconds, self.rendered
+        own = {k: sec.get(k, 0.0) - (ren.get(k, 0.0) if k != "probes" else 0.0) for k in sec}
+        out = {
+            "inputs": own.get("load", 0.0) + own.get("placement", 0.0) + own.get("capture", 0.0),
+            "renders": sum(v for k, v in ren.items() if k != "probes"),
+            "probes": own.get("probes", 0.0),
+            "exact": own.get("references", 0.0),
+            "traces": own.get("methods", 0.0),
+            "columns": own.get("metrics", 0.0),
+        }
+        return {k: round(max(v, 0.0), 3) for k, v in out.items()}
+
+
+#: The parts of a case's wall time (:meth:`Stages.split`), in pipeline order; a figure adds ``outputs``.
+CASE_PARTS = ("inputs", "renders", "probes", "exact", "traces", "columns")
+
+
+def split_line(times: dict[str, float]) -> str:
+    """One line of a time split: ``inputs 1.2 s, renders 30.1 s, …`` and what is left without the renders and
+    the probes (the part a faster renderer does not shorten)."""
+    parts = ", ".join(f"{k} {v:.1f} s" for k, v in times.items())
+    rest = sum(v for k, v in times.items() if k not in ("renders", "probes"))
+    return f"{parts}; without renders and probes {rest:.1f} s"
+
+
+#: the :class:`Stages` whose stage is running now (where :func:`rendering` books its time)
+_clock: Stages | None = None
+_rendering = 0  # depth of nested :func:`rendering` calls (the outermost one books)
+
+
+def rendering(fn: Callable) -> Callable:
+    """Decorate a function that renders with Mitsuba (a camera view, cube faces, radiance along rays): its wall
+    time is booked to the stage running (:attr:`Stages.rendered`), once where such calls nest."""
+    import functools
+
+    @functools.wraps(fn)
+    def timed(*args, **kwargs):
+        global _rendering
+        clock, t0 = _clock, time.perf_counter()
+        _rendering += 1
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            _rendering -= 1
+            if _rendering == 0 and clock is not None and clock._name is not None:
+                clock.rendered[clock._name] = clock.rendered.get(clock._name, 0.0) + time.perf_counter() - t0
+
+    return timed
 
 
 # ---------------------------------------------------------------------------------------------- the time limit

@@ -385,12 +385,12 @@ LONG_FUNCTIONS = {
     "study/bench/run.py::run_bench": 141,
     "study/caustics/figure.py::_fig8_files": 105,
     "study/harness/runner.py::run_cases": 92,
-    "study/measure/case.py::run_case": 93,  # the pipeline, a banner per stage (as prb_basic.sample)
+    "study/measure/case.py::run_case": 92,  # the pipeline, a banner per stage (as prb_basic.sample)
     "study/methods/multi_probe.py::search": 91,
     "study/outputs/animation.py::_animate": 87,
     "study/methods/search.py::first_entry": 126,
     "study/outputs/figures.py::image_grid": 112,
-    "study/outputs/figures.py::_figure": 96,
+    "study/outputs/figures.py::_figure": 94,
     "study/scene/obj.py::read_obj": 124,
     "study/scene/sources/mitsuba.py::build": 81,
 }

@@ -4,12 +4,13 @@
 from __future__ import annotations
 
 import inspect
+import json
 import time
 from pathlib import Path
 
 import typer
 
-from study import methods
+from study import methods, progress
 from study.cli.app import app, console, err_console, figures, guarded
 from study.errors import StudyError
 from study.harness.config import load_figure_config, plain_name, shipped
@@ -64,6 +65,18 @@ def figure(
     for line in kind.lines(rows) if kind.lines else ():
         console.print(line, highlight=False)
     console.print(f"{name}: wrote {out} in {time.perf_counter() - t0:.1f} s", highlight=False)
+    split = _time_split(out / "metadata.json")
+    if split:  # where the time went (the grid kinds' metadata.json: "time_split", summed over the cases)
+        console.print(f"{name}: time split: {progress.split_line(split)}", highlight=False)
+
+
+def _time_split(meta: Path) -> dict:
+    """The ``time_split`` a figure's ``metadata.json`` holds ({} where it holds none, or is not there)."""
+    try:
+        split = json.loads(meta.read_text()).get("time_split")
+    except (OSError, ValueError, AttributeError):
+        return {}
+    return split if isinstance(split, dict) else {}
 
 
 def _print_table(rows: list[dict]) -> None:

@@ -117,3 +117,4 @@ def run(
             f"run: wrote {out} in {time.perf_counter() - t0:.1f} s (loading and placement {t_load:.1f} s)",
             highlight=False,
         )
+        console.print(f"run: time split: {progress.split_line(res.times)}", highlight=False)

@@ -24,6 +24,11 @@ with an optional ``name`` (``configs/fig6.toml``)::
     "object.material" = { type = "dielectric", ior = 1.5 }
     "render.refraction" = "single"
 
+Every position (or case) is measured once per seed with ``seeds = [0, 1, 2]`` (``render.seed``: the impostor's,
+the references' and the stochastic methods' samples drawn anew; ids ``p0``, then ``p0-s1``, …); the grid's picture
+shows the first seed's rows, those ``picture = [0, 3]`` names (by index; default all). Shipped figures have ≥ 12
+cases (positions × seeds: ``tests/test_figure_seeds.py``).
+
 Unknown keys, unknown methods and unknown method parameters are errors naming the file and the key; so are
 method parameters that are not finite (``inf``, ``nan``) and booleans or strings given for numbers.
 """
@@ -34,14 +39,15 @@ import itertools
 import math
 import re
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, StrictBool, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictInt, model_validator
 
 from study import methods as registry
 from study.errors import StudyError
 from study.methods import Method
 from study.scene import Scene, Vec3, load_scene_file, scene_from_dict
+from study.scene.models import MAX_SEED
 from study.validation import validate_file
 
 
@@ -57,15 +63,25 @@ class FigureConfig(BaseModel):
     outcome_panel: StrictBool = False  # add per grid method a map of its per-ray outcome classes
     #: the figure kind that makes it (study.report.kinds): "grid", "glossy", or a plug-in's
     kind: str = "grid"
+    #: replicates: every position (or case) once per seed (``render.seed``: the impostor's, the references' and
+    #: the stochastic methods' samples drawn anew); the grid's picture shows the first seed's rows only
+    seeds: list[Annotated[StrictInt, Field(ge=0, le=MAX_SEED)]] | None = Field(None, min_length=1)
+    #: the positions (or cases) the grid's picture shows, by index from 0 (default: every one); all are measured
+    picture: list[Annotated[StrictInt, Field(ge=0)]] | None = Field(None, min_length=1)
 
     @model_validator(mode="after")
     def _one_of(self):
         if (self.positions is None) == (self.cases is None):
             raise ValueError("give either positions or cases (one image row each)")
+        if self.seeds is not None and len(set(self.seeds)) < len(self.seeds):
+            raise ValueError(f"seeds repeat ({self.seeds}); give distinct seeds, one replicate each")
+        n = len(self.positions if self.positions is not None else self.cases)
+        pic = self.picture or []
+        if max(pic, default=0) >= n or len(set(pic)) < len(pic):
+            raise ValueError(f"picture {self.picture}: distinct indices from 0 to {n - 1} (of the {n} rows)")
         return self
 
-    def case_list(self) -> list[tuple[str, str, dict[str, Any]]]:
-        """(case id suffix, row label, scene overrides) per image row."""
+    def _rows(self) -> list[tuple[str, str, dict[str, Any]]]:
         if self.positions is not None:
             return [
                 (f"p{i}", f"({p[0]:g}, {p[1]:g}, {p[2]:g})", {"object.center": list(p)})
@@ -77,6 +93,35 @@ class FigureConfig(BaseModel):
             name = str(c.pop("name", f"c{i}"))
             out.append((name, name, c))
         return out
+
+    def pictured(self) -> list[int]:
+        """The indices into :meth:`case_list` of the cases the grid's picture shows: the first seed's, those
+        ``picture`` names (all by default)."""
+        return list(self.picture if self.picture is not None else range(len(self._rows())))
+
+    def case_list(self, replicates: bool = True) -> list[tuple[str, str, dict[str, Any]]]:
+        """(case id suffix, row label, scene overrides) per case: per seed (the first seed first, its ids and
+        labels as without seeds; then ``<id>-s<seed>``), each position or case; without ``replicates`` the first
+        seed's only (what does not depend on the seed: the geometry's convergence)."""
+        rows = self._rows()
+        if self.seeds is None:
+            return rows
+        if not replicates:
+            return [(sid, lab, {**over, "render.seed": self.seeds[0]}) for sid, lab, over in rows]
+        return [
+            (sid if j == 0 else f"{sid}-s{seed}", lab if j == 0 else f"{lab} seed {seed}",
+             {**over, "render.seed": seed})
+            for j, seed in enumerate(self.seeds)
+            for sid, lab, over in rows
+        ]  # fmt: skip
+
+    def key_of(self, i: int) -> str:
+        """The config key of case ``i`` of :meth:`case_list`: ``positions[2]`` or ``cases[2]`` (at every seed)."""
+        return f"{'positions' if self.positions is not None else 'cases'}[{i % len(self._rows())}]"
+
+    def case_count(self) -> int:
+        """Cases of the figure: positions (or cases) × seeds."""
+        return len(self._rows()) * len(self.seeds or [None])
 
 
 def base_scene(spec: str | dict, *, config_path: Path) -> Scene:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from study import progress
 from study.errors import StudyError
 from study.impostor import cubemap
 from study.io import atomic_write, read_exr, write_exr
@@ -99,6 +100,7 @@ def capture(
     return Impostor(np.asarray(scene.reference.point, float), radiance, capture_distance(scene, res, tracer))
 
 
+@progress.rendering  # its time: the case's Mitsuba renders (study.progress)
 def render_cube(scene: Scene, res: int, spp: int) -> np.ndarray:
     """Radiance of the environment seen from the reference point, without the object: (6, R, R, 3) float32.
 

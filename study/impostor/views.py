@@ -94,10 +94,12 @@ class Views:
 class Lobe:
     """The rough surface the secondary rays leave: GGX roughness ``alpha`` (0: a mirror) and each ray's unit
     shading normal ``normal`` (a V3 on the backend, one per ray, in the rays' order); the glossy methods need
-    both, as the direction towards the eye is the reflection of R about the normal."""
+    both, as the direction towards the eye is the reflection of R about the normal. ``seed``: the case's
+    ``render.seed``, which stochastic methods mix into their own (a figure's seeds draw their samples anew)."""
 
     alpha: float
     normal: Any
+    seed: int = 0
 
 
 @dataclass(frozen=True, eq=False)

@@ -50,6 +50,13 @@ class CaseOutput:
     truth: np.ndarray | None = None  # (H, W, 3) truth_at_hit composited (study.measure.truth)
     occluded: np.ndarray | None = None  # (H, W) fraction of sub-pixel rays occluded from o
     mask: np.ndarray | None = None  # (H, W) pixels fully on the object
+    times: dict[str, float] = field(default_factory=dict)  # wall time split (progress.Stages.split)
+
+    def timed(self, mark: progress.Stages) -> CaseOutput:
+        """This case with its stages' times (``mark`` ended: its last stage counted)."""
+        mark.end()
+        self.times = mark.split()
+        return self
 
 
 # ---------------------------------------------------------------------------------------------- cached inputs
@@ -245,7 +252,7 @@ def run_case(
     for what, img in (("impostor radiance", imp.radiance), ("camera render", background)):
         _finite(scene, what, img)
     mark("probes")
-    lobe = Lobe(scene.object.alpha, B.vec(rays.N)) if rays.src is None else None  # glossy: conductors only
+    lobe = Lobe(scene.object.alpha, B.vec(rays.N), scene.render.seed) if rays.src is None else None
     env = capture_views(scene, methods, imp, B, cache=cache, tracer=tracer, background=background, lobe=lobe)
 
     # ------------------------------------------------------------------ exact hits and references
@@ -299,8 +306,7 @@ def run_case(
             out.outcome_maps[t.label] = outcomes.majority(
                 rays.per_pixel(outcomes.class_fractions(oc), fill=np.nan)
             )
-    mark.end()
-    return out
+    return out.timed(mark)
 
 
 # ---------------------------------------------------------------------------------------------- producers

@@ -5,8 +5,9 @@ finds — the ray-traced answer where the search finds the exact hits: the upper
 
 ``localize = false`` looks every sample up in its own direction from the reference point: the GGX convolution of
 the impostor *without* the split sum's assumption v = n (the reference of the prefiltering error). The samples are
-seeded (``seed``) and drawn on the host, one set per ray. Its shown point is the ``localized`` hit of the mirror
-direction R. At α = 0 every sample is R: it is ``localized``. Open environments: as ``localized``.
+seeded (``seed``, with the case's ``render.seed`` mixed in where it is not 0: a figure's seeds draw them anew) and
+drawn on the host, one set per ray. Its shown point is the ``localized`` hit of the mirror direction R. At α = 0
+every sample is R: it is ``localized``. Open environments: as ``localized``.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ class Stochastic(GlossyMethod):
         n = lobe.normal
         v = eye(n, R)
         M = B.shape_of(x.x)[1]
-        rng = np.random.default_rng(p.seed)
+        rng = np.random.default_rng((p.seed, lobe.seed) if lobe.seed else p.seed)  # the case's seed mixed in
         m = self._search()
         per = m.lookup_bound(env.res) - 1  # a search's lookups before its read
         # ------------------------------------------------------------- the mirror direction: the shown point

@@ -118,14 +118,14 @@ def load_convergence(path: str | Path) -> tuple[ConvergenceConfig, list[Ladder]]
 def convergence_cases(
     cfg: ConvergenceConfig, path: Path, extra: dict | None = None
 ) -> list[tuple[str, str, Any]]:
-    """(scene name, case id, scene) of every case: each figure config's positions or cases, with this config's
-    overrides and then ``extra`` (the command line's ``--set``)."""
+    """(scene name, case id, scene) of every case: each figure config's positions or cases (its first seed's), with
+    this config's overrides and then ``extra`` (the command line's ``--set``)."""
     out = []
     for f in cfg.figures:
         fpath = Path(f) if Path(f).is_absolute() else path.parent / f
         fcfg, scene, _ = load_figure_config(fpath)
         stem = fpath.stem
-        for suffix, _, over in fcfg.case_list():
+        for suffix, _, over in fcfg.case_list(replicates=False):  # wrong hits are geometry: seeds add nothing
             sc = scene.with_updates({**over, **cfg.overrides, **(extra or {})}, source=str(path))
             out.append((stem, f"{stem}-{suffix}", sc))
     return out

@@ -326,7 +326,6 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
             key="grid",
         )
     todo = cfg.case_list()
-    what = "positions" if cfg.positions is not None else "cases"
     scenes = [
         (f"{name}-{suffix}", scene.with_updates({**over, **preset}, source=str(config)))
         for suffix, _, over in todo
@@ -337,6 +336,7 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
     job.total = len(scenes)
     every = [m.label for m in methods]
     titles = [None] * len(todo) if cfg.positions is not None else [lab for _, lab, _ in todo]
+    shown = cfg.pictured()  # the picture: the first seed's rows it names (every case is measured)
     stems = file_stems(cid for cid, _ in scenes)
     with locked(out), ThreadPoolExecutor(1) as writer:  # one command at a time here; files written at the end
         t_start = time.perf_counter()
@@ -344,9 +344,8 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
         for i, (case_id, sc) in enumerate(scenes):
             t0 = time.perf_counter()
             with pg.item(case_id):
-                case = run_config_case(
-                    sc, methods, backend=backend, cache=store, case_id=case_id, where=f"{config} {what}[{i}]"
-                )
+                case = run_config_case(sc, methods, backend=backend, cache=store, case_id=case_id,
+                                       where=f"{config} {cfg.key_of(i)}")  # fmt: skip
             for r in case.rows:
                 r["case_seconds"] = time.perf_counter() - t0
             cases.append(case)
@@ -360,7 +359,7 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
             pg.advance(case_id)
         mark = pg.Stages()
         mark("outputs")  # the grid PNGs, then the EXRs and viewer images the writer has made meanwhile
-        exposure = figure_exposure(cases)
+        exposure = figure_exposure([cases[i] for i in shown])
         meta = metadata(
             config,
             backend=backend,
@@ -377,21 +376,17 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
         )
         pngs = image_grids(
             name,
-            cases,
+            [cases[i] for i in shown],
             labels,
             title=f"{name}: {describe(scene)}, "
             f"reference point {list(scene.reference.point)}, cube {scene.render.cube_res}², "
             f"backend {backend}",
             occlusion_panel=cfg.occlusion_panel,
             outcome_panel=cfg.outcome_panel,
-            row_labels=None if cfg.positions is not None else [lab for _, lab, _ in todo],
+            row_labels=None if cfg.positions is not None else [todo[i][1] for i in shown],
             exposure=exposure,
         )
-        files = {
-            **table_files(rows, "metrics"),
-            "metadata.json": json_text(meta, indent=2),
-            **pngs,
-        }
+        files = {**table_files(rows, "metrics"), **pngs}
         entries = []
         for job_i in made:
             more, entry = job_i.result()
@@ -400,7 +395,10 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
             entries.append(entry)
         if entries:
             files[viewer.MANIFEST] = viewer.manifest_text(name, entries)
+        mark.end()  # the outputs made (their writing aside): the figure's time split, summed over its cases
+        meta["time_split"] = {**{k: round(sum(c.times.get(k, 0.0) for c in cases), 3) for k in pg.CASE_PARTS},
+                              "outputs": round(mark.seconds.get("outputs", 0.0), 3)}  # fmt: skip
+        files["metadata.json"] = json_text(meta, indent=2)
         # every byte is made: the output set lives only while they are written (study.io.write_set)
         write_set(out, files, [f"{name}.png", f"{name}-errors.png", "exr", "viewer"], lock=False)
-        mark.end()
     return rows

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from study import runtime
+from study import progress, runtime
 from study.scene import Scene, sky
 from study.scene.environment import geometry
 from study.scene.objects import object_mesh as make_object_mesh
@@ -195,6 +195,7 @@ def sensor(origin, target, up, fov, width, height, spp, seed, *, jitter=True) ->
     }
 
 
+@progress.rendering  # its time: the case's Mitsuba renders (study.progress)
 def render_camera(scene: Scene, *, with_object: bool = True, spp: int | None = None) -> np.ndarray:
     """The camera's view, path traced: (H, W, 3) float32 linear RGB."""
     m = mi()
@@ -211,6 +212,7 @@ def triangle_scene(V: np.ndarray, F: np.ndarray, variant: str | None = None):
     return m, m.load_dict({"type": "scene", "room": mesh})
 
 
+@progress.rendering  # its time: the case's Mitsuba renders (study.progress)
 def radiance_along(
     scene: Scene,
     origins: np.ndarray,
