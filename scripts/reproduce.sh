@@ -7,8 +7,9 @@
 # columns; the committed report was made so), without it those columns say "cvvdp not installed".
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# --no-setup: use what is installed (a lent GPU host's CPU cores, scripts/device_run.sh reproduce), with $STUDY as
-# the command and $REPRODUCE_JOBS commands at a time
+# --no-setup: use what is installed (a lent GPU host, scripts/device_run.sh reproduce), with $STUDY as the command,
+# $REPRODUCE_JOBS commands at a time and $REPRODUCE_BACKEND (numpy by default; cuda: methods, renders and exact
+# hits on the GPU) for every command
 if [ "${1:-}" = "--no-setup" ]; then shift; else bash scripts/setup.sh "$@"; fi
 S=${STUDY:-.venv/bin/study}
 J=${REPRODUCE_JOBS:-2}
@@ -34,7 +35,8 @@ commands=(
 )
 t0=$(date +%s)
 # $REPRODUCE_SKIP: an extended regex of commands left out (a lent host without the video extra skips "animate")
-printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$" \
+B=${REPRODUCE_BACKEND:+ --backend $REPRODUCE_BACKEND}
+printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$" | sed "s/\$/$B/" \
   | xargs -P "$J" -I CMD bash -c 'set -o pipefail; '"$S"' CMD 2>&1 | sed -u "s|^|[CMD] |"'
 [ -n "${REPRODUCE_SKIP_CALIBRATION:-}" ] \
   || PYTHONPATH=. ${STUDY_PYTHON:-.venv/bin/python} scripts/calibration.py   # the intervals' coverage → reports/calibration.md
