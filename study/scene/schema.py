@@ -137,9 +137,7 @@ class Scene(_Strict):
     camera: Camera = Camera()
     render: Render = Render()
     _suggested: frozenset = PrivateAttr(default=frozenset())  # placement keys chosen by automatic placement
-    _placement: str = PrivateAttr(
-        default=""
-    )  # automatic placement's choice in one line (autoplace.Suggestion)
+    _chosen: str = PrivateAttr(default="")  # automatic placement's choice in one line (autoplace.Suggestion)
 
     @field_validator("columns", mode="before")
     @classmethod
@@ -200,7 +198,7 @@ class Scene(_Strict):
     def _placement(self, info: ValidationInfo):
         if isinstance(info.context, dict) and info.context.get("suggested"):
             self._suggested = frozenset(info.context["suggested"])
-            self._placement = info.context.get("placement") or ""
+            self._chosen = info.context.get("placement") or ""
         if self.environment.type != "box":
             return self._placement_any()
         lo, hi = np.array(self.room.min), np.array(self.room.max)
@@ -261,7 +259,7 @@ class Scene(_Strict):
 
     def placement_line(self) -> str:
         """Automatic placement's choice in one line, its score terms named; empty where it chose nothing."""
-        return self._placement
+        return self._chosen
 
     # ------------------------------------------------------------------ derived geometry
     def with_updates(self, updates: dict[str, Any], *, source: str = "<override>") -> Scene:
@@ -286,7 +284,7 @@ class Scene(_Strict):
                 table, key = k.split(".")
                 data[table].pop(key, None)
             keep = frozenset()
-        line = self._placement if keep == self._suggested else ""
+        line = self._chosen if keep == self._suggested else ""
         return scene_from_dict(data, source=source, suggested=keep, placement=line)
 
     def mesh(self) -> RoomMesh:
