@@ -195,7 +195,8 @@ s.print_callees('run_case')" "$OUT/fp.prof" > "$OUT/profile-fig4prof.txt" 2>&1; 
       timeout "${REPRODUCE_LIMIT:-500}" bash scripts/reproduce.sh --no-setup > "$OUT/log-reproduce.txt" 2>&1
     rc=$?; echo "reproduce,rc=$rc" | tee -a "$OUT/times.csv"; tail -30 "$OUT/log-reproduce.txt"
     if [ "$rc" = 0 ] || [ -n "${REPRODUCE_PACK:-}" ]; then   # a run the limit stopped is run again (caches kept)
-      tar cf - --exclude=cases --exclude=exr --exclude=animation --exclude=performance reports | xz -T0 -3 \
+      tar cf - --exclude=cases --exclude=exr --exclude=animation --exclude=performance --exclude=paper \
+        --exclude=baseline --exclude=calibration --exclude=pareto reports | xz -T0 -3 \
         > "$W/reports.tar.xz"
       split -b 15M -d "$W/reports.tar.xz" "$OUT/reports-part-"
     fi ;;

@@ -9,12 +9,13 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 # --no-setup: use what is installed (a lent GPU host, scripts/device_run.sh reproduce), with $STUDY as the command,
 # $REPRODUCE_JOBS commands at a time and $REPRODUCE_BACKEND (numpy by default; cuda: methods, renders and exact
-# hits on the GPU) for every command
+# hits on the GPU) for every command but those $REPRODUCE_CPU (an extended regex) names, and the main sweep's
+# $REPRODUCE_SWEEP_JOBS (2) cases at a time
 if [ "${1:-}" = "--no-setup" ]; then shift; else bash scripts/setup.sh "$@"; fi
 S=${STUDY:-.venv/bin/study}
 J=${REPRODUCE_JOBS:-2}
 commands=(
-  "sweep configs/sweep.toml --jobs 2"          # the main sweep: position × cube resolution × occlusion
+  "sweep configs/sweep.toml --jobs ${REPRODUCE_SWEEP_JOBS:-2}"   # the main sweep: position × cube resolution × occlusion
   "figure fig5"
   "figure fig4"
   "caustics-sweep"                              # Figure 8
@@ -36,7 +37,7 @@ commands=(
 t0=$(date +%s)
 # $REPRODUCE_SKIP: an extended regex of commands left out (a lent host without the video extra skips "animate")
 B=${REPRODUCE_BACKEND:+ --backend $REPRODUCE_BACKEND}
-printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$" | sed "s/\$/$B/" \
+printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$" | sed -E "\\%^(${REPRODUCE_CPU:-\$^})\$%! s/\$/$B/" \
   | xargs -P "$J" -I CMD bash -c 'set -o pipefail; '"$S"' CMD 2>&1 | sed -u "s|^|[CMD] |"'
 [ -n "${REPRODUCE_SKIP_CALIBRATION:-}" ] \
   || PYTHONPATH=. ${STUDY_PYTHON:-.venv/bin/python} scripts/calibration.py   # the intervals' coverage → reports/calibration.md

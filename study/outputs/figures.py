@@ -308,6 +308,20 @@ def figure_positions(
         return _figure(config, out, name, backend, cache, progress, quality, job, images)
 
 
+def _written(made: list, exrs: list, exposure: float) -> tuple[dict, list[dict]]:
+    """The per-case files the writer made (viewer scripts and EXRs; EXRs alone beyond the picture) and the
+    viewer's manifest entries, each starting at the figure's grid ``exposure``."""
+    files, entries = {}, []
+    for job_i in made:
+        more, entry = job_i.result()
+        entry["exposure_ev"] = round(float(exposure), 2)  # the figure's, known once every case is in
+        files.update(more)
+        entries.append(entry)
+    for job_i in exrs:
+        files.update(job_i.result())
+    return files, entries
+
+
 def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, images: str) -> list[dict]:
     cfg, scene, methods = load_figure_config(config)  # placement, where it runs, is a stage of its own
     preset = quality_overrides(quality)
@@ -337,10 +351,11 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
     every = [m.label for m in methods]
     titles = [None] * len(todo) if cfg.positions is not None else [lab for _, lab, _ in todo]
     shown = cfg.pictured()  # the picture: the first seed's rows it names (every case is measured)
+    pictured = set(shown)
     stems = file_stems(cid for cid, _ in scenes)
     with locked(out), ThreadPoolExecutor(1) as writer:  # one command at a time here; files written at the end
         t_start = time.perf_counter()
-        cases, rows, made = [], [], []
+        cases, rows, made, exrs = [], [], [], []
         for i, (case_id, sc) in enumerate(scenes):
             t0 = time.perf_counter()
             with pg.item(case_id):
@@ -350,10 +365,13 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
                 r["case_seconds"] = time.perf_counter() - t0
             cases.append(case)
             rows += case.rows
-            # the case's EXR and viewer images are encoded beside the next case, not after the last one
-            if images != "none":
+            # the case's EXR and viewer images (the picture's cases: the other seeds and rows are measured, not
+            # shown) are encoded beside the next case, not after the last one
+            if images != "none" and i in pictured:
                 made.append(writer.submit(viewer.case_files, name, stems[case_id], case, every,
                                           title=titles[i] or "", case_id=case_id, exr=images == "all"))  # fmt: skip
+            elif images == "all":
+                exrs.append(writer.submit(viewer.case_exr, stems[case_id], case, every))
             if progress:
                 progress(i + 1, len(todo))
             pg.advance(case_id)
@@ -386,13 +404,8 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
             row_labels=None if cfg.positions is not None else [todo[i][1] for i in shown],
             exposure=exposure,
         )
-        files = {**table_files(rows, "metrics"), **pngs}
-        entries = []
-        for job_i in made:
-            more, entry = job_i.result()
-            entry["exposure_ev"] = round(float(exposure), 2)  # the figure's, known once every case is in
-            files.update(more)
-            entries.append(entry)
+        made_files, entries = _written(made, exrs, exposure)
+        files = {**table_files(rows, "metrics"), **pngs, **made_files}
         if entries:
             files[viewer.MANIFEST] = viewer.manifest_text(name, entries)
         mark.end()  # the outputs made (their writing aside): the figure's time split, summed over its cases

@@ -123,9 +123,10 @@ def write_split(fig_dir: Path) -> str:
     localization error stays below the prefiltering error (:func:`crossover`)."""
     m = pd.read_csv(fig_dir / "metrics.csv")
     m = m[m.method != "truth_at_hit"].copy()
+    seed = m.case.astype(str).str.extract(r"-s(\d+)$", expand=False)  # a figure's later seeds (study.harness)
     m["where"] = m.apply(
         lambda r: f"α={r.object_alpha:g} @({r.object_x:g}, {r.object_y:g}, {r.object_z:g})", 1
-    )
+    ) + seed.map(lambda k: f" seed {k}" if isinstance(k, str) else "")
     m["cell"] = [
         _cell(v, lo, hi)
         for v, lo, hi in zip(m.rmse_truth_debiased, m.rmse_truth_debiased_lo, m.rmse_truth_debiased_hi)

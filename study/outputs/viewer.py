@@ -234,11 +234,7 @@ def case_files(
     )
     stems = source_stems(labels)
     exr_file = f"exr/{stem}.exr"
-    named = {exr_layer(s, la, stems): a for s, la, a in layers}
-    if case.mask is not None:
-        named["mask"] = case.mask.astype(np.float32)
-        if getattr(case, "held", None) is not None:  # the pixels the *_oracle columns are measured over
-            named["held"] = (case.mask & case.held).astype(np.float32)
+    named = _exr_layers(case, layers, stems)
     entries, urls = [], []
     with ThreadPoolExecutor(min(8, os.cpu_count() or 1)) as pool:  # zlib releases the GIL: PNGs in parallel
         pngs = list(pool.map(lambda la: rgbe_png(la[2][sy, sx]), layers))
@@ -281,6 +277,26 @@ def case_files(
         ),
     }
     return ({exr_file: layers_exr_bytes(named)} if exr else {}) | {script: text}, entry
+
+
+def _exr_layers(case, layers, stems) -> dict[str, np.ndarray]:
+    """The multi-layer EXR's named arrays of a case (its images, then ``mask`` and ``held``)."""
+    named = {exr_layer(s, la, stems): a for s, la, a in layers}
+    if case.mask is not None:
+        named["mask"] = case.mask.astype(np.float32)
+        if getattr(case, "held", None) is not None:  # the pixels the *_oracle columns are measured over
+            named["held"] = (case.mask & case.held).astype(np.float32)
+    return named
+
+
+def case_exr(stem: str, case, labels: list[str]) -> dict[str, bytes]:
+    """One case's multi-layer EXR alone (``exr/<stem>.exr``, as :func:`case_files` writes it): a figure's cases
+    beyond its picture, which the viewer does not show but the glossy split and the user's tools read."""
+    return {
+        f"exr/{stem}.exr": layers_exr_bytes(
+            _exr_layers(case, case_layers(case, labels), source_stems(labels))
+        )
+    }
 
 
 def manifest_text(name: str, cases: list[dict]) -> str:

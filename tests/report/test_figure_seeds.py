@@ -67,7 +67,7 @@ def seeded(tmp_path_factory):
                 "--cache",
                 str(tmp / "c"),
                 "--images",
-                "none",
+                "all" if seeds else "none",
             ],
         )
         assert res.exit_code == 0, res.output
@@ -95,6 +95,15 @@ def test_seeds_give_other_reference_noise_and_the_same_picture(seeded):
         one / "fig_seeds.png", two / "fig_seeds.png"
     )
     assert json.loads((two / "metadata.json").read_text())["cases"] == 2
+
+
+def test_the_viewer_shows_the_picture_and_every_case_keeps_its_exr(seeded):
+    """The viewer holds the picture's cases (the first seed's); ``--images all`` writes every case's EXR, which
+    the glossy split reads. Planted: a viewer for every case lists two; EXRs for the picture alone miss one."""
+    _, two, _ = seeded["seeds = [0, 5]"]
+    shown = json.loads((two / "viewer" / "index.json").read_text())["cases"]
+    assert [c["id"] for c in shown] == ["fig_seeds-p0"]
+    assert sorted(p.name for p in (two / "exr").glob("*.exr")) == ["fig_seeds-p0-s5.exr", "fig_seeds-p0.exr"]
 
 
 def _same_pixels(a: Path, b: Path) -> bool:

@@ -1,6 +1,8 @@
 """Rough objects as scene keys, their Mitsuba truth, the "glossy" family of configs, and the split of a glossy
 figure's error (study.outputs.glossy) on synthetic images whose parts are known by construction."""
 
+import shutil
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -47,6 +49,7 @@ def test_all_keeps_the_mirror_methods_and_glossy_names_the_glossy_ones():
         "distance_roughness",
         "localized_prefiltered",
         "stochastic",
+        "traced_glossy",
     }
 
 
@@ -97,6 +100,20 @@ def test_split_of_a_glossy_figure(tmp_path):
     assert r["total_lo"] == pytest.approx(r["total_hi"], abs=1e-6)  # the same error on every pixel
     assert r["localization_lo"] < r["localization"] < r["localization_hi"]  # two kinds of pixels
     assert glossy.crossover(t) == {(1.0, 0.5, 0.0): 0.2}  # localization < prefiltering already at 0.2
+
+
+def test_the_split_of_a_figure_with_seeds_names_each_seed(tmp_path):
+    """A figure's later seeds (cases ``<id>-s<k>``) are columns of their own in glossy.md's table, not a clash of
+    positions (planted: without the seed in the column name, pandas refuses duplicate entries)."""
+    test_split_of_a_glossy_figure(tmp_path)
+    shutil.copy(tmp_path / "exr" / "c1.exr", tmp_path / "exr" / "c1-s1.exr")
+    m = pd.read_csv(tmp_path / "metrics.csv")
+    m = pd.concat([m, m.assign(case="c1-s1")])
+    for c in ("rmse_truth_debiased", "rmse_truth_debiased_lo", "rmse_truth_debiased_hi"):
+        m[c] = 0.1
+    m.to_csv(tmp_path / "metrics.csv", index=False)
+    text = glossy.write_split(tmp_path)
+    assert "@(1, 0.5, 0) seed 1" in text and "α=0.2 @(1, 0.5, 0) |" in text
 
 
 def test_glossy_claims_decide_both_ways():
