@@ -158,6 +158,11 @@ class NumpyBackend(Backend):
         """data[index] (``index`` a float array of integer values)."""
         return data[np.asarray(index).astype(np.int64)]
 
+    def gather_at(self, data, base, index):
+        """data[base + index], the two whole numbers (floats, or ``base`` a Python int) made integers before they
+        are added: a float32 sum is exact only to 2²⁴, which a stack of 512² probes' pyramids passes."""
+        return data[np.asarray(base).astype(np.int64) + np.asarray(index).astype(np.int64)]
+
     def power(self, a, b):
         return np.power(a, np.float32(b) if np.isscalar(b) else b)
 
@@ -310,6 +315,10 @@ class DrJitBackend(Backend):
 
     def gather(self, data, index):
         return self.dr.gather(self.m.Float, data, self.m.UInt32(index))
+
+    def gather_at(self, data, base, index):
+        base = self.m.UInt32(int(base)) if isinstance(base, int | float) else self.m.UInt32(base)
+        return self.dr.gather(self.m.Float, data, base + self.m.UInt32(index))
 
     def power(self, a, b):
         return self.dr.power(a, b)

@@ -69,7 +69,7 @@ class MinPyramid:
         flat, self.offsets = min_pyramid(dist)
         # after the levels, per level q: (offset, side, 2^−q), read by level (one array: one frozen argument)
         levels = np.array([(o, s, 2.0**-q) for q, (o, s) in enumerate(self.offsets)], np.float32)
-        self.B, self.res, self.levels_at = B, dist.shape[1], float(flat.size)
+        self.B, self.res, self.levels_at = B, dist.shape[1], int(flat.size)
         self.data = B.array(np.concatenate([flat, levels.ravel()]))
 
     def bound(self, face0, u0, v0, face1, u1, v1):
@@ -91,9 +91,9 @@ class MinPyramid:
         # the lowest level q with width ≤ 2^q + 1 (its dilated texel at the box's start covers the box):
         # q = ⌈log₂(width − 1)⌉ = ⌊log₂(2 width − 3)⌋ for whole width ≥ 2, and 0 at width 1
         q = B.minimum(B.exponent(B.maximum(2.0 * width - 3.0, 1.0)), len(self.offsets) - 1.0)
-        off, side, scale = (B.gather(self.data, self.levels_at + q * 3.0 + c) for c in (0.0, 1.0, 2.0))
+        off, side, scale = (B.gather_at(self.data, self.levels_at, q * 3.0 + c) for c in (0.0, 1.0, 2.0))
         i, j = B.floor(i0 * scale), B.floor(j0 * scale)
-        value = B.gather(self.data, off + (face0 * side + i) * side + j)
+        value = B.gather_at(self.data, off, (face0 * side + i) * side + j)  # integers: past 2²⁴ texels
         same = face0 == face1
         return B.select(same, value * (1.0 - MARGIN), value * 0.0 - 1.0)
 
