@@ -332,8 +332,7 @@ class Result:
             title=f"{name}: {self.summary()}" if name else self.summary(),
             name=name,
         )
-        # study report finds the run by its file and names it; time_split: where the case's time went
-        index.update(file=self.file, name=name, time_split=self.times)
+        index.update(file=self.file, name=name, time_split=self.times)  # study report finds runs by file
         files.update(
             {
                 "table.csv": to_csv(rows),
