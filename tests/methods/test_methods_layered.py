@@ -145,17 +145,19 @@ def test_the_march_spends_the_lookups_it_reports(name, hierarchical, monkeypatch
     tex = analytic.box_impostor(16, [-2, -1.5, -2], [2, 1.5, 2])
     env = Captured(impostor=EnvMap(tex, B), layers=tuple(EnvMap(tex, B) for _ in range(3)))
     fetched = []
-    sample, gather = type(B).sample, type(B).gather
+    sample, gather_at = type(B).sample, type(B).gather_at
     monkeypatch.setattr(
         type(B), "sample", lambda self, t, *a: fetched.append(t.shape[-1]) or sample(self, t, *a)
     )
     texels = EnvMap(tex, B).pyramid.levels_at  # the pyramid's texels; its per-level table after them
 
-    def read(self, data, index):  # a read of the pyramid's texels (not of its table of levels) is a lookup
-        fetched.append("pyramid" if np.all(np.asarray(index) < texels) else "table")
-        return gather(self, data, index)
+    def read(
+        self, data, base, index
+    ):  # a read of the pyramid's texels (not of its table of levels) is a lookup
+        fetched.append("pyramid" if np.all(np.asarray(base) + np.asarray(index) < texels) else "table")
+        return gather_at(self, data, base, index)
 
-    monkeypatch.setattr(type(B), "gather", read)
+    monkeypatch.setattr(type(B), "gather_at", read)
     x, d = analytic.random_rays(30, extent=0.8, seed=0)
     m = methods.make(name, hierarchical=hierarchical)
     n = march_steps(16, m.params)
