@@ -78,6 +78,21 @@ def lobe_directions(B: Backend, n: V3, v: V3, h_local, alpha: float) -> tuple[V3
     return l, w
 
 
+def lobe_samples(B: Backend, n: V3, v: V3, alpha: float, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """K directions per shading point importance-sampled from its GGX lobe, ``u`` (K, 2, M) uniforms:
+    ((K·M, 3) unit directions, float64, sample k of every point before sample k + 1; (K, M, 1) their weights
+    G (v·h)/((n·h)(n·v)), 0 below the surface): the glossy truth's and traced_glossy's estimator."""
+    dirs, w = [], []
+    for k in range(len(u)):
+        h = half_vectors(alpha, u[k, 0], u[k, 1])
+        l, wk = lobe_directions(B, n, v, (h[:, 0], h[:, 1], h[:, 2]), alpha)
+        dirs.append(B.to_numpy(l).astype(np.float64))
+        w.append(np.asarray(wk, np.float64))
+    d = np.concatenate(dirs)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    return d, np.stack(w)[..., None]
+
+
 def dominant_direction(B: Backend, n: V3, R: V3, alpha: float) -> V3:
     """The direction where the GGX lobe of mirror direction R peaks, lerp(n, R, s) normalized with
     s = (1 − α)(√(1 − α) + α) (Lagarde and de Rousiers 2014, Frostbite); R itself at α = 0."""

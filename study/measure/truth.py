@@ -90,17 +90,9 @@ def lobe_at_hit(scene: Scene, rays: shading.ObjectRays, seed: int) -> np.ndarray
     alpha, K = scene.object.alpha, min(LOBE_SAMPLES, scene.render.spp)
     n, v = B.vec(rays.N), B.vec(-rays.V)
     u = np.random.default_rng((seed, 1)).random((K, 2, len(rays.x)))  # not the methods' stream of seed
-    dirs, w = [], []
-    for k in range(K):
-        h = ggx.half_vectors(alpha, u[k, 0], u[k, 1])
-        l, wk = ggx.lobe_directions(B, n, v, (h[:, 0], h[:, 1], h[:, 2]), alpha)
-        dirs.append(B.to_numpy(l).astype(np.float64))
-        w.append(np.asarray(wk, np.float64))
-    d = np.concatenate(dirs)
-    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    d, W = ggx.lobe_samples(B, n, v, alpha, u)
     spp = max(1, scene.render.spp // K)
     L = radiance_along(scene, np.tile(rays.x, (K, 1)), d, spp=spp, seed=seed).reshape(K, -1, 3)
-    W = np.stack(w)[..., None]
     num, den = (L * W).sum(0), W.sum(0)
     along_R = radiance_along(scene, rays.x, rays.R, spp=spp, seed=seed) if (den == 0).any() else None
     return np.where(den > 0, num / np.maximum(den, 1e-30), along_R if along_R is not None else 0.0)

@@ -82,15 +82,7 @@ class TracedGlossy(ExactQuery):
         v = eye(nv, rv)
         M, K = int(ok.sum()), self.params.samples
         u = np.random.default_rng((self.params.seed, 11)).random((K, 2, M))
-        dirs, w = [], []
-        for k in range(K):
-            h = ggx.half_vectors(lobe.alpha, u[k, 0], u[k, 1])
-            l, wk = ggx.lobe_directions(N, nv, v, (h[:, 0], h[:, 1], h[:, 2]), lobe.alpha)
-            dirs.append(N.to_numpy(l).astype(np.float64))
-            w.append(np.asarray(wk, np.float64))
-        d = np.concatenate(dirs)
-        d /= np.linalg.norm(d, axis=-1, keepdims=True)
-        W = np.stack(w)[..., None]
+        d, W = ggx.lobe_samples(N, nv, v, lobe.alpha, u)
         L = np.asarray(shade(np.tile(xw[ok], (K, 1)), d), np.float64).reshape(K, M, 3)
         W = np.where(np.isfinite(L).all(-1, keepdims=True), W, 0.0)
         num, den = (np.where(W > 0, L, 0.0) * W).sum(0), W.sum(0)
