@@ -516,3 +516,44 @@ def test_ssim_and_psnr_on_the_mask_equal_the_whole_frame():
     )
     assert abs(float(tight.mean()) - float(smap.mean(axis=-1)[mask].mean())) > 1e-4
     assert abs(ssim(ref, test, mask=mask) - float(smap.mean(axis=-1)[mask].mean())) < 1e-12
+
+
+def test_traced_is_priced_with_its_shading_and_hit_cache_with_its_read():
+    """Issue 56: ``traced``'s bench row is the full ray_intersect plus the shading a renderer does at the hit (the
+    material and the shadow ray: path ``shaded``), its bare query stated beside it (``query_ms_per_frame``);
+    ``hit_cache`` is the bare query plus its cache read as fetches; ``traced_glossy(samples=K)`` K times traced's.
+    Known times stand in for the measured ones, so the sums are checked exactly."""
+    from types import SimpleNamespace
+
+    from study.bench.run import exact_query_row
+    from study.bench.timing import ms_per_frame
+
+    n = 1 << 16
+    b = SimpleNamespace(name="fig4 close-up", x=np.zeros((n, 3)), R=np.ones((n, 3)))
+    q = {"ray_intersect": 3e-3, "ray_intersect_preliminary": 1e-3, "ray_test": 5e-4}
+    sh = {"shade_material": 4e-4, "shadow_ray": 6e-4}
+    exact = SimpleNamespace(
+        mitsuba=lambda b, v, query="ray_intersect": q[query],
+        mitsuba_kernels=lambda b, v, query="ray_intersect": q[query] / 2,
+        shading=lambda b, v, light: (sh, {k: t / 2 for k, t in sh.items()}),
+        embree=lambda b: 2e-3,
+    )
+    floors = {"fetch_4ch_coherent": 1e9, "bandwidth": 1e12}
+    light = ((0.0, 2.6, 0.0), (6.0, 6.0, 6.0))
+    row = exact_query_row(methods.make("traced"), exact, b, "cuda", 12, floors, light=light)
+    assert row["path"] == "shaded"
+    assert row["ms_per_frame"] == pytest.approx(ms_per_frame(3e-3 + 4e-4 + 6e-4, n))
+    assert row["kernel_ms_per_frame"] == pytest.approx(ms_per_frame((3e-3 + 4e-4 + 6e-4) / 2, n))
+    assert row["query_ms_per_frame"] == pytest.approx(ms_per_frame(1e-3, n))
+    glossy = exact_query_row(
+        methods.make("traced_glossy", samples=4), exact, b, "cuda", 12, floors, light=light
+    )
+    assert glossy["ms_per_frame"] == pytest.approx(4 * row["ms_per_frame"])
+    cache = exact_query_row(methods.make("hit_cache"), exact, b, "cuda", 12, floors, light=light)
+    from study.bench import floors as floor_model
+
+    read = n * (1 / 1e9 + floor_model.BYTES_PER_RAY / 1e12)
+    assert cache["path"] == "ray_intersect_preliminary"
+    assert cache["ms_per_frame"] == pytest.approx(ms_per_frame(1e-3 + read, n))
+    cpu = exact_query_row(methods.make("traced"), exact, b, "numpy", 12, None, light=light)
+    assert cpu["ms_per_frame"] == pytest.approx(ms_per_frame(2e-3 + 1e-3, n))  # Embree + the shading on LLVM

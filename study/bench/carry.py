@@ -16,6 +16,9 @@ Projection (:func:`projection_rows`, from the headline rows measured on a GPU wi
     (``ray_intersect_preliminary``) measured with OptiX traversing in software is divided by the speed-up RT cores
     gave OptiX (:data:`RT_CORE_FACTOR`: ×4.3, ×3.5–5 by scene, RTX 2080 Ti, NVIDIA developer forum) and scaled by
     nothing else. Both are assumptions, written in the table's title; the projected ratio is a range.
+    ``traced_shaded_ms_projected``: tracing *and shading* the ray as ``traced`` is priced (``study.bench.run.
+    exact_query_row``), with the RT-core factor applied to its traversals only (the hit query and the shadow ray)
+    and the rest (the SurfaceInteraction, the material) kept as measured (:func:`shaded_parts`).
 """
 
 from __future__ import annotations
@@ -42,7 +45,26 @@ PROJECTION_COLS = [
     "exact_ms_projected",
     "x_vs_preliminary_low",
     "x_vs_preliminary_high",
+    "traced_shaded_ms_projected",
 ]
+
+
+def shaded_parts(rows: list[dict], variant: str = "cuda_ad_rgb") -> dict[str, tuple[float, float]]:
+    """Batch → (traversal ms, other ms) per 1024² frame of tracing and shading a ray on ``variant``'s rows of the
+    bench table: the traversals are ``ray_intersect_preliminary`` and the ``shadow_ray``, the rest the full
+    ``ray_intersect``'s SurfaceInteraction over the preliminary query and the ``shade_material``; batches without
+    those rows are left out."""
+    by: dict[str, dict[str, float]] = {}
+    for r in rows:
+        if r.get("label") == f"exact: Mitsuba {variant}" and _num(r.get("ms_per_frame")) is not None:
+            by.setdefault(r["batch"], {})[r.get("path", "")] = _num(r["ms_per_frame"])
+    out = {}
+    for b, t in by.items():
+        need = ("ray_intersect", "ray_intersect_preliminary", "shade_material", "shadow_ray")
+        if all(k in t for k in need):
+            si = max(t["ray_intersect"] - t["ray_intersect_preliminary"], 0.0)
+            out[b] = (t["ray_intersect_preliminary"] + t["shadow_ray"], si + t["shade_material"])
+    return out
 
 
 def cost_columns(lookups_mean: float, lookups_bound: float) -> dict:
@@ -62,9 +84,14 @@ def _num(v) -> float | None:
     return f if f == f else None
 
 
-def projection_rows(rows: list[dict], measured_on: str = "H100/H200") -> list[dict]:
+def projection_rows(
+    rows: list[dict], measured_on: str = "H100/H200", shading: dict | None = None
+) -> list[dict]:
     """Projected ms per 1024² frame and ratio to the exact query on each of :data:`RT_GPUS`, from the ``cuda``
-    frozen rows of ``rows`` measured on ``measured_on`` (a GPU without RT cores); [] without such rows."""
+    frozen rows of ``rows`` measured on ``measured_on`` (a GPU without RT cores); [] without such rows. With
+    ``shading`` (:func:`shaded_parts`), also tracing and shading the ray with the RT-core factor on its traversals
+    only (``traced_shaded_ms_projected``)."""
+    shading = shading or {}
     out = []
     for r in rows:
         ms, x = _num(r.get("ms_per_frame")), _num(r.get("x_vs_preliminary"))
@@ -86,6 +113,11 @@ def projection_rows(rows: list[dict], measured_on: str = "H100/H200") -> list[di
                     "exact_ms_projected": exact / RT_CORE_FACTOR[1],
                     "x_vs_preliminary_low": lo / proj,
                     "x_vs_preliminary_high": hi / proj,
+                    "traced_shaded_ms_projected": (
+                        shading[r["batch"]][0] / RT_CORE_FACTOR[1] + shading[r["batch"]][1]
+                        if r["batch"] in shading
+                        else ""
+                    ),
                 }
             )
     return out
@@ -98,5 +130,6 @@ def projection_title(measured_on: str = "H100/H200") -> str:
         f"{TEXTURE_RATE[measured_on]:g} GTexel/s → "
         + ", ".join(f"{g} {TEXTURE_RATE[g]:g}" for g in RT_GPUS)
         + f"); the exact query (ray_intersect_preliminary, measured with software traversal) divided by the RT-core "
-        f"speed-up of OptiX, ×{mid:g} (×{lo:g}–{hi:g}: x_vs_preliminary_low/high)"
+        f"speed-up of OptiX, ×{mid:g} (×{lo:g}–{hi:g}: x_vs_preliminary_low/high); traced_shaded_ms_projected: "
+        f"tracing and shading the ray, the speed-up applied to its traversals only (the hit and the shadow ray)"
     )

@@ -15,7 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from study import methods as registry
-from study.bench.carry import PROJECTION_COLS, projection_rows, projection_title
+from study.bench.carry import PROJECTION_COLS, projection_rows, projection_title, shaded_parts
 from study.io import atomic_savefig, png_bytes, write_set
 from study.tables import markdown, to_csv
 
@@ -31,6 +31,7 @@ BENCH_COLS = [
     "mrays_per_s",
     "ms_per_frame",
     "kernel_ms_per_frame",
+    "query_ms_per_frame",
     "floor_ms_per_frame",
     "x_floor",
     "kernel_x_floor",
@@ -101,7 +102,11 @@ def write_bench_files(rows, info, out: Path, *, lock: bool = True) -> list[Path]
     """Replace the main table (``bench-<tag>.csv`` and ``.md``) in ``out``; the paths."""
     tag = info["tag"]
     fl = info.get("floors") or []
-    proj = projection_rows(bench_headline(rows)) if "no RT cores" in info.get("rt_cores", "") else []
+    proj = (
+        projection_rows(bench_headline(rows), shading=shaded_parts(rows))
+        if "no RT cores" in info.get("rt_cores", "")
+        else []
+    )
     md = (
         f"# study bench ({tag})\n\n{header(info)}\n\n## Headline: ms per 1024² frame, floor, ratios\n\n"
         f"x_floor = time / floor (1 = at the floor); kernel_* = the device's time in the kernels alone (Dr.Jit's "

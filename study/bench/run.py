@@ -44,6 +44,7 @@ from study.bench.scaling import knob_values, scaling_rows
 from study.bench.timing import (
     FRAME,
     QUERIES,
+    SHADING,
     Exact,
     bench_probes,
     bench_screen,
@@ -146,6 +147,10 @@ def run_bench(
     o = np.asarray(scene.reference.point, float)
     V, F = room_triangles(scene)
     exact = Exact(V, F, opt.repeats, log)
+    light = (
+        tuple(scene.light.position),
+        tuple(scene.light.intensity),
+    )  # the point light traced's shading uses
     tex = distance_texels(exact.tracer, o, opt.cube_res)
     batches = [
         scene_rays(scene, opt.position, opt.scene_res),
@@ -191,6 +196,14 @@ def run_bench(
                     )
                     row["kernel_ms_per_frame"] = ms_per_frame(exact.mitsuba_kernels(b, v, q), n)
                     rows.append(row)
+            # what a renderer does at the hit besides finding it: traced's shading (SHADING), priced with it
+            t_sh, k_sh = exact.shading(b, v, light)
+            for part in SHADING:
+                if np.isfinite(t_sh[part]):
+                    row = rate_row({"batch": b.name, "backend": dev, "path": part, "label": f"exact: Mitsuba {v}",
+                                    "triangles": len(F), "cube_res": ""}, t_sh[part], n)  # fmt: skip
+                    row["kernel_ms_per_frame"] = ms_per_frame(k_sh[part], n)
+                    rows.append(row)
         log(f"exact ray casting of {b.name} timed")
 
     # ------------------------------------------------------------------ measured floors (Dr.Jit backends)
@@ -226,9 +239,8 @@ def run_bench(
             paths = ["frozen"] if nm != "numpy" else ["plain"]
             for m in methods:
                 if getattr(m, "bench_query", None):  # the exact query as a method: its time is the query's
-                    rows.append(
-                        with_ratios(exact_query_row(m, exact, b, nm, len(F), floors.get(nm)), exact, b, nm)
-                    )
+                    row = exact_query_row(m, exact, b, nm, len(F), floors.get(nm), light=light)
+                    rows.append(with_ratios(row, exact, b, nm))
                     continue
                 extra = ["plain"] if nm != "numpy" and m.label == plain_too else []
                 for path in paths + extra:
@@ -271,7 +283,14 @@ def run_bench(
 
 
 def exact_query_row(
-    m: Method, exact: Exact, b: Batch, backend: str, triangles: int, floors: dict | None = None
+    m: Method,
+    exact: Exact,
+    b: Batch,
+    backend: str,
+    triangles: int,
+    floors: dict | None = None,
+    *,
+    light: tuple | None = None,
 ) -> dict:
     """The row of a method that is the exact query itself (``traced``: ``m.bench_query``), from the time the bench
     measured for that query on the same rays and device (Mitsuba's variant of the backend's device; Embree on
@@ -283,14 +302,28 @@ def exact_query_row(
     ``bench_query``, declares none) is priced, not timed (its read runs on the host): the query's time plus its
     lookups as 4-channel fetches at the measured rate of the batch's pattern and the ray's bytes at the measured
     bandwidth (:func:`study.bench.floors.method_floor`'s terms), which is also its floor (``x_floor`` = 1: nothing
-    above the hardware's rates is modelled); on numpy (no floors measured) the query's time alone."""
+    above the hardware's rates is modelled); on numpy (no floors measured) the query's time alone.
+
+    A method that shades its hits as a renderer would (``shades_hit``: ``traced``, ``traced_glossy``) is priced
+    with that shading (path ``shaded``): the full ``ray_intersect`` (the SurfaceInteraction the material needs)
+    plus :data:`~study.bench.timing.SHADING` (the material towards the scene's point light ``light`` and the shadow
+    ray), measured on the same rays and device (on numpy: Embree's query plus the shading on LLVM, the same CPU);
+    ``query_ms_per_frame`` states the bare query (``bench_query``) beside it."""
     n = len(b.x)
+    v = mitsuba_variant(backend)
     if backend == "numpy":
         path, t, kern = "embree", exact.embree(b), math.nan
     else:
-        v = mitsuba_variant(backend)
         path, t = m.bench_query, exact.mitsuba(b, v, m.bench_query)
         kern = exact.mitsuba_kernels(b, v, m.bench_query)
+    bare = t
+    if getattr(m, "shades_hit", False) and light is not None:
+        t_sh, k_sh = exact.shading(b, v, light)
+        if (
+            backend != "numpy"
+        ):  # the SurfaceInteraction the material needs: the full query, not the preliminary
+            t, kern = exact.mitsuba(b, v, "ray_intersect"), exact.mitsuba_kernels(b, v, "ray_intersect")
+        t, kern, path = t + sum(t_sh.values()), kern + sum(k_sh.values()), "shaded"
     k = getattr(m, "queries", 1)  # traced_glossy(samples=K): K queries a ray
     reads = floors and "bench_query" not in vars(type(m))
     p = batch_pattern(b)
@@ -305,6 +338,9 @@ def exact_query_row(
     row = rate_row(base, t, n)
     row.update(carry.cost_columns(m.lookup_bound(), m.lookup_bound()))
     row["kernel_ms_per_frame"] = ms_per_frame(kern, n)
+    row["query_ms_per_frame"] = ms_per_frame(
+        bare * k, n
+    )  # the bare exact query(ies), without shading or reads
     if not reads:
         return {**row, "floor_ms_per_frame": "", "x_floor": "", "kernel_x_floor": ""}
     fl = ms_per_frame(t, n)  # the query and the read, both at the measured rates: at its floor

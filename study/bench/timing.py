@@ -282,6 +282,56 @@ def time_mitsuba(
     return seconds
 
 
+#: What a renderer does at the exact hit besides finding it (``traced``'s shading, :func:`time_shading`): the
+#: material evaluated towards the point light with the light's falloff, and the shadow ray to the light.
+SHADING = ("shade_material", "shadow_ray")
+
+
+def time_shading(
+    m, scene, x, R, light: tuple, *, repeats: int, kernel: list | None = None
+) -> dict[str, float]:
+    """Median seconds per call of the shading a renderer does at the rays' exact hits (:data:`SHADING`), on the
+    hits of ``scene.ray_intersect`` (computed once, not timed): ``shade_material`` evaluates the hit's BSDF
+    (Mitsuba's ``eval``, cosine included) towards the point light ``light`` = (position, intensity) with its
+    inverse-square falloff; ``shadow_ray`` casts the hit's shadow ray to the light (``ray_test``). With ``kernel``,
+    a dict of the same keys → the kernels' device time per call is appended to it (:func:`kernel_seconds`)."""
+    import drjit as dr  # optional: only where Mitsuba is timed
+
+    ray = m.Ray3f(
+        m.Point3f(np.ascontiguousarray(x.T, np.float32)), m.Vector3f(np.ascontiguousarray(R.T, np.float32))
+    )
+    si = scene.ray_intersect(ray)
+    dr.eval(si)
+    valid = si.is_valid()
+    pos, intensity = light
+    L, I = m.Point3f(*map(float, pos)), m.Color3f(*map(float, intensity))
+    ctx = m.BSDFContext()
+
+    def material():
+        to = L - si.p
+        d2 = dr.squared_norm(to)
+        wo = si.to_local(to * dr.rsqrt(d2))
+        f = si.bsdf(ray).eval(ctx, si, wo, valid)
+        return dr.select(valid, f * I / d2, 0.0)
+
+    def shadow():
+        return scene.ray_test(si.spawn_ray_to(L), valid)
+
+    def finish(out):
+        if out is None:
+            dr.sync_thread()
+        else:
+            dr.eval(out)
+
+    out, kern = {}, {}
+    for name, fn in zip(SHADING, (material, shadow)):
+        out[name] = median_time(fn, finish, repeats=repeats)
+        kern[name] = kernel_seconds(dr, fn, finish, repeats=repeats)
+    if kernel is not None:
+        kernel.append(kern)
+    return out
+
+
 def mitsuba_variant(backend: str) -> str:
     """The Mitsuba variant on the device of ``backend``: CUDA for cuda, LLVM for numpy and llvm."""
     return "cuda_ad_rgb" if backend == "cuda" else "llvm_ad_rgb"
@@ -324,6 +374,24 @@ class Exact:
                 self.log(f"mitsuba {variant} unavailable: {str(err).splitlines()[0][:120]}")
                 self.t[key] = self.kernel_t[key] = math.nan
         return self.t[key]
+
+    def shading(self, batch, variant: str, light: tuple) -> tuple[dict, dict]:
+        """(seconds, kernel seconds) per call of each part of :data:`SHADING` at the batch's exact hits in
+        ``variant``, the point light ``light`` = (position, intensity); NaNs (and a log line) where missing."""
+        key = (variant, batch.name, "shading")
+        if key not in self.t:
+            try:
+                if variant not in self.scenes:
+                    self.scenes[variant] = mitsuba_ref.triangle_scene(self.V, self.F, variant)
+                m, sc = self.scenes[variant]
+                mitsuba_ref.mi(variant)
+                kern: list = []
+                self.t[key] = time_shading(m, sc, batch.x, batch.R, light, repeats=self.repeats, kernel=kern)
+                self.kernel_t[key] = kern[0]
+            except Exception as err:  # a variant missing on this machine: no number, say why
+                self.log(f"mitsuba {variant} shading unavailable: {str(err).splitlines()[0][:120]}")
+                self.t[key] = self.kernel_t[key] = dict.fromkeys(SHADING, math.nan)
+        return self.t[key], self.kernel_t[key]
 
     def mitsuba_kernels(self, batch, variant: str, query: str = "ray_intersect") -> float:
         """Seconds per ``query`` spent in the device's kernels (:func:`kernel_seconds`); NaN where missing."""

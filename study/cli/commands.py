@@ -226,7 +226,8 @@ def pareto(
         "close-up", help="bench batch the times come from: close-up, fig4, synthetic, sorted"
     ),
     clock: str = typer.Option(
-        "wall", help="wall: ms per call (host share included) | kernel: the device's alone"
+        "kernel",
+        help="kernel: the device's time in the kernels (what a frame pays) | wall: ms per call, host share included",
     ),
 ):
     """The equal-cost front per figure and sweep: error (median over cases, with its interval) against measured ms

@@ -37,6 +37,7 @@ class HitCache(ExactQuery):
     in_all = False  # an experiment of its own (configs/fig_hitcache.toml): "all" leaves it out
     Params = HitCacheParams
     knob = Knob("res", (4, 8, 16, 32, 64, 128))  # cache cells along the environment's longest side
+    shades_hit = False  # its shading is the cache read, priced as fetches (study.bench.run.exact_query_row)
 
     def views_needed(self) -> Views:
         return Views(hits=True, shade=True, caches=(self.params.res,))

@@ -17,8 +17,11 @@ hit differs too: the exact query on the same rays, not the exact image.
 
 Cost: one lookup per ray is counted (the read of the hit's radiance); the ray query itself is no cube-map lookup.
 ``study bench`` does not time the method's Python path (a host round trip through numpy here): its row there takes
-the time of the exact query the bench measures anyway (:data:`ExactQuery.bench_query` on Mitsuba's device of the
-backend, Embree for numpy), so ``study pareto`` places it at the price of the cheapest query that returns the hit.
+the time the bench measures for what a renderer pays to trace and shade the ray on Mitsuba's device of the
+backend (Embree's query for numpy): the full ``ray_intersect`` (the SurfaceInteraction a material needs), the
+material evaluated towards the point light and the shadow ray to it (:data:`ExactQuery.shades_hit`, path
+``shaded``), as every stand-in's price holds its radiance fetch; the bare query (:data:`ExactQuery.bench_query`,
+the cheapest that returns the hit) is stated beside it (``query_ms_per_frame``), and ``study pareto`` says both.
 
 On a bare impostor (no scene to trace: the analytic tests) the room box stands in for the scene
 (``Captured.room``, else the box fitted to the impostor as ``proxy_box`` fits it), intersected exactly, and the
@@ -45,6 +48,9 @@ class ExactQuery(TracingMethod):
     #: The exact query whose measured time ``study bench`` gives this method's rows (the hit distance and the
     #: primitive: what a hit point needs).
     bench_query: ClassVar[str] = "ray_intersect_preliminary"
+    #: Priced with the shading a renderer does at the hit (``study bench``: the material towards the point light
+    #: and the shadow ray, :data:`study.bench.timing.SHADING`), as each stand-in's price holds its radiance fetch.
+    shades_hit: ClassVar[bool] = True
 
     def views_needed(self) -> Views:
         return Views(hits=True, shade=True)

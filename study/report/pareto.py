@@ -12,10 +12,13 @@ scaled to a 1080p frame by the ray count, one secondary ray per pixel: × 1920·
 frame the time grows with the rays; ``scaling-<tag>.csv`` measures it). A method that is the exact query itself
 (``traced``: its class names its ``bench_query``) takes that query's time on the same batch and device, from its
 own bench row where the bench has one, else from the exact query's row (the same number); one that makes K queries
-a ray (``traced_glossy(samples=K)``, the glossy tables' exact row: ``queries``) K times that. ``--clock kernel``
-takes the device's time in the kernels instead of the wall clock (:data:`CLOCKS`): a 1080p frame's host share
-(launching, about 0.05 ms per call on the H200) does not grow with the rays, so the wall clock scaled by the ray
-count overstates the cheapest GPU methods, the kernel clock understates a frame's cost. The bench times the
+a ray (``traced_glossy(samples=K)``, the glossy tables' exact row: ``queries``) K times that. A bench that prices
+``traced`` with the shading a renderer does at the hit (path ``shaded``: the full ``ray_intersect``, the material
+towards the point light, the shadow ray) gives that price, the bare query stated beside it; an older bench's bare
+query is used and the page says so. The clock is the device's time in the kernels by default (:data:`CLOCKS`):
+what a renderer pays inside a frame, where its work is fused into few launches; a 1080p frame's host share
+(launching, about 0.05 ms per call on the H200) does not grow with the rays, so the wall clock (``--clock wall``)
+scaled by the ray count overstates the cheapest GPU methods. The page states the launch share apart. The bench times the
 methods at its cube resolution (256²) on the fig4 room, whatever the table's scene: a time is the method's, not the
 scene's. Table labels the bench did not time (other parameters) are listed, not placed.
 
@@ -68,6 +71,11 @@ FLOORS = {"rmse_truth_debiased": 1e-4}
 #: Which time of a bench row: the wall clock per call (what a frame pays, host share included), or the device's
 #: time in the kernels alone (Dr.Jit's kernel history: on a fast GPU a short kernel's call is the host's).
 CLOCKS = {"wall": "ms_per_frame", "kernel": "kernel_ms_per_frame"}
+CLOCK_WORDS = {
+    "wall": "the wall clock per call, host launch share included",
+    "kernel": "the device time in the kernels alone, what a renderer pays inside a frame; the host launch share "
+    "is stated apart per device",
+}
 
 
 @dataclass
@@ -81,7 +89,14 @@ class DeviceTimes:
     source: str  # the CSV
     commit: str  # the git commit that holds the CSV ('uncommitted' where none)
     code: str  # study.codehash of the bench's code (bench-<tag>.md), 'not stated' where missing
-    ms: dict[str, float] = field(default_factory=dict)  # label → ms per 1080p frame (wall clock per call)
+    ms: dict[str, float] = field(default_factory=dict)  # label → ms per 1080p frame (on the clock asked for)
+    clock: str = "kernel"  # the clock of ``ms`` (CLOCKS)
+    wall: dict[str, float] = field(
+        default_factory=dict
+    )  # label → the wall clock's ms (launch share included)
+    on_wall: list[str] = field(default_factory=list)  # labels the kernel clock had no time for: on the wall's
+    bare: dict[str, float] = field(default_factory=dict)  # exact rows → their bare query's ms (no shading)
+    unshaded: list[str] = field(default_factory=list)  # exact rows priced without shading (an older bench)
 
 
 def _commit_of(path: Path) -> str:
@@ -119,9 +134,20 @@ def exact_priced() -> dict[str, tuple[str, int]]:
     return out
 
 
-def device_times(path: str | Path, *, batch: str = "close-up", clock: str = "wall") -> DeviceTimes:
+def _ms(row: dict, col: str) -> float:
+    try:
+        return float(row.get(col, math.nan))
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def device_times(path: str | Path, *, batch: str = "close-up", clock: str = "kernel") -> DeviceTimes:
     """The times of one bench CSV (module docstring) on ``clock`` (:data:`CLOCKS`); a StudyError names the file
-    where it has no such batch."""
+    where it has no such batch. On the kernel clock a row without a kernel time (numpy's) takes its wall time and
+    is listed in ``on_wall``; ``wall`` keeps every row's wall time (the launch share is their difference). The
+    exact rows (``exact_priced``) take their own bench row (``traced``'s: the query and its shading, path
+    ``shaded``; ``bare``: the query alone); without one, a method that shades its hits is priced at the bare query
+    (listed in ``unshaded``) and one whose reads at the hit the bench prices (``hit_cache``) is not placed."""
     path = Path(path)
     if clock not in CLOCKS:
         raise StudyError(f"unknown clock {clock!r}; allowed: {', '.join(CLOCKS)}", key="--clock")
@@ -143,19 +169,37 @@ def device_times(path: str | Path, *, batch: str = "close-up", clock: str = "wal
                          file=str(path), key="--batch")  # fmt: skip
     sel = [r for r in rows if r["batch"] == names[0]]
     scale = RAYS_1080P / RAYS_BENCH
-    ms = {r["label"]: r[col] * scale for r in sel if r["backend"] == backend and r["path"] == "frozen"}
     variant = "cuda_ad_rgb" if backend == "cuda" else "llvm_ad_rgb"
+    wall, ms, bare, unshaded = {}, {}, {}, []
+
+    def put(label: str, r: dict, k: int = 1) -> None:
+        wall[label] = _ms(r, "ms_per_frame") * scale * k
+        ms[label] = _ms(r, col) * scale * k
+
+    for r in sel:
+        if r["backend"] == backend and r["path"] == "frozen":
+            put(r["label"], r)
     for label, (query, k) in exact_priced().items():
         own = [r for r in sel if r["label"] == label and r["backend"] == backend]
         exact = [r for r in sel if r["label"] == f"exact: Mitsuba {variant}" and r["path"] == query]
-        for r in own:  # its own bench row already holds its k queries (study.bench.run.exact_query_row)
-            ms[label] = r[col] * scale
-        for r in exact if not own else []:
-            ms[label] = r[col] * scale * k
+        for r in (
+            own
+        ):  # its own bench row already holds its k queries and shading (study.bench.run.exact_query_row)
+            put(label, r)
+            bare[label] = _ms(r, "query_ms_per_frame") * scale
+        cls = registry.REGISTRY[label.split("(")[0]]
+        for r in exact if not own and getattr(cls, "shades_hit", True) else []:
+            put(label, r, k)
+            bare[label] = _ms(r, "ms_per_frame") * scale * k
+            unshaded.append(label)
+    on_wall = [k for k, v in ms.items() if not math.isfinite(v) and math.isfinite(wall[k])]
+    ms.update({k: wall[k] for k in on_wall})
     tag = path.stem.removeprefix("bench-")
     device, code = _header(path.with_suffix(".md"))
     ms = {k: v for k, v in ms.items() if math.isfinite(v)}
-    return DeviceTimes(tag, device, backend, names[0], str(path), _commit_of(path), code, ms)
+    return DeviceTimes(tag, device, backend, names[0], str(path), _commit_of(path), code, ms, clock,
+                       {k: v for k, v in wall.items() if math.isfinite(v)}, on_wall,
+                       {k: v for k, v in bare.items() if math.isfinite(v)}, unshaded)  # fmt: skip
 
 
 def table_points(rows: list[dict], metric: str, *, cube_res: float = 256) -> tuple[list[dict], str]:
@@ -243,7 +287,12 @@ def scene_section(name: str, points: list[dict], devices: list[DeviceTimes], met
         for label, t in _exact_times(d).items():
             dearer = [f"`{f['label']}`" for f in fronts[d.tag] if f["ms"] > t and f["label"] != label]
             tail = f"dearer on the front: {', '.join(dearer)}." if dearer else "no front method is dearer."
-            lines += [f"  Tracing the rays (`{label}`, exact hits) costs {_fmt(t)} ms here; {tail}"]
+            how = (
+                "the bare query, its shading not measured in this bench"
+                if label in d.unshaded
+                else f"the query and the shading of its hit; the bare query {_fmt(d.bare.get(label, math.nan))} ms"
+            )
+            lines += [f"  Tracing the rays (`{label}`, exact hits) costs {_fmt(t)} ms here ({how}); {tail}"]
     missing = [p["label"] for p in points if not any(p["label"] in d.ms for d in devices)]
     if missing:
         lines += [
@@ -302,7 +351,7 @@ def scene_plot(name: str, points: list[dict], devices: list[DeviceTimes], metric
                         textcoords="offset points", fontsize=6, color="0.4")  # fmt: skip
         for t in sorted(set(_exact_times(d).values())):  # what tracing the rays costs, in the table or not
             ax.axvline(t, color="black", lw=1.0, ls="-.", zorder=0)  # (traced and hit_cache share one query)
-            ax.annotate(f"traced (exact query): {_fmt(t)} ms", (t, 0.5), xycoords=("data", "axes fraction"),
+            ax.annotate(f"traced (exact query, shaded): {_fmt(t)} ms", (t, 0.5), xycoords=("data", "axes fraction"),
                         xytext=(-4, 0), textcoords="offset points", fontsize=6.5, rotation=90, ha="right",
                         va="center")  # fmt: skip
         ax.set_xscale("log")
@@ -326,8 +375,19 @@ def find_tables(reports: Path) -> dict[str, Path]:
     return {**{d.name: d / "metrics.csv" for d in figs}, **{d.name: d / "results.csv" for d in sweeps}}
 
 
+def _launch_line(d: DeviceTimes) -> str:
+    """One line of the page: what the host's launch share (wall − kernel) adds per frame on device ``d``."""
+    share = sorted(d.wall[k] - d.ms[k] for k in d.ms if k in d.wall and k not in d.on_wall)
+    if d.clock != "kernel" or not share:
+        return ""
+    med = share[len(share) // 2]
+    wall = f"; on the wall clock ({', '.join(f'`{k}`' for k in d.on_wall)})" if d.on_wall else ""
+    return (f"  Launch share left out (wall − kernel per call, scaled to the frame): median {_fmt(med)} ms, "
+            f"{_fmt(share[0])}–{_fmt(share[-1])} ms over the rows{wall}.")  # fmt: skip
+
+
 def write_pareto(reports: Path, out: Path, benches: list[Path], *, metric: str = "wrong_fraction",
-                 batch: str = "close-up", clock: str = "wall", lock: bool = True) -> list[Path]:  # fmt: skip
+                 batch: str = "close-up", clock: str = "kernel", lock: bool = True) -> list[Path]:  # fmt: skip
     """``out``/<table>.png per figure and sweep with benched methods, and ``out``/pareto.md; the paths."""
     if metric not in ERRORS:
         raise StudyError(f"unknown metric {metric!r}; allowed: {', '.join(ERRORS)}", key="--metric")
@@ -355,18 +415,20 @@ def write_pareto(reports: Path, out: Path, benches: list[Path], *, metric: str =
         "Written by `study pareto` from the committed tables and the bench's; do not edit. Error: "
         f"`{metric}`, the median over each table's cases with its interval over them (95 % bootstrap from 10 "
         f"cases, else the range). Time: the bench's measured ms per 1024² frame (`{CLOCKS[clock]}`: "
-        f"{'the wall clock per call' if clock == 'wall' else 'the device time in the kernels alone'}) of the "
-        f"methods' Dr.Jit kernels (frozen path) on the `{batch}` batch, × 1920·1080/1024² = "
+        f"{CLOCK_WORDS[clock]}"
+        f") of the methods' Dr.Jit kernels (frozen path) on the `{batch}` batch, × 1920·1080/1024² = "
         f"{RAYS_1080P / RAYS_BENCH:.3f} for a 1080p "
-        "frame (one secondary ray per pixel); `traced` is priced at the exact query it makes, "
-        "`traced_glossy(samples=K)` at K of them (the lobe's rays), the shading of the hits not counted (Mitsuba's "
-        "`ray_intersect_preliminary` on the same rays and device: OptiX on CUDA, Embree inside Mitsuba on the "
-        "CPU). The bench times at cube resolution 256² on the fig4 room; a method's time is taken as the same "
-        "in every scene. At budget B: the front's point with the lowest error within B.",
+        "frame (one secondary ray per pixel); every row is priced with everything it reads: `traced` at the exact "
+        "query and the shading a renderer does at its hit (the full `ray_intersect`, the material towards the point "
+        "light and the shadow ray, on the same rays and device: OptiX on CUDA, Embree inside Mitsuba on the CPU; "
+        "the bare query is stated beside it), `traced_glossy(samples=K)` at K of them (the lobe's rays), "
+        "`hit_cache` at the query and its cache read. The bench times at cube resolution 256² on the fig4 room; a "
+        "method's time is taken as the same in every scene. At budget B: the front's point with the lowest error "
+        "within B.",
         "",
         *(
             f"- **{d.tag}**: {d.device}, backend {d.backend}; `{d.source}` (commit {d.commit}, bench code {d.code}), "
-            f"batch `{d.batch}`"
+            f"batch `{d.batch}`" + (f"\n{_launch_line(d)}" if _launch_line(d) else "")
             for d in devices
         ),  # fmt: skip
         "",

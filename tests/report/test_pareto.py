@@ -114,12 +114,12 @@ def test_study_pareto_writes_the_page_and_plots(tmp_path):
     cpu = _bench(tmp_path, "cpu", "llvm", {k: 100 * v for k, v in TIMES.items()}, exact_ms=30.0)
     out = tmp_path / "pareto"
     res = run_cli("pareto", "--reports", str(reports), "--out", str(out),
-                                   "--benches", f"{gpu},{cpu}")  # fmt: skip
+                                   "--benches", f"{gpu},{cpu}", "--clock", "wall")  # fmt: skip
     assert res.exit_code == 0, res.output
     assert (out / "figX.png").read_bytes()[:4] == b"\x89PNG"
     md = (out / "pareto.md").read_text()
     scale = 1920 * 1080 / 1024**2
-    d = pareto.device_times(gpu)
+    d = pareto.device_times(gpu, clock="wall")
     assert d.device.startswith("NVIDIA Testcard") and d.code == "abc123" and d.backend == "cuda"
     assert d.ms["classical"] == pytest.approx(0.05 * scale) and d.ms["traced"] == pytest.approx(0.2 * scale)
     assert "NVIDIA Testcard" in md and "Test CPU, 2 cores" in md and "1.978" in md
@@ -137,12 +137,13 @@ def test_study_pareto_writes_the_page_and_plots(tmp_path):
     assert "0.6 ms → `traced`" in gpu_line and "1.5 ms → `traced`" in gpu_line
     cpu_line = next(r for r in table.splitlines() if r.startswith("- **cpu**"))
     assert "40 ms → `localized(iterations=10)`" in cpu_line and "80 ms → `traced`" in cpu_line
-    assert "dearer on the front: `slow" not in md and "costs 0.396 ms here; no front method is dearer" in md
+    assert "dearer on the front: `slow" not in md and "costs 0.396 ms here (the bare query" in md
+    assert "no front method is dearer" in md
 
 
 def test_the_synthetic_batch_and_bad_options(tmp_path):
     gpu = _bench(tmp_path, "gpu", "cuda", TIMES, exact_ms=0.2)
-    d = pareto.device_times(gpu, batch="synthetic")
+    d = pareto.device_times(gpu, batch="synthetic", clock="wall")
     assert d.ms["classical"] == pytest.approx(0.5 * 1920 * 1080 / 1024**2)
     k = pareto.device_times(gpu, clock="kernel")  # the kernels' device time: its own column, traced's too
     assert k.ms["classical"] == pytest.approx(0.025 * 1920 * 1080 / 1024**2)
@@ -187,3 +188,33 @@ def test_the_commands_metric_help_names_every_error_column():
 
     help_text = inspect.signature(commands.pareto).parameters["metric"].default.help
     assert all(k in help_text for k in pareto.ERRORS)
+
+
+def test_the_default_clock_is_the_kernels_and_traced_is_priced_with_its_shading(tmp_path):
+    """Issue 56: the front's default clock is the kernels' (the launch share stated apart); a bench row of
+    ``traced`` priced with its shading (path ``shaded``) gives its price, the bare query stated beside it; an older
+    bench without one prices ``traced`` at the bare query and says so; ``hit_cache`` without its own row (its cache
+    read unpriced) is not placed at the bare query's price."""
+    reports = _table(tmp_path)
+    gpu = _bench(tmp_path, "gpu", "cuda", TIMES, exact_ms=0.2)
+    scale = 1920 * 1080 / 1024**2
+    old = pareto.device_times(gpu)  # default: kernel clock
+    assert old.clock == "kernel" and old.ms["classical"] == pytest.approx(0.025 * scale)
+    assert old.wall["classical"] == pytest.approx(0.05 * scale)
+    assert old.ms["traced"] == pytest.approx(0.05 * scale) and old.unshaded == ["traced"]
+    assert "hit_cache(res=32)" not in old.ms  # no row of its own: its read is not priced, so not placed
+    rows = list(csv.DictReader(open(gpu)))
+    batch = rows[0]["batch"]
+    shaded = {"batch": batch, "backend": "cuda", "path": "shaded", "label": "traced", "ms_per_frame": 0.9,
+              "kernel_ms_per_frame": 0.6, "query_ms_per_frame": 0.2}  # fmt: skip
+    _write(gpu, [{**r, "query_ms_per_frame": ""} for r in rows] + [shaded])
+    d = pareto.device_times(gpu)
+    assert d.ms["traced"] == pytest.approx(0.6 * scale) and d.bare["traced"] == pytest.approx(0.2 * scale)
+    assert d.unshaded == []
+    out = tmp_path / "o"
+    res = run_cli("pareto", "--reports", str(reports), "--out", str(out), "--benches", str(gpu))
+    assert res.exit_code == 0, res.output
+    md = (out / "pareto.md").read_text()
+    assert "the device time in the kernels alone" in md and "Launch share left out" in md
+    assert f"costs {0.6 * scale:.3g} ms here (the query and the shading of its hit; the bare query" in md
+    assert f"the bare query {0.2 * scale:.3g} ms" in md
