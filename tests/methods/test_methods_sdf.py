@@ -197,7 +197,7 @@ def test_numpy_and_llvm_agree(fig5):
     out = {}
     for name in ("numpy", "llvm"):
         B = backends.get(name)
-        out[name] = _trace(methods.make("sdf"), B, _env(B, o, imp, grids, 64), x, d)
+        out[name] = _trace(methods.make("sdf", res=64), B, _env(B, o, imp, grids, 64), x, d)
     (s0, r0, v0, l0), (s1, r1, v1, l1) = out["numpy"], out["llvm"]
     assert np.mean(v0 == v1) >= 0.999 and v0.mean() > 0.95
     both = v0 & v1
@@ -225,7 +225,7 @@ def test_sphere_trace_agrees_with_mitsubas_exact_trace_of_the_same_grid(fig5):
     scene = mi.load_dict({"type": "scene", "field": shape})
     x, d = _room_rays(o)
     B = backends.get("numpy")
-    shown, _, valid, _ = _trace(methods.make("sdf"), B, _env(B, o, imp, grids, 64), x, d)
+    shown, _, valid, _ = _trace(methods.make("sdf", res=64), B, _env(B, o, imp, grids, 64), x, d)
     w = x + o
     ray = mi.Ray3f(mi.Point3f(*(w[:, i] for i in range(3))), mi.Vector3f(*(d[:, i] for i in range(3))))
     si = scene.ray_intersect(ray)
@@ -247,7 +247,8 @@ def test_sphere_trace_agrees_with_mitsubas_exact_trace_of_the_same_grid(fig5):
 def test_ssr_then_sdf_takes_the_screen_where_it_has_the_hit_and_the_field_elsewhere(B):
     """The engine chain ``ssr_sdf`` on the small room (a 48² camera whose colour buffer holds each pixel's surface
     point): rays whose screen trace finds a hit show exactly what ``ssr`` alone shows; every other ray (off
-    screen: ≥ 30 % of them) is traced in the 64³ field and lands within one voxel of the exact hit (Embree)."""
+    screen: ≥ 30 % of them) is traced in the default (128³) field and lands within one voxel of the exact hit
+    (Embree)."""
     from study.impostor.screen import ScreenView
     from study.scene.camera import camera_rays
 
@@ -264,7 +265,7 @@ def test_ssr_then_sdf_takes_the_screen_where_it_has_the_hit_and_the_field_elsewh
     d = rng.normal(size=(n, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     exact = tracer.intersect(x, d)["point"]
-    spec = SdfSpec(res=64)
+    spec = methods.make("sdf").spec()  # the chain's fallback: sdf at its defaults
     grid, lo, h = build_grid(s.mesh().vertices, s.mesh().faces, s.bounds(), spec)
     env = Captured(
         impostor=EnvMap(probes.probe_texels(tracer, o, 32, lambda pts: pts), B),
@@ -275,7 +276,7 @@ def test_ssr_then_sdf_takes_the_screen_where_it_has_the_hit_and_the_field_elsewh
     )
     alone, _, on, _ = _trace(methods.make("ssr", fallback="none"), B, env, x - o, d)
     chain = methods.make("ssr_sdf")
-    assert chain.params.fallback == "sdf"  # the chain's fallback is sdf at its defaults (64³)
+    assert chain.params.fallback == "sdf" and spec.res == 128  # the chain's fallback: sdf at its defaults
     shown, _, valid, spent = _trace(chain, B, env, x - o, d)
     assert valid.all() and 0.3 < np.mean(~on) < 0.9
     np.testing.assert_allclose(shown[on], alone[on], atol=1e-6)
@@ -285,8 +286,8 @@ def test_ssr_then_sdf_takes_the_screen_where_it_has_the_hit_and_the_field_elsewh
 
 def test_case_gives_sdf_its_field_through_the_cache(tmp_path):
     """run_case on the small room with a column taller than o: sdf, its exact-shading variant and ssr_sdf get
-    the field (one 64³ grid, stored once: a second run recomputes nothing), every ray valid, the measured
-    lookups within the bound; the exact variant shows the same points as sdf (same field, same trace)."""
+    the field (one 128³ grid at the defaults, stored once: a second run recomputes nothing), every ray valid, the
+    measured lookups within the bound; the exact variant shows the same points as sdf (same field, same trace)."""
     from study.measure.case import run_case
 
     s = scene_from_dict(
@@ -298,7 +299,7 @@ def test_case_gives_sdf_its_field_through_the_cache(tmp_path):
     for m in ms:
         row = rows[m.label]
         assert row["valid_fraction"] == 1.0 and row["lookups_per_ray"] <= m.lookups_per_ray()
-    a, b = rows["sdf(res=64)"], rows["sdf(res=64, shading='exact')"]
+    a, b = rows["sdf(res=128)"], rows["sdf(res=128, shading='exact')"]
     assert a["wrong_fraction"] == b["wrong_fraction"] and a["dist_p95"] == b["dist_p95"]
     assert len(list((tmp_path / "sdf").glob("*.npy"))) == 1
     cache2 = Cache(tmp_path)

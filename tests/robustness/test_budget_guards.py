@@ -42,10 +42,10 @@ def test_environment_triangles_count_in_the_estimate(monkeypatch):
 
 def test_a_distance_field_counts_in_the_estimate_and_its_resolution_is_named():
     """sdf's field costs res³ nodes while built: at 512³ (134 M nodes, about 10 GiB at 80 B a node) a 4 GiB limit
-    refuses the case, naming method.res; at the default 64³ it adds 21 MB."""
+    refuses the case, naming method.res; at the default 128³ it adds 168 MB."""
     scene = load_scene_file("scenes/room.toml")
     small = budget.estimate(scene, [methods.make("sdf")])
-    assert small.memory["method.res"] == 64**3 * budget.BYTES_PER_SDF_NODE
+    assert small.memory["method.res"] == 128**3 * budget.BYTES_PER_SDF_NODE
     big = [methods.make("sdf", res=512)]
     assert budget.estimate(scene, big).memory["method.res"] > 10e9
     with pytest.raises(StudyError, match="method.res: .*distance fields' grid nodes"):
