@@ -315,11 +315,13 @@ class Result:
         (every image and map as a named layer: ``classical``, ``angle-classical``, …, ``mask``; label → layer in
         ``index.json``), the image grid ``run.png`` and a viewer page ``index.html``, as one output set
         (:func:`study.io.write_set`, every byte made first): an error leaves what ``out`` held before. Returns the
-        files written."""
-        from study.io import json_text, write_set
+        files written. An empty ``out`` (``""``) is a StudyError, never the current directory; a file in ``out``
+        that study did not write is never removed (:data:`study.io.OUTPUTS`)."""
+        from study.io import json_text, out_dir, write_set
         from study.outputs.run_files import result_files
         from study.tables import to_csv
 
+        out = out_dir(out, key="out")
         rows = self.table.to_dict("records")
         buf = _io.BytesIO()
         self.table.to_parquet(buf, index=False)

@@ -2,7 +2,9 @@
 
 * :func:`output_set`: a command's whole output set as a transaction: written into a fresh directory beside the
   target and swapped in at the end, so a failed or killed command leaves the previous outputs as they were
-  (:func:`locked`: one command at a time per output directory).
+  (:func:`locked`: one command at a time per output directory). Study removes or replaces only what it wrote
+  itself: each output folder lists the files study wrote there (:data:`OUTPUTS`); a file study did not write is
+  never removed (a user's ``exr/mine.txt`` stays), and an empty output path is refused (:func:`out_dir`).
 * :func:`atomic_write` / :func:`atomic_savefig` / :func:`write_exr`: a temporary file beside the target, renamed
   over it at the end, so a reader (or a killed run) never sees half a file, and no temporary file is left behind.
 * :func:`read_toml`: a TOML file, or a :class:`~study.errors.StudyError` naming the file.
@@ -35,6 +37,9 @@ from study import runtime
 from study.errors import EnvironmentProblem, StudyError, os_problem
 
 LOCK = ".lock"
+#: In every output folder: the files study wrote there (relative paths, JSON), the only ones a later command may
+#: remove (an earlier run's output that this run does not write again); anything else in the folder stays.
+OUTPUTS = ".study-outputs.json"
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 _FILE_MODE = 0o666 & ~_UMASK
@@ -222,12 +227,45 @@ def read_exr(path: str | Path) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------- output sets
+def out_dir(value: str | Path, *, key: str = "--out") -> Path:
+    """``value`` as an output folder: an empty path (``--out ""``, a shell variable left unset) is one StudyError
+    naming ``key``, never the current directory.
+
+    Parameters
+    ----------
+    value : str or Path
+        The path as given (a ``Path("")`` is already ``"."``: check the text before it becomes a Path).
+    key : str
+        What the error names (``--out``, ``--reports``, ``out``).
+
+    Returns
+    -------
+    Path
+    """
+    if not str(value).strip():
+        raise StudyError("empty path; name a folder (e.g. reports/mine, or . for this one)", key=key)
+    return Path(value)
+
+
+def written_here(out: str | Path) -> set[str]:
+    """The files study wrote in the output folder ``out`` (relative POSIX paths, from its :data:`OUTPUTS`);
+    empty where it has none (a folder study did not make, or one written before study kept the list) or an
+    unreadable one."""
+    import json
+
+    try:
+        files = json.loads((Path(out) / OUTPUTS).read_text(encoding="utf-8")).get("files")
+    except (OSError, ValueError, AttributeError):
+        return set()
+    return {f for f in files if isinstance(f, str)} if isinstance(files, list) else set()
+
+
 @contextlib.contextmanager
 def locked(out: str | Path):
     """Hold ``<out>/.lock`` (created, and removed again at the end) so that one study command at a time writes to
     ``out``; a second one stops at once with a clear message. ``out`` is created if needed (and removed again if
-    the block fails and leaves it empty)."""
-    out = Path(out)
+    the block fails and leaves it empty); an empty path is refused (:func:`out_dir`)."""
+    out = out_dir(out)
     top = _make_dir(out)
     try:
         if not os.access(out, os.W_OK | os.X_OK):
@@ -318,16 +356,21 @@ def output_set(
     together, when it fails (or the process is killed) ``out`` is left as it was and ``tmp`` goes.
 
     ``owns``: paths relative to ``out`` (files or directories) that belong to the command even if this run does
-    not write them (they are removed then: no stale plot beside a new table); whatever ``tmp`` holds is owned too.
-    Everything else in ``out`` is kept. The swap is one ``renameat2(RENAME_EXCHANGE)`` of the two directories
-    after the kept entries are hard-linked into ``tmp``, so a reader sees all old or all new outputs; it is used
-    when every kept entry is a file or a directory named in ``keeps`` (e.g. a sweep's ``cases``); otherwise, or
-    where the platform cannot exchange, or with ``swap=False`` (a directory others write into, e.g. ``reports/``),
-    the outputs are renamed into place one by one. ``out`` is locked for the block (:func:`locked`) unless ``lock``
-    is False (the caller holds the lock)."""
-    out = Path(out).absolute()
+    not write them: the files under them that study wrote there before (:data:`OUTPUTS`) are removed (no stale
+    plot beside a new table); whatever ``tmp`` holds replaces the file of its name. Everything else in ``out`` is
+    kept: a file study did not write is never removed, even inside an owned directory (``exr/mine.txt``), and a
+    folder or file of the user's where an output would go is one StudyError before anything changes. The swap is
+    one ``renameat2(RENAME_EXCHANGE)`` of the two directories after the kept entries are hard-linked into ``tmp``,
+    so a reader sees all old or all new outputs; it is used when every kept entry is a file or a directory named
+    in ``keeps`` (e.g. a sweep's ``cases``); otherwise, or where the platform cannot exchange, or with
+    ``swap=False`` (a directory others write into, e.g. ``reports/``), the outputs are renamed into place one by
+    one. ``out`` is locked for the block (:func:`locked`) unless ``lock`` is False (the caller holds the lock)."""
+    out = out_dir(out).absolute()
     if out.is_symlink():
         out = out.resolve()  # swap the directory it names, not the link
+    with contextlib.suppress(OSError):
+        if Path.cwd().is_relative_to(out.resolve()):  # never exchange the working directory away from under us
+            swap = False
     with locked(out) if lock else contextlib.nullcontext():
         for stale in _stale_temps(out):  # left by a killed run (the lock is held)
             shutil.rmtree(stale, ignore_errors=True)
@@ -392,9 +435,12 @@ def _carry(src: Path, dst: Path, rel: str, owns: set[str], keeps: set[str]) -> b
             if r in keeps:
                 shutil.copytree(e.path, target, symlinks=True, copy_function=_link, dirs_exist_ok=True)
             elif _holds_owned(r, owns):
+                made = not target.exists()
                 target.mkdir(exist_ok=True)
                 if not _carry(Path(e.path), target, r + "/", owns, keeps):
                     return False
+                if made and not any(target.iterdir()):  # every file in it was an earlier output: it goes
+                    target.rmdir()
             else:
                 return False
         elif not target.exists():
@@ -429,20 +475,59 @@ def _exchange(a: Path, b: Path) -> bool:
     raise OSError(e, os.strerror(e), str(b))
 
 
+def _in_the_way(out: Path, new: set[str], listed: set[str]) -> None:
+    """Refuse (one StudyError, nothing changed yet) where an output would replace something study did not write: a
+    folder where it writes a file, or a file of the user's where it needs a folder."""
+    for rel in sorted(new):
+        p = out / rel
+        if p.is_dir() and not p.is_symlink():
+            raise StudyError(
+                f"{rel} is a folder that study did not write, where it writes a file; move it or choose another "
+                "--out",
+                file=str(out),
+            )
+        for parent in Path(rel).parents:
+            q = out / parent
+            if parent.name and (q.is_symlink() or q.exists()) and not q.is_dir():
+                if parent.as_posix() in listed:
+                    continue  # an earlier output of study's: replaced by the folder
+                raise StudyError(
+                    f"{parent.as_posix()} is a file that study did not write, where it writes the folder of "
+                    f"{rel}; move it or choose another --out",
+                    file=str(out),
+                )
+
+
 def _commit(tmp: Path, out: Path, owns: set[str], keeps: set[str], swap: bool = True) -> None:
-    """Put the outputs in ``tmp`` in place of the owned entries of ``out`` (see :func:`output_set`)."""
-    owns = owns | {p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if not p.is_dir()}
+    """Put the outputs in ``tmp`` in place in ``out`` (see :func:`output_set`): the files of ``tmp`` replace those
+    of their names, the files study wrote before under ``owns`` (:func:`written_here`) and does not write again
+    go, and the list :data:`OUTPUTS` is brought up to date. Nothing study did not write is removed."""
+    new = {p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if not p.is_dir()} - {OUTPUTS}
+    listed = written_here(out)
+    _in_the_way(out, new, listed)
+    stale = {r for r in listed if _owned(r, owns) and r not in new and r != OUTPUTS}
+    (tmp / OUTPUTS).write_bytes(
+        text_bytes(json_text({"written_by": "study", "files": sorted((listed - stale) | new)}, indent=1))
+    )
+    owns = new | stale | {OUTPUTS}  # files only: a directory is never replaced whole
     os.chmod(tmp, stat.S_IMODE(os.stat(out).st_mode))
     if swap and _carry(out, tmp, "", owns, keeps) and _exchange(tmp, out):
         return  # tmp now holds the old outputs; the caller removes it
-    trash = Path(tempfile.mkdtemp(dir=tmp, prefix=".old-"))
-    tops = sorted(o for o in owns if not any(o.startswith(a + "/") for a in owns))
-    for i, rel in enumerate(tops):  # one by one: each rename is atomic, the set is not
-        new, old = tmp / rel, out / rel
-        if old.is_dir() and not old.is_symlink():
-            os.replace(old, trash / str(i))  # a directory cannot be renamed over a full one
-        if new.exists():
+    for rel in sorted(owns):  # one by one: each rename is atomic, the set is not
+        new_file, old = tmp / rel, out / rel
+        if new_file.exists() or new_file.is_symlink():
+            for parent in reversed(Path(rel).parents):  # an earlier output file where a folder now goes
+                q = out / parent
+                if parent.name and (q.is_symlink() or q.exists()) and not q.is_dir():
+                    os.unlink(q)
             old.parent.mkdir(parents=True, exist_ok=True)
-            os.replace(new, old)
-        elif old.exists() or old.is_symlink():
+            os.replace(new_file, old)
+        elif (old.is_symlink() or old.exists()) and not old.is_dir():
             os.unlink(old)
+            for parent in Path(rel).parents:  # folders emptied by it go too (up to out)
+                if not parent.name:
+                    break
+                try:
+                    (out / parent).rmdir()
+                except OSError:
+                    break

@@ -9,13 +9,14 @@ from pathlib import Path
 import typer
 
 from study.cli.app import app, console, guarded
+from study.cli.commands import folder
 
 
 @app.command()
 @guarded(llvm=True)
 def animate(
     config: Path = typer.Option(Path("configs/motion.toml"), help="motion config (TOML)"),
-    out: Path = typer.Option(Path("reports/animation"), help="output directory"),
+    out: str = typer.Option("reports/animation", metavar="PATH", help="output directory"),
     backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
 ):
@@ -23,6 +24,7 @@ def animate(
     motion.mp4, frames.csv, motion.csv, motion.png and metadata.json under <out>."""
     from study.outputs.animation import animate as make_animation  # loaded by the command that needs it
 
+    out = folder(out)
     t0 = time.perf_counter()
     rows = make_animation(config, out, backend=backend, cache=cache)  # progress: study.cli.progress
     frames = len({(r.get("sequence"), r.get("seed"), r["frame"]) for r in rows})

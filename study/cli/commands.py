@@ -14,8 +14,15 @@ from study import methods, progress
 from study.cli.app import app, console, err_console, figures, guarded
 from study.errors import StudyError
 from study.harness.config import load_figure_config, plain_name, shipped
-from study.io import file_stem, locked
+from study.io import file_stem, locked, out_dir
 from study.outputs.case_images import image_choice
+
+
+def folder(value: str | None, key: str = "--out") -> Path | None:
+    """An output (or reports) folder option as a Path, None where it is not given; ``--out ""`` is one line, exit
+    2 (:func:`study.io.out_dir`), never the current directory."""
+    return None if value is None else out_dir(value, key=key)
+
 
 # What each command runs (measurement, outputs, the bench) is imported by that command, so that ``study --help``
 # and a command's bad input do not wait for it.
@@ -30,7 +37,7 @@ def figure(
     config: Path | None = typer.Option(
         None, help="figure config (default configs/<name>.toml); without NAME the outputs are named after it"
     ),
-    out: Path | None = typer.Option(None, help="output directory (default reports/<name>)"),
+    out: str | None = typer.Option(None, metavar="PATH", help="output directory (default reports/<name>)"),
     backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
     quality: str = typer.Option(
@@ -52,7 +59,9 @@ def figure(
         raise StudyError(f"unknown figure {name!r}; allowed: {', '.join(known)}", key="name")
     config = Path(known[name]) if config is None else shipped(config)
     name = plain_name(name) if name else file_stem(config.stem)  # one folder under reports/, never a path
-    out = out or (Path("reports") / name if quality == "preview" else Path("reports") / quality / name)
+    out = folder(out) or (
+        Path("reports") / name if quality == "preview" else Path("reports") / quality / name
+    )
     t0 = time.perf_counter()
     from study.report.kinds import config_kind
 
@@ -97,7 +106,9 @@ def _print_table(rows: list[dict]) -> None:
 @guarded(llvm=True)
 def sweep(
     config: Path = typer.Argument(..., help="sweep file (TOML), e.g. configs/sweep.toml"),
-    out: Path | None = typer.Option(None, help="output directory (default reports/sweep-<config name>)"),
+    out: str | None = typer.Option(
+        None, metavar="PATH", help="output directory (default reports/sweep-<config name>)"
+    ),
     backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
     jobs: int = typer.Option(1, min=1, max=64, help="cases run in parallel processes"),
@@ -120,7 +131,7 @@ def sweep(
 
     dask = check_address(dask)  # before any work: '' and 'banana' are refused, not run locally
     image_choice(images)
-    out = out or Path("reports") / f"sweep-{config.stem}"  # a stem: one folder under reports/
+    out = folder(out) or Path("reports") / f"sweep-{config.stem}"  # a stem: one folder under reports/
     ready = prepare_sweep(config, backend=backend, jobs=jobs)  # every case checked before any work
     rows, stats = run_sweep(  # progress by case on stderr (study.cli.progress)
         config,
@@ -185,8 +196,9 @@ def check(
 @app.command()
 @guarded()
 def report(
-    reports: Path = typer.Option(
-        Path("reports"),
+    reports: str = typer.Option(
+        "reports",
+        metavar="PATH",
         help="directory holding the figures, sweeps and `study run` folders (found by their own files, any name)",
     ),
 ):
@@ -194,6 +206,7 @@ def report(
     tables, the paper's claims, versions."""
     from study.report.report import build_report
 
+    reports = folder(reports, "--reports")
     path = build_report(reports)
     if path is None:  # one line on stderr, and no page of empty tables
         err_console.print(
@@ -210,9 +223,11 @@ def report(
 @app.command()
 @guarded()
 def pareto(
-    reports: Path = typer.Option(Path("reports"), help="directory holding the figures' and sweeps' tables"),
-    out: Path = typer.Option(
-        Path("reports/pareto"), help="output directory: <table>.png per table, pareto.md"
+    reports: str = typer.Option(
+        "reports", metavar="PATH", help="directory holding the figures' and sweeps' tables"
+    ),
+    out: str = typer.Option(
+        "reports/pareto", metavar="PATH", help="output directory: <table>.png per table, pareto.md"
     ),
     benches: str = typer.Option(
         "reports/performance/bench-gpu.csv,reports/performance/bench-cpu.csv",
@@ -234,6 +249,7 @@ def pareto(
     per 1080p frame on each benched device, the Pareto front, and the method to use at a few budgets."""
     from study.report.pareto import write_pareto
 
+    reports, out = folder(reports, "--reports"), folder(out)
     paths = [Path(b.strip()) for b in benches.split(",") if b.strip()]
     written = write_pareto(reports, out, paths, metric=metric, batch=batch, clock=clock)
     console.print(f"pareto: wrote {len(written) - 1} plots and {out / 'pareto.md'}", highlight=False)
@@ -242,7 +258,7 @@ def pareto(
 @app.command()
 @guarded(llvm=True)
 def bench(
-    out: Path = typer.Option(Path("reports/bench"), help="output directory"),
+    out: str = typer.Option("reports/bench", metavar="PATH", help="output directory"),
     config: Path = typer.Option(Path("configs/fig4.toml"), help="figure config whose scene is benched"),
     position: int = typer.Option(2, help="index into the config's positions: where the object stands"),
     scene_res: int = typer.Option(1024, help="camera resolution (res²) of the fig4 ray batch"),
@@ -264,6 +280,7 @@ def bench(
     from study.bench.output import bench_table, write_bench_files, write_scaling
     from study.bench.run import BenchOptions, check_options, run_bench
 
+    out = folder(out)
     cfg, scene, _ = load_figure_config(config)
     if cfg.positions is None or not 0 <= position < len(cfg.positions):
         n = len(cfg.positions or [])
@@ -319,12 +336,12 @@ def _caustics(config, out, backend, cache, *, sweep: bool):
 @guarded(llvm=True)
 def caustics_sweep(
     config: Path = typer.Option(Path("configs/caustics_sweep.toml"), help="sweep config"),
-    out: Path = typer.Option(Path("reports/fig8"), help="output directory"),
+    out: str = typer.Option("reports/fig8", metavar="PATH", help="output directory"),
     backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where caustic maps are built"),
     cache: Path = typer.Option(Path(".cache"), help="cache directory"),
 ):
     """Figure 8 plus the caustic-map sweep (resolution × iterations × method): CSV + PNG under reports/fig8/."""
-    _caustics(shipped(config), out, backend, cache, sweep=True)
+    _caustics(shipped(config), folder(out), backend, cache, sweep=True)
 
 
 @app.command("methods")

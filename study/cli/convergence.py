@@ -10,6 +10,7 @@ from pathlib import Path
 import typer
 
 from study.cli.app import app, console, guarded
+from study.cli.commands import folder
 from study.cli.run import parse_sets
 from study.harness.config import shipped
 from study.outputs.convergence import run_convergence
@@ -19,7 +20,7 @@ from study.outputs.convergence import run_convergence
 @guarded(llvm=True)
 def convergence(
     config: Path = typer.Argument(Path("configs/convergence.toml"), help="convergence config (TOML)"),
-    out: Path = typer.Option(Path("reports/convergence"), help="output directory"),
+    out: str = typer.Option("reports/convergence", metavar="PATH", help="output directory"),
     backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
     set_: list[str] = typer.Option(
@@ -27,6 +28,7 @@ def convergence(
     ),
 ):
     """Convergence curves: curves.csv, reach.csv, breakdown.csv, convergence.png and index.md under <out>."""
+    out = folder(out)
     t0 = time.perf_counter()
     rows = run_convergence(shipped(config), out, backend=backend, cache=cache, overrides=parse_sets(set_))
     n = len({r["case"] for r in rows})

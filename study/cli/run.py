@@ -23,6 +23,7 @@ import typer
 
 from study import columns, progress
 from study.cli.app import app, console, guarded
+from study.cli.commands import folder
 from study.errors import StudyError
 from study.io import file_stem
 
@@ -67,8 +68,9 @@ def run(
         [], "--set", "-s", metavar="KEY=VALUE", help="override a scene key, VALUE as TOML (repeatable)"
     ),
     backend: str = typer.Option("numpy", help="numpy | llvm | cuda: where the methods run"),
-    out: Path | None = typer.Option(
+    out: str | None = typer.Option(
         None,
+        metavar="PATH",
         help="output directory (default reports/run-<scene stem>-<hash of its path>: one per scene file)",
     ),
     cache: Path = typer.Option(Path(".cache"), help="cache directory for impostors and renders"),
@@ -84,6 +86,7 @@ def run(
     from study.outputs.run_files import default_folder
 
     t0 = time.perf_counter()  # the time reported includes loading and placing the scene
+    out = folder(out)  # --out "": one line, before any work
     overrides = parse_sets(set_)
     methods = method_list(method, key="--method") if method else "all"  # all: the family fitting the surface
     with progress.task(f"run {scene.name}", 1):  # stages on stderr (study.cli.progress)

@@ -57,7 +57,12 @@ OLD = {
 
 
 def files(d: Path) -> dict[str, bytes]:
-    return {p.relative_to(d).as_posix(): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
+    """The files under ``d`` but the list of those study wrote (:data:`study.io.OUTPUTS`)."""
+    return {
+        p.relative_to(d).as_posix(): p.read_bytes()
+        for p in sorted(d.rglob("*"))
+        if p.is_file() and p.name != io.OUTPUTS
+    }
 
 
 def temp_files(parent: Path) -> list[str]:
@@ -65,7 +70,10 @@ def temp_files(parent: Path) -> list[str]:
     return [
         str(p.relative_to(parent))
         for p in parent.rglob("*")
-        if p.name.startswith(".") and p.name != ".lock" or ".new-" in p.name or p.suffix == ".tmp"
+        if p.name.startswith(".")
+        and p.name not in (".lock", io.OUTPUTS)
+        or ".new-" in p.name
+        or p.suffix == ".tmp"
     ]
 
 
@@ -79,8 +87,9 @@ def write(d: Path, content: dict[str, bytes]) -> None:
 # ---------------------------------------------------------------------------------------------- output_set
 @pytest.mark.parametrize("swap", [True, False], ids=["exchange", "renames"])
 def test_output_set_replaces_what_it_owns_and_keeps_the_rest(tmp_path, monkeypatch, swap):
-    """Owned entries are replaced (or removed when this run did not write them: no stale plot), the rest stays,
-    with the one atomic directory exchange or, where it cannot be used, one rename per output."""
+    """Owned entries are replaced (or removed when this run did not write them and study listed them as its own:
+    no stale plot), the rest stays (a file of the user's inside an owned folder too), with the one atomic
+    directory exchange or, where it cannot be used, one rename per output."""
     if not swap:
         monkeypatch.setattr(io, "_exchange", lambda a, b: False)
     out = tmp_path / "sw"
@@ -92,6 +101,8 @@ def test_output_set_replaces_what_it_owns_and_keeps_the_rest(tmp_path, monkeypat
             "plots/a.png": b"old",
             "cases/k.json": b"case",
             "notes.txt": b"mine",
+            "plots/mine.png": b"mine",  # not on the list of study's files: kept (issue 51)
+            io.OUTPUTS: json.dumps({"files": ["results.csv", "metadata.json", "plots/a.png"]}).encode(),
         },
     )
     with io.output_set(out, ["results.csv", "metadata.json", "plots"], keeps=["cases"]) as tmp:
@@ -100,6 +111,7 @@ def test_output_set_replaces_what_it_owns_and_keeps_the_rest(tmp_path, monkeypat
         "cases/k.json": b"case",
         "metadata.json": b"new",
         "notes.txt": b"mine",
+        "plots/mine.png": b"mine",
         "results.csv": b"new",
     }
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sw"] and not temp_files(tmp_path)
