@@ -1,0 +1,194 @@
+"""Hostile round 5 (issue 51, items 5, 6, 7, 9 and the scene file's folder rule): each break reproduced, now one
+line naming the file and the key, exit 2, before any work — a sky map checked before Mitsuba reads it, a figure
+kind's failures named, a figure too long for its limit refused from its config, notes that say what is wrong."""
+
+import os
+import struct
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from study.errors import BAD_INPUT, StudyError
+from study.scene import load_scene_file
+
+ROOT = Path(__file__).resolve().parents[2]
+
+GROUND = "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nf 1 3 2\nf 1 4 3\n"  # a 4 m floor facing up
+SCENE = """[environment]
+type = "mesh"
+file = "{file}"
+sky = "{sky}"
+[reference]
+point = [0, 1.0, 0]
+box = [[-4, -0.01, -4], [4, 6, 4]]
+[object]
+center = [0, 1.0, 0]
+radius = 0.4
+[camera]
+eye = [0, 1.2, -2.0]
+target = [0, 1.0, 0]
+width = 16
+height = 16
+fov = 40
+[render]
+cube_res = 8
+cube_spp = 1
+spp = 1
+supersample = 1
+"""
+
+
+def exr(path: Path, value=0.5, h=8, w=16, at=None) -> Path:
+    """An EXR of ``value`` everywhere (``at``: (row, col, channel, value) planted)."""
+    from study.io import write_exr
+
+    a = np.full((h, w, 3), value, np.float32)
+    if at is not None:
+        a[at[0], at[1], at[2]] = at[3]
+    write_exr(path, a)
+    return path
+
+
+def with_window(data: bytes, w: int, h: int) -> bytes:
+    """An EXR's bytes with its dataWindow and displayWindow claiming w × h texels (the pixels left as they are)."""
+    for name in (b"dataWindow\0box2i\0", b"displayWindow\0box2i\0"):
+        i = data.index(name) + len(name) + 4
+        data = data[:i] + struct.pack("<4i", 0, 0, w - 1, h - 1) + data[i + 16 :]
+    return data
+
+
+def scene_with_sky(folder: Path, sky: str) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "ground.obj").write_text(GROUND)
+    path = folder / "scene.toml"
+    path.write_text(SCENE.format(file="ground.obj", sky=sky))
+    return path
+
+
+def refused(path: Path, *words: str) -> str:
+    t = time.perf_counter()
+    with pytest.raises(StudyError) as e:
+        load_scene_file(path)
+    msg = str(e.value)
+    assert e.value.code == BAD_INPUT and "\n" not in msg, msg
+    assert str(path) in msg and "environment.sky" in msg, msg
+    assert all(w in msg for w in words), msg
+    assert time.perf_counter() - t < 30
+    return msg
+
+
+# ---------------------------------------------------------------------------------------------- 5: sky maps
+@pytest.mark.parametrize(
+    "make, words",
+    [
+        (lambda d: exr(d / "sky.exr", -5.0), ["sky.exr", "128 of 128 texels are negative", "R = -5"]),
+        (lambda d: exr(d / "sky.exr", at=(3, 4, 1, np.nan)), ["sky.exr", "1 of 128 texels are not finite",
+                                                               "row 3, column 4: G = nan"]),
+        (lambda d: exr(d / "sky.exr", at=(0, 2, 2, np.inf)), ["sky.exr", "not finite", "B = inf"]),
+        (lambda d: (d / "sky.exr").write_bytes(b"\x76\x2f\x31\x01" + b"garbage" * 20), ["sky.exr", "damaged"]),
+        (lambda d: (d / "sky.hdr").write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 10 +X 10\n" + b"\1" * 7),
+         ["sky.hdr", "damaged image"]),
+        (lambda d: (d / "sky.hdr").write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 30000 +X 60000\n"),
+         ["sky.hdr", "60000 × 30000 texels", "8192 × 4096"]),
+    ],
+    ids=["negative", "nan", "inf", "corrupt-exr", "corrupt-hdr", "hdr-60000x30000"],
+)  # fmt: skip
+def test_a_bad_sky_map_is_refused_naming_the_sky_file_and_key(tmp_path, make, words):
+    """Before: the negative map was rendered (−5 radiance in every image), NaN/inf blamed on the mesh file, the
+    damaged files ended in exit 4 inside Mitsuba."""
+    d = tmp_path / "scene"
+    d.mkdir()
+    make(d)
+    name = next(p.name for p in d.iterdir() if p.suffix in (".exr", ".hdr"))
+    msg = refused(scene_with_sky(d, name), *words)
+    assert "ground.obj" not in msg  # the sky is to blame, not the mesh
+
+
+@pytest.mark.parametrize("w, h", [(60000, 30000), (100000, 100000)])
+def test_an_exr_header_claiming_too_many_texels_is_refused_before_mitsuba_reads_it(
+    tmp_path, monkeypatch, w, h
+):
+    """A 1 KiB file whose header claims 60000 × 30000 (Mitsuba would allocate 120 GB for it)."""
+    from study import runtime
+
+    d = tmp_path / "scene"
+    d.mkdir()
+    good = exr(d / "good.exr").read_bytes()
+    (d / "sky.exr").write_bytes(with_window(good, w, h))
+    monkeypatch.setattr(runtime, "mitsuba", lambda *a, **k: pytest.fail("Mitsuba read the claimed texels"))
+    refused(scene_with_sky(d, "sky.exr"), f"{w} × {h} texels", "8192 × 4096")
+
+
+def test_a_symlink_to_a_text_file_is_refused_naming_both(tmp_path):
+    d = tmp_path / "scene"
+    d.mkdir()
+    (d / "notes.txt").write_text("not an image\n")
+    os.symlink(d / "notes.txt", d / "sky.exr")
+    refused(scene_with_sky(d, "sky.exr"), "sky.exr (a symlink to", "notes.txt", "neither an OpenEXR nor")
+
+
+def test_a_good_sky_map_still_loads_and_an_edited_one_is_checked_again(tmp_path):
+    d = tmp_path / "scene"
+    d.mkdir()
+    exr(d / "sky.exr", 0.25)
+    path = scene_with_sky(d, "sky.exr")
+    assert load_scene_file(path).environment.sky == str(d / "sky.exr")
+    exr(d / "sky.exr", -1.0, h=4, w=8)  # the same name, other bytes: not taken from the memo
+    refused(path, "32 of 32 texels are negative")
+
+
+def test_a_bad_sky_on_the_command_line_is_exit_2_and_one_line(tmp_path):
+    from conftest import run_cli
+
+    d = tmp_path / "scene"
+    d.mkdir()
+    exr(d / "sky.exr", -5.0)
+    res = run_cli("run", scene_with_sky(d, "sky.exr"), "-m", "classical", "--out", tmp_path / "out")
+    assert res.exit_code == 2, res.output
+    line = res.output.strip().splitlines()[-1]
+    assert line.startswith("error: ") and "environment.sky" in line and "negative" in line, line
+    assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------------------------------------- the folder rule
+@pytest.mark.parametrize(
+    "key, value",
+    [("sky", "../outside.exr"), ("sky", "ABS"), ("sky", "~/outside.exr"), ("file", "../ground.obj"),
+     ("file", "ABS_OBJ")],
+)  # fmt: skip
+def test_a_scene_file_names_no_file_outside_its_folder(tmp_path, key, value):
+    """Before: ``environment.sky = "../x.exr"`` and absolute paths were read from anywhere."""
+    exr(tmp_path / "outside.exr")
+    (tmp_path / "ground.obj").write_text(GROUND)
+    d = tmp_path / "scene"
+    path = scene_with_sky(d, "#808080")
+    value = {"ABS": str(tmp_path / "outside.exr"), "ABS_OBJ": str(tmp_path / "ground.obj")}.get(value, value)
+    text = path.read_text().replace(
+        f'{key} = "{"ground.obj" if key == "file" else "#808080"}"', f'{key} = "{value}"'
+    )
+    path.write_text(text)
+    with pytest.raises(StudyError) as e:
+        load_scene_file(path)
+    msg = str(e.value)
+    assert e.value.code == BAD_INPUT and "\n" not in msg
+    assert msg.startswith(f"{path}: environment.{key}: ") and str(d) in msg, msg
+    assert "absolute path" in msg or "leaves the scene's folder" in msg, msg
+
+
+def test_the_command_line_may_name_a_file_elsewhere(tmp_path):
+    """The map the scene file may not name (outside its folder) the user may name (an override, the API); a
+    subfolder is inside."""
+    import study
+
+    exr(tmp_path / "outside.exr", 0.3)
+    d = tmp_path / "scene"
+    (d / "maps").mkdir(parents=True)
+    exr(d / "maps" / "sky.exr", 0.2)
+    with pytest.raises(StudyError, match="leaves the scene's folder"):
+        load_scene_file(scene_with_sky(d, "../outside.exr"))
+    path = scene_with_sky(d, "maps/sky.exr")
+    assert load_scene_file(path).environment.sky == str(d / "maps" / "sky.exr")
+    sc = study.load_scene(path, **{"environment.sky": str(tmp_path / "outside.exr")})
+    assert sc.environment.sky == str(tmp_path / "outside.exr")
