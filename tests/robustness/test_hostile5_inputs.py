@@ -192,3 +192,80 @@ def test_the_command_line_may_name_a_file_elsewhere(tmp_path):
     assert load_scene_file(path).environment.sky == str(d / "maps" / "sky.exr")
     sc = study.load_scene(path, **{"environment.sky": str(tmp_path / "outside.exr")})
     assert sc.environment.sky == str(tmp_path / "outside.exr")
+
+
+# ---------------------------------------------------------------------------------------------- 6: figure kinds
+KIND = """
+import sys
+from study.report.kinds import FigureKind, register_kind
+
+
+def run(config, out, *, name, backend, cache, quality):
+    {body}
+
+
+register_kind(FigureKind(name="{name}", run=run, files=("made.txt",), section=lambda *a: []))
+"""
+
+
+@pytest.mark.parametrize(
+    "body, words",
+    [
+        ('raise KeyError("oops")', "run() failed: KeyError: 'oops'"),
+        ("return None", "run() returned None; a kind's run returns a list of rows"),
+        ('return "rows"', "run() returned a str ('rows'); a kind's run returns a list"),
+        ("return [1, 2]", "run() returned a list holding an int (1)"),
+        ("sys.exit(0)", "run() called sys.exit(0)"),
+        ("sys.exit(3)", "run() called sys.exit(3)"),
+    ],
+    ids=["raises", "none", "garbage", "not-dicts", "exit-0", "exit-3"],
+)
+def test_a_plugin_kind_that_fails_is_one_line_naming_it(tmp_path, monkeypatch, body, words):
+    """Before: exit 4 (an internal error) for the exception and the garbage, exit 0 with nothing written for
+    sys.exit(0)."""
+    import sys
+
+    from conftest import run_cli
+
+    from study.report import kinds
+
+    name = f"bad_{abs(hash(body)) % 10**6}"
+    (tmp_path / f"{name}.py").write_text(KIND.replace("{body}", body).replace("{name}", name))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("STUDY_PLUGINS", "")
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "fig.toml").write_text(f'kind = "{name}"\n')
+    try:
+        res = run_cli("--plugin", name, "figure", "--config", "fig.toml", "--out", tmp_path / "out")
+    finally:
+        kinds.KINDS.pop(name, None)
+        sys.modules.pop(name, None)
+    line = res.output.strip().splitlines()[-1] if res.output.strip() else ""
+    assert res.exit_code == 2, res.output
+    assert line.startswith(f"error: figure kind '{name}' (plug-in {name}): "), line
+    assert words in line, line
+
+
+@pytest.mark.parametrize(
+    "kind, words",
+    [
+        (
+            'FigureKind(name="k", run=print, files=(), section=print)',
+            "figure kind 'k' declares no files: files",
+        ),
+        ('FigureKind(name="k", run=print, files="a.txt", section=print)', "declares no files"),
+        ('FigureKind(name="k", run=print, files=("../x",), section=print)', "relative to the run's folder"),
+        ('FigureKind(name="", run=print, files=("a",), section=print)', "a figure kind's name is the word"),
+        ('{"name": "k"}', "register_kind takes a study.report.kinds.FigureKind, not a dict"),
+    ],
+    ids=["no-files", "files-str", "files-up", "no-name", "a-dict"],
+)
+def test_a_kind_that_cannot_be_registered_says_why_in_a_sentence(kind, words):
+    """Before: the message was the dataclass's repr (``FigureKind(name='k', run=<built-in …>, …) is no …``)."""
+    from study.report.kinds import FigureKind, register_kind
+
+    k = eval(kind, {"FigureKind": FigureKind})
+    with pytest.raises(StudyError) as e:
+        register_kind(k)
+    msg = str(e.value)
+    assert words in msg and "FigureKind(" not in msg and "<built-in" not in msg, msg
