@@ -269,3 +269,69 @@ def test_a_kind_that_cannot_be_registered_says_why_in_a_sentence(kind, words):
         register_kind(k)
     msg = str(e.value)
     assert words in msg and "FigureKind(" not in msg and "<built-in" not in msg, msg
+
+
+# ---------------------------------------------------------------------------------------------- 7: many seeds
+def seeds_config(tmp_path: Path, n: int, positions: int = 2) -> Path:
+    pos = ", ".join(f"[{0.1 * i:.1f}, 1.5, 0.0]" for i in range(positions))
+    path = tmp_path / f"seeds{n}.toml"
+    path.write_text(
+        f'scene = "{(ROOT / "scenes" / "room.toml").as_posix()}"\npositions = [{pos}]\nmethods = ["classical"]\n'
+        f"seeds = {list(range(n))}\n"
+    )
+    return path
+
+
+@pytest.mark.parametrize("n", [100_000, 8_000])
+def test_a_figure_with_thousands_of_seeds_is_refused_from_its_config(tmp_path, monkeypatch, n):
+    """Before: 100 000 seeds were not refused within 180 s, 8 000 after 45 s blaming camera.width × camera.height
+    (every case's scene was validated and priced first). Now the estimate prices the first seed's positions and
+    multiplies: at most ESTIMATE_SAMPLE scenes are built, and the refusal names seeds and the limit."""
+    from study.harness import config
+    from study.scene.schema import Scene
+
+    path = seeds_config(tmp_path, n)
+    built = []
+    real = Scene.with_updates
+
+    def counted(self, *a, **k):
+        built.append(1)
+        if len(built) > 2 * config.ESTIMATE_SAMPLE:
+            raise AssertionError(f"{len(built)} cases built before the refusal")
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(Scene, "with_updates", counted)
+    config.load_figure_config(
+        ROOT / "configs" / "fig4.toml"
+    )  # a shipped figure passes (one scene per position)
+    built.clear()
+    t = time.perf_counter()
+    with pytest.raises(StudyError) as e:
+        config.load_figure_config(path)
+    took = time.perf_counter() - t
+    msg = str(e.value)
+    assert e.value.key == "seeds" and "\n" not in msg and msg.startswith(f"{path}: seeds: "), msg
+    assert f"2 positions × {n:,} seeds = {2 * n:,} cases" in msg, msg
+    assert "over the limit of 120 min (--max-minutes)" in msg and "the axis that costs is seeds" in msg, msg
+    assert len(built) <= 2 and took < 15, (len(built), took)  # reading 10⁵ numbers of TOML is most of it
+
+
+def test_the_estimate_is_the_first_seeds_cases_times_the_seeds(tmp_path):
+    """``figure_estimate(config)``: seconds, cases and the breakdown, before any case is built; the seeds multiply the
+    first seed's cases (priced one by one by the budget), which the breakdown names."""
+    from study.harness import budget, config
+    from study.methods import make
+
+    path = seeds_config(tmp_path, 3, positions=4)
+    est = config.figure_estimate(path)
+    seconds, cases, b = est
+    assert cases == 12 and b["axes"] == {"positions": 4, "seeds": 3} and len(b["priced"]) == 4
+    scene = config.configured_scene(config.validate_file(config.FigureConfig, path), path)
+    own, seen = 0.0, set()
+    for i in range(4):
+        sc = scene.with_updates({"object.center": [0.1 * i, 1.5, 0.0], "render.seed": 0})
+        k = budget.impostor_key(sc)
+        own += budget.estimate(sc, [make("classical")], impostor=k not in seen).seconds
+        seen.add(k)
+    assert seconds == pytest.approx(3 * own, rel=1e-9)
+    assert b["per_case"] == pytest.approx(seconds / 12) and sum(b["parts"].values()) == pytest.approx(seconds)
