@@ -335,3 +335,40 @@ def test_the_estimate_is_the_first_seeds_cases_times_the_seeds(tmp_path):
         seen.add(k)
     assert seconds == pytest.approx(3 * own, rel=1e-9)
     assert b["per_case"] == pytest.approx(seconds / 12) and sum(b["parts"].values()) == pytest.approx(seconds)
+
+
+# ---------------------------------------------------------------------------------------------- 9: notes
+def test_a_black_reference_is_said_to_be_black_naming_the_key_not_spp_inf():
+    """Before: "the truth's own noise is inf% … render.spp ≥ inf (now 2) would bring it under" for a room whose
+    only light is off. Every pixel of that render is 0 (no light reaches anything), so every error is 0."""
+    import study
+
+    sc = study.load_scene(
+        "scenes/room.toml",
+        **{"light.enabled": False, "camera.width": 24, "camera.height": 24, "render.cube_res": 8,
+           "render.spp": 2, "render.cube_spp": 1, "render.supersample": 1},
+    )  # fmt: skip
+    res = study.evaluate(sc, ["classical"], backend="numpy")
+    assert float(np.abs(res.images["mitsuba"]).max()) == 0.0  # the truth this test is about: black
+    notes = res.notes()
+    assert len(notes) == 1 and "inf" not in notes[0], notes
+    assert notes[0].startswith("Mitsuba's reference is black") and "light.enabled = false" in notes[0], notes
+
+
+def test_a_truth_black_on_the_object_says_so_and_no_spp():
+    """A lit frame (fireflies measured) whose object shows nothing lit: every row's relMSE and the truth's noise 0."""
+    import study
+    from study.measure import lighting
+
+    sc = study.load_scene("scenes/room.toml")
+    rows = [
+        {"label": lab, "relmse_truth_exposed": 0.0, "truth_noise_relmse": 0.0, "firefly_fraction": 0.0}
+        for lab in ("oracle_map", "truth_at_hit", "classical")
+    ]
+    assert lighting.noise_note(rows, 2) == ""
+    notes = lighting.notes(rows, sc)
+    assert (
+        len(notes) == 1 and notes[0].startswith("the truth is black on the object") and "inf" not in notes[0]
+    )
+    rows[2]["relmse_truth_exposed"] = 0.5  # a method that errs: nothing is black, no note
+    assert lighting.notes(rows, sc) == []
