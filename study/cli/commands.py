@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import inspect
 import json
 import time
 from pathlib import Path
@@ -66,12 +65,11 @@ def figure(
     from study.report.kinds import config_kind
 
     kind = config_kind(config)  # the config's `kind` (grid by default): study/report/kinds/
-    takes = "images" in inspect.signature(kind.run).parameters  # the grid's per-case images, viewer and EXRs
-    rows = kind.run(config, out, name=name, backend=backend, cache=cache, quality=quality,
-                    **({"images": images} if takes else {}))  # fmt: skip
-    if kind.lines is None:
+    rows = kind.make(config, out, name=name, backend=backend, cache=cache, quality=quality, images=images)
+    lines = kind.printed(rows)  # a plug-in kind's failures: one line naming it (study.report.kinds)
+    if lines is None:
         _print_table(rows)
-    for line in kind.lines(rows) if kind.lines else ():
+    for line in lines or ():
         console.print(line, highlight=False)
     console.print(f"{name}: wrote {out} in {time.perf_counter() - t0:.1f} s", highlight=False)
     split = _time_split(out / "metadata.json")

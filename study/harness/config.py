@@ -31,6 +31,12 @@ cases (positions × seeds: ``tests/test_figure_seeds.py``).
 
 Unknown keys, unknown methods and unknown method parameters are errors naming the file and the key; so are
 method parameters that are not finite (``inf``, ``nan``) and booleans or strings given for numbers.
+
+Before any case is built, :func:`figure_estimate` prices the figure from its config alone: the first seed's cases (every
+position or case, or :data:`ESTIMATE_SAMPLE` of them spread evenly) priced by :func:`study.harness.budget.estimate`,
+times the seeds. :func:`load_figure_config` refuses a figure over ``--max-minutes`` from it at once, naming the axis
+that costs (``seeds``, ``positions`` or ``cases``) and the limit, so that 100 000 seeds are refused in well under a
+second instead of after their 100 000 scenes were validated.
 """
 
 from __future__ import annotations
@@ -39,12 +45,14 @@ import itertools
 import math
 import re
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, NamedTuple
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictInt, model_validator
 
 from study import methods as registry
 from study.errors import StudyError
+from study.harness import budget
+from study.io import file_stem
 from study.methods import Method
 from study.scene import Scene, Vec3, load_scene_file, scene_from_dict
 from study.scene.models import MAX_SEED
@@ -239,17 +247,129 @@ def shipped(path: str | Path) -> Path:
     return ROOT / path
 
 
-def load_figure_config(path: str | Path) -> tuple[FigureConfig, Scene, list[Method]]:
-    """A figure config (``path``: see :func:`shipped`), its base scene with the overrides, and its methods."""
+def load_figure_config(
+    path: str | Path, *, name: str | None = None
+) -> tuple[FigureConfig, Scene, list[Method]]:
+    """A figure config (``path``: see :func:`shipped`), its base scene with the overrides, and its methods; a
+    figure over ``--max-minutes`` (:func:`figure_estimate`) or a case out of view or over ``--max-memory`` is refused
+    before its cases are built. ``name``: the figure's (case ids ``<name>-p0``, …; default the config's stem)."""
     path = shipped(path)
     cfg = validate_file(FigureConfig, path)
     scene = configured_scene(cfg, path)
+    methods = expand_methods(cfg.methods, source=str(path))
+    check_estimate(_estimate(cfg, scene, methods, path, name=name), source=str(path))
     for i, (_, _, over) in enumerate(cfg.case_list()):
         scene.with_updates(
             over, source=f"{path} {'positions' if cfg.positions is not None else 'cases'}[{i}]"
         )
-    methods = expand_methods(cfg.methods, source=str(path))
     return cfg, scene, methods
+
+
+# ---------------------------------------------------------------------------------------------- the estimate
+#: At most this many of the first seed's positions (or cases) are priced one by one; the rest are taken to cost
+#: what these cost on average.
+ESTIMATE_SAMPLE = 64
+
+
+class FigureEstimate(NamedTuple):
+    """What a figure will cost, from its config alone (:func:`figure_estimate`).
+
+    ``seconds``: the whole figure, cold (nothing cached), at :mod:`study.harness.budget`'s rates; ``cases``:
+    positions (or cases) × seeds; ``breakdown``: ``axes`` (axis → count: ``seeds``, ``positions`` or ``cases``),
+    ``per_case`` (seconds, on average), ``parts`` (scene key → seconds over the figure, the keys of
+    :class:`study.harness.budget.Estimate`), ``priced`` (the (case id, scene) pairs priced one by one, the first
+    seed's), ``whole`` (whether those are every case)."""
+
+    seconds: float
+    cases: int
+    breakdown: dict
+
+
+def figure_estimate(config: str | Path, *, quality: str = "preview") -> FigureEstimate:
+    """The figure of ``config`` priced before any case is built (``quality``: a preset of :data:`QUALITY`).
+
+    Parameters
+    ----------
+    config : a figure config file (:func:`shipped`)
+    quality : the preset its cases get (``study figure --quality``)
+
+    Returns
+    -------
+    FigureEstimate
+        seconds, cases and the breakdown by axis and scene key (what ``study figure`` may print first).
+    """
+    path = shipped(config)
+    cfg = validate_file(FigureConfig, path)
+    scene = configured_scene(cfg, path)
+    methods = expand_methods(cfg.methods, source=str(path))
+    return _estimate(cfg, scene, methods, path, preset=quality_overrides(quality))
+
+
+def _estimate(
+    cfg, scene: Scene, methods: list[Method], path: Path, *, name=None, preset=None
+) -> FigureEstimate:
+    rows, seeds = cfg._rows(), cfg.seeds or [None]
+    axis = "positions" if cfg.positions is not None else "cases"
+    idx = sorted({round(x) for x in _spread(len(rows), ESTIMATE_SAMPLE)})
+    stem = name or file_stem(Path(path).stem)
+    priced = []
+    for i in idx:
+        suffix, _, over = rows[i]
+        seed = {} if seeds[0] is None else {"render.seed": seeds[0]}
+        priced.append((f"{stem}-{suffix}", scene.with_updates({**over, **seed, **(preset or {})},
+                                                             source=f"{path} {axis}[{i}]")))  # fmt: skip
+    seen, ests = set(), []
+    for _, sc in priced:
+        k = budget.impostor_key(sc)
+        ests.append(budget.estimate(sc, methods, impostor=k not in seen))
+        seen.add(k)
+    scale = len(rows) / len(idx) * len(seeds)
+    parts: dict[str, float] = {}
+    for e in ests:
+        for k, v in e.time.items():
+            parts[k] = parts.get(k, 0.0) + v * scale
+    total = sum(e.seconds for e in ests) * scale
+    n = len(rows) * len(seeds)
+    axes = {axis: len(rows), **({"seeds": len(seeds)} if cfg.seeds is not None else {})}
+    return FigureEstimate(
+        total,
+        n,
+        {"axes": axes, "per_case": total / n, "parts": parts, "priced": priced, "whole": n == len(priced),
+         "methods": methods},
+    )  # fmt: skip
+
+
+def _spread(n: int, k: int) -> list[float]:
+    """``min(n, k)`` indices spread evenly over 0 … n − 1, the first and the last among them."""
+    m = min(n, k)
+    return [0.0] if m == 1 else [i * (n - 1) / (m - 1) for i in range(m)]
+
+
+def check_estimate(est: FigureEstimate, *, source: str, limits: budget.Limits | None = None) -> None:
+    """Refuse a figure before its cases are built: a priced case out of view or over ``--max-memory``
+    (:func:`study.harness.budget.check_cases`, its messages), and the whole over ``--max-minutes``, naming the axis
+    that multiplies the cost (the one with the most entries: ``seeds``, ``positions`` or ``cases``) and the limit.
+    Where the priced cases are the whole figure, the time is judged by ``check_cases`` as well (its message)."""
+    limits = limits or budget.LIMITS
+    b = est.breakdown
+    budget.check_cases(b["priced"], b["methods"], source=source,
+                       limits=budget.Limits(limits.max_memory_gib, math.inf))  # fmt: skip
+    if est.seconds <= limits.max_minutes * 60:
+        return
+    if b["whole"]:
+        budget.check_cases(b["priced"], b["methods"], source=source, limits=limits)
+    axes = b["axes"]
+    axis = max(axes, key=lambda a: (axes[a], a == "seeds"))
+    product = " × ".join(f"{v:,} {a}" for a, v in axes.items())
+    part = max(b["parts"], key=b["parts"].get)
+    raise StudyError(
+        f"{product} = {est.cases:,} cases at about {budget._hours(b['per_case'])} each would take about "
+        f"{budget._hours(est.seconds)} here, over the limit of {limits.max_minutes:g} min (--max-minutes); the "
+        f"axis that costs is {axis} ({axes[axis]:,}; each case most for "
+        f"{budget._scene_key(part, b['priced'][0][1], b['methods'])}): lower it or raise --max-minutes",
+        file=source,
+        key=axis,
+    )
 
 
 #: A name that becomes one folder or file under ``--out`` / ``reports/``: a word character first, then word

@@ -10,6 +10,11 @@ that is mostly fireflies, and a truth too noisy to rank the methods by.
   ``relmse_truth_exposed`` (the reference's own noise is then a quarter or more of the smallest error it is to
   tell apart) labels the ranking, with the ``render.spp`` that would bring it under (the noise's relMSE falls as
   1/spp).
+* a black reference (:func:`black_note`): Mitsuba's render shows no light at all (``firefly_fraction`` is NaN: no
+  pixel above 0), or the truth is black on the object (every row's relMSE after exposure and the truth's noise
+  0). Every error is then 0 and ranks nothing; the note says why, by the keys that light a scene (``light.enabled``,
+  ``light.position``, ``environment.sky``), instead of a noise share of 0/0 (which asked for
+  ``render.spp ≥ inf``).
 
 :func:`notes` returns these as lines: ``study run`` prints them, and the run's page, ``index.json`` and viewer
 title carry them (:mod:`study.outputs.run_files`).
@@ -86,15 +91,52 @@ def noise_note(rows: list[dict], spp: int) -> str:
     if not (np.isfinite(errs).any() and noise == noise):
         return ""
     best = float(np.nanmin(errs))
-    share = noise / best if best > 0 else math.inf
+    if not best > 0:  # a method equal to the truth (a black one, :func:`black_note`): no share to state
+        return ""
+    share = noise / best
     if not share > REFERENCE_NOISE_SHARE:
         return ""
-    need = math.ceil(spp * share / REFERENCE_NOISE_SHARE) if math.isfinite(share) else math.inf
+    need = math.ceil(spp * share / REFERENCE_NOISE_SHARE)
     return (
         f"the truth's own noise is {share:.0%} of the best method's relMSE after exposure (limit "
         f"{REFERENCE_NOISE_SHARE:.0%}): differences under it are the reference's noise"
         + (f"; render.spp ≥ {need} (now {spp}) would bring it under" if spp else "")
     )
+
+
+def black_note(rows: list[dict], scene) -> str:
+    """The black-reference line ('' where Mitsuba's render shows light on the object): a render with no pixel
+    above 0 (``firefly_fraction`` NaN in every row that has it), or a truth black on the object (every row's
+    ``relmse_truth_exposed`` and ``truth_noise_relmse`` 0), with the reason the scene's keys give."""
+    ff = [r["firefly_fraction"] for r in rows if isinstance(r.get("firefly_fraction"), int | float)]
+    frame = bool(ff) and all(math.isnan(v) for v in ff)
+    errs = [r.get("relmse_truth_exposed") for r in rows] + [r.get("truth_noise_relmse") for r in rows]
+    nums = [e for e in errs if isinstance(e, int | float) and not math.isnan(e)]
+    on_object = bool(nums) and all(e == 0 for e in nums)
+    if not (frame or on_object):
+        return ""
+    what = (
+        "Mitsuba's reference is black: no pixel of its render shows light"
+        if frame
+        else "the truth is black on the object: nothing the object shows is lit"
+    )
+    return f"{what}, so every error is 0 and ranks nothing; {_why_dark(scene, frame)}"
+
+
+def _why_dark(scene, frame: bool) -> str:
+    """Which key leaves the scene dark."""
+    from study.scene.environment import geometry
+
+    env = geometry(scene)
+    sky = getattr(scene.environment, "sky", None)
+    light = scene.light
+    if not scene.lamp() and not env.lit and sky is None:
+        why = "light.enabled = false" if not light.enabled else "the environment's file takes no point light"
+        return f"nothing emits light ({why}, and the environment has no emitter of its own): set light.enabled = true"
+    if not frame:
+        return "what the object reflects is unlit (a black sky, environment.sky, or walls the light misses)"
+    p = ", ".join(f"{v:.3g}" for v in light.position)
+    return f"the light reaches nothing the camera sees: check light.position ({p}) and camera.target"
 
 
 def picture_label(rows: list[dict]) -> str:
@@ -110,4 +152,5 @@ def picture_label(rows: list[dict]) -> str:
 def notes(rows: list[dict], scene) -> list[str]:
     """The run's lines about its light and samples (module docstring), in that order; empty where all is well."""
     spp = getattr(getattr(scene, "render", None), "spp", 0)  # 0: not known (a figure's case without a scene)
-    return [s for s in (light_note(rows, scene), firefly_note(rows, spp), noise_note(rows, spp)) if s]
+    said = (black_note(rows, scene), light_note(rows, scene), firefly_note(rows, spp), noise_note(rows, spp))
+    return [s for s in said if s]

@@ -323,7 +323,7 @@ def _written(made: list, exrs: list, exposure: float) -> tuple[dict, list[dict]]
 
 
 def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, images: str) -> list[dict]:
-    cfg, scene, methods = load_figure_config(config)  # placement, where it runs, is a stage of its own
+    cfg, scene, methods = load_figure_config(config, name=name)  # placement runs as a stage of its own
     preset = quality_overrides(quality)
     by_name = {m.name: m.label for m in reversed(methods)}  # a bare name means its first entry
     labels = (

@@ -9,6 +9,11 @@ between: an MTL in ``materials/`` may name ``../textures/wall.png`` when both li
 packs are laid out; nothing above that folder is read. Symlinks are not followed for the check: a symlink the
 user placed inside the folder may point anywhere (the user put it there). The file is then resolved strictly, so a
 symlink loop is one line too.
+
+A scene TOML is held to the same rule (:func:`scene_file_names`): every file it names (``environment.file``,
+``environment.sky``, ``object.file``, a ``filename`` anywhere in it) must lie in or below the TOML's folder. What
+the user names on the command line or through the API (``--set environment.sky=/data/sky.exr``, an override, a
+scene dict) may lie anywhere: the user typed it.
 """
 
 from __future__ import annotations
@@ -48,23 +53,24 @@ def named_file(
         the name leaves ``folder`` or is absolute (nothing is read), names no file, or is a symlink loop.
     """
     raw = name
+    what = f"{what}: " if what else ""
     if uri:
         if _SCHEME.match(name) and not re.match(r"^[A-Za-z]:[\\/]", name):
-            raise StudyError(f"{what}: {raw!r} is a URI with a scheme; study reads files beside the scene only",
+            raise StudyError(f"{what}{raw!r} is a URI with a scheme; study reads files beside the scene only",
                              key=src)  # fmt: skip
         name = unquote(name)
     if "\0" in name:
-        raise StudyError(f"{what}: {raw!r} is not a file name (NUL byte)", key=src)
+        raise StudyError(f"{what}{raw!r} is not a file name (NUL byte)", key=src)
     base = Path(os.path.abspath(root if root is not None else folder))
     if Path(name).is_absolute() or re.match(r"^[A-Za-z]:[\\/]", name) or name.startswith("\\"):
-        raise StudyError(f"{what}: {raw!r} is an absolute path; files a scene names must lie in its folder "
+        raise StudyError(f"{what}{raw!r} is an absolute path; files a scene names must lie in its folder "
                          f"({base})", key=src)  # fmt: skip
     p = Path(os.path.normpath(Path(os.path.abspath(folder)) / name.replace("\\", "/")))
     if p != base and base not in p.parents:
-        raise StudyError(f"{what}: {raw!r} leaves the scene's folder ({base}); files a scene names must lie in "
+        raise StudyError(f"{what}{raw!r} leaves the scene's folder ({base}); files a scene names must lie in "
                          "it", key=src)  # fmt: skip
     if strict_resolve(p) == "a symlink loop":
-        raise StudyError(f"{what}: {raw!r} is a symlink loop", key=src)
+        raise StudyError(f"{what}{raw!r} is a symlink loop", key=src)
     return p  # missing: the caller says what that means for its format
 
 
@@ -85,6 +91,47 @@ def inside(folder: Path, name: str, *, uri: bool = False, root: Path | None = No
         return named_file(folder, name, what="", src="", uri=uri, root=root)
     except StudyError:
         return None
+
+
+#: Keys whose string values in a scene TOML name files, at any depth (``environment.file``, ``environment.sky``,
+#: ``object.file``, a Mitsuba scene dict's ``filename``); a sky's ``"#rrggbb"`` is a colour, not a file.
+FILE_KEYS = ("file", "filename", "sky")
+
+
+def scene_file_names(data: Any, toml: Path, *, key: str = "") -> None:
+    """Hold every file the scene TOML ``toml`` names in ``data`` (its tables) to :func:`named_file`'s rule, with the
+    TOML's folder as the root: nothing outside it is read for a scene file. ``~`` counts as absolute.
+
+    Parameters
+    ----------
+    data : the TOML's tables (or a part of them, at ``key``)
+    toml : the scene file
+    key : the dotted key of ``data`` (for the message)
+
+    Raises
+    ------
+    StudyError
+        naming ``toml`` and the dotted key, with the name and the folder, for a path that is absolute or leaves it.
+    """
+    items = data.items() if isinstance(data, dict) else enumerate(data) if isinstance(data, list) else ()
+    for k, v in items:
+        where = f"{key}[{k}]" if isinstance(k, int) else f"{key}.{k}" if key else str(k)
+        if (
+            isinstance(k, str)
+            and k in FILE_KEYS
+            and isinstance(v, str)
+            and not (k == "sky" and v.startswith("#"))
+        ):
+            try:
+                named_file(toml.parent, os.path.expanduser(v), what="", src=where)
+            except StudyError as err:
+                raise StudyError(
+                    f"{err.detail} (a file elsewhere may be named on the command line: --set {where}=PATH)",
+                    file=str(toml),
+                    key=where,
+                ) from None
+        else:
+            scene_file_names(v, toml, key=where)
 
 
 def resolve(v: Any, info: ValidationInfo) -> Any:

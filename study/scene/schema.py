@@ -114,6 +114,7 @@ from study.scene.models import (  # noqa: F401  (re-exported: the scene's types 
     _number,
     _Strict,
 )
+from study.scene.paths import scene_file_names
 from study.scene.room import RoomMesh
 from study.scene.sources import SOURCES, BoxEnv, Environment
 from study.validation import KeyedError, first_error
@@ -349,5 +350,8 @@ def scene_from_dict(
 
 
 def load_scene_file(path: str | Path) -> Scene:
-    """Read and validate a scene TOML file."""
-    return scene_from_dict(read_toml(path, what="scene file"), source=str(path), base=Path(path).parent)
+    """Read and validate a scene TOML file; every file it names must lie in or below its folder
+    (:func:`study.scene.paths.scene_file_names`)."""
+    data = read_toml(path, what="scene file")
+    scene_file_names(data, Path(path))
+    return scene_from_dict(data, source=str(path), base=Path(path).parent)

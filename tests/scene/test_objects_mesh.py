@@ -147,7 +147,8 @@ def test_relative_file_resolves_against_the_scene_file(tmp_path, monkeypatch):
 )
 def test_bad_object_files_are_one_line(tmp_path, obj, words):
     d = small_scene_dict()
-    d["object"] = {k: (str(BUNNY) if v == "BUNNY" else v) for k, v in obj.items()}
+    shutil.copy(BUNNY, tmp_path / "bunny.obj")  # beside the scene file: a scene names files in its folder
+    d["object"] = {k: ("bunny.obj" if v == "BUNNY" else v) for k, v in obj.items()}
     (tmp_path / "scene.toml").write_text(scene_toml(d))
     with pytest.raises(StudyError, match=words) as e:
         load_scene_file(tmp_path / "scene.toml")

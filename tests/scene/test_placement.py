@@ -65,7 +65,8 @@ def test_embree_cast_and_clearance_agree_with_brute_force():
 
 
 def test_a_mesh_path_and_a_toml_naming_it_place_alike(tmp_path):
-    (tmp_path / "s.toml").write_text(f'[environment]\ntype = "mesh"\nfile = "{ROOM.as_posix()}"\n')
+    (tmp_path / ROOM.name).symlink_to(ROOM)  # a scene names files in its folder (a symlink put there)
+    (tmp_path / "s.toml").write_text(f'[environment]\ntype = "mesh"\nfile = "{ROOM.name}"\n')
     a, b = study.load_scene(ROOM), study.load_scene(tmp_path / "s.toml")
     assert a.model_dump() == b.model_dump()
     c = study.load_scene(ROOM, {"object.radius": 0.2})
