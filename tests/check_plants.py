@@ -32,6 +32,56 @@ def radiance_times(factor: float) -> Callable:
     return plant
 
 
+def radiance_times_in(name: str, factor: float) -> Callable:
+    """One method's radiance (``name``: every label of that method) × ``factor``; the others and the references
+    unchanged (issue 53: classical × 1.03 passed the check)."""
+
+    def plant(mp) -> None:
+        original = Method.trace
+
+        def trace(self, B, env, x, R, **kw):
+            tr = original(self, B, env, x, R, **kw)
+            if self.name == name:
+                tr.radiance = tr.radiance * factor
+            return tr
+
+        mp.setattr(Method, "trace", trace)
+
+    return plant
+
+
+def truth_times(factor: float) -> Callable:
+    """truth_at_hit's radiance (both its seeds) × ``factor``: the reference every image is measured against."""
+
+    def plant(mp) -> None:
+        original = truth.truth_at_hit
+
+        def truth_at_hit(scene, cache, rays):
+            t1, t2 = original(scene, cache, rays)
+            return t1 * factor, t2 * factor
+
+        mp.setattr(truth, "truth_at_hit", truth_at_hit)
+
+    return plant
+
+
+def impostor_blurred(mp) -> None:
+    """The impostor's radiance blurred by a 3 × 3 box within each cube face (its distances unchanged): what every
+    cube-map method reads, and the oracle's map, lose their texel detail (issue 53: it passed the check)."""
+    from scipy.ndimage import uniform_filter
+
+    from study.impostor.capture import Impostor
+
+    original = case.impostor
+
+    def impostor(scene, cache, tracer=None):
+        imp = original(scene, cache, tracer)
+        blurred = uniform_filter(imp.radiance, size=(1, 3, 3, 1), mode="nearest")
+        return Impostor(imp.reference, blurred.astype(imp.radiance.dtype), imp.distance)
+
+    mp.setattr(case, "impostor", impostor)
+
+
 def texel_offset(mp) -> None:
     """Every method's shown point moved sideways by one cube-map texel (2/res of its distance from o, the angle
     of one texel at a face's centre), horizontally (perpendicular to it and to y); its radiance unchanged."""
@@ -54,6 +104,17 @@ def one_iteration_fewer(mp) -> None:
     def localize(self, B, env, x, R):
         fewer = Localized(**{**self.params.model_dump(), "iterations": max(0, self.params.iterations - 1)})
         return original(fewer, B, env, x, R)
+
+    mp.setattr(Localized, "localize", localize)
+
+
+def one_iteration_more(mp) -> None:
+    """``localized`` (and whatever searches with it) runs one false-position iteration more than it says."""
+    original = Localized.localize
+
+    def localize(self, B, env, x, R):
+        more = Localized(**{**self.params.model_dump(), "iterations": self.params.iterations + 1})
+        return original(more, B, env, x, R)
 
     mp.setattr(Localized, "localize", localize)
 
@@ -89,6 +150,10 @@ PLANTS: dict[str, Callable] = {
     "localized one iteration fewer": one_iteration_fewer,
     "truth at half its samples": truth_half_samples,
     "Mitsuba at half its samples": mitsuba_half_samples,
+    "classical radiance ×1.03": radiance_times_in("classical", 1.03),
+    "truth ×1.03": truth_times(1.03),
+    "impostor radiance blurred 3×3": impostor_blurred,
+    "localized one iteration more": one_iteration_more,
 }
 
 

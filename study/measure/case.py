@@ -24,7 +24,7 @@ from study.cache import Cache
 from study.errors import StudyError
 from study.impostor.envmap import EnvMap
 from study.impostor.views import Lobe
-from study.measure import lighting, metrics, outcomes, spatial, split, stats, truth
+from study.measure import bias, lighting, metrics, outcomes, spatial, split, stats, truth
 from study.measure.inputs import camera_render, capture_views, impostor, second_captures
 from study.methods import Method
 from study.optics import shading
@@ -381,6 +381,7 @@ def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool) -> 
                               rel_eps=truth.REL_EPS, emap=fmap),
         **split.split_columns(img, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
                               mask=over, held_px=r.held_px, intervals=intervals),  # sweeps: values only
+        **bias.bias_columns(img, r.truth.image, mask=over & r.held_px),  # signed: a gain shows with its sign
     }  # fmt: skip
     if t.reference == "truth_at_hit":  # the truth is not split against itself
         cols.update({k: np.nan for k in cols if k.startswith("dec_")})

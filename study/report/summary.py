@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from study import columns
 from study import methods as registry
 from study.measure import stats
 from study.outputs.markup import code, md_esc
@@ -129,7 +130,12 @@ def ranking(tab: list[dict], col: str) -> list[dict]:
     """Methods by their median over the cases of ``col`` (lowest first; ties to the lower worst case, then to the
     cheaper), each with
     ``median``, ``lo``/``hi`` and ``kind`` (:func:`study.measure.stats.case_interval`), ``max`` and ``worst``
-    (the case of the max), ``n`` (cases) and ``cost`` (median lookups per ray)."""
+    (the case of the max), ``n`` (cases) and ``cost`` (median lookups per ray). A backend-sensitive column
+    (:data:`study.columns.BACKEND_SENSITIVE`: its value hangs on the backend's float32 arithmetic) ranks nothing:
+    empty."""
+    col_decl = columns.declared(col)
+    if col_decl is not None and col_decl.backend_sensitive:
+        return []
     cases = list(dict.fromkeys(r["case"] for r in tab))
     out = []
     for lab in _labels(tab):

@@ -201,8 +201,8 @@ def test_the_committed_baseline_is_well_formed(tmp_path):
     from study.report.check import check_baseline, load_check, read_baseline, read_table
 
     cfg, _, base_dir = load_check("configs/check.toml")
-    rows = read_baseline(base_dir / "spread.csv", list(cfg.tolerance))
-    check_baseline(rows, list(cfg.tolerance), base_dir / "spread.csv")
+    rows = read_baseline(base_dir / "spread.csv", list(cfg.tolerance), tolerance=cfg.tolerance, k=cfg.k)
+    check_baseline(rows, list(cfg.tolerance), base_dir / "spread.csv", tolerance=cfg.tolerance, k=cfg.k)
     assert len(rows) == 68 and {r["seeds"] for r in rows} == {len(cfg.seeds)} and len(cfg.seeds) >= 3
     assert all(f"{m}_sd" in rows[0] for m in cfg.tolerance)
     assert len(read_table(base_dir / "results.csv")) == 68  # the first seed's table, for the report
