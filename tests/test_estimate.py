@@ -87,3 +87,30 @@ def test_the_eta_starts_from_the_estimate_until_a_unit_has_finished():
     with progress.task("quiet", 2) as t:
         progress.expect(50.0, "x")
         assert t.expected is None
+
+
+def test_seeds_of_one_geometry_read_one_distance_capture_and_draw_their_own_radiance(tmp_path, monkeypatch):
+    from study.impostor import capture
+    from study.measure import inputs
+
+    calls = {"distance": 0, "radiance": 0}
+
+    def counted(name, fn):
+        def wrapped(*a, **k):
+            calls[name] += 1
+            return fn(*a, **k)
+
+        return wrapped
+
+    monkeypatch.setattr(inputs, "capture_distance", counted("distance", capture.capture_distance))
+    monkeypatch.setattr(inputs, "render_cube", counted("radiance", capture.render_cube))
+    cache = Cache(tmp_path)
+    sc = _scene(cube_res=8, cube_spp=1)
+    a = inputs.impostor(sc, cache)
+    b = inputs.impostor(sc.with_updates({"render.seed": 5}), cache)
+    assert calls == {"distance": 1, "radiance": 2}  # the seed redraws the path-traced radiance only
+    np.testing.assert_array_equal(a.distance, b.distance)
+    assert not np.array_equal(a.radiance, b.radiance)
+    # another reference point is another capture of distances
+    inputs.impostor(sc.with_updates({"reference.point": [0.2, 1.4, 0.0]}), cache)
+    assert calls["distance"] == 2
