@@ -55,10 +55,21 @@ def main(argv=None) -> None:
     n = estimate.units(scene, methods, rendered=True, intervals=True)
     sweep = run_case(scene, methods, backend=args.backend, cache=cache, intervals=False, keep_images=False)
     measured["sweep"] = dict(sweep.times)
+    # twice the camera's width and height (the impostor and probes cached): the columns' cost per pixel and row
+    big = scene.with_updates(
+        {"camera.width": 2 * scene.camera.width, "camera.height": 2 * scene.camera.height}
+    )
+    measured["large"] = dict(run_case(big, methods, backend=args.backend, cache=cache, intervals=True).times)
+    print(f"sweep: {measured['sweep']}\nlarge: {measured['large']}", flush=True)
+    n2 = estimate.units(big, methods, rendered=True, intervals=True)
     seconds["inputs"] = cold["inputs"] / max(n["inputs"], 1.0)  # with the distances' capture
-    for stage in ("exact", "traces", "columns"):  # the same work cold and warm: the faster (a shared machine)
+    for stage in ("exact", "traces"):  # the same work cold and warm: the faster (a shared machine)
         seconds[stage] = min(cold[stage], warm[stage]) / max(n[stage], 1.0)
-    seconds["columns_sweep"] = sweep.times["columns"] / max(n["columns"], 1.0)
+    small_cols = min(cold["columns"], warm["columns"])
+    per_px = (measured["large"]["columns"] - small_cols) / max(n2["columns"] - n["columns"], 1.0)
+    seconds["columns"] = max(per_px, 0.0)
+    seconds["columns_method"] = max(small_cols - seconds["columns"] * n["columns"], 0.0) / len(methods)
+    seconds["sweep_share"] = min(1.0, sweep.times["columns"] / max(small_cols, 1e-9))
     for stage in ("renders", "probes"):  # what the cold run rendered beyond the warm run's reads
         seconds[stage] = max(cold[stage] - warm[stage], 0.0) / max(n[stage], 1.0)
     seconds["case"] = max(warm["wall"] - sum(warm[k] for k in estimate.CASE_PARTS), 0.0)

@@ -14,7 +14,8 @@ renders    Mitsuba samples not in the cache: the impostor's faces and its second
 probes     Mitsuba samples of the probes' cube maps not in the cache (``render.probe_spp``), × max_depth / 4
 exact      the object's secondary rays (Embree's exact hits, outcome classes, the oracle)
 traces     the object's rays × the methods' lookups per ray (their bounds, :meth:`Method.lookup_bound`)
-columns    the object's pixels × the methods (a figure's, with pixel intervals; a sweep's without)
+columns    the object's pixels × the methods, and the methods (a fixed cost per method row: ``columns_method``);
+           a sweep's (no pixel intervals) scaled by ``sweep_share``
 =========  ==========================================================================================
 
 The seconds per unit are a table in the repository (:data:`COSTS`, ``stage_costs.json`` beside this module) written
@@ -49,8 +50,9 @@ DEFAULT_RATES = {
     "probes": 1 / 1.3e6,
     "exact": 5e-6,
     "traces": 0.06e-6,
-    "columns": 40e-6,
-    "columns_sweep": 15e-6,
+    "columns": 10e-6,
+    "columns_method": 0.2,
+    "sweep_share": 0.5,
     "case": 1.0,
 }
 
@@ -107,7 +109,8 @@ def _probes(methods) -> int:
 
 def units(scene, methods, *, rendered: bool = True, intervals: bool = True) -> dict[str, float]:
     """The units of each stage of one case (module docstring); ``rendered`` False: its renders and probes are
-    cached (0 samples); ``intervals``: a figure's columns (key ``columns``) or a sweep's (``columns_sweep``)."""
+    cached (0 samples); ``intervals``: a figure's columns or a sweep's (``sweep_share`` of them, where a unit
+    counts)."""
     from study.harness.budget import object_pixels
 
     c, r = scene.camera, scene.render
@@ -126,7 +129,9 @@ def units(scene, methods, *, rendered: bool = True, intervals: bool = True) -> d
         "probes": probe_samples * depth if rendered else 0.0,
         "exact": rays,
         "traces": rays * lookups,
-        "columns" if intervals else "columns_sweep": pixels * len(methods),
+        "columns": pixels * len(methods),
+        "columns_method": float(len(methods)),
+        "sweep_share": 0.0 if intervals else 1.0,
     }
 
 
@@ -144,8 +149,11 @@ def estimate(scenes, methods, *, cache: Cache | None = None, intervals: bool = T
         k = impostor_key(sc)
         rendered = k not in seen and not cached_impostor(sc, cache)
         seen.add(k)
-        for stage, n in units(sc, methods, rendered=rendered, intervals=intervals).items():
-            est.stages["columns" if stage.startswith("columns") else stage] += n * rate[stage]
+        n = units(sc, methods, rendered=rendered, intervals=intervals)
+        share = rate["sweep_share"] if n.pop("sweep_share") else 1.0
+        for stage, v in n.items():
+            cost = v * rate[stage] * (share if stage.startswith("columns") else 1.0)
+            est.stages["columns" if stage.startswith("columns") else stage] += cost
         est.fixed += rate["case"]
         est.cases += 1
     return est
@@ -178,3 +186,44 @@ def config_estimate(path, *, backend: str = "numpy", cache: Cache | None = None)
     preset = {}
     scenes = [scene.with_updates({**over, **preset}) for _, _, over in cfg.case_list()]
     return estimate(scenes, methods, cache=cache, intervals=True)
+
+
+def commands_estimate(commands, *, cache: Cache | None = None, jobs: int = 1) -> tuple[Estimate, list[str]]:
+    """(the :class:`Estimate` of ``commands``, the commands it does not model): ``figure NAME`` (its config,
+    ``configs/NAME.toml``) and ``sweep PATH`` (its cases, a sweep's columns) are counted, ``jobs`` of them at a
+    time; anything else (the caustics, the animation, the convergence study, the report) is listed, not counted.
+    What ``scripts/reproduce.sh`` prints before it starts."""
+    from study.harness.sweep import load_sweep
+
+    root = Path(__file__).resolve().parents[2]
+    total, left = Estimate(0, dict.fromkeys(CASE_PARTS, 0.0)), []
+    for cmd in commands:
+        words = cmd.split()
+        if len(words) >= 2 and words[0] == "figure":
+            total = total + config_estimate(root / "configs" / f"{words[1]}.toml", cache=cache)
+        elif len(words) >= 2 and words[0] == "sweep":
+            sw = load_sweep(root / words[1])
+            total = total + estimate([c.scene for c in sw.cases], sw.methods, cache=cache, intervals=False)
+        elif words:
+            left.append(words[0] if words[0] != "figure" else cmd)
+    total.jobs = jobs
+    return total, left
+
+
+def main(argv=None) -> None:
+    """``python -m study.harness.estimate [--jobs J] [--cache DIR] COMMAND...``: one line, the estimate of
+    ``study`` commands (:func:`commands_estimate`)."""
+    import argparse
+
+    ap = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--cache", default=".cache")
+    ap.add_argument("commands", nargs="*")
+    args = ap.parse_args(argv)
+    est, left = commands_estimate(args.commands, cache=Cache(args.cache), jobs=args.jobs)
+    rest = f"; not counted: {', '.join(left)}" if left else ""
+    print(told(est, "of the figures and sweeps") + rest)
+
+
+if __name__ == "__main__":
+    main()
