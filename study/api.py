@@ -417,6 +417,11 @@ def evaluate(
     ms, wrong = surface_methods(scene, method_list(methods), chosen=chosen, allow_mismatch=allow_mismatch)
     budget.check_backend(backend)
     budget.check_cases([("run", scene)], ms, source=source)
+    from study import progress
+    from study.harness import estimate
+
+    est = estimate.estimate([scene], ms, cache=Cache(cache))  # told before it starts (study.progress.expect)
+    progress.expect(est.seconds, estimate.told(est))
     from study import runtime
 
     with runtime.using_render_device("cuda" if backend == "cuda" else None):  # renders and exact hits too, as

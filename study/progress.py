@@ -43,6 +43,7 @@ class Task:
     item: str = ""  # the unit now running
     open: list = field(default_factory=list)  # the stages running, outermost first: (name, start)
     detail: str = ""  # how far the stage is (:func:`note`: "probe 2/6"), "" until it says
+    expected: float | None = None  # seconds the whole task was estimated to take (:func:`expect`)
 
     @property
     def stage(self) -> str:
@@ -59,10 +60,11 @@ class Task:
 
     @property
     def eta(self) -> float | None:
-        """Seconds left: mean seconds per unit finished in this run × units left (None before the first)."""
+        """Seconds left: mean seconds per unit finished in this run × units left; before the first unit, the
+        estimate (:func:`expect`) less the time spent (None without one)."""
         ran = self.done - self.start
         if not self.total or ran <= 0:
-            return None
+            return None if self.expected is None else max(self.expected - self.elapsed, 0.0)
         return self.elapsed / ran * max(self.total - self.done, 0)
 
     @property
@@ -86,6 +88,9 @@ class Reporter:
 
     def noted(self, task: Task, text: str) -> None:
         """The stage now running said how far it is (``task.detail``)."""
+
+    def expected(self, task: Task, text: str) -> None:
+        """The task's estimate, told before its work starts (:func:`expect`): ``text`` says it in one line."""
 
     def advanced(self, task: Task, what: str) -> None:
         """Unit ``what`` finished (``task.done`` counts it)."""
@@ -129,6 +134,16 @@ def note(text: str) -> None:
     t = _current()
     t.detail = text
     _reporter.noted(t, text)
+
+
+def expect(seconds: float, text: str) -> None:
+    """The current task is estimated to take ``seconds`` (:mod:`study.harness.estimate`), ``text`` the line that
+    says so: kept on the task (its ETA starts from it) and told to the reporter; a no-op without a reporter."""
+    if _reporter is None:
+        return
+    t = _current()
+    t.expected = float(seconds)
+    _reporter.expected(t, text)
 
 
 def _enter(t: Task, name: str) -> None:

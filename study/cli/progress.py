@@ -87,7 +87,9 @@ class Lines(Reporter):
             if t is None or not t.stage or now - max(self.last, t.stage_t0) < self.every:
                 continue
             how = f" ({t.detail})" if t.detail else ""
-            self.line(f"{t.where}: {t.stage} running for {duration(now - t.stage_t0)}{how}")
+            left = t.eta
+            eta = "" if left is None else f", ETA {duration(left)}"
+            self.line(f"{t.where}: {t.stage} running for {duration(now - t.stage_t0)}{how}{eta}")
 
     def _ended(self, task: Task) -> None:
         if task in self.tasks:
@@ -99,6 +101,9 @@ class Lines(Reporter):
 
     def failed(self, task: Task) -> None:
         self._ended(task)
+
+    def expected(self, task: Task, text: str) -> None:
+        self.line(text)
 
     def entered(self, task: Task, name: str) -> None:
         self.line(f"{task.where}: {name} …")

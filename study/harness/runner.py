@@ -33,7 +33,7 @@ from study import runtime
 from study.cache import Cache
 from study.codehash import code_hash
 from study.errors import StudyError, os_problem
-from study.harness import budget
+from study.harness import budget, estimate
 from study.harness.cluster import run_dask, warm_worker
 from study.harness.sweep import Case, load_sweep
 from study.impostor.capture import impostor_key
@@ -275,6 +275,9 @@ def run_sweep(
             warm=(warm_worker, backend),
             group=lambda c: impostor_key(c.scene),
             name=f"sweep {Path(path).stem}",
+            expect=lambda todo: estimate.estimate(
+                [c.scene for c in todo], sweep.methods, cache=Cache(cache_s), intervals=False, jobs=jobs
+            ),  # fmt: skip
         )
     except StudyError as err:  # a case's refusal names the sweep file
         if err.file:
@@ -302,11 +305,13 @@ def run_cases(
     warm: tuple | None = None,
     group: Callable[[Case], str] | None = None,
     name: str = "cases",
+    expect: Callable[[list[Case]], estimate.Estimate] | None = None,
 ) -> tuple[list[dict], dict]:
     """Run the cases not yet finished under ``out`` and write ``<out>/results.csv`` (+ ``metadata.json``, and
     what ``extra(rows, dir)`` writes) as one output set, swapped in at the end (:func:`study.io.output_set`); with
     ``into`` they go to that directory instead, part of the caller's output set (the case files stay in ``out``).
 
+    ``expect(todo)``: the :class:`~study.harness.estimate.Estimate` of the cases left, told before they start.
     ``task(case)`` gives the function and arguments that compute a case's rows (run here, in ``jobs`` processes or
     on Dask); each row gets the case id and one ``axis:<key>`` column per label of the case. A case file is reused
     only if ``check(case, rows)`` accepts its rows (e.g. :func:`sweep_check`); computed rows must pass it too.
@@ -348,6 +353,9 @@ def run_cases(
             progress(len(done), len(cases), "")
         timing = None
         with pg.task(name, len(cases), done=len(done)):  # stage lines in this process, the ETA everywhere
+            if expect is not None and todo:  # the estimate of the cases left, before they start
+                est = expect(todo)
+                pg.expect(est.seconds, estimate.told(est))
             if dask and todo:
                 timing = run_dask(batches(todo), task, jobs, dask, finish, warm=warm, group=group)
                 meta = {**meta, "dask": timing}

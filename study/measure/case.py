@@ -24,7 +24,7 @@ from study.cache import Cache
 from study.errors import StudyError
 from study.impostor.envmap import EnvMap
 from study.impostor.views import Lobe
-from study.measure import bias, lighting, metrics, outcomes, spatial, split, stats, truth
+from study.measure import batched, bias, lighting, metrics, outcomes, spatial, split, stats, truth
 from study.measure.inputs import camera_render, capture_views, impostor, second_captures
 from study.methods import Method
 from study.optics import shading
@@ -288,12 +288,23 @@ def run_case(
     base = _base_columns(scene, case_id, backend, rays, exact, o)
     out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=mitsuba, truth=ref.image, mask=mask, held=held_px,
                      occluded=rays.per_pixel(exact.occluded.astype(float), fill=0.0))  # fmt: skip
+    # every method's image columns in one pass per reference (study.measure.batched); the references' own rows
+    # take the per-trace path (their pixels differ: the oracle's are the held ones)
+    ran = [t for t in traces if not t.reference]
+    batch, fmaps = batched.method_columns(
+        np.stack([t.image for t in ran]) if ran else np.zeros((0, *mask.shape, 3)), refs, backend=backend,
+        intervals=intervals,
+    )  # fmt: skip
+    by_trace = {id(t): (c, f) for t, c, f in zip(ran, batch, fmaps)}
     for t in traces:
         ang = metrics.angular_error(rays.x, t.shown, exact.point)
         oc = _classify(B, backend, rays, t.shown, exact)
-        fmap = metrics.flip_map(ref.image, t.image, backend) if intervals and not t.reference else None
         extra = {"held_fraction": float(held.mean()) if len(held) else np.nan} if t.reference else {}
-        cols = _image_columns(t, refs, fmap, backend, intervals)
+        cols, fmap = (
+            by_trace[id(t)]
+            if id(t) in by_trace
+            else (_image_columns(t, refs, None, backend, intervals), None)
+        )
         if PRODUCERS:
             ctx = RayContext(rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image, ref.image,
                              mask, t.label)  # fmt: skip
@@ -365,7 +376,8 @@ def _base_columns(scene: Scene, case_id: str, backend: str, rays, exact: ExactHi
 def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool) -> dict:
     """One image against every reference: the oracle (on held pixels; unheld ones take the image's value, as FLIP
     and SSIM filter across pixels and a marked neighbour must not count), the truth, Mitsuba; the truth's own
-    columns, pixel intervals and the error split."""
+    columns, pixel intervals and the error split. The per-trace path: the references' rows take it; the methods'
+    are measured together by :func:`study.measure.batched.method_columns`, to the same values."""
     over = r.mask if t.over is None else t.over
     img = t.image
     cols = {

@@ -86,6 +86,34 @@ def exposed_columns(img, ref, noise, *, mask, ev: float, interval=None) -> dict[
     return out
 
 
+def exposed_stack(images, ref, noise, *, mask, ev: float, interval=None) -> list[dict[str, float]]:
+    """:func:`exposed_columns` of each image of ``images`` (M, H, W, 3) against one ``ref``: the reference's
+    exposed pixels and its noise's relMSE once, the images' per-pixel relMSE over the stack, ``interval`` per
+    image."""
+    mask = np.asarray(mask, bool)
+    g = 2.0**ev
+    r_px = np.asarray(ref, np.float64)[mask]
+    r = g * r_px
+    den = r * r + EXPOSED_EPS
+    n = g * np.asarray(noise, np.float64)[mask]
+    noise_rel = float(np.mean(n * n / den)) if n.size else math.nan
+    d = g * (np.asarray(images, np.float64)[:, mask] - r_px)
+    per_pixel = np.mean(d * d / den, axis=-1)  # (M, P)
+    out = []
+    for pp in per_pixel:
+        row = {
+            "relmse_truth_exposed": float(pp.mean()) if pp.size else math.nan,
+            "truth_noise_relmse": noise_rel,
+            "truth_exposure_ev": float(ev),
+        }
+        if interval is not None:
+            row["relmse_truth_exposed_lo"], row["relmse_truth_exposed_hi"] = (
+                interval(pp) if pp.size else (math.nan, math.nan)
+            )
+        out.append(row)
+    return out
+
+
 def firefly_fraction(picture: np.ndarray, noise: np.ndarray) -> float:
     """The share of pixels of ``picture`` (the two seeds' mean, linear RGB) whose displayed luminance differs
     between the seeds (``picture`` ± ``noise``, ``noise`` = half their difference) by more than

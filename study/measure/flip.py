@@ -144,6 +144,50 @@ def _max_distance() -> float:
 
 
 # ---------------------------------------------------------------------------------------------- the map
+def image_terms(B: Backend, srgb: V3, width: int, height: int, ppd: float = PPD) -> tuple:
+    """What FLIP needs of one image alone, (L, a, b, edge, point): its CSF-filtered colour in Hunt-adjusted CIELab
+    and the magnitudes of its luminance's first and second derivatives (edges and points). An image's terms do not
+    depend on the image it is compared with, so a reference's are computed once for every test image
+    (:func:`compare`; :func:`ldr_flip` is the two in a row). ``B``'s ``shifted`` decides the images' edges: a
+    :class:`Stacked` backend filters several images of one size, each with its own clamped edges."""
+    w, h = width, height
+    y = _ycxcz(B, srgb)
+    B.eval(y.x, y.y, y.z)
+    # ------------------------------------------------------------------ colour: CSF filtering, Hunt
+    ycx, cz = spatial_filters(ppd)
+    s1 = _convolve(B, [(y.x, 0), (y.y, 1)], ycx, w, h, 1)
+    c1 = _convolve(B, [(y.z, 0), (y.z, 1)], cz, w, h, 1)
+    s2 = _convolve(B, [(s1[0], 0), (s1[1], 1)], ycx, w, h, 0)
+    c2 = _convolve(B, [(c1[0], 0), (c1[1], 1)], cz, w, h, 0)
+    lab = _hunt_lab(B, V3(s2[0], s2[1], c2[0] + c2[1]))
+    # ------------------------------------------------------------------ features: edges and points of luminance
+    ff = feature_filter(ppd)
+    n = y.x * (1 / 116.0) + 16.0 / 116.0
+    B.eval(n)
+    f1 = _convolve(B, [(n, 1), (n, 2), (n, 0)], ff, w, h, 1)
+    dx, ddx, dy, ddy = _convolve(B, [(f1[0], 0), (f1[1], 0), (f1[2], 1), (f1[2], 2)], ff, w, h, 0)
+    edge, point = B.sqrt(dx * dx + dy * dy), B.sqrt(ddx * ddx + ddy * ddy)
+    B.eval(lab.x, lab.y, lab.z, edge, point)
+    return lab.x, lab.y, lab.z, edge, point
+
+
+def compare(B: Backend, ref: tuple, test: tuple):
+    """The per-pixel FLIP error from two images' :func:`image_terms` (arrays of one length): the HyAB distance of
+    their colours raised to q_c and re-mapped to [0, 1], to the power 1 − the feature difference."""
+    lr, ar, br, er, pr = ref
+    lt, at, bt, et, pt = test
+    da, db = ar - at, br - bt
+    hyab = B.abs(lr - lt) + B.sqrt(da * da + db * db)
+    cmax = _max_distance()
+    pcc = PC * cmax
+    dc = B.power(hyab, QC)
+    dc = B.select(dc < pcc, dc * (PT / pcc), PT + (dc - pcc) * ((1.0 - PT) / (cmax - pcc)))
+    df = B.power(B.maximum(B.abs(er - et), B.abs(pr - pt)) * (1 / math.sqrt(2.0)), QF)
+    err = B.select(dc > 0.0, B.power(B.maximum(dc, 1e-30), 1.0 - df), 0.0 * dc)
+    B.eval(err)
+    return err
+
+
 def ldr_flip(B: Backend, ref: V3, test: V3, width: int, height: int, ppd: float = PPD):
     """Per-pixel LDR-FLIP error of ``test`` against ``ref`` on backend ``B``.
 
@@ -159,44 +203,90 @@ def ldr_flip(B: Backend, ref: V3, test: V3, width: int, height: int, ppd: float 
     -------
     (height · width,) float array of ``B``: the FLIP error per pixel, in [0, 1].
     """
-    w, h = width, height
-    yr, yt = _ycxcz(B, ref), _ycxcz(B, test)
-    B.eval(yr.x, yr.y, yr.z, yt.x, yt.y, yt.z)
-    # ------------------------------------------------------------------ colour: CSF filtering, Hunt, HyAB
-    ycx, cz = spatial_filters(ppd)
-    s1 = _convolve(B, [(yr.x, 0), (yr.y, 1), (yt.x, 0), (yt.y, 1)], ycx, w, h, 1)
-    c1 = _convolve(B, [(yr.z, 0), (yr.z, 1), (yt.z, 0), (yt.z, 1)], cz, w, h, 1)
-    s2 = _convolve(B, [(s1[0], 0), (s1[1], 1), (s1[2], 0), (s1[3], 1)], ycx, w, h, 0)
-    c2 = _convolve(B, [(c1[0], 0), (c1[1], 1), (c1[2], 0), (c1[3], 1)], cz, w, h, 0)
-    lr = _hunt_lab(B, V3(s2[0], s2[1], c2[0] + c2[1]))
-    lt = _hunt_lab(B, V3(s2[2], s2[3], c2[2] + c2[3]))
-    dab = V3(lr.y - lt.y, lr.z - lt.z, 0.0 * lr.x)
-    hyab = B.abs(lr.x - lt.x) + B.sqrt(dab.x * dab.x + dab.y * dab.y)
-    cmax = _max_distance()
-    pcc = PC * cmax
-    dc = B.power(hyab, QC)
-    dc = B.select(dc < pcc, dc * (PT / pcc), PT + (dc - pcc) * ((1.0 - PT) / (cmax - pcc)))
-    B.eval(dc)
-    # ------------------------------------------------------------------ features: edges and points of luminance
-    ff = feature_filter(ppd)
-    nr, nt = yr.x * (1 / 116.0) + 16.0 / 116.0, yt.x * (1 / 116.0) + 16.0 / 116.0
-    B.eval(nr, nt)
-    f1 = _convolve(B, [(nr, 1), (nr, 2), (nr, 0), (nt, 1), (nt, 2), (nt, 0)], ff, w, h, 1)
-    f2 = _convolve(
-        B,
-        [(f1[0], 0), (f1[1], 0), (f1[2], 1), (f1[2], 2), (f1[3], 0), (f1[4], 0), (f1[5], 1), (f1[5], 2)],
-        ff,
-        w,
-        h,
-        0,
-    )
-    dxr, ddxr, dyr, ddyr, dxt, ddxt, dyt, ddyt = f2
-    edge = B.abs(B.sqrt(dxr * dxr + dyr * dyr) - B.sqrt(dxt * dxt + dyt * dyt))
-    point = B.abs(B.sqrt(ddxr * ddxr + ddyr * ddyr) - B.sqrt(ddxt * ddxt + ddyt * ddyt))
-    df = B.power(B.maximum(edge, point) * (1 / math.sqrt(2.0)), QF)
-    err = B.select(dc > 0.0, B.power(B.maximum(dc, 1e-30), 1.0 - df), 0.0 * dc)
-    B.eval(err)
-    return err
+    return compare(B, image_terms(B, ref, width, height, ppd), image_terms(B, test, width, height, ppd))
+
+
+class Stacked:
+    """Backend ``B`` for ``count`` images of one size stacked in one flat array (image after image, each row-major):
+    :meth:`shifted` clamps at each image's own edges, so every filter of :func:`image_terms` treats each image as
+    if alone; everything else is ``B``'s."""
+
+    def __init__(self, B: Backend, count: int):
+        self.B, self.count = B, count
+
+    def __getattr__(self, name):
+        return getattr(self.B, name)
+
+    def shifted(self, a, width: int, height: int, k: int, axis: int):
+        if self.B.name == "numpy":  # rows along x are rows of the whole stack; along y, of each image
+            if axis == 1:
+                return self.B.shifted(a, width, self.count * height, k, 1)
+            return _shift_rows(a, width, height, self.count, k)
+        dr, m = self.B.dr, self.B.m
+        w, h = dr.opaque(m.Int32, width), dr.opaque(m.Int32, height)
+        i = dr.arange(m.Int32, width * height * self.count)
+        local = i % (w * h)
+        x, y = local % w, local // w
+        if axis == 1:
+            x = dr.clip(x + k, 0, w - 1)
+        else:
+            y = dr.clip(y + k, 0, h - 1)
+        return dr.gather(type(a), a, m.UInt32(i - local + y * w + x))
+
+    def tiled(self, a, size: int):
+        """A one-image array (``size`` values) repeated for every image of the stack."""
+        if self.B.name == "numpy":
+            return np.tile(np.asarray(a), self.count)
+        dr, m = self.B.dr, self.B.m
+        i = dr.arange(m.UInt32, size * self.count) % dr.opaque(m.UInt32, size)
+        return dr.gather(type(a), a, i)
+
+
+def _shift_rows(a, width: int, height: int, count: int, k: int):
+    img = np.asarray(a).reshape(count, height, width)
+    idx = np.clip(np.arange(height) + k, 0, height - 1)
+    return np.take(img, idx, axis=1).reshape(-1)
+
+
+#: A stack holds at most this many pixels at once (the filters keep about 30 float32 arrays of its size alive).
+STACK_PIXELS = 1 << 22
+
+
+def flip_stack(
+    ref: np.ndarray | None,
+    tests: np.ndarray,
+    backend: str,
+    *,
+    refs: np.ndarray | None = None,
+    linear: bool = True,
+) -> np.ndarray:
+    """(M, H, W) float32 FLIP maps of ``tests`` (M, H, W, 3) against one ``ref`` (H, W, 3), whose
+    :func:`image_terms` are computed once, or against ``refs`` (M, H, W, 3), one per test, on ``backend``
+    ('numpy', 'llvm' or 'cuda': this module's array code; values as :func:`ldr_flip_image` of each pair, within
+    float32 rounding). At most :data:`STACK_PIXELS` pixels are filtered at once."""
+    B = get_backend(backend)
+    tests = np.asarray(tests)
+    M, h, w = tests.shape[:3]
+    size = h * w
+
+    def upload(a):
+        v = B.vec(np.asarray(a, np.float32).reshape(-1, 3))
+        return V3(*(_linear_to_srgb(B, c) for c in (v.x, v.y, v.z))) if linear else v
+
+    one = None if ref is None else image_terms(B, upload(ref), w, h)
+    step = max(1, STACK_PIXELS // max(size, 1))
+    out = []
+    for s in range(0, M, step):
+        part = tests[s : s + step]
+        S = Stacked(B, len(part))
+        t = image_terms(S, upload(part), w, h)
+        r = (
+            tuple(S.tiled(c, size) for c in one)
+            if one is not None
+            else image_terms(S, upload(refs[s : s + step]), w, h)
+        )
+        out.append(np.asarray(B.numpy(compare(S, r, t)), np.float32).reshape(len(part), h, w))
+    return np.concatenate(out) if out else np.zeros((0, h, w), np.float32)
 
 
 def _linear_to_srgb(B: Backend, c):

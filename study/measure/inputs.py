@@ -23,13 +23,24 @@ from study.scene.environment import env_key
 from study.scene.sources import key_fields
 
 
+def distance_key(scene: Scene) -> str:
+    """Content key of the impostor's distances: the environment's triangles, the reference point and the cube
+    resolution, nothing path traced (:func:`study.impostor.capture.capture_distance` is Embree's exact distances):
+    not the seed, the samples, the bounces or the light, so the seeds of one geometry read one capture."""
+    return content_key(env_key(scene), [float(c) for c in scene.reference.point], scene.render.cube_res,
+                       "distance-v1")  # fmt: skip
+
+
 def impostor(scene: Scene, cache: Cache, tracer: Tracer | None = None) -> Impostor:
+    """The impostor of ``scene``, cached: its radiance (path traced: one per seed, :func:`impostor_key`) and its
+    distances (exact: one per geometry, :func:`distance_key`)."""
     r = scene.render
     key = impostor_key(scene)
     rad = cache.get("radiance", key, lambda: render_cube(scene, r.cube_res, r.cube_spp), code=render_cube)
     dist = cache.get(
-        "distance", key, lambda: capture_distance(scene, r.cube_res, tracer), code=capture_distance
-    )
+        "distance", distance_key(scene), lambda: capture_distance(scene, r.cube_res, tracer),
+        code=capture_distance,
+    )  # fmt: skip
     return Impostor(
         np.asarray(scene.reference.point, float),
         rad.reshape(6, r.cube_res, r.cube_res, 3),

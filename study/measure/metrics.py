@@ -80,6 +80,17 @@ def ssim(ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray) -> float:
     return float(smap.mean(axis=-1)[mask].mean())
 
 
+#: FLIP's filters reach fewer pixels than this (< 12 px at 67 ppd): a pixel farther from every pixel where two
+#: images differ has error 0, and a crop this much larger than a region gives the region's errors bit for bit.
+FLIP_MARGIN = 24
+
+
+def differing(ref: np.ndarray, test: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the pixels where two images differ in some channel (NaN compared as a value)."""
+    a, b = np.asarray(ref), np.asarray(test)
+    return np.any((a != b) & ~(np.isnan(a) & np.isnan(b)), axis=-1)
+
+
 def flip_map(ref: np.ndarray, test: np.ndarray, backend: str = "numpy") -> np.ndarray:
     """Per-pixel LDR-FLIP error map of two linear-radiance images.
 
@@ -94,8 +105,24 @@ def flip_map(ref: np.ndarray, test: np.ndarray, backend: str = "numpy") -> np.nd
     Returns
     -------
     (H, W) float32 array
-        FLIP error per pixel, in [0, 1] (0: indistinguishable).
+        FLIP error per pixel, in [0, 1] (0: indistinguishable). Only the bounding box of the pixels where the
+        images differ, grown by :data:`FLIP_MARGIN`, is filtered: every other pixel's error is 0, as the whole
+        frame's (bit for bit, ``tests/measure/test_batched_columns.py``).
     """
+    ref, test = np.asarray(ref), np.asarray(test)
+    diff = differing(ref, test)
+    out = np.zeros(ref.shape[:2], np.float32)
+    if not diff.any():  # identical images: FLIP is 0 everywhere
+        return out
+    ys, xs = np.nonzero(diff)
+    y0, y1 = max(ys.min() - FLIP_MARGIN, 0), ys.max() + FLIP_MARGIN + 1
+    x0, x1 = max(xs.min() - FLIP_MARGIN, 0), xs.max() + FLIP_MARGIN + 1
+    out[y0:y1, x0:x1] = _flip_frame(ref[y0:y1, x0:x1], test[y0:y1, x0:x1], backend)
+    return out
+
+
+def _flip_frame(ref: np.ndarray, test: np.ndarray, backend: str) -> np.ndarray:
+    """:func:`flip_map` of the whole frame given."""
     if (
         backend != "numpy"
     ):  # the sRGB encoding on the device too (float32; within 1e-4, tests/measure/test_flip.py)
@@ -124,7 +151,7 @@ def flip_values(
     if not mask.any():
         return np.zeros(0, np.float32)
     if emap is None:  # only the mask's bounding box + 24 px: FLIP's filters reach < 12 px (67 ppd), so the
-        mask, test, ref = _crop(mask, 24, test, ref)  # masked pixels' errors are bit-identical
+        mask, test, ref = _crop(mask, FLIP_MARGIN, test, ref)  # masked pixels' errors are bit-identical
         emap = flip_map(ref, test, backend)
     return np.asarray(emap)[mask]
 

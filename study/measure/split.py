@@ -176,7 +176,7 @@ def pixel_terms(img, truth, noise, oracle, oracle_seed, oracle_coarse, held_px) 
     img, truth, noise, oracle, oracle_seed, oracle_coarse : (P, 3) arrays
         The method's image, truth_at_hit, its noise image, oracle_map, the oracle from a second capture seed (1/k
         of the samples) and from the map at half the resolution, on the object's pixels (oracles may be NaN where
-        not held).
+        not held). ``img`` may be a stack (M, P, 3): each term that the image enters is then (M, P).
     held_px : (P,) bool
         The pixel's hits are all held.
 
@@ -214,11 +214,27 @@ def split_columns(
     held share, i.e. given the number of held pixels), ``held_pixels`` and ``unheld_pixels``. ``intervals`` False
     (sweeps: about 1 s of CPU per method and case saved at 10⁴ pixels) leaves every ``_lo``/``_hi`` and
     ``dec_sums`` NaN."""
+    return split_stack(np.asarray(img)[None], truth, noise, oracle, oracle_seed, oracle_coarse, mask=mask,
+                       held_px=held_px, intervals=intervals)[0]  # fmt: skip
+
+
+def split_stack(
+    images, truth, noise, oracle, oracle_seed, oracle_coarse, *, mask, held_px, intervals: bool = True
+) -> list[dict[str, float]]:
+    """:func:`split_columns` of each image of ``images`` (M, H, W, 3): the references' masked pixels once, the
+    per-pixel terms (:func:`pixel_terms`) over the stack, the intervals per image."""
     mask = np.asarray(mask, bool)
     h = np.asarray(held_px, bool)[mask]
-    t = pixel_terms(
-        *(np.asarray(a)[mask] for a in (img, truth, noise, oracle, oracle_seed, oracle_coarse)), h
-    )
+    refs = [np.asarray(a)[mask] for a in (truth, noise, oracle, oracle_seed, oracle_coarse)]
+    terms = pixel_terms(
+        np.asarray(images)[:, mask], *refs, h
+    )  # (M, P), or (P,) where the image plays no part
+    terms = {k: np.broadcast_to(v, (len(images), h.size)) for k, v in terms.items()}
+    return [_split_of({k: v[i] for k, v in terms.items()}, h, mask, intervals) for i in range(len(images))]
+
+
+def _split_of(t: dict, h: np.ndarray, mask: np.ndarray, intervals: bool) -> dict[str, float]:
+    """The columns of :func:`split_columns` from one image's per-pixel terms ``t``."""
     names = ["total", *TERMS, "residual", "representation_direct"]
     out: dict[str, float] = {"held_pixels": int(h.sum()), "unheld_pixels": int((~h).sum())}
     nan2 = (math.nan, math.nan)

@@ -20,7 +20,7 @@ import numpy as np
 from study import progress as pg
 from study.cache import Cache
 from study.errors import StudyError
-from study.harness import budget
+from study.harness import budget, estimate
 from study.harness.config import load_figure_config, plain_name, quality_overrides
 from study.harness.runner import metadata
 from study.io import atomic_savefig, file_stems, json_text, locked, png_bytes, write_set
@@ -347,6 +347,8 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
     budget.check_backend(backend)
     budget.check_cases(scenes, methods, source=str(config))
     store = Cache(cache)
+    est = estimate.estimate([sc for _, sc in scenes], methods, cache=store)  # told before it starts
+    pg.expect(est.seconds, estimate.told(est, name))
     job.total = len(scenes)
     every = [m.label for m in methods]
     titles = [None] * len(todo) if cfg.positions is not None else [lab for _, lab, _ in todo]

@@ -1,0 +1,100 @@
+"""Calibrate the time estimate (study/harness/estimate.py) on this machine: one case of SCENE with every method, run
+cold (an empty cache: every render and probe) and then warm (the cache it filled), each stage's measured time divided
+by its units (estimate.units), written to study/harness/stage_costs.json with the machine, backend and commit.
+
+    PYTHONPATH=. .venv/bin/python scripts/calibrate_estimate.py [SCENE] [--backend numpy] [--set KEY=VALUE ...]
+
+The default is scenes/room.toml at a third of its sizes (camera 128², cube 128², 16 samples), a few minutes on 2
+cores; the estimate then scales each stage's rate by its units to the command's own sizes."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+SMALL = {"camera.width": 128, "camera.height": 128, "render.cube_res": 128, "render.cube_spp": 16,
+         "render.spp": 16}  # fmt: skip
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scene", nargs="?", default=str(ROOT / "scenes" / "room.toml"))
+    ap.add_argument("--backend", default="numpy")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args(argv)
+    from study import runtime
+    from study.api import load_scene, method_list
+    from study.cache import Cache
+    from study.cli.run import parse_sets
+    from study.harness import estimate
+    from study.harness.config import surface_methods
+    from study.measure.case import run_case
+
+    runtime.set_render_device("cuda" if args.backend == "cuda" else "cpu")
+    scene = load_scene(Path(args.scene), {**SMALL, **parse_sets(args.set)})
+    methods, _ = surface_methods(scene, method_list("all"), chosen=False, allow_mismatch=False)  # `study run`
+    cache = Cache(tempfile.mkdtemp(prefix="study-calibrate-"))
+    seconds, measured = {}, {}
+    for run in ("cold", "warm"):
+        t0 = time.perf_counter()
+        case = run_case(scene, methods, backend=args.backend, cache=cache, intervals=True)
+        measured[run] = {**case.times, "wall": round(time.perf_counter() - t0, 3)}
+        print(f"{run}: {measured[run]}", flush=True)
+    cold, warm = measured["cold"], measured["warm"]
+    n = estimate.units(scene, methods, rendered=True, intervals=True)
+    sweep = run_case(scene, methods, backend=args.backend, cache=cache, intervals=False, keep_images=False)
+    measured["sweep"] = dict(sweep.times)
+    # twice the camera's width and height (the impostor and probes cached): the columns' cost per pixel and row
+    big = scene.with_updates(
+        {"camera.width": 2 * scene.camera.width, "camera.height": 2 * scene.camera.height}
+    )
+    measured["large"] = dict(run_case(big, methods, backend=args.backend, cache=cache, intervals=True).times)
+    print(f"sweep: {measured['sweep']}\nlarge: {measured['large']}", flush=True)
+    n2 = estimate.units(big, methods, rendered=True, intervals=True)
+    seconds["inputs"] = cold["inputs"] / max(n["inputs"], 1.0)  # with the distances' capture
+    for stage in ("exact", "traces"):  # the same work cold and warm: the faster (a shared machine)
+        seconds[stage] = min(cold[stage], warm[stage]) / max(n[stage], 1.0)
+    small_cols = min(cold["columns"], warm["columns"])
+    per_px = (measured["large"]["columns"] - small_cols) / max(n2["columns"] - n["columns"], 1.0)
+    seconds["columns"] = max(per_px, 0.0)
+    seconds["columns_method"] = max(small_cols - seconds["columns"] * n["columns"], 0.0) / len(methods)
+    seconds["sweep_share"] = min(1.0, sweep.times["columns"] / max(small_cols, 1e-9))
+    for stage in ("renders", "probes"):  # what the cold run rendered beyond the warm run's reads
+        seconds[stage] = max(cold[stage] - warm[stage], 0.0) / max(n[stage], 1.0)
+    seconds["case"] = max(warm["wall"] - sum(warm[k] for k in estimate.CASE_PARTS), 0.0)
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=ROOT, check=True).stdout.strip()  # fmt: skip
+    except Exception:
+        commit = "unknown"
+    table = {
+        "made_by": "PYTHONPATH=. .venv/bin/python scripts/calibrate_estimate.py "
+        + " ".join(argv or sys.argv[1:]),
+        "machine": f"{platform.machine()}, {os.cpu_count()} CPU cores",
+        "backend": args.backend,
+        "commit": commit,
+        "scene": str(Path(args.scene).resolve().relative_to(ROOT))
+        if ROOT in Path(args.scene).resolve().parents
+        else args.scene,
+        "units": n,
+        "measured_seconds": measured,
+        "seconds_per_unit": {k: float(f"{v:.4g}") for k, v in seconds.items()},
+    }
+    out = args.out or estimate.COSTS
+    out.write_text(json.dumps(table, indent=2) + "\n")
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,233 @@
+"""Every image column of a case's methods in one pass per reference: the methods' images stacked (M, H, W, 3) and
+measured together, what depends only on a reference and the case computed once.
+
+A case measures each method's image against the oracle, the truth and Mitsuba (:mod:`study.measure.metrics`,
+:mod:`study.measure.truth`, :mod:`study.measure.split`). Per method that is RMSE, PSNR, SSIM, FLIP, relMSE, the
+truth's noise-debiased errors and the error split's per-pixel terms; per reference and case it is the masked
+pixels and their LDR encoding, SSIM's crop and the reference's window means, the FLIP reference's filtered colour
+and features (on a Dr.Jit backend: :func:`study.measure.flip.flip_stack`), the truth's noise σ, Mitsuba's noise
+and its fireflies. :func:`method_columns` computes the latter once and the former over the stack:
+
+* RMSE, PSNR, relMSE and the split's terms are means over the masked pixels of the stack, in numpy (float64);
+* SSIM is scikit-image's (``structural_similarity`` with a 7 × 7 uniform window, sample covariance, as
+  :func:`study.measure.metrics.ssim` calls it) written over the stack: ``scipy.ndimage.uniform_filter`` with size
+  1 along the stack's axis filters each image alone, exactly as scikit-image filters one;
+* FLIP runs where :func:`study.measure.metrics.flip_map` runs it: flip-evaluator for ``numpy`` (one call per
+  image, on the crop where the images differ), the array code over the whole stack for ``llvm`` and ``cuda``.
+
+The pixel intervals (:func:`study.measure.spatial.mean_intervals` through :func:`study.measure.stats.pixel_columns`,
+the exposed relMSE's and the split's) are called per method as before. The values are those of the per-method path
+(``case._image_columns``, kept for the references' rows): ``tests/measure/test_batched_columns.py`` compares them
+column by column (on ``numpy`` bit for bit: each image's means are summed as one image's; on ``llvm`` where the
+per-method path measured RMSE, PSNR and SSIM with :mod:`study.measure.pixels`, within its 1e-12 of numpy, and FLIP
+within float32 rounding of the per-pair array code).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from study.measure import exposure, metrics, split, stats, truth
+from study.measure.metrics import _crop, to_ldr
+
+
+# ---------------------------------------------------------------------------------------------- one reference
+def _rmse(ref_px: np.ndarray, tests_px: np.ndarray) -> np.ndarray:
+    """(M,) RMSE of linear radiance: ``ref_px`` (P, 3) the reference's masked pixels, ``tests_px`` (M, P, 3)."""
+    if ref_px.size == 0:
+        return np.full(len(tests_px), np.nan)
+    d = tests_px.astype(float) - ref_px.astype(float)
+    return np.sqrt([np.mean(q) for q in d * d])  # each image's (P, 3) summed as one image's: the same bits
+
+
+def _psnr(ref_ldr: np.ndarray, tests_ldr: np.ndarray) -> np.ndarray:
+    """(M,) PSNR (dB, data range 1) of LDR pixels, as scikit-image's ``peak_signal_noise_ratio`` (inf if equal)."""
+    if ref_ldr.size == 0:
+        return np.full(len(tests_ldr), np.nan)
+    mse = np.array([np.mean(q, dtype=np.float64) for q in (ref_ldr - tests_ldr) ** 2])
+    with np.errstate(divide="ignore"):
+        return np.where(mse == 0, np.inf, 10 * np.log10(1.0 / np.where(mse == 0, 1.0, mse)))
+
+
+#: scikit-image's SSIM: window size, K₁, K₂ (data range 1), sample covariance.
+WIN, K1, K2 = 7, 0.01, 0.03
+
+
+def _window(a: np.ndarray) -> np.ndarray:
+    """The 7 × 7 uniform window means of (…, h, w, C) images, each image and channel alone (scipy's reflect)."""
+    from scipy.ndimage import uniform_filter
+
+    size = (1,) * (a.ndim - 3) + (WIN, WIN, 1)
+    return uniform_filter(a, size=size)
+
+
+def ssim_moments(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(window mean, window mean of the square) of an LDR reference crop (h, w, C): what SSIM needs of it alone."""
+    x = np.asarray(x, np.float64)
+    return _window(x), _window(x * x)
+
+
+def _ssim(x, y, mask, moments=None) -> np.ndarray:
+    """(M,) mean SSIM over ``mask`` (h, w) of LDR crops ``y`` (M, h, w, C) against ``x`` ((h, w, C) with its
+    :func:`ssim_moments` given or not, or (M, h, w, C)): scikit-image's map per channel, averaged over channels."""
+    y = np.asarray(y, np.float64)
+    x = np.asarray(x, np.float64)
+    if moments is not None:
+        ux, uxx = moments
+    else:
+        ux, uxx = _window(x), _window(x * x)
+    uy, uyy, uxy = _window(y), _window(y * y), _window(x * y)
+    np_ = WIN * WIN
+    cov = np_ / (np_ - 1)
+    vx, vy, vxy = cov * (uxx - ux * ux), cov * (uyy - uy * uy), cov * (uxy - ux * uy)
+    c1, c2 = K1**2, K2**2
+    s = ((2 * ux * uy + c1) * (2 * vxy + c2)) / ((ux**2 + uy**2 + c1) * (vx + vy + c2))
+    return np.array([float(m.mean(axis=-1)[mask].mean()) for m in s])
+
+
+def _flip_values(ref, tests, mask, backend: str, refs=None) -> list[np.ndarray]:
+    """Per image, the FLIP errors (P,) of its masked pixels against ``ref`` (H, W, 3) or ``refs[i]``, on the crop
+    of :func:`study.measure.metrics.flip_values` (the mask's bounding box + FLIP's margin)."""
+    if not mask.any():
+        return [np.zeros(0, np.float32) for _ in tests]
+    cut = _crop(mask, metrics.FLIP_MARGIN, *([ref] if refs is None else []), *tests)
+    m, parts = cut[0], cut[1:]
+    r, t = (parts[0], np.stack(parts[1:])) if refs is None else (None, np.stack(parts))
+    rs = None if refs is None else np.stack(_crop(mask, metrics.FLIP_MARGIN, *refs)[1:])
+    maps = flip_stack(r, t, backend, refs=rs)
+    return [e[m] for e in maps]
+
+
+def flip_stack(ref, tests, backend: str, refs=None) -> np.ndarray:
+    """(M, H, W) FLIP maps of ``tests`` (M, H, W, 3) against ``ref`` (H, W, 3) or ``refs`` (M, H, W, 3), as
+    :func:`study.measure.metrics.flip_map` makes each (flip-evaluator per image for ``numpy``; for ``llvm`` and
+    ``cuda`` one pass of the array code over the stack, the reference's terms once, on the crop where the images
+    differ, grown by FLIP's margin)."""
+    tests = np.asarray(tests)
+    if backend == "numpy":
+        return np.stack([metrics.flip_map(ref if refs is None else refs[i], t) for i, t in enumerate(tests)])
+    from study.measure import flip
+
+    every = refs if refs is not None else np.broadcast_to(ref, tests.shape)
+    diff = np.any([metrics.differing(a, b) for a, b in zip(every, tests)], axis=0) if len(tests) else None
+    out = np.zeros(tests.shape[:3], np.float32)
+    if diff is None or not diff.any():
+        return out
+    ys, xs = np.nonzero(diff)
+    g = metrics.FLIP_MARGIN
+    y0, y1, x0, x1 = max(ys.min() - g, 0), ys.max() + g + 1, max(xs.min() - g, 0), xs.max() + g + 1
+    box = (slice(None), slice(y0, y1), slice(x0, x1))
+    out[box] = flip.flip_stack(
+        None if ref is None or refs is not None else np.asarray(ref)[y0:y1, x0:x1],
+        tests[box],
+        backend,
+        refs=None if refs is None else np.asarray(refs)[box],
+    )
+    return out
+
+
+def errors(
+    ref, tests, *, mask, suffix: str, backend: str, with_flip: bool, fvals=None, refs=None
+) -> list[dict]:
+    """Per test image, :func:`study.measure.metrics.image_errors`'s columns (``rmse_<suffix>``, ``psnr_``,
+    ``ssim_``, ``flip_``, ``flip_<suffix>_p95``) against ``ref`` (H, W, 3), or against ``refs`` (M, H, W, 3)
+    where each test has its own reference that equals ``ref`` on ``mask`` (the oracle: its unheld pixels take
+    the image's value); ``fvals``: the FLIP values over ``mask`` already measured, per image."""
+    M = len(tests)
+    if fvals is None:
+        fvals = _flip_values(ref, tests, mask, backend, refs) if with_flip else [np.zeros(0)] * M
+    ref_px, tests_px = np.asarray(ref)[mask], np.asarray(tests)[:, mask]
+    e_rmse = _rmse(ref_px, tests_px)
+    e_psnr = _psnr(to_ldr(ref_px), to_ldr(tests_px))
+    if mask.any():
+        cut = _crop(mask, 8, *([ref] if refs is None else []), *tests)
+        m = cut[0]
+        if refs is None:
+            x = to_ldr(cut[1])
+            e_ssim = _ssim(x, to_ldr(np.stack(cut[2:])), m, ssim_moments(x))
+        else:
+            x = to_ldr(np.stack(_crop(mask, 8, *refs)[1:]))
+            e_ssim = _ssim(x, to_ldr(np.stack(cut[1:])), m)
+    else:
+        e_ssim = np.full(M, np.nan)
+    return [
+        {
+            f"rmse_{suffix}": float(e_rmse[i]),
+            f"psnr_{suffix}": float(e_psnr[i]),
+            f"ssim_{suffix}": float(e_ssim[i]),
+            f"flip_{suffix}": float(fv.mean()) if fv.size else np.nan,
+            f"flip_{suffix}_p95": float(np.percentile(fv, 95)) if fv.size else np.nan,
+        }
+        for i, fv in enumerate(fvals)
+    ]
+
+
+# ---------------------------------------------------------------------------------------------- the truth's columns
+def truth_columns(tests, t: truth.Truth, mitsuba, *, mask, rmse_truth, rmse_mitsuba) -> list[dict]:
+    """Per test image, :func:`study.measure.truth.columns` (its numpy path), with the RMSEs already measured by
+    :func:`errors`; the noise σ, Mitsuba's noise and fireflies once for all."""
+    sigma, sigma_m = truth.noise_rms(t.noise, mask), truth.noise_rms(t.mitsuba_noise, mask)
+    frame, fireflies = truth.frame_noise(t.mitsuba_noise), exposure.firefly_fraction(mitsuba, t.mitsuba_noise)
+    ref_px = t.image[mask]
+    den = ref_px * ref_px + truth.REL_EPS
+    d = np.asarray(tests)[:, mask] - ref_px
+    rel = (
+        [np.mean(q) for q in d * d / den] if ref_px.size else [np.nan] * len(tests)
+    )  # in the images' float32
+    exposed = exposure.exposed_stack(
+        tests, t.image, t.noise, mask=mask, ev=t.ev, interval=truth._interval(mask)
+    )
+    out = []
+    for i in range(len(tests)):
+        deb, deb_m = truth.debiased(rmse_truth[i], sigma), truth.debiased(rmse_mitsuba[i], sigma_m)
+        out.append({
+            "rmse_truth": rmse_truth[i],
+            "rmse_truth_debiased": deb,
+            "relmse_truth": float(rel[i]),
+            "truth_noise_rmse": sigma,
+            "truth_noise_flag": truth.noise_flag(sigma, deb),
+            "rmse_mitsuba_debiased": deb_m,
+            "mitsuba_noise_rmse": sigma_m,
+            "mitsuba_noise_flag": truth.noise_flag(sigma_m, deb_m),
+            "mitsuba_noise_frame": frame,
+            **exposed[i],
+            "firefly_fraction": fireflies,
+        })  # fmt: skip
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- a case's methods
+def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[dict], list]:
+    """(columns, FLIP maps): per method image of ``images`` (M, H, W, 3), the image columns of
+    ``case._image_columns`` (a trace over every object pixel), and with ``intervals`` its whole-frame FLIP map
+    against the truth (else None); ``r`` the case's references (``case._Refs``)."""
+    imgs = np.asarray(images)
+    M = len(imgs)
+    if M == 0:
+        return [], []
+    mask = r.mask
+    fmaps = list(flip_stack(r.truth.image, imgs, backend)) if intervals else [None] * M
+    keep = (r.held_px | ~mask)[..., None]
+    refs = np.where(keep, r.oracle, imgs)  # the oracle where it holds a value, the image elsewhere
+    oracle = errors(r.oracle, imgs, mask=r.on_held, suffix="oracle", backend=backend,
+                    with_flip="oracle" in r.against, refs=refs)  # fmt: skip
+    tflip = (
+        [np.asarray(f)[mask] for f in fmaps] if intervals and "truth" in r.against
+        else None if "truth" in r.against else [np.zeros(0)] * M
+    )  # fmt: skip
+    tr = errors(r.truth.image, imgs, mask=mask, suffix="truth", backend=backend,
+                with_flip="truth" in r.against, fvals=tflip)  # fmt: skip
+    mi = errors(
+        r.mitsuba, imgs, mask=mask, suffix="mitsuba", backend=backend, with_flip="mitsuba" in r.against
+    )
+    tc = truth_columns(imgs, r.truth, r.mitsuba, mask=mask, rmse_truth=[c["rmse_truth"] for c in tr],
+                       rmse_mitsuba=[c["rmse_mitsuba"] for c in mi])  # fmt: skip
+    sigma = truth.noise_rms(r.truth.noise, mask)
+    sp = split.split_stack(imgs, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
+                           mask=mask, held_px=r.held_px, intervals=intervals)  # fmt: skip
+    out = []
+    for i in range(M):
+        px = stats.pixel_columns(imgs[i], r.truth.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS,
+                                 emap=fmaps[i])  # fmt: skip
+        out.append({**oracle[i], **tr[i], **mi[i], **tc[i], **px, **sp[i]})
+    return out, fmaps
