@@ -29,7 +29,7 @@ import numpy as np
 from study import methods as registry
 from study.measure import stats
 from study.outputs.markup import code, md_esc
-from study.report import power, table_notes
+from study.report import geometry, power, table_notes
 from study.report.power import SIGNIFICANCE, WRONG
 from study.tables import REFERENCE_ROWS, fmt_number
 
@@ -104,7 +104,9 @@ def fraction_bounds(row: dict, col: str) -> tuple[float, float]:
 
 
 def separated(tab: list[dict], a: str, b: str, col: str = WRONG) -> tuple[int, int, int]:
-    """(cases where a's interval lies wholly below b's, cases where wholly above, cases compared)."""
+    """(cases where a's interval lies wholly below b's, cases where wholly above, cases compared), one case per
+    geometry (:func:`study.report.geometry.pooled`)."""
+    tab = geometry.pooled(tab)
     rows = {(r["case"], r["label"]): r for r in tab}
     below = above = n = 0
     for c in dict.fromkeys(r["case"] for r in tab):
@@ -129,7 +131,9 @@ def ranking(tab: list[dict], col: str) -> list[dict]:
     """Methods by their median over the cases of ``col`` (lowest first; ties to the lower worst case, then to the
     cheaper), each with
     ``median``, ``lo``/``hi`` and ``kind`` (:func:`study.measure.stats.case_interval`), ``max`` and ``worst``
-    (the case of the max), ``n`` (cases) and ``cost`` (median lookups per ray)."""
+    (the case of the max), ``n`` (cases: distinct geometries, :func:`study.report.geometry.pooled`) and ``cost``
+    (median lookups per ray)."""
+    tab = geometry.pooled(tab)
     cases = list(dict.fromkeys(r["case"] for r in tab))
     out = []
     for lab in _labels(tab):
@@ -174,7 +178,9 @@ def cost_front(rank: list[dict]) -> list[dict]:
 
 
 def versus(tab: list[dict], a: str, b: str, col: str) -> dict:
-    """Paired comparison of methods a and b over the table's cases (:func:`study.measure.stats.paired`)."""
+    """Paired comparison of methods a and b over the table's geometries (:func:`study.measure.stats.paired`; the
+    seeds of a geometry pooled, :func:`study.report.geometry.pooled`)."""
+    tab = geometry.pooled(tab)
     cases = list(dict.fromkeys(r["case"] for r in tab))
     return stats.paired(_values(tab, a, col, cases), _values(tab, b, col, cases))
 
@@ -211,6 +217,8 @@ def _hidden(tab: list[dict]) -> float:
 def table_sentence(name: str, tab: list[dict]) -> str | None:
     """One table's verdict in words: best and recommended method for wrong hits, how sure, and the image-error
     winner against its runner-up (and whether leaving out the worst pixels changes it)."""
+    seeds = geometry.seeds_per_geometry(tab)
+    tab = geometry.pooled(tab)
     rec = recommend(tab)
     if rec is None:
         return None
@@ -262,7 +270,13 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
         parts.append(text)
     hid = _hidden(tab)
     where = "nothing hidden from the reference point" if hid == 0 else f"median hidden rays {_pct(hid)}"
-    return f"**{md_esc(name)}** ({n} case{'s' if n != 1 else ''}, {where}): " + "; ".join(parts) + "."
+    return f"**{md_esc(name)}** ({_count(n, seeds)}, {where}): " + "; ".join(parts) + "."
+
+
+def _count(n: int, seeds: int) -> str:
+    """'12 cases' or, where seeds are pooled, '6 cases (distinct geometries; 2 seeds each pooled)'."""
+    pool = f" (distinct geometries; {seeds} seeds each pooled)" if seeds > 1 else ""
+    return f"{n} case{'s' if n != 1 else ''}{pool}"
 
 
 def image_column(tab: list[dict]) -> str:
@@ -316,13 +330,6 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
         f"{code(lab)} ({_per_ray(*[recs[n][1]['cost'] for n in names])}) in {', '.join(md_esc(n) for n in names)}"
         for lab, names in sorted(groups.items(), key=lambda g: recs[g[1][0]][1]["cost"])
     )
-    sig, few = 0, 0
-    for tab in tables.values():
-        rank = ranking(tab, WRONG)
-        if len(rank) > 1:
-            cmp = versus(tab, rank[0]["label"], rank[1]["label"], WRONG)
-            sig += cmp["p"] < SIGNIFICANCE
-            few += stats.min_p(cmp["n"]) >= SIGNIFICANCE
     where = ""
     clear = [n for n in recs if _hidden(tables[n]) == 0]
     if clear and len(clear) < len(recs):
@@ -336,11 +343,63 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
     return (
         f"**Use**, per table, the cheapest method whose wrong-hit fraction is indistinguishable from the best's "
         f"(no case where its rays' 95 % interval lies above the best's, and no significant difference over the "
-        f"cases): {uses}.{where} **How sure:** the best method beats the runner-up significantly (Wilcoxon "
-        f"signed-rank over cases, 5 %) in {sig} of {len(recs)} tables; {few} tables have fewer than 6 cases, "
-        "too few for any difference over cases to be significant, so their rankings rest on the per-case "
-        "intervals over rays alone."
+        f"cases): {uses}.{where} **How sure:** {how_sure(tables)}"
     )
+
+
+def significance_counts(tables: dict[str, list[dict]]) -> list[dict]:
+    """Per table, counted over distinct geometries (:func:`study.report.geometry.pooled`): ``cases`` (geometries),
+    ``seeds`` (seeds pooled per geometry), the best and the runner-up in wrong hits with the Wilcoxon p over the
+    geometries (``p``, ``best``, ``runner_up``), and the same by image error (``image_p``, on
+    :func:`image_column`); NaN where a table has one method."""
+    out = []
+    for name, tab in tables.items():
+        seeds = geometry.seeds_per_geometry(tab)
+        tab = geometry.pooled(tab)
+        rank = ranking(tab, WRONG)
+        if not rank:
+            continue
+        row = {"table": name, "cases": rank[0]["n"], "seeds": seeds, "best": rank[0]["label"]}
+        row |= {"runner_up": "", "p": math.nan, "image_p": math.nan}
+        if len(rank) > 1:
+            row["runner_up"] = rank[1]["label"]
+            row["p"] = versus(tab, rank[0]["label"], rank[1]["label"], WRONG)["p"]
+        img = ranking(tab, col := image_column(tab))
+        if len(img) > 1:
+            row["image_p"] = versus(tab, img[0]["label"], img[1]["label"], col)["p"]
+        out.append(row)
+    return out
+
+
+def how_sure(tables: dict[str, list[dict]]) -> str:
+    """The headline's "How sure" in words, from :func:`significance_counts` (the README's paragraph is this text,
+    written by ``scripts/headline.py --readme``)."""
+    rows = [r for r in significance_counts(tables) if r["runner_up"]]
+    if not rows:
+        return "no table compares two methods."
+    n = [r["cases"] for r in rows]
+    pooled = [f"{md_esc(r['table'])} ({r['seeds']})" for r in rows if r["seeds"] > 1]
+    sig = [r for r in rows if r["p"] < SIGNIFICANCE]
+    img = [r for r in rows if r["image_p"] < SIGNIFICANCE]
+    few = [md_esc(r["table"]) for r in rows if stats.min_p(r["cases"]) >= SIGNIFICANCE]
+    text = (
+        f"counted over distinct geometries (a case is an object position, scene and object; the seeds of one "
+        f"geometry are pooled, never counted as cases), the tables have {min(n)}–{max(n)} cases"
+        + (f" (seeds pooled per geometry: {', '.join(pooled)})" if pooled else "")
+        + f". The best method beats the runner-up in wrong hits significantly (Wilcoxon signed-rank over the "
+        f"geometries, {100 * SIGNIFICANCE:g} %) in {len(sig)} of {len(rows)} tables"
+        + (f" ({', '.join(md_esc(r['table']) for r in sig)})" if sig else "")
+        + f"; by image error in {len(img)} of {len(rows)} tables"
+        + (f" ({', '.join(md_esc(r['table']) for r in img)})" if img else "")
+        + "."
+    )
+    if few:
+        text += (
+            f" {len(few)} table{'s have' if len(few) > 1 else ' has'} fewer than 6 geometries ({', '.join(few)}): "
+            "too few for any difference over cases to be significant (p ≥ 2/2ⁿ), so their rankings rest on the "
+            "per-case intervals over rays alone."
+        )
+    return text
 
 
 #: The columns of :func:`interval_rows`.
@@ -348,6 +407,7 @@ INTERVAL_COLUMNS = [
     "table",
     "method",
     "cases",
+    "seeds",
     "lookups",
     "wrong",
     "wrong_lo",
@@ -380,6 +440,8 @@ def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
     cases); ``relmse``/``_lo``/``_hi`` the same for :data:`RELATIVE` (NaN for tables without it)."""
     out = []
     for name, tab in tables.items():
+        seeds = geometry.seeds_per_geometry(tab)
+        tab = geometry.pooled(tab)
         rank = ranking(tab, WRONG)
         if not rank:
             continue
@@ -394,6 +456,7 @@ def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
                     "table": name,
                     "method": r["label"],
                     "cases": r["n"],
+                    "seeds": seeds,
                     "lookups": r["cost"],
                     "wrong": r["median"],
                     "wrong_lo": r["lo"],
@@ -417,6 +480,8 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
     rough objects (``object_alpha`` > 0) are left out: a glossy method shows a lobe, not a hit, so wrong hits do
     not rank it; their error split and claims judge them (the glossy figure's section)."""
     tables = {n: t for n, t in tables.items() if not any((r.get("object_alpha") or 0) > 0 for r in t)}
+    seeds = {n: geometry.seeds_per_geometry(t) for n, t in tables.items()}
+    tables = {n: geometry.pooled(t) for n, t in tables.items()}  # one case per geometry from here on
     head = headline(tables)
     if head is None:
         return []
@@ -428,7 +493,11 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
         ("p", table_notes.interval_note()),
         ("table", interval_rows(tables), INTERVAL_COLUMNS),
         *power.power_blocks(
-            [power.row(name, tab, rank) for name, tab in tables.items() if (rank := ranking(tab, WRONG))]
+            [
+                power.row(name, tab, rank) | {"seeds": seeds[name]}
+                for name, tab in tables.items()
+                if (rank := ranking(tab, WRONG))
+            ]
         ),
     ]
 
@@ -437,6 +506,7 @@ def tolerance_curve_rows(tab: list[dict]) -> list[dict]:
     """The wrong-fraction-versus-tolerance curve per method: median over the cases of ``wrong_fraction_<tol>``
     at each fixed tolerance of :data:`study.measure.stats.TOLERANCES` (rows: label, tolerance_m, wrong,
     wrong_max); empty for a table written before those columns."""
+    tab = geometry.pooled(tab)
     cases = list(dict.fromkeys(r["case"] for r in tab))
     out = []
     for lab in _labels(tab):

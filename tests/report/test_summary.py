@@ -76,7 +76,7 @@ def test_no_cheaper_method_and_too_few_cases():
     assert "no cheaper method is as good: the cheapest, `cheap`" in s and "in 3 of 3 cases" in s
     head = summary.headline({"t": tab})
     assert head.startswith("**Use**") and "`best` (500 lookups/ray) in t" in head
-    assert "1 tables have fewer than 6 cases" in head
+    assert "1 table has fewer than 6 geometries (t)" in head
 
 
 def test_a_winner_decided_by_the_worst_pixels_is_flagged():
