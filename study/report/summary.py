@@ -9,8 +9,8 @@ Everything here reads results tables (one row per case × method) and nothing el
   signed-rank, two-sided, with the count of cases each wins): "significant at 1 %/5 %" or "no significant
   difference"; below 6 cases no difference can reach 5 % (:func:`study.measure.stats.min_p`), and the headline
   says so;
-* per case, two wrong fractions are **separated** when their 95 % intervals over the rays do not overlap (the
-  ``_lo``/``_hi`` columns, or Wilson intervals from the counts for tables written before those columns);
+* per case, two wrong fractions are **separated** when their calibrated 95 % intervals over the rays do not
+  overlap (:func:`bounds`: the ``_lo``/``_hi`` columns the declared column table names; none is made up);
 * **the recommendation** is the cheapest method (cube-map lookups per ray) that is *as good as the best* in
   wrong hits: separated above the best's in no case, and not significantly worse over the cases (p ≥ 5 %).
 
@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from study import columns
 from study import methods as registry
 from study.measure import stats
 from study.outputs.markup import code, md_esc
@@ -80,27 +81,21 @@ def _values(tab: list[dict], label: str, col: str, cases: list[str]) -> np.ndarr
     return np.array([float(by.get(c, math.nan)) for c in cases], float)
 
 
-def _n_for(row: dict, col: str) -> float:
-    n = row.get("n_rays", row.get("rays", math.nan))
-    h = row.get("hidden_fraction", row.get("occluded_fraction", math.nan))
-    if col.endswith("_hidden"):
-        return n * h
-    if col.endswith("_visible"):
-        return n * (1 - h)
-    return n
-
-
-def fraction_bounds(row: dict, col: str) -> tuple[float, float]:
-    """The 95 % interval of a fraction column in one row: its ``_lo``/``_hi`` columns, else the Wilson interval
-    from the row's counts (``n_rays`` or ``rays``; ``hidden_fraction`` for the hidden/visible parts)."""
-    lo, hi = row.get(f"{col}_lo", math.nan), row.get(f"{col}_hi", math.nan)
-    if isinstance(lo, float) and isinstance(hi, float) and math.isfinite(lo) and math.isfinite(hi):
-        return lo, hi
-    v, n = row.get(col, math.nan), _n_for(row, col)
-    if not (isinstance(v, float) and math.isfinite(v) and math.isfinite(n) and n >= 1):
+def bounds(row: dict, col: str) -> tuple[float, float]:
+    """The calibrated 95 % interval of column ``col`` in one row: the ``_lo``/``_hi`` columns that the declared
+    column table names for it (:func:`study.columns.interval_bounds`: ``wrong_fraction`` → ``wrong_fraction_texel``,
+    rays clustered by pixel); (NaN, NaN) where none is declared or the row lacks them. No interval is made from
+    counts: Wilson's over independent rays covered 24 % where rays share texels (reports/calibration.md)."""
+    names = columns.interval_bounds(col)
+    if names is None:
         return math.nan, math.nan
-    n = round(n)
-    return stats.fraction_ci(round(v * n), n)
+    lo, hi = row.get(names[0], math.nan), row.get(names[1], math.nan)
+    ok = all(isinstance(v, int | float) and math.isfinite(v) for v in (lo, hi))
+    return (float(lo), float(hi)) if ok else (math.nan, math.nan)
+
+
+#: a fraction's interval: :func:`bounds` (the name the claims read)
+fraction_bounds = bounds
 
 
 def separated(tab: list[dict], a: str, b: str, col: str = WRONG) -> tuple[int, int, int]:
