@@ -384,9 +384,8 @@ def how_sure(tables: dict[str, list[dict]]) -> str:
         + f". The best method beats the runner-up in wrong hits significantly (Wilcoxon signed-rank over the "
         f"geometries, {100 * SIGNIFICANCE:g} %) in {len(sig)} of {len(rows)} tables"
         + (f" ({', '.join(md_esc(r['table']) for r in sig)})" if sig else "")
-        + f"; by image error in {len(img)} of {len(rows)} tables"
-        + (f" ({', '.join(md_esc(r['table']) for r in img)})" if img else "")
-        + "."
+        + f"; by image error (relMSE after the picture's exposure where a table has it) in {len(img)} of "
+        f"{len(rows)} tables" + (f" ({', '.join(md_esc(r['table']) for r in img)})" if img else "") + "."
     )
     if few:
         text += (
@@ -470,11 +469,27 @@ def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
     return out
 
 
+def headline_tables(tables: dict[str, list[dict]]) -> dict[str, list[dict]]:
+    """The tables the headline judges by wrong hits: those of mirror and glass objects (rough objects' tables,
+    ``object_alpha`` > 0, are judged by their error split and claims)."""
+    return {n: t for n, t in tables.items() if not any((r.get("object_alpha") or 0) > 0 for r in t)}
+
+
+def readme_how_sure(tables: dict[str, list[dict]], width: int = 118) -> str:
+    """The README's "How sure" bullet: :func:`how_sure` over :func:`headline_tables`, wrapped to ``width``."""
+    import textwrap
+
+    text = how_sure(headline_tables(tables))
+    return textwrap.fill(
+        f"- **How sure:** {text[0].upper()}{text[1:]}", width, subsequent_indent="  ", break_on_hyphens=False
+    )
+
+
 def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
     """The report blocks of the headline: a heading, the headline paragraph and one sentence per table. Tables of
     rough objects (``object_alpha`` > 0) are left out: a glossy method shows a lobe, not a hit, so wrong hits do
     not rank it; their error split and claims judge them (the glossy figure's section)."""
-    tables = {n: t for n, t in tables.items() if not any((r.get("object_alpha") or 0) > 0 for r in t)}
+    tables = headline_tables(tables)
     seeds = {n: geometry.seeds_per_geometry(t) for n, t in tables.items()}
     tables = {n: geometry.pooled(t) for n, t in tables.items()}  # one case per geometry from here on
     head = headline(tables)
