@@ -73,9 +73,7 @@ def iterations_do_not_hurt(rows):
     col = "angle_p95_deg"
     ci = [(bounds(a, col), bounds(b, col)) for _, a, b in pairs]
     bad = [p for p, ((_, ahi), (blo, _)) in zip(pairs, ci) if blo > ahi * 1.001 + 1e-6]
-    blind = sum(
-        not np.isfinite([*x, *y]).all() for x, y in ci
-    )  # no calibrated interval: no evidence either way
+    blind = sum(np.isnan([*x, *y]).any() for x, y in ci)  # no calibrated interval (inf: one-sided, kept)
     c, a, b = max(pairs, key=lambda p: p[2][col] / max(p[1][col], 1e-12))
     return _verdict(
         False if bad else (None if blind else True),

@@ -84,13 +84,14 @@ def _values(tab: list[dict], label: str, col: str, cases: list[str]) -> np.ndarr
 def bounds(row: dict, col: str) -> tuple[float, float]:
     """The calibrated 95 % interval of column ``col`` in one row: the ``_lo``/``_hi`` columns that the declared
     column table names for it (:func:`study.columns.interval_bounds`: ``wrong_fraction`` → ``wrong_fraction_texel``,
-    rays clustered by pixel); (NaN, NaN) where none is declared or the row lacks them. No interval is made from
-    counts: Wilson's over independent rays covered 24 % where rays share texels (reports/calibration.md)."""
+    rays clustered by pixel; an infinite end is kept: a one-sided interval); (NaN, NaN) where none is declared or the
+    row lacks them. No interval is made from counts: Wilson's over independent rays covered 24 % where rays share
+    texels (reports/calibration.md)."""
     names = columns.interval_bounds(col)
     if names is None:
         return math.nan, math.nan
     lo, hi = row.get(names[0], math.nan), row.get(names[1], math.nan)
-    ok = all(isinstance(v, int | float) and math.isfinite(v) for v in (lo, hi))
+    ok = all(isinstance(v, int | float) and not math.isnan(v) for v in (lo, hi))  # inf: a one-sided bound
     return (float(lo), float(hi)) if ok else (math.nan, math.nan)
 
 
