@@ -2,12 +2,18 @@
 reports/, printed as Markdown; with ``--curves DIR`` also the wrong-fraction-versus-tolerance plot of every table
 that has the fixed-tolerance columns (written by code after issue 24).
 
-    PYTHONPATH=. .venv/bin/python scripts/headline.py [reports] [--curves DIR]
+    PYTHONPATH=. .venv/bin/python scripts/headline.py [reports] [--curves DIR] [--readme README.md]
+
+``--readme`` rewrites the README's "How sure" bullet (the paragraph that starts ``- **How sure:**``) from the same
+tables (:func:`study.report.summary.readme_how_sure`: significance counted over distinct geometries), so that
+paragraph is never typed by hand; run it after the tables are regenerated.
 """
 
 from __future__ import annotations
 
 import argparse
+import re
+import sys
 from pathlib import Path
 
 from study.outputs import plots
@@ -24,12 +30,32 @@ def tables_of(reports: Path) -> dict[str, list[dict]]:
     return out
 
 
+#: the README's "How sure" bullet: from its first line to the blank line after it
+HOW_SURE = re.compile(r"^- \*\*How sure:\*\*.*?(?=\n\s*\n)", re.S | re.M)
+
+
+def write_how_sure(readme: Path, bullet: str) -> None:
+    """Replace the README's "How sure" bullet with ``bullet`` (atomically); one line and exit 2 if it has none."""
+    from study.io import atomic_write
+
+    text = readme.read_text()
+    if not HOW_SURE.search(text):
+        print(f"{readme}: no paragraph starting '- **How sure:**' to rewrite", file=sys.stderr)
+        sys.exit(2)
+    atomic_write(readme, HOW_SURE.sub(lambda _: bullet, text, count=1))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("reports", nargs="?", default="reports")
     ap.add_argument("--curves", type=Path, help="write <table>-tolerance.png here")
+    ap.add_argument("--readme", type=Path, help="rewrite this README's 'How sure' bullet from the tables")
     a = ap.parse_args()
     tables = tables_of(Path(a.reports))
+    if a.readme:
+        write_how_sure(a.readme, summary.readme_how_sure(tables))
+        print(f"wrote the 'How sure' bullet of {a.readme}")
+        return
     for b in summary.headline_blocks(tables):
         if b[0] == "h":
             print("#" * b[1], b[2], "\n")

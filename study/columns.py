@@ -36,6 +36,9 @@ class TableColumn:
     #: its value hangs on the backend's float32 arithmetic (issue 55): `study check` compares it with a stated floor
     #: (study.report.check.backend_floor), no ranking uses it (study.report.summary.ranking)
     backend_sensitive: bool = False
+    #: the declared column whose calibrated ``_lo``/``_hi`` are this column's 95 % interval, where they are not its
+    #: own (wrong_fraction → wrong_fraction_texel: the same rays, clustered by pixel); :func:`interval_bounds`
+    interval_from: str = ""
 
 
 C = TableColumn
@@ -82,6 +85,7 @@ TABLE: list[TableColumn] = [
         "wrong",
         ("run",),
         note="1 − correct (texel-relative ε; = wrong_fraction_texel)",
+        interval_from="wrong_fraction_texel",
     ),
     C("wrong_depth_fraction", F, LOW, note="wrong, on the exact hit's own surface but at another depth"),
     C("wrong_surface_fraction", F, LOW, note="wrong, on another surface"),
@@ -325,6 +329,17 @@ def declared(name: str) -> TableColumn | None:
         if base is not None and base.interval:
             return base
     return None
+
+
+def interval_bounds(name: str) -> tuple[str, str] | None:
+    """The ``_lo``/``_hi`` columns that hold the calibrated 95 % interval of column ``name`` (its own where it is
+    declared with ``interval``, else those of the column its ``interval_from`` names); None where none is declared
+    (then no interval is invented for it: the report calls a comparison on it undecided)."""
+    c = _BY_NAME.get(name)
+    if c is None:
+        return None
+    src = _BY_NAME.get(c.interval_from) if c.interval_from else c
+    return (f"{src.name}_lo", f"{src.name}_hi") if src is not None and src.interval else None
 
 
 def column_names() -> list[str]:

@@ -26,8 +26,9 @@ with an optional ``name`` (``configs/fig6.toml``)::
 
 Every position (or case) is measured once per seed with ``seeds = [0, 1, 2]`` (``render.seed``: the impostor's,
 the references' and the stochastic methods' samples drawn anew; ids ``p0``, then ``p0-s1``, …); the grid's picture
-shows the first seed's rows, those ``picture = [0, 3]`` names (by index; default all). Shipped figures have ≥ 12
-cases (positions × seeds: ``tests/test_figure_seeds.py``).
+shows the first seed's rows, those ``picture = [0, 3]`` names (by index; default all). A seed redraws the Monte
+Carlo parts only, so the report pools a geometry's seeds (:mod:`study.report.geometry`): statistics over cases count
+distinct geometries, and shipped figures have ≥ 12 of them, one seed each (``tests/report/test_figure_seeds.py``).
 
 Unknown keys, unknown methods and unknown method parameters are errors naming the file and the key; so are
 method parameters that are not finite (``inf``, ``nan``) and booleans or strings given for numbers.

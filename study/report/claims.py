@@ -4,8 +4,11 @@ on, how many, and the number behind it with its interval.
 A claim reads the rows of one table (a figure's metrics.csv or a sweep's results.csv) and returns a
 :class:`Verdict`; a claim whose table lacks the rows it needs returns ``None`` (not applicable). Each claim is judged
 on the rays or pixels it is about (hidden hits, pixels whose hits the views hold, convex rooms, cases off the
-reference point) and on tails — wrong fractions with their Wilson intervals, 95th percentiles — not on medians. A
-claim that does not hold says so first: "fails: …".
+reference point) and on tails — wrong fractions with their calibrated intervals (the declared column table's,
+:func:`study.report.summary.bounds`), 95th percentiles — not on medians. A claim fails only where the evidence
+says so ("fails: …"); where it decides neither way the verdict is "undecided at this sample size". Comparisons of
+two methods on the same rays are paired over the cases (:func:`study.report.verdicts.decide`); a case is a
+geometry (its seeds pooled).
 """
 
 from __future__ import annotations
@@ -14,10 +17,11 @@ import itertools
 
 import numpy as np
 
+from study.report import geometry
 from study.report.claims_convergence import _ladder, converges_occluded, converges_quickly
 from study.report.claims_glossy import glossy_converges, glossy_localized
 from study.report.power import MIN_HIDDEN, counts
-from study.report.summary import fraction_bounds
+from study.report.summary import bounds, fraction_bounds
 from study.report.verdicts import (
     Claim,
     Verdict,
@@ -30,31 +34,33 @@ from study.report.verdicts import (
     _measured,
     _row,
     _verdict,
+    decide,
+    pair,
 )
 
 
 def localized_beats_classical(rows):
     """In every case off the reference point (object centre ≠ reference point) localized (default: 10 iterations)
-    is wrong (ε = max(1 cm, one texel)) on fewer rays than classical: its interval lies wholly below."""
-    lab, worst, n, rays = _default("localized"), None, 0, 0
+    is wrong (ε = max(1 cm, one texel)) on fewer rays than classical (:func:`~study.report.verdicts.decide`: the
+    calibrated intervals of the same rays per case, and paired over the cases)."""
+    lab = _default("localized")
+    pairs = []
     for c in _cases(rows):
-        a, b = _row(rows, c, lab), _row(rows, c, "classical")
-        if a is None or b is None or not b.get("displacement") or not _finite(a.get("wrong_fraction")):
+        b = _row(rows, c, "classical")
+        if b is None or not b.get("displacement"):
             continue
-        (alo, ahi), (blo, bhi) = fraction_bounds(a, "wrong_fraction"), fraction_bounds(b, "wrong_fraction")
-        n, rays = n + 1, rays + counts(a)[0]
-        gap = blo - ahi  # > 0: localized's interval wholly below classical's
-        if worst is None or gap < worst[0]:
-            worst = (gap, c, a["wrong_fraction"], alo, ahi, b["wrong_fraction"], blo, bhi)
-    if worst is None:
+        if (pr := pair(rows, c, lab, "classical", "wrong_fraction")) is not None:
+            pairs.append(pr)
+    if not pairs:
         return None
-    gap, c, a, alo, ahi, b, blo, bhi = worst
+    ok, text = decide(pairs)
+    w = min(pairs, key=lambda p: p.b_ci[0] - p.a_ci[1] if np.isfinite(p.b_ci[0] - p.a_ci[1]) else p.b - p.a)
     return _verdict(
-        gap > 0,
+        ok,
         "all rays, cases off the reference point",
-        f"{n} cases, {rays:.0f} rays",
-        f"closest case {c}: wrong fraction localized {a:.3g} [{alo:.3g}–{ahi:.3g}] vs classical {b:.3g} "
-        f"[{blo:.3g}–{bhi:.3g}]",
+        f"{len(pairs)} cases, {sum(counts(_row(rows, p.case, lab))[0] for p in pairs):.0f} rays",
+        f"localized {text}; closest case {w.case}: wrong fraction localized {w.a:.3g} [{w.a_ci[0]:.3g}–"
+        f"{w.a_ci[1]:.3g}] vs classical {w.b:.3g} [{w.b_ci[0]:.3g}–{w.b_ci[1]:.3g}]",
     )
 
 
@@ -64,48 +70,45 @@ def iterations_do_not_hurt(rows):
     pairs = [(c, m[1], m[10]) for c, m in _ladder(rows, "angle_p95_deg") if 1 in m and 10 in m]
     if not pairs:
         return None
-    bad = [
-        (c, a, b)
-        for c, a, b in pairs
-        if b.get("angle_p95_deg_lo", b["angle_p95_deg"])
-        > a.get("angle_p95_deg_hi", a["angle_p95_deg"]) * 1.001 + 1e-6
-    ]
-    c, a, b = max(pairs, key=lambda p: p[2]["angle_p95_deg"] / max(p[1]["angle_p95_deg"], 1e-12))
+    col = "angle_p95_deg"
+    ci = [(bounds(a, col), bounds(b, col)) for _, a, b in pairs]
+    bad = [p for p, ((_, ahi), (blo, _)) in zip(pairs, ci) if blo > ahi * 1.001 + 1e-6]
+    blind = sum(np.isnan([*x, *y]).any() for x, y in ci)  # no calibrated interval (inf: one-sided, kept)
+    c, a, b = max(pairs, key=lambda p: p[2][col] / max(p[1][col], 1e-12))
     return _verdict(
-        not bad,
+        False if bad else (None if blind else True),
         "all rays, convex cases (no hidden hit), exact secondary rays",
         f"{len(pairs)} cases, {sum(counts(p[2])[0] for p in pairs):.0f} rays",
-        f"{len(bad)} rising beyond the interval; largest 10-it/1-it ratio of p95 {b['angle_p95_deg']:.3g}° "
-        f"[{b.get('angle_p95_deg_lo', np.nan):.3g}–{b.get('angle_p95_deg_hi', np.nan):.3g}] vs "
-        f"{a['angle_p95_deg']:.3g}° ({c})",
+        f"{len(bad)} rising beyond the interval"
+        + (f", {blind} without an interval" if blind else "")
+        + f"; largest 10-it/1-it ratio of p95 {b[col]:.3g}° [{bounds(b, col)[0]:.3g}–{bounds(b, col)[1]:.3g}] vs "
+        f"{a[col]:.3g}° ({c})",
     )
 
 
 def occlusion_breaks_it(rows):
     """'should the ray hit a point that is not visible from the reference point … the approximation scheme would
     obviously be unable to find that': on the rays whose exact hit is hidden from the reference point localized(10)
-    is wrong more often than on the others, the two intervals apart, in every case with at least
+    is wrong more often than on the others (:func:`~study.report.verdicts.decide`, visible against hidden rays of
+    each case: their calibrated intervals, and paired over the cases), in every case with at least
     :data:`~study.report.power.MIN_HIDDEN` hidden rays."""
-    lab, found = _default("localized"), []
+    lab, pairs = _default("localized"), []
     for c in _cases(rows):
-        r = _row(rows, c, lab)
-        if (
-            r is None
-            or _hidden_rays(rows, c, lab) < MIN_HIDDEN
-            or not _finite(r.get("wrong_fraction_hidden"))
-        ):
+        if _hidden_rays(rows, c, lab) < MIN_HIDDEN:
             continue
-        h, v = fraction_bounds(r, "wrong_fraction_hidden"), fraction_bounds(r, "wrong_fraction_visible")
-        found.append((h[0] - v[1], c, r, h, v))
-    if not found:
+        if (pr := pair(rows, c, lab, lab, "wrong_fraction_visible", "wrong_fraction_hidden")) is not None:
+            pairs.append(pr)
+    if not pairs:
         return None
-    gap, c, r, h, v = min(found, key=lambda f: f[0])
+    ok, text = decide(pairs)
+    w = min(pairs, key=lambda p: p.b_ci[0] - p.a_ci[1] if np.isfinite(p.b_ci[0] - p.a_ci[1]) else p.b - p.a)
     return _verdict(
-        gap > 0,
+        ok,
         "hidden vs visible rays, cases with ≥ 200 hidden rays",
-        f"{len(found)} cases, {sum(_hidden_rays(rows, f[1], lab) for f in found):.0f} hidden rays",
-        f"closest case {c}: wrong on hidden {r['wrong_fraction_hidden']:.3g} [{h[0]:.3g}–{h[1]:.3g}] vs visible "
-        f"{r['wrong_fraction_visible']:.3g} [{v[0]:.3g}–{v[1]:.3g}]{_few(rows, lab)}",
+        f"{len(pairs)} cases, {sum(_hidden_rays(rows, p.case, lab) for p in pairs):.0f} hidden rays",
+        f"visible rays' wrong fraction {text}; closest case {w.case}: wrong on hidden {w.b:.3g} "
+        f"[{w.b_ci[0]:.3g}–{w.b_ci[1]:.3g}] vs visible {w.a:.3g} [{w.a_ci[0]:.3g}–{w.a_ci[1]:.3g}]"
+        f"{_few(rows, lab)}",
     )
 
 
@@ -215,27 +218,29 @@ def iterations_never_raise_wrong(rows):
 def layered_fixes_occlusion(rows):
     """Beyond the paper: where localized(iterations=10) is wrong on the hidden hits (wrong_fraction_hidden ≥ 0.5,
     > 2 % and ≥ :data:`~study.report.power.MIN_HIDDEN` hidden rays), searching several depth layers (``layered``)
-    is wrong on fewer of them: its interval lies wholly below localized's, in every such case."""
+    is wrong on fewer of them, in every such case (:func:`~study.report.verdicts.decide`: the calibrated
+    intervals of the same hidden rays, and paired over the cases)."""
     pairs = []
     loc, lay = _default("localized"), _default("layered")
     for c in _cases(rows):
-        a, b = _get(rows, c, loc, "wrong_fraction_hidden"), _get(rows, c, lay, "wrong_fraction_hidden")
+        a = _get(rows, c, loc, "wrong_fraction_hidden")
         f = _get(rows, c, lay, "occluded_fraction")
         many = _hidden_rays(rows, c, lay) >= MIN_HIDDEN
-        if _finite(a) and _finite(b) and f is not None and f > 0.02 and a >= 0.5 and many:
-            bhi = fraction_bounds(_row(rows, c, lay), "wrong_fraction_hidden")[1]
-            alo = fraction_bounds(_row(rows, c, loc), "wrong_fraction_hidden")[0]
-            pairs.append((bhi - alo if _finite(bhi) and _finite(alo) else b - a, c, a, b))
+        if _finite(a) and f is not None and f > 0.02 and a >= 0.5 and many:
+            if (pr := pair(rows, c, lay, loc, "wrong_fraction_hidden")) is not None:
+                pairs.append(pr)
     if not pairs:
         return None
-    gap, c, a, b = max(pairs)
+    ok, text = decide(pairs)
+    w = max(pairs, key=lambda p: p.a_ci[1] - p.b_ci[0] if np.isfinite(p.a_ci[1] - p.b_ci[0]) else p.a - p.b)
     return _verdict(
-        gap < 0,
+        ok,
         "hidden rays, cases with > 2 % and ≥ 200 of them",
-        f"{len(pairs)} cases, {sum(_hidden_rays(rows, p[1], lay) for p in pairs):.0f} hidden rays",
-        f"{len(pairs)} cases with > 2 % and ≥ {MIN_HIDDEN} hidden rays that localized gets wrong; closest case "
-        f"{c}: wrong fraction on hidden hits layered {b:.3g}{_ci(rows, c, lay, 'wrong_fraction_hidden')} vs "
-        f"localized {a:.3g}{_ci(rows, c, loc, 'wrong_fraction_hidden')}",
+        f"{len(pairs)} cases, {sum(_hidden_rays(rows, p.case, lay) for p in pairs):.0f} hidden rays",
+        f"{len(pairs)} cases with > 2 % and ≥ {MIN_HIDDEN} hidden rays that localized gets wrong; layered {text}; "
+        f"closest case {w.case}: wrong fraction on hidden hits layered {w.a:.3g}"
+        f"{_ci(rows, w.case, lay, 'wrong_fraction_hidden')} vs localized {w.b:.3g}"
+        f"{_ci(rows, w.case, loc, 'wrong_fraction_hidden')}",
     )
 
 
@@ -390,7 +395,9 @@ CLAIMS_BY_ID = {c.id: c for c in CLAIMS}
 
 
 def judge_claims(rows: list[dict]) -> list[tuple[Claim, Verdict]]:
-    """Every claim that applies to ``rows``."""
+    """Every claim that applies to ``rows``, one case per geometry (the seeds of one pooled:
+    :func:`study.report.geometry.pooled`)."""
+    rows = geometry.pooled(rows)
     out = []
     for cl in CLAIMS:
         v = cl.test(rows)

@@ -2,48 +2,64 @@
 
 from __future__ import annotations
 
-from study.report.verdicts import _cases, _default, _finite, _get, _verdict
+from study.report.summary import bounds
+from study.report.verdicts import Pair, _cases, _default, _finite, _verdict, decide, pair
 
 
 def glossy_localized(rows):
     """Beyond the paper, rough objects: ``localized_prefiltered`` (the lobe localized, then the roughness mip) has
-    a lower noise-debiased RMSE against the lobe's truth than the engines' ``prefiltered`` lookup in every case;
-    sure where the 95 % intervals over blocks of pixels do not overlap."""
+    a lower noise-debiased RMSE against the lobe's truth than the engines' ``prefiltered`` lookup in every case
+    (:func:`~study.report.verdicts.decide`: the calibrated intervals over the pixels of each case, and paired over
+    the cases)."""
     a_lab, b_lab, m = _default("localized_prefiltered"), _default("prefiltered"), "rmse_truth_debiased"
-    pairs = [(c, _get(rows, c, a_lab, m), _get(rows, c, b_lab, m)) for c in _cases(rows)]
-    pairs = [(c, a, b) for c, a, b in pairs if _finite(a) and _finite(b)]
+    pairs = [p for c in _cases(rows) if (p := pair(rows, c, a_lab, b_lab, m)) is not None]
     if not pairs:
         return None
-    apart = sum(_get(rows, c, a_lab, m + "_hi") < _get(rows, c, b_lab, m + "_lo") for c, _, _ in pairs)
-    c, a, b = max(pairs, key=lambda p: p[1] / max(p[2], 1e-12))
+    ok, text = decide(pairs)
+    w = max(pairs, key=lambda p: p.a / max(p.b, 1e-12))
     return _verdict(
-        all(a < b for _, a, b in pairs),
+        ok,
         "all object pixels, rough objects",
         f"{len(pairs)} cases",
-        f"closest: {a:.3g} vs {b:.3g} ({c}); intervals apart in {apart} of {len(pairs)}",
+        f"localized_prefiltered {text}; closest: {w.a:.3g} vs {w.b:.3g} ({w.case})",
     )
 
 
 def glossy_converges(rows):
     """Beyond the paper, rough objects: the ``stochastic`` method's (localized) noise-debiased RMSE against the
-    lobe's truth falls at every step of its sample ladder, in every case."""
-    runs = []
+    lobe's truth falls at every step of its sample ladder, in every case (each step judged by
+    :func:`~study.report.verdicts.decide` over the cases: the calibrated intervals, and paired over the cases)."""
+    ladders = {}
     for c in _cases(rows):
         ladder = sorted(
-            (float(r["knob_value"]), float(r["rmse_truth_debiased"]))
-            for r in rows
-            if r["case"] == c and r.get("method") == "stochastic" and "localize=False" not in str(r["label"])
+            [
+                (float(r["knob_value"]), r)
+                for r in rows
+                if r["case"] == c
+                and r.get("method") == "stochastic"
+                and "localize=False" not in str(r["label"])
+                and _finite(r.get("rmse_truth_debiased"))
+            ],
+            key=lambda t: t[0],
         )
         if len(ladder) >= 2:
-            runs.append((c, ladder))
-    if not runs:
+            ladders[c] = ladder
+    if not ladders:
         return None
-    bad = [c for c, lad in runs if any(b[1] >= a[1] for a, b in zip(lad, lad[1:]))]
-    c, lad = runs[0]
-    steps = " → ".join(f"{e:.3g} (N={n:g})" for n, e in lad)
+    m = "rmse_truth_debiased"
+    steps: dict[tuple[float, float], list[Pair]] = {}
+    for c, lad in ladders.items():
+        for (n0, r0), (n1, r1) in zip(lad, lad[1:]):
+            steps.setdefault((n0, n1), []).append(Pair(c, r1[m], r0[m], bounds(r1, m), bounds(r0, m)))
+    judged = {k: decide(v) for k, v in sorted(steps.items())}
+    oks = [ok for ok, _ in judged.values()]
+    ok = False if False in oks else (None if None in oks else True)
+    words = "; ".join(f"N = {a:g} → {b:g}: {text}" for (a, b), (_, text) in judged.items())
+    c, lad = next(iter(ladders.items()))
+    ladder = " → ".join(f"{r[m]:.3g} (N={n:g})" for n, r in lad)
     return _verdict(
-        not bad,
+        ok,
         "all object pixels, rough objects",
-        f"{len(runs)} cases",
-        f"{len(runs) - len(bad)} of {len(runs)} cases fall at every step; e.g. {c}: {steps}",
+        f"{len(ladders)} cases",
+        f"the error at the larger N {words}; e.g. {c}: {ladder}",
     )

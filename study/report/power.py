@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from study.measure import stats
+from study.report import geometry
 from study.tables import REFERENCE_ROWS
 
 #: The significance level of every test in the report: what the intervals' confidence (stats.LEVEL, 95 %) leaves.
@@ -26,6 +27,7 @@ WRONG = "wrong_fraction"
 POWER_COLUMNS = [
     "table",
     "cases",
+    "seeds",
     "rays_min",
     "rays_median",
     "hidden_min",
@@ -77,7 +79,10 @@ def row(name: str, tab: list[dict], rank: list[dict]) -> dict:
     rays; ``mdd_hidden``: the same over the fewest hidden rays of the ``hidden_cases``, at the best's median hidden
     wrong fraction; ``mdd_cases_sd``: over the cases, in standard deviations of the per-case differences (``inf``:
     too few cases ever to reach 5 %), and ``mdd_cases`` in wrong fraction with the standard deviation of the
-    differences between the best and the runner-up."""
+    differences between the best and the runner-up. Cases are distinct geometries: the seeds of one are pooled
+    first (:func:`study.report.geometry.pooled`); ``seeds`` says how many per geometry."""
+    seeds = geometry.seeds_per_geometry(tab)
+    tab = geometry.pooled(tab)
     cases = list(dict.fromkeys(r["case"] for r in tab))
     first: dict = {}
     for r in tab:
@@ -96,6 +101,7 @@ def row(name: str, tab: list[dict], rank: list[dict]) -> dict:
     return {
         "table": name,
         "cases": best["n"],
+        "seeds": seeds,
         "rays_min": _finite(rays, np.nanmin),
         "rays_median": _finite(rays, np.nanmedian),
         "hidden_min": _finite(hidden, np.nanmin),
@@ -114,7 +120,8 @@ def row(name: str, tab: list[dict], rank: list[dict]) -> dict:
 def detectable(tab: list[dict], a: str, b: str, col: str) -> float:
     """The smallest difference in ``col`` between methods a and b that the table's cases could detect
     (:func:`study.measure.stats.detectable_difference`: 80 % power, 5 %, from the spread of the per-case
-    differences)."""
+    differences over the geometries: the seeds of one pooled, :func:`study.report.geometry.pooled`)."""
+    tab = geometry.pooled(tab)
     cases = list(dict.fromkeys(r["case"] for r in tab))
     return stats.detectable_difference(
         _values(tab, a, col, cases), _values(tab, b, col, cases), SIGNIFICANCE, POWER
@@ -124,8 +131,9 @@ def detectable(tab: list[dict], a: str, b: str, col: str) -> float:
 def sentence(r: dict) -> str:
     """One table's sample sizes and detectable differences in words (a :func:`row`)."""
     n = r["cases"]
+    pool = f" (distinct geometries, {r['seeds']} seeds each pooled)" if r.get("seeds", 1) > 1 else ""
     text = (
-        f"**{r['table']}**: {n} case{'s' if n != 1 else ''}, {r['rays_min']:.0f}–{r['rays_median']:.0f} object "
+        f"**{r['table']}**: {n} case{'s' if n != 1 else ''}{pool}, {r['rays_min']:.0f}–{r['rays_median']:.0f} object "
         f"rays per case (fewest–median); within one case a wrong fraction {_pct(r['mdd_rays'])} above the best's "
         f"{_pct(r['best_wrong'])} is detectable"
     )

@@ -55,10 +55,12 @@ def _tally(verdicts: list[Verdict]) -> str:
         return "no table applies"
     held = sum(v.ok is True for v in verdicts)
     failed = sum(v.ok is False for v in verdicts)
-    measured = sum(v.ok is None for v in verdicts)
+    undecided = sum(v.undecided for v in verdicts)
+    measured = sum(v.ok is None and not v.undecided for v in verdicts)
     parts = [
         f"✓ {held}" if held else "",
         f"✗ {failed}" if failed else "",
+        f"undecided {undecided}" if undecided else "",
         f"measured {measured}" if measured else "",
     ]
     return ", ".join(p for p in parts if p) + f" of {len(verdicts)} tables"
@@ -79,7 +81,11 @@ def register_markdown(tables: dict[str, list[dict]], motion: list[str] | None = 
         "study/report/claims.py). Each claim: the paper's words and place; what is measured (subset of rays or "
         "pixels, metric, what decides); the threshold and its source — a comparison of two 95 % intervals needs "
         "none, and where neither the paper nor a cited source gives a number the claim is *measured*: its numbers "
-        "are reported and no verdict is drawn. n: the cases and the rays or pixels judged.",
+        "are reported and no verdict is drawn. A claim fails (✗) only where the evidence says so; where it "
+        "decides neither way the verdict is *undecided* at this sample size. Intervals are the calibrated ones "
+        "the declared column table names (study/columns.py); comparisons on the same rays or pixels are paired "
+        "over the cases, and a case is a geometry (the seeds of one are pooled). n: the cases and the rays or "
+        "pixels judged.",
         "",
     ]
     overview = []

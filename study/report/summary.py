@@ -9,8 +9,8 @@ Everything here reads results tables (one row per case × method) and nothing el
   signed-rank, two-sided, with the count of cases each wins): "significant at 1 %/5 %" or "no significant
   difference"; below 6 cases no difference can reach 5 % (:func:`study.measure.stats.min_p`), and the headline
   says so;
-* per case, two wrong fractions are **separated** when their 95 % intervals over the rays do not overlap (the
-  ``_lo``/``_hi`` columns, or Wilson intervals from the counts for tables written before those columns);
+* per case, two wrong fractions are **separated** when their calibrated 95 % intervals over the rays do not
+  overlap (:func:`bounds`: the ``_lo``/``_hi`` columns the declared column table names; none is made up);
 * **the recommendation** is the cheapest method (cube-map lookups per ray) that is *as good as the best* in
   wrong hits: separated above the best's in no case, and not significantly worse over the cases (p ≥ 5 %).
 
@@ -30,7 +30,7 @@ from study import columns
 from study import methods as registry
 from study.measure import stats
 from study.outputs.markup import code, md_esc
-from study.report import power, table_notes
+from study.report import geometry, power, table_notes
 from study.report.power import SIGNIFICANCE, WRONG
 from study.tables import REFERENCE_ROWS, fmt_number
 
@@ -81,31 +81,28 @@ def _values(tab: list[dict], label: str, col: str, cases: list[str]) -> np.ndarr
     return np.array([float(by.get(c, math.nan)) for c in cases], float)
 
 
-def _n_for(row: dict, col: str) -> float:
-    n = row.get("n_rays", row.get("rays", math.nan))
-    h = row.get("hidden_fraction", row.get("occluded_fraction", math.nan))
-    if col.endswith("_hidden"):
-        return n * h
-    if col.endswith("_visible"):
-        return n * (1 - h)
-    return n
-
-
-def fraction_bounds(row: dict, col: str) -> tuple[float, float]:
-    """The 95 % interval of a fraction column in one row: its ``_lo``/``_hi`` columns, else the Wilson interval
-    from the row's counts (``n_rays`` or ``rays``; ``hidden_fraction`` for the hidden/visible parts)."""
-    lo, hi = row.get(f"{col}_lo", math.nan), row.get(f"{col}_hi", math.nan)
-    if isinstance(lo, float) and isinstance(hi, float) and math.isfinite(lo) and math.isfinite(hi):
-        return lo, hi
-    v, n = row.get(col, math.nan), _n_for(row, col)
-    if not (isinstance(v, float) and math.isfinite(v) and math.isfinite(n) and n >= 1):
+def bounds(row: dict, col: str) -> tuple[float, float]:
+    """The calibrated 95 % interval of column ``col`` in one row: the ``_lo``/``_hi`` columns that the declared
+    column table names for it (:func:`study.columns.interval_bounds`: ``wrong_fraction`` → ``wrong_fraction_texel``,
+    rays clustered by pixel; an infinite end is kept: a one-sided interval); (NaN, NaN) where none is declared or the
+    row lacks them. No interval is made from counts: Wilson's over independent rays covered 24 % where rays share
+    texels (reports/calibration.md)."""
+    names = columns.interval_bounds(col)
+    if names is None:
         return math.nan, math.nan
-    n = round(n)
-    return stats.fraction_ci(round(v * n), n)
+    lo, hi = row.get(names[0], math.nan), row.get(names[1], math.nan)
+    ok = all(isinstance(v, int | float) and not math.isnan(v) for v in (lo, hi))  # inf: a one-sided bound
+    return (float(lo), float(hi)) if ok else (math.nan, math.nan)
+
+
+#: a fraction's interval: :func:`bounds` (the name the claims read)
+fraction_bounds = bounds
 
 
 def separated(tab: list[dict], a: str, b: str, col: str = WRONG) -> tuple[int, int, int]:
-    """(cases where a's interval lies wholly below b's, cases where wholly above, cases compared)."""
+    """(cases where a's interval lies wholly below b's, cases where wholly above, cases compared), one case per
+    geometry (:func:`study.report.geometry.pooled`)."""
+    tab = geometry.pooled(tab)
     rows = {(r["case"], r["label"]): r for r in tab}
     below = above = n = 0
     for c in dict.fromkeys(r["case"] for r in tab):
@@ -130,12 +127,13 @@ def ranking(tab: list[dict], col: str) -> list[dict]:
     """Methods by their median over the cases of ``col`` (lowest first; ties to the lower worst case, then to the
     cheaper), each with
     ``median``, ``lo``/``hi`` and ``kind`` (:func:`study.measure.stats.case_interval`), ``max`` and ``worst``
-    (the case of the max), ``n`` (cases) and ``cost`` (median lookups per ray). A backend-sensitive column
-    (:data:`study.columns.BACKEND_SENSITIVE`: its value hangs on the backend's float32 arithmetic) ranks nothing:
-    empty."""
+    (the case of the max), ``n`` (cases: distinct geometries, :func:`study.report.geometry.pooled`) and ``cost``
+    (median lookups per ray). A backend-sensitive column (:data:`study.columns.BACKEND_SENSITIVE`: its value hangs
+    on the backend's float32 arithmetic) ranks nothing: empty."""
     col_decl = columns.declared(col)
     if col_decl is not None and col_decl.backend_sensitive:
         return []
+    tab = geometry.pooled(tab)
     cases = list(dict.fromkeys(r["case"] for r in tab))
     out = []
     for lab in _labels(tab):
@@ -180,7 +178,9 @@ def cost_front(rank: list[dict]) -> list[dict]:
 
 
 def versus(tab: list[dict], a: str, b: str, col: str) -> dict:
-    """Paired comparison of methods a and b over the table's cases (:func:`study.measure.stats.paired`)."""
+    """Paired comparison of methods a and b over the table's geometries (:func:`study.measure.stats.paired`; the
+    seeds of a geometry pooled, :func:`study.report.geometry.pooled`)."""
+    tab = geometry.pooled(tab)
     cases = list(dict.fromkeys(r["case"] for r in tab))
     return stats.paired(_values(tab, a, col, cases), _values(tab, b, col, cases))
 
@@ -217,6 +217,8 @@ def _hidden(tab: list[dict]) -> float:
 def table_sentence(name: str, tab: list[dict]) -> str | None:
     """One table's verdict in words: best and recommended method for wrong hits, how sure, and the image-error
     winner against its runner-up (and whether leaving out the worst pixels changes it)."""
+    seeds = geometry.seeds_per_geometry(tab)
+    tab = geometry.pooled(tab)
     rec = recommend(tab)
     if rec is None:
         return None
@@ -268,7 +270,13 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
         parts.append(text)
     hid = _hidden(tab)
     where = "nothing hidden from the reference point" if hid == 0 else f"median hidden rays {_pct(hid)}"
-    return f"**{md_esc(name)}** ({n} case{'s' if n != 1 else ''}, {where}): " + "; ".join(parts) + "."
+    return f"**{md_esc(name)}** ({_count(n, seeds)}, {where}): " + "; ".join(parts) + "."
+
+
+def _count(n: int, seeds: int) -> str:
+    """'12 cases' or, where seeds are pooled, '6 cases (distinct geometries; 2 seeds each pooled)'."""
+    pool = f" (distinct geometries; {seeds} seeds each pooled)" if seeds > 1 else ""
+    return f"{n} case{'s' if n != 1 else ''}{pool}"
 
 
 def image_column(tab: list[dict]) -> str:
@@ -322,13 +330,6 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
         f"{code(lab)} ({_per_ray(*[recs[n][1]['cost'] for n in names])}) in {', '.join(md_esc(n) for n in names)}"
         for lab, names in sorted(groups.items(), key=lambda g: recs[g[1][0]][1]["cost"])
     )
-    sig, few = 0, 0
-    for tab in tables.values():
-        rank = ranking(tab, WRONG)
-        if len(rank) > 1:
-            cmp = versus(tab, rank[0]["label"], rank[1]["label"], WRONG)
-            sig += cmp["p"] < SIGNIFICANCE
-            few += stats.min_p(cmp["n"]) >= SIGNIFICANCE
     where = ""
     clear = [n for n in recs if _hidden(tables[n]) == 0]
     if clear and len(clear) < len(recs):
@@ -342,11 +343,62 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
     return (
         f"**Use**, per table, the cheapest method whose wrong-hit fraction is indistinguishable from the best's "
         f"(no case where its rays' 95 % interval lies above the best's, and no significant difference over the "
-        f"cases): {uses}.{where} **How sure:** the best method beats the runner-up significantly (Wilcoxon "
-        f"signed-rank over cases, 5 %) in {sig} of {len(recs)} tables; {few} tables have fewer than 6 cases, "
-        "too few for any difference over cases to be significant, so their rankings rest on the per-case "
-        "intervals over rays alone."
+        f"cases): {uses}.{where} **How sure:** {how_sure(tables)}"
     )
+
+
+def significance_counts(tables: dict[str, list[dict]]) -> list[dict]:
+    """Per table, counted over distinct geometries (:func:`study.report.geometry.pooled`): ``cases`` (geometries),
+    ``seeds`` (seeds pooled per geometry), the best and the runner-up in wrong hits with the Wilcoxon p over the
+    geometries (``p``, ``best``, ``runner_up``), and the same by image error (``image_p``, on
+    :func:`image_column`); NaN where a table has one method."""
+    out = []
+    for name, tab in tables.items():
+        seeds = geometry.seeds_per_geometry(tab)
+        tab = geometry.pooled(tab)
+        rank = ranking(tab, WRONG)
+        if not rank:
+            continue
+        row = {"table": name, "cases": rank[0]["n"], "seeds": seeds, "best": rank[0]["label"]}
+        row |= {"runner_up": "", "p": math.nan, "image_p": math.nan}
+        if len(rank) > 1:
+            row["runner_up"] = rank[1]["label"]
+            row["p"] = versus(tab, rank[0]["label"], rank[1]["label"], WRONG)["p"]
+        img = ranking(tab, col := image_column(tab))
+        if len(img) > 1:
+            row["image_p"] = versus(tab, img[0]["label"], img[1]["label"], col)["p"]
+        out.append(row)
+    return out
+
+
+def how_sure(tables: dict[str, list[dict]]) -> str:
+    """The headline's "How sure" in words, from :func:`significance_counts` (the README's paragraph is this text,
+    written by ``scripts/headline.py --readme``)."""
+    rows = [r for r in significance_counts(tables) if r["runner_up"]]
+    if not rows:
+        return "no table compares two methods."
+    n = [r["cases"] for r in rows]
+    pooled = [f"{md_esc(r['table'])} ({r['seeds']})" for r in rows if r["seeds"] > 1]
+    sig = [r for r in rows if r["p"] < SIGNIFICANCE]
+    img = [r for r in rows if r["image_p"] < SIGNIFICANCE]
+    few = [md_esc(r["table"]) for r in rows if stats.min_p(r["cases"]) >= SIGNIFICANCE]
+    text = (
+        f"counted over distinct geometries (a case is an object position, scene and object; the seeds of one "
+        f"geometry are pooled, never counted as cases), the tables have {min(n)}–{max(n)} cases"
+        + (f" (seeds pooled per geometry: {', '.join(pooled)})" if pooled else "")
+        + f". The best method beats the runner-up in wrong hits significantly (Wilcoxon signed-rank over the "
+        f"geometries, {100 * SIGNIFICANCE:g} %) in {len(sig)} of {len(rows)} tables"
+        + (f" ({', '.join(md_esc(r['table']) for r in sig)})" if sig else "")
+        + f"; by image error (relMSE after the picture's exposure where a table has it) in {len(img)} of "
+        f"{len(rows)} tables" + (f" ({', '.join(md_esc(r['table']) for r in img)})" if img else "") + "."
+    )
+    if few:
+        text += (
+            f" {len(few)} table{'s have' if len(few) > 1 else ' has'} fewer than 6 geometries ({', '.join(few)}): "
+            "too few for any difference over cases to be significant (p ≥ 2/2ⁿ), so their rankings rest on the "
+            "per-case intervals over rays alone."
+        )
+    return text
 
 
 #: The columns of :func:`interval_rows`.
@@ -354,6 +406,7 @@ INTERVAL_COLUMNS = [
     "table",
     "method",
     "cases",
+    "seeds",
     "lookups",
     "wrong",
     "wrong_lo",
@@ -386,6 +439,8 @@ def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
     cases); ``relmse``/``_lo``/``_hi`` the same for :data:`RELATIVE` (NaN for tables without it)."""
     out = []
     for name, tab in tables.items():
+        seeds = geometry.seeds_per_geometry(tab)
+        tab = geometry.pooled(tab)
         rank = ranking(tab, WRONG)
         if not rank:
             continue
@@ -400,6 +455,7 @@ def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
                     "table": name,
                     "method": r["label"],
                     "cases": r["n"],
+                    "seeds": seeds,
                     "lookups": r["cost"],
                     "wrong": r["median"],
                     "wrong_lo": r["lo"],
@@ -418,11 +474,29 @@ def interval_rows(tables: dict[str, list[dict]]) -> list[dict]:
     return out
 
 
+def headline_tables(tables: dict[str, list[dict]]) -> dict[str, list[dict]]:
+    """The tables the headline judges by wrong hits: those of mirror and glass objects (rough objects' tables,
+    ``object_alpha`` > 0, are judged by their error split and claims)."""
+    return {n: t for n, t in tables.items() if not any((r.get("object_alpha") or 0) > 0 for r in t)}
+
+
+def readme_how_sure(tables: dict[str, list[dict]], width: int = 118) -> str:
+    """The README's "How sure" bullet: :func:`how_sure` over :func:`headline_tables`, wrapped to ``width``."""
+    import textwrap
+
+    text = how_sure(headline_tables(tables))
+    return textwrap.fill(
+        f"- **How sure:** {text[0].upper()}{text[1:]}", width, subsequent_indent="  ", break_on_hyphens=False
+    )
+
+
 def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
     """The report blocks of the headline: a heading, the headline paragraph and one sentence per table. Tables of
     rough objects (``object_alpha`` > 0) are left out: a glossy method shows a lobe, not a hit, so wrong hits do
     not rank it; their error split and claims judge them (the glossy figure's section)."""
-    tables = {n: t for n, t in tables.items() if not any((r.get("object_alpha") or 0) > 0 for r in t)}
+    tables = headline_tables(tables)
+    seeds = {n: geometry.seeds_per_geometry(t) for n, t in tables.items()}
+    tables = {n: geometry.pooled(t) for n, t in tables.items()}  # one case per geometry from here on
     head = headline(tables)
     if head is None:
         return []
@@ -434,7 +508,11 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
         ("p", table_notes.interval_note()),
         ("table", interval_rows(tables), INTERVAL_COLUMNS),
         *power.power_blocks(
-            [power.row(name, tab, rank) for name, tab in tables.items() if (rank := ranking(tab, WRONG))]
+            [
+                power.row(name, tab, rank) | {"seeds": seeds[name]}
+                for name, tab in tables.items()
+                if (rank := ranking(tab, WRONG))
+            ]
         ),
     ]
 
@@ -443,6 +521,7 @@ def tolerance_curve_rows(tab: list[dict]) -> list[dict]:
     """The wrong-fraction-versus-tolerance curve per method: median over the cases of ``wrong_fraction_<tol>``
     at each fixed tolerance of :data:`study.measure.stats.TOLERANCES` (rows: label, tolerance_m, wrong,
     wrong_max); empty for a table written before those columns."""
+    tab = geometry.pooled(tab)
     cases = list(dict.fromkeys(r["case"] for r in tab))
     out = []
     for lab in _labels(tab):

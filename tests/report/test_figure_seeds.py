@@ -1,7 +1,7 @@
-"""Figures have enough cases for intervals over cases (issues 41 item 5, 42 item 3): every shipped grid figure has
-≥ 12 cases (positions × seeds), read through the real config loader; the seeds axis draws the stochastic parts
-anew (Mitsuba's references differ between seeds) while the grid's picture keeps the first seed's rows; and a
-figure states where its time went (``time_split`` in metadata.json, one line printed)."""
+"""Figures have enough cases for intervals over cases (issues 41 item 5, 42 item 3, 53 item 1): every shipped grid
+figure has ≥ 12 distinct geometries (seeds do not count), read through the real config loader; the seeds axis
+draws the stochastic parts anew (Mitsuba's references differ between seeds) while the grid's picture keeps the
+first seed's rows; and a figure states where its time went (``time_split`` in metadata.json, one line printed)."""
 
 import json
 from pathlib import Path
@@ -17,22 +17,35 @@ from study.report.kinds import config_kind
 from tests.conftest import error_output, scene_toml, small_scene_dict
 
 ROOT = Path(__file__).resolve().parents[2]
-#: fewest cases per figure: calibrated case intervals (the median's order-statistic CI from 10 cases on,
+#: fewest distinct geometries per figure: calibrated case intervals (the median's order-statistic CI from 10 cases on,
 #: study.measure.stats.case_interval) and paired tests with power
 MIN_CASES = 12
 #: figure configs whose kind has no positions or cases (one scene measured another way), and why
-NOT_CASES = {"fig8": "caustics: one caustic scene, its intervals from two Mitsuba seeds and the sweep"}
+NOT_CASES = {
+    "fig8": "caustics: one caustic scene (no positions), its intervals from two Mitsuba seeds and the sweep"
+}
+
+
+def _geometries(cfg) -> int:
+    """Distinct geometries of a figure config: its cases' scene overrides without ``render.seed`` (the seed redraws
+    the Monte Carlo parts only: its replicates are copies for every geometric column; issue 53)."""
+    return len({json.dumps({k: v for k, v in o.items() if k != "render.seed"}, sort_keys=True)
+                for _, _, o in cfg.case_list()})  # fmt: skip
 
 
 @pytest.mark.parametrize("path", sorted((ROOT / "configs").glob("fig*.toml")), ids=lambda p: p.stem)
-def test_every_figure_has_at_least_12_cases(path):
+def test_every_figure_has_at_least_12_distinct_geometries(path):
+    """≥ 12 distinct geometries (object position, scene, object), not positions × seeds: before issue 53 fig5,
+    fig6, fig_glossy and fig_hitcache had 6 (× 2 seeds), fig_atrium, fig_attic and fig_lroom 3 (× 4), fig_cornell
+    and fig_probes 2 (× 6)."""
     if path.stem in NOT_CASES:
         assert config_kind(path).name not in ("grid", "glossy"), f"{path.stem} became a grid figure: count it"
         return
     cfg, _, _ = load_figure_config(path)
     n = cfg.case_count()
     assert n == len(cfg.case_list()) and len({cid for cid, _, _ in cfg.case_list()}) == n
-    assert n >= MIN_CASES, f"{path.name}: {n} cases (positions or cases × seeds), want ≥ {MIN_CASES}"
+    g = _geometries(cfg)
+    assert g >= MIN_CASES, f"{path.name}: {g} distinct geometries ({n} cases with seeds), want ≥ {MIN_CASES}"
 
 
 def _write(tmp: Path, seeds: str) -> Path:
@@ -154,9 +167,10 @@ def test_a_run_keeps_its_time_split(tmp_path):
 def test_seeds_multiply_the_cases_and_convergence_reads_the_first_seed_only():
     from pathlib import Path as P
 
+    from study.harness.config import FigureConfig
     from study.outputs.convergence import convergence_cases, load_convergence
 
-    cfg, _, _ = load_figure_config(ROOT / "configs" / "fig5.toml")
+    cfg = FigureConfig(scene="room.toml", positions=[[0.0, 1.5, 0.0], [0.6, 1.2, 0.3]], seeds=[0, 3])
     every, first = cfg.case_list(), cfg.case_list(replicates=False)
     assert len(every) == len(first) * len(cfg.seeds) and [c[0] for c in first] == [
         c[0] for c in every[: len(first)]

@@ -10,19 +10,27 @@ from study.report import claims, register
 PAPER = Path(__file__).resolve().parents[3] / "shared/paper/ray-tracing-effects-without-tracing-rays.txt"
 
 
+def _ci(w: float) -> dict:
+    """wrong_fraction's calibrated interval (wrong_fraction_texel's), ± 0.02 about it."""
+    return {"wrong_fraction": w, "wrong_fraction_texel_lo": w - 0.02, "wrong_fraction_texel_hi": w + 0.02}
+
+
 def _tables():
     loc, cls = claims._default("localized"), "classical"
     base = {"n_rays": 10_000.0, "occluded_fraction": 0.0, "displacement": 0.3}
     good = [
-        base
-        | {"case": "p1", "label": loc, "wrong_fraction": 0.01, "flip_oracle_p95": 0.02, "held_pixels": 500},
-        base | {"case": "p1", "label": cls, "wrong_fraction": 0.9},
+        base | {"case": "p1", "label": loc, "flip_oracle_p95": 0.02, "held_pixels": 500} | _ci(0.03),
+        base | {"case": "p1", "label": cls} | _ci(0.9),
     ]
     bad = [
-        base | {"case": "p1", "label": loc, "wrong_fraction": 0.95},
-        base | {"case": "p1", "label": cls, "wrong_fraction": 0.1},
+        base | {"case": "p1", "label": loc} | _ci(0.95),
+        base | {"case": "p1", "label": cls} | _ci(0.1),
     ]
-    return {"fig_good": good, "fig_bad": bad}
+    close = [  # within each other's intervals: the evidence decides neither way
+        base | {"case": "p1", "label": loc} | _ci(0.10),
+        base | {"case": "p1", "label": cls} | _ci(0.12),
+    ]
+    return {"fig_good": good, "fig_bad": bad, "fig_close": close}
 
 
 def test_register_lists_every_claim_with_its_words_and_verdicts():
@@ -33,9 +41,10 @@ def test_register_lists_every_claim_with_its_words_and_verdicts():
         assert f"## {c.id} ({c.source})" in text
         assert not c.quote or f"> “{c.quote}”" in text
     # beats-classical holds on one table and fails on the other; hardly-visible is measured, never judged
-    assert "| beats-classical | Sec. 1; Fig. 4 | ✓ 1, ✗ 1 of 2 tables |" in text
+    assert "| beats-classical | Sec. 1; Fig. 4 | ✓ 1, ✗ 1, undecided 1 of 3 tables |" in text
     assert re.search(r"\| hardly-visible \| [^|]+ \| measured 1 of 1 tables \|", text)
     assert "| fig\\_bad | ✗ |" in text and "| fig\\_good | measured |" in text
+    assert "| fig\\_close | undecided |" in text
     assert "9.7 JOD" in text and "From bench: 0.05 ms" in text
 
 

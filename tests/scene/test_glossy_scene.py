@@ -117,8 +117,8 @@ def test_the_split_of_a_figure_with_seeds_names_each_seed(tmp_path):
 
 
 def test_glossy_claims_decide_both_ways():
-    """The two glossy claims on hand-made rows: true where the numbers say so, false where one case disagrees,
-    and not applicable to a mirror table."""
+    """The two glossy claims on hand-made rows: true where the intervals say so, undecided where they overlap,
+    false where one case's interval lies on the wrong side, and not applicable to a mirror table."""
     from study.report import claims
 
     def row(case, label, e, method=None, knob=float("nan")):
@@ -138,8 +138,11 @@ def test_glossy_claims_decide_both_ways():
         row(c, f"stochastic(samples={n})", e, "stochastic", n) for c in "ab" for n, e in ((4, 0.2), (16, 0.1))
     ]
     rows += [row("a", "stochastic(samples=16, localize=False)", 0.9, "stochastic", 16)]
-    v = claims.glossy_localized(rows)
-    assert v.ok and "apart in 1 of 2" in v.number
+    v = claims.glossy_localized(
+        rows
+    )  # b within the intervals, 2 cases cannot reach 5 %: undecided (issue 53)
+    assert v.undecided and "apart (below) in 1, above in 0, overlapping in 1" in v.number
+    assert claims.glossy_localized(rows[:2] + rows[4:]).ok  # a alone: apart below
     assert claims.glossy_converges(rows).ok
     rows[2] = row("b", loc, 0.2)  # worse than prefiltered in case b
     rows.append(row("b", "stochastic(samples=64)", 0.15, "stochastic", 64))  # rises at the last step
