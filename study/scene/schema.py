@@ -138,6 +138,9 @@ class Scene(_Strict):
     render: Render = Render()
     _suggested: frozenset = PrivateAttr(default=frozenset())  # placement keys chosen by automatic placement
     _chosen: str = PrivateAttr(default="")  # automatic placement's choice in one line (autoplace.Suggestion)
+    _units: str = PrivateAttr(
+        default=""
+    )  # how the environment was moved into its measuring frame (scene.frame)
 
     @field_validator("columns", mode="before")
     @classmethod
@@ -158,6 +161,8 @@ class Scene(_Strict):
             return data
         from study.scene.autoplace import KEYS
 
+        data = cls._measuring_frame(data, env, kind, ctx)
+        env = data.get("environment")
         given = {}
         for k in KEYS:
             table, key = k.split(".")
@@ -187,6 +192,45 @@ class Scene(_Strict):
             ctx["placement"] = getattr(suggested, "line", "")
         return out
 
+    @staticmethod
+    def _measuring_frame(data: dict, env, kind: str, ctx: dict | None) -> dict:
+        """A mesh environment far from the origin or far from metres, moved into its measuring frame with the
+        points, lengths and intensities the user gave (:mod:`study.scene.frame`); a Mitsuba scene there refused
+        in one line. ``data`` unchanged where nothing moves."""
+        from pydantic import TypeAdapter
+
+        import study.scene.frame as frame
+        from study.scene.environment import geometry
+
+        try:
+            model = TypeAdapter(Environment).validate_python(env, context=ctx)
+        except ValidationError:
+            return data  # the field's own validation says what is wrong
+        bounds = geometry(model).bounds
+        if kind == "mitsuba":
+            why = frame.refusal(*bounds)
+            if why:
+                raise StudyError(why, key="environment")
+            return data
+        if kind != "mesh":
+            return data
+        s, c = frame.choose(*bounds)
+        if frame.identity(s, c):
+            return data
+        out = {k: (dict(v.model_dump()) if isinstance(v, BaseModel) else v) for k, v in data.items()}
+        out["environment"] = frame.mesh_keys(model.model_dump(), s, c)
+        for k in (*frame.POINTS, *frame.LENGTHS, *frame.INTENSITIES, "reference.box"):
+            table, key = k.split(".")
+            node = out.get(table)
+            if isinstance(node, dict) and key in node:
+                try:
+                    out[table] = {**node, key: frame.apply(k, node[key], s, c)}
+                except (TypeError, ValueError):
+                    pass  # not a number: the key's own validation says so
+        if ctx is not None:
+            ctx["frame"] = frame.line(*bounds, s, c)
+        return out
+
     @model_validator(mode="after")
     def _frame(self):  # camera.frame_object: target and fov from the object (Camera.framed)
         cam = self.camera.framed(self.object.center, self.object.radius)
@@ -199,6 +243,8 @@ class Scene(_Strict):
         if isinstance(info.context, dict) and info.context.get("suggested"):
             self._suggested = frozenset(info.context["suggested"])
             self._chosen = info.context.get("placement") or ""
+        if isinstance(info.context, dict) and info.context.get("frame"):
+            self._units = info.context["frame"]
         if self.environment.type != "box":
             return self._placement_any()
         lo, hi = np.array(self.room.min), np.array(self.room.max)
@@ -257,6 +303,11 @@ class Scene(_Strict):
         """The placement keys automatic placement chose (the user left them out)."""
         return self._suggested
 
+    def units_line(self) -> str:
+        """How the environment was recentred or rescaled to be measured (:mod:`study.scene.frame`); empty where
+        it was measured as it is."""
+        return self._units
+
     def placement_line(self) -> str:
         """Automatic placement's choice in one line, its score terms named; empty where it chose nothing."""
         return self._chosen
@@ -285,7 +336,7 @@ class Scene(_Strict):
                 data[table].pop(key, None)
             keep = frozenset()
         line = self._chosen if keep == self._suggested else ""
-        return scene_from_dict(data, source=source, suggested=keep, placement=line)
+        return scene_from_dict(data, source=source, suggested=keep, placement=line, units=self._units)
 
     def mesh(self) -> RoomMesh:
         """The environment as triangles (:func:`study.scene.environment.geometry`): the box room and its columns,
@@ -327,6 +378,7 @@ def scene_from_dict(
     base: str | Path | None = None,
     suggested=frozenset(),
     placement="",
+    units="",
 ) -> Scene:
     """Validate a scene dict; the first problem is one StudyError naming ``source`` and the dotted key. Relative
     ``file`` paths resolve against ``base`` (the scene file's directory; the working directory by default).
@@ -337,6 +389,7 @@ def scene_from_dict(
             "base": str(base) if base is not None else None,
             "suggested": set(suggested),
             "placement": placement,
+            "frame": units,
         }
         return Scene.model_validate(data, context=ctx)
     except ValidationError as err:
