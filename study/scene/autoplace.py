@@ -38,6 +38,7 @@ import study.scene.lights as lights
 import study.scene.placement as placement
 from study.errors import StudyError
 from study.scene.environment import geometry
+from study.scene.frame import DEFAULT_DIAGONAL
 from study.scene.models import Camera
 from study.validation import KeyedError
 
@@ -56,7 +57,6 @@ KEYS = (
 MIN_CLEARANCE = (
     0.05  # a reference point nearer than this share of the bounds' diagonal to a surface is no room's
 )
-DEFAULT_DIAGONAL = float(np.linalg.norm([4.0, 3.0, 4.0]))  # the default room's
 DEFAULT_INTENSITY = 6.0  # W/sr, the default room's light
 
 

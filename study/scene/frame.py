@@ -1,5 +1,5 @@
 """The frame a scene is measured in: a mesh file in millimetres, kilometres or 10⁵ units from the origin measures
-what the same file measures in metres at the origin (issue 54, item 1).
+what the same file measures in metres at the origin.
 
 Everything the float32 methods and renderers see (Embree, Mitsuba, the cube maps, the 1 cm floor of the wrong-hit
 tolerance, :data:`study.measure.outcomes.EPS_FIXED`) assumes a room of metres near the origin: far from it, float32
@@ -7,8 +7,8 @@ positions lose the room's detail (at 10⁵ units one float32 step is 8 mm); a ro
 tolerance; a room of 10⁵ m lies beyond Mitsuba's far clip. So an environment whose bounds' diagonal ``D`` lies
 outside [:data:`SMALL`, :data:`LARGE`] is **rescaled** by the power of ten that brings it nearest the default
 room's 6.4 m (``s = 10^round(log10(6.4 / D))``: a file in millimetres is read in metres, one in kilometres too),
-and one whose bounds' centre lies more than :data:`FAR` diagonals from the origin is **recentred** by that centre
-rounded to the power of ten above the diagonal (a room 10⁵ m away comes back to where it was drawn). A point
+and one whose bounds' centre lies more than :data:`FAR_DIAGONALS` diagonals from the origin is **recentred** by
+that centre rounded to the power of ten above the diagonal (a room 10⁵ m away comes back to where it was drawn). A point
 ``x`` of the file is then measured at ``s·(x − c)`` (:func:`apply`); every length scales by ``s``, a point light's
 intensity (W/sr) by ``s²`` (so that irradiance I/r² at the walls, and the picture, stay the same).
 
@@ -24,8 +24,8 @@ import math
 import numpy as np
 
 SMALL, LARGE = 1.0, 100.0  # diagonals (scene units) measured as they are; outside: rescaled by a power of ten
-FAR = 10.0  # a centre more than this many diagonals from the origin is recentred
-DEFAULT_DIAGONAL = float(np.linalg.norm([4.0, 3.0, 4.0]))  # the default room's, m
+FAR_DIAGONALS = 10.0  # a centre more than this many diagonals from the origin is recentred
+DEFAULT_DIAGONAL = float(np.linalg.norm([4.0, 3.0, 4.0]))  # the default room's, m (automatic placement's too)
 
 #: Scene keys that are points (moved and scaled), lengths (scaled) and radiant intensities (scaled by s²).
 POINTS = ("reference.point", "object.center", "camera.eye", "camera.target", "light.position")
@@ -45,7 +45,7 @@ def choose(lo, hi) -> tuple[float, np.ndarray]:
         s = 10.0 ** round(math.log10(DEFAULT_DIAGONAL / diag))
     mid = (lo + hi) / 2
     c = np.zeros(3)
-    if float(np.linalg.norm(mid)) > FAR * diag:
+    if float(np.linalg.norm(mid)) > FAR_DIAGONALS * diag:
         q = 10.0 ** math.ceil(math.log10(diag))
         c = np.round(mid / q) * q
     return float(s), c
