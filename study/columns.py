@@ -215,6 +215,21 @@ TABLE: list[TableColumn] = [
         note="the file's own lights' power over study's point light's (luminance, W); under 0.05 they are weak and "
         "study's point light is added unless light.enabled is given (study/scene/lights.py); NaN: not judged",
     ),
+    # worth looking at (study/measure/worth.py): past its limit, `study run` names the cause and the key to change
+    C(
+        "black_share",
+        F,
+        LOW,
+        note="Mitsuba's picture shown black after its exposure (at most 8 EV of boost); > 0.5",
+    ),
+    C("clipped_share", F, LOW, note="Mitsuba's picture clipped white after its exposure; > 0.1"),
+    C("object_share", F, note="the frame's pixels fully on the object; < 0.02"),
+    C("mirrored_void", F, LOW, note="the object's rays that leave the scene (no sky given: black); > 0.5"),
+    C(
+        "reference_seen",
+        F,
+        note="the object's bounding sphere as seen unblocked from the reference point; < 0.5",
+    ),
     C("truth_noise_rmse", "linear RGB", note="the truth's own noise σ"),
     C(
         "truth_noise_flag",

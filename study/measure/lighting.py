@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 
+from study.measure import worth
 from study.measure.exposure import FIREFLY_LIMIT, FIREFLY_STEP
 from study.measure.truth import NOISE_SHARE
 from study.scene import lights
@@ -110,4 +111,7 @@ def picture_label(rows: list[dict]) -> str:
 def notes(rows: list[dict], scene) -> list[str]:
     """The run's lines about its light and samples (module docstring), in that order; empty where all is well."""
     spp = getattr(getattr(scene, "render", None), "spp", 0)  # 0: not known (a figure's case without a scene)
-    return [s for s in (light_note(rows, scene), firefly_note(rows, spp), noise_note(rows, spp)) if s]
+    units = scene.units_line() if hasattr(scene, "units_line") else ""  # moved to be measured (scene.frame)
+    worth_line = worth.line(rows[0]) if rows else ""  # what a reader would complain about (measure.worth)
+    said = (units, worth_line, light_note(rows, scene), firefly_note(rows, spp), noise_note(rows, spp))
+    return [s for s in said if s]
