@@ -187,9 +187,18 @@ class Scene(_Strict):
         for k, v in suggested.items():
             table, key = k.split(".")
             out[table] = {**(out.get(table) or {}), key: v}
+        line = getattr(suggested, "line", "")
+        if getattr(suggested, "outside", False) and model.sky is None and not _own_sky(model):
+            from study.scene.sky import STUDIO
+
+            out["environment"] = {**model.model_dump(), "sky": STUDIO}  # something for a mirror to show
+            line += (
+                f'; sky "{STUDIO}" (an object seen from outside: a studio gradient it can reflect, unlike the '
+                "background behind it; environment.sky sets another)"
+            )
         if ctx is not None:
             ctx["suggested"] = set(ctx.get("suggested") or ()) | set(suggested)
-            ctx["placement"] = getattr(suggested, "line", "")
+            ctx["placement"] = line
         return out
 
     @staticmethod
@@ -364,6 +373,14 @@ class Scene(_Strict):
         from study.scene.environment import geometry
 
         return geometry(self).bounds
+
+
+def _own_sky(env) -> bool:
+    """Whether the environment's file brings its own sky (a Mitsuba ``envmap`` or ``constant`` emitter)."""
+    from study.scene.environment import geometry
+
+    names = (str(e).lower() for e in geometry(env).emitters)
+    return any("environment" in n or "constant" in n or "envmap" in n for n in names)
 
 
 def _box_sphere_distance(lo, hi, p) -> float:
