@@ -128,8 +128,9 @@ FLAT = (
 def _on_axis(env, sensor, radius: float, diag: float, sized: bool, start) -> tuple[np.ndarray, float]:
     """(start, radius) of the object on the file camera's view axis: before the first surface the axis meets,
     nearest the bounds' middle (the bounds grown by a quarter of their diagonal: a flat scene has no inside);
-    ``sized``: the radius grown to a quarter of the frame's half-width there (the object seen, not a dot), at
-    most two thirds of the clearance. No free spot on the axis: ``start`` and ``radius`` as they were."""
+    ``sized``: the radius the spot takes, grown to a quarter of the frame's half-width there (the object seen,
+    not a dot), at most two thirds of the clearance, the spot the one where the object fills most of the frame.
+    No free spot on the axis: ``start`` and ``radius`` as they were."""
     mesh, (lo, hi) = env.mesh, env.bounds
     eye, target = np.array(sensor["eye"], float), np.array(sensor["target"], float)
     axis = (target - eye) / np.linalg.norm(target - eye)
@@ -139,15 +140,15 @@ def _on_axis(env, sensor, radius: float, diag: float, sized: bool, start) -> tup
     grow = 0.25 * diag
     inside = [p for p in pts if np.all(p > lo - grow) and np.all(p < hi + grow)] or list(pts)
     gaps = {i: placement.clearance(mesh, p) for i, p in enumerate(inside)}
-    ok = [i for i in gaps if gaps[i] > 1.5 * radius]
+    ok = [i for i in gaps if gaps[i] > (0.0 if sized else 1.5 * radius)]
     if not ok:
         return start, radius
     tan = np.tan(np.radians(float(sensor.get("fov", 45.0))) / 2)
 
-    def fits(i):  # the radius that fits there (a quarter of the frame's half-width at most), and its share
+    def fits(i):  # the radius that fits there (a quarter of the frame's half-width, or more), and its share
         t = float(np.linalg.norm(inside[i] - eye))
-        r = min(0.25 * t * tan, gaps[i] / 1.5, t / 3)
-        return max(r, radius), r / (t * tan)
+        r = min(max(radius, 0.25 * t * tan), gaps[i] / 1.5, t / 3)
+        return r, min(r / (t * tan), 0.25)
 
     mid = (lo + hi) / 2
     if sized:  # the largest share of the frame (to within 10 %), then nearest the middle
