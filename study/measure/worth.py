@@ -70,13 +70,15 @@ def columns(scene, mitsuba: np.ndarray, mask: np.ndarray, escapes: np.ndarray) -
     lum = luminance(np.nan_to_num(np.asarray(mitsuba, float)))
     ev = auto_exposure(mitsuba)
     shown = lum * 2.0 ** min(ev if ev is not None else 0.0, MAX_BOOST)
+    with np.errstate(invalid="ignore", divide="ignore"):  # a reference point at the object's centre: NaN
+        seen = sees(scene.mesh(), scene.reference.point, scene.object.center, scene.object.radius)
     esc = np.asarray(escapes, bool) & ~_sky(scene)  # under a sky, a ray that leaves the scene shows it
     return {
         "black_share": float(np.mean(shown < BLACK)),
         "clipped_share": float(np.mean(shown > 1.0)),
         "object_share": float(np.mean(np.asarray(mask, bool))),
         "mirrored_void": float(esc.mean()) if esc.size else math.nan,
-        "reference_seen": sees(scene.mesh(), scene.reference.point, scene.object.center, scene.object.radius),
+        "reference_seen": seen,
     }
 
 

@@ -378,7 +378,8 @@ def suggest(env, given: dict[str, Any] | None = None) -> Suggestion:
     if want("camera.fov") and env.sensor is not None and want("camera.eye"):  # the file's view, whole
         out["camera.fov"] = env.sensor["fov"]
     out.update(_light(env, given, centre, radius, best, gap, up))
-    out.outside = enclosed < placement.ENCLOSED  # a single object seen from outside (a sky it can reflect)
+    # a single object seen from outside, placed by study (a sky it can reflect): not where the user placed things
+    out.outside = enclosed < placement.ENCLOSED and want("reference.point") and want("object.center")
     fmt = lambda v: "(" + ", ".join(f"{x:.3g}" for x in v) + ")"  # noqa: E731
     out.line = (
         f"placement: reference point {fmt(best)} (enclosure {enclosed:.2f}, clearance {gap:.3g}), object "
