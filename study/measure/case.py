@@ -24,7 +24,7 @@ from study.cache import Cache
 from study.errors import StudyError
 from study.impostor.envmap import EnvMap
 from study.impostor.views import Lobe
-from study.measure import batched, bias, lighting, metrics, outcomes, spatial, split, stats, truth
+from study.measure import batched, bias, lighting, metrics, outcomes, spatial, split, stats, truth, worth
 from study.measure.inputs import camera_render, capture_views, impostor, second_captures
 from study.methods import Method
 from study.optics import shading
@@ -286,6 +286,7 @@ def run_case(
     refs = _Refs(ref, mitsuba, oracle_img, oracle_seed, oracle_coarse, held_px, on_held, mask,
                  sigma=truth.noise_rms(ref.noise, mask), against=scene.render.flip_against)  # fmt: skip
     base = _base_columns(scene, case_id, backend, rays, exact, o)
+    base.update(worth.columns(scene, mitsuba, mask, exact.escapes))  # worth looking at? (study.measure.worth)
     out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=mitsuba, truth=ref.image, mask=mask, held=held_px,
                      occluded=rays.per_pixel(exact.occluded.astype(float), fill=0.0))  # fmt: skip
     # every method's image columns in one pass per reference (study.measure.batched); the references' own rows

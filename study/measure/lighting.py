@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from study.measure import worth
 from study.measure.exposure import FIREFLY_LIMIT, FIREFLY_STEP
 from study.measure.truth import NOISE_SHARE
 from study.scene import lights
@@ -149,8 +150,36 @@ def picture_label(rows: list[dict]) -> str:
     )
 
 
+#: The truth's own distance from Mitsuba's render (rmse_mitsuba_debiased of truth_at_hit) over this share of the
+#: smallest method's rmse_mitsuba: that column measures light no method models more than it measures the methods.
+UNMODELLED_SHARE = 0.5
+
+
+def unmodelled_note(rows: list[dict]) -> str:
+    """The line saying that RMSE against Mitsuba's render is not a measure of the methods here ('' where the truth
+    is close to that render: under :data:`UNMODELLED_SHARE` of the smallest method's rmse_mitsuba)."""
+    truth = [r for r in rows if r.get("label") == "truth_at_hit"]
+    own = float(truth[0].get("rmse_mitsuba_debiased", math.nan)) if truth else math.nan
+    errs = [r.get("rmse_mitsuba", math.nan) for r in rows if r.get("label") not in REFERENCE_ROWS]
+    errs = np.array([e for e in errs if isinstance(e, int | float)], float)
+    if not (own > 0 and np.isfinite(errs).any()):
+        return ""
+    best = float(np.nanmin(errs))
+    if not own > UNMODELLED_SHARE * best:
+        return ""
+    return (
+        f"RMSE against Mitsuba's render is not a measure of the methods here: the exact truth_at_hit is itself "
+        f"{own:.3g} from it beyond its noise ({own / best:.0%} of the best method's {best:.3g}): light no method "
+        "models (the point light's highlight, the object's shadow and own reflections); rank on rmse_truth or "
+        "relMSE after exposure"
+    )
+
+
 def notes(rows: list[dict], scene) -> list[str]:
     """The run's lines about its light and samples (module docstring), in that order; empty where all is well."""
     spp = getattr(getattr(scene, "render", None), "spp", 0)  # 0: not known (a figure's case without a scene)
-    said = (black_note(rows, scene), light_note(rows, scene), firefly_note(rows, spp), noise_note(rows, spp))
+    units = scene.units_line() if hasattr(scene, "units_line") else ""  # moved to be measured (scene.frame)
+    worth_line = worth.line(rows[0]) if rows else ""  # what a reader would complain about (measure.worth)
+    said = (units, worth_line, black_note(rows, scene), light_note(rows, scene), firefly_note(rows, spp),
+            noise_note(rows, spp), unmodelled_note(rows))  # fmt: skip
     return [s for s in said if s]

@@ -38,6 +38,7 @@ import study.scene.lights as lights
 import study.scene.placement as placement
 from study.errors import StudyError
 from study.scene.environment import geometry
+from study.scene.frame import DEFAULT_DIAGONAL
 from study.scene.models import Camera
 from study.validation import KeyedError
 
@@ -56,7 +57,6 @@ KEYS = (
 MIN_CLEARANCE = (
     0.05  # a reference point nearer than this share of the bounds' diagonal to a surface is no room's
 )
-DEFAULT_DIAGONAL = float(np.linalg.norm([4.0, 3.0, 4.0]))  # the default room's
 DEFAULT_INTENSITY = 6.0  # W/sr, the default room's light
 
 
@@ -118,6 +118,66 @@ def _beside(env) -> tuple[np.ndarray, float, float]:
             key="environment",
         )
     return best
+
+
+FLAT = (
+    0.02  # bounds thinner than this share of their diagonal along one axis: a flat scene (its light off it)
+)
+
+
+def _on_axis(env, sensor, radius: float, diag: float, sized: bool, start) -> tuple[np.ndarray, float]:
+    """(start, radius) of the object on the file camera's view axis: before the first surface the axis meets,
+    nearest the bounds' middle (the bounds grown by a quarter of their diagonal: a flat scene has no inside);
+    ``sized``: the radius the spot takes, grown to a quarter of the frame's half-width there (the object seen,
+    not a dot), at most two thirds of the clearance, the spot the one where the object fills most of the frame.
+    No free spot on the axis: ``start`` and ``radius`` as they were."""
+    mesh, (lo, hi) = env.mesh, env.bounds
+    eye, target = np.array(sensor["eye"], float), np.array(sensor["target"], float)
+    axis = (target - eye) / np.linalg.norm(target - eye)
+    t_hit = placement.cast(mesh, eye[None], axis[None])[0][0]  # the camera sees up to there
+    far = min(2 * diag + np.linalg.norm(eye - (lo + hi) / 2), t_hit - 1.5 * radius)
+    pts = eye + np.linspace(0, max(far, 0.0), 200)[1:, None] * axis
+    grow = 0.25 * diag
+    inside = [p for p in pts if np.all(p > lo - grow) and np.all(p < hi + grow)] or list(pts)
+    gaps = {i: placement.clearance(mesh, p) for i, p in enumerate(inside)}
+    ok = [i for i in gaps if gaps[i] > (0.0 if sized else 1.5 * radius)]
+    if not ok:
+        return start, radius
+    tan = np.tan(np.radians(float(sensor.get("fov", 45.0))) / 2)
+
+    def fits(i):  # the radius that fits there (a quarter of the frame's half-width, or more), and its share
+        t = float(np.linalg.norm(inside[i] - eye))
+        r = min(max(radius, 0.25 * t * tan), gaps[i] / 1.5, t / 3)
+        return r, min(r / (t * tan), 0.25)
+
+    mid = (lo + hi) / 2
+    if sized:  # the largest share of the frame (to within 10 %), then nearest the middle
+        top = max(fits(i)[1] for i in ok)
+        ok = [i for i in ok if fits(i)[1] >= 0.9 * top]
+    i = min(ok, key=lambda i: np.linalg.norm(inside[i] - mid))
+    return inside[i], (fits(i)[0] if sized else radius)
+
+
+def _seeing(env, centre, radius: float, best, gap: float, enclosed: float) -> tuple[np.ndarray, float, float]:
+    """A reference point that sees the object whole, where the chosen one (``best``) does not: of free points
+    around the object (32 directions × 3, 5 and 8 radii, and the chosen point's distance), the one of the highest
+    clearance × enclosure² among those that see it unblocked; none: ``best`` as it was."""
+    mesh = env.mesh
+    dist = float(np.linalg.norm(np.asarray(best) - centre))
+    found = None
+    for d in placement.directions(32):
+        for k in sorted({3.0 * radius, 5.0 * radius, 8.0 * radius, dist}):
+            p = centre + d * k
+            try:
+                placement.check_reference(mesh, p)
+            except KeyedError:
+                continue
+            if placement.sees(mesh, p, centre, radius) < 1.0:
+                continue
+            g, e = placement.clearance(mesh, p), placement.enclosure(mesh, p)
+            if found is None or g * e * e > found[0]:
+                found = (g * e * e, p, g, e)
+    return (best, gap, enclosed) if found is None else found[1:]
 
 
 def _free_centre(mesh, start: np.ndarray, radius: float, around: np.ndarray) -> np.ndarray:
@@ -237,6 +297,16 @@ def _light(env, given: dict, centre, radius: float, best, gap: float, up) -> dic
                 raise KeyedError("light.position", "in the object or at the reference point")
         except KeyedError:
             c = best + up / np.linalg.norm(up) * 0.6 * gap
+        ext = hi - lo
+        diag = float(np.linalg.norm(ext))
+        flat = int(np.argmin(ext))
+        if ext[flat] <= FLAT * diag:  # a flat scene: off its plane, on the reference point's side
+            side = np.sign(best[flat] - (lo[flat] + hi[flat]) / 2) or 1.0
+            c = np.array((lo + hi) / 2, float)
+            c[flat] += side * 0.5 * diag
+            c += (
+                0.25 * diag * up / np.linalg.norm(up) * (abs(up[flat]) < 0.9)
+            )  # and above it, lighting at a slant
         out["light.position"] = np.asarray(c, float).tolist()
     if _want(given, "light.intensity"):
         out["light.intensity"] = [light_intensity(lo, hi)] * 3
@@ -247,6 +317,7 @@ class Suggestion(dict):
     """Dotted scene keys → suggested values, and :attr:`line`: the choice in one line, its score terms named."""
 
     line: str = ""
+    outside: bool = False  # the reference point stands outside the geometry: an object seen from outside
 
 
 def suggest(env, given: dict[str, Any] | None = None) -> Suggestion:
@@ -275,18 +346,15 @@ def suggest(env, given: dict[str, Any] | None = None) -> Suggestion:
     if want("object.center"):
         start = best - up / np.linalg.norm(up) * 0.45 * gap
         s = env.sensor
-        if s is not None and want("camera.eye"):  # onto the Mitsuba camera's view axis
-            eye, target = np.array(s["eye"]), np.array(s["target"])
-            axis = (target - eye) / np.linalg.norm(target - eye)
-            t_hit = placement.cast(mesh, eye[None], axis[None])[0][0]  # the camera sees up to there
-            far = min(2 * diag + np.linalg.norm(eye - (lo + hi) / 2), t_hit - 1.5 * radius)
-            pts = eye + np.linspace(0, max(far, 0.0), 200)[:, None] * axis
-            inside = [p for p in pts if np.all(p > lo) and np.all(p < hi)]
-            ok = [p for p in inside if placement.clearance(mesh, p) > 1.5 * radius]
-            if ok:
-                start = min(ok, key=lambda p: np.linalg.norm(p - (lo + hi) / 2))
+        if s is not None and want("camera.eye"):  # onto the file camera's view axis
+            start, radius = _on_axis(env, s, radius, diag, want("object.radius"), start)
+            if want("object.radius"):
+                out["object.radius"] = radius
         centre = _free_centre(mesh, start, radius, best)
         out["object.center"] = centre.tolist()
+        if want("reference.point") and placement.sees(mesh, best, centre, radius) < 1.0:
+            best, gap, enclosed = _seeing(env, centre, radius, best, gap, enclosed)
+            out["reference.point"] = best.tolist()
     else:
         centre = np.asarray(given["object.center"], float)
         placement.check_object(mesh, centre, radius, f"object (bounding radius {radius:g})")
@@ -302,11 +370,16 @@ def suggest(env, given: dict[str, Any] | None = None) -> Suggestion:
                 targets.append(centre + 0.5 * ((lo + hi) / 2 - centre))
             eye, target, why = _eye(env, centre, radius, best, gap, up / np.linalg.norm(up), fov, targets)
             out["camera.eye"] = eye.tolist()
-    if want("camera.target"):
-        out["camera.target"] = (target if want("camera.eye") and env.sensor is None else centre).tolist()
+    if want("camera.target"):  # the file's camera aims where the file says
+        aim = env.sensor["target"] if env.sensor is not None and want("camera.eye") else None
+        out["camera.target"] = (
+            list(aim) if aim is not None else (target if want("camera.eye") else centre).tolist()
+        )
     if want("camera.fov") and env.sensor is not None and want("camera.eye"):  # the file's view, whole
         out["camera.fov"] = env.sensor["fov"]
     out.update(_light(env, given, centre, radius, best, gap, up))
+    # a single object seen from outside, placed by study (a sky it can reflect): not where the user placed things
+    out.outside = enclosed < placement.ENCLOSED and want("reference.point") and want("object.center")
     fmt = lambda v: "(" + ", ".join(f"{x:.3g}" for x in v) + ")"  # noqa: E731
     out.line = (
         f"placement: reference point {fmt(best)} (enclosure {enclosed:.2f}, clearance {gap:.3g}), object "

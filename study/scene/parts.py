@@ -173,10 +173,15 @@ def transform_sensor(sensor: dict | None, M: np.ndarray, t: np.ndarray) -> dict 
 
 
 def transform_lights(lights: list[dict], M: np.ndarray, t: np.ndarray) -> list[dict]:
-    """Lights moved by x → M x + t (positions) and M d (directions, normalised)."""
+    """Lights moved by x → M x + t (positions) and M d (directions, normalised); a point or spot light's
+    intensity (W/sr) scaled by the square of M's scale, so that the irradiance it gives the scaled scene's walls
+    is the same (:mod:`study.scene.frame`)."""
     out = []
+    k2 = abs(float(np.linalg.det(M))) ** (2 / 3)  # (linear scale)²
     for li in lights:
         li = dict(li)
+        if "intensity" in li and li.get("type") in ("point", "spot") and k2 != 1.0:
+            li["intensity"] = (np.asarray(li["intensity"], float) * k2).tolist()
         if "position" in li:
             li["position"] = (M @ np.asarray(li["position"], float) + t).tolist()
         if "direction" in li:

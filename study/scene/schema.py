@@ -139,6 +139,9 @@ class Scene(_Strict):
     render: Render = Render()
     _suggested: frozenset = PrivateAttr(default=frozenset())  # placement keys chosen by automatic placement
     _chosen: str = PrivateAttr(default="")  # automatic placement's choice in one line (autoplace.Suggestion)
+    _units: str = PrivateAttr(
+        default=""
+    )  # how the environment was moved into its measuring frame (scene.frame)
 
     @field_validator("columns", mode="before")
     @classmethod
@@ -159,6 +162,8 @@ class Scene(_Strict):
             return data
         from study.scene.autoplace import KEYS
 
+        data = cls._measuring_frame(data, env, kind, ctx)
+        env = data.get("environment")
         given = {}
         for k in KEYS:
             table, key = k.split(".")
@@ -183,9 +188,57 @@ class Scene(_Strict):
         for k, v in suggested.items():
             table, key = k.split(".")
             out[table] = {**(out.get(table) or {}), key: v}
+        line = getattr(suggested, "line", "")
+        if getattr(suggested, "outside", False) and model.sky is None and not _own_sky(model):
+            from study.scene.sky import STUDIO
+
+            out["environment"] = {**model.model_dump(), "sky": STUDIO}  # something for a mirror to show
+            line += (
+                f'; sky "{STUDIO}" (an object seen from outside: a studio gradient it can reflect, unlike the '
+                "background behind it; environment.sky sets another)"
+            )
         if ctx is not None:
             ctx["suggested"] = set(ctx.get("suggested") or ()) | set(suggested)
-            ctx["placement"] = getattr(suggested, "line", "")
+            ctx["placement"] = line
+        return out
+
+    @staticmethod
+    def _measuring_frame(data: dict, env, kind: str, ctx: dict | None) -> dict:
+        """A mesh environment far from the origin or far from metres, moved into its measuring frame with the
+        points, lengths and intensities the user gave (:mod:`study.scene.frame`); a Mitsuba scene there refused
+        in one line. ``data`` unchanged where nothing moves."""
+        from pydantic import TypeAdapter
+
+        import study.scene.frame as frame
+        from study.scene.environment import geometry
+
+        try:
+            model = TypeAdapter(Environment).validate_python(env, context=ctx)
+        except ValidationError:
+            return data  # the field's own validation says what is wrong
+        bounds = geometry(model).bounds
+        if kind == "mitsuba":
+            why = frame.refusal(*bounds)
+            if why:
+                raise StudyError(why, key="environment")
+            return data
+        if kind != "mesh":
+            return data
+        s, c = frame.choose(*bounds)
+        if frame.identity(s, c):
+            return data
+        out = {k: (dict(v.model_dump()) if isinstance(v, BaseModel) else v) for k, v in data.items()}
+        out["environment"] = frame.mesh_keys(model.model_dump(), s, c)
+        for k in (*frame.POINTS, *frame.LENGTHS, *frame.INTENSITIES, "reference.box"):
+            table, key = k.split(".")
+            node = out.get(table)
+            if isinstance(node, dict) and key in node:
+                try:
+                    out[table] = {**node, key: frame.apply(k, node[key], s, c)}
+                except (TypeError, ValueError):
+                    pass  # not a number: the key's own validation says so
+        if ctx is not None:
+            ctx["frame"] = frame.line(*bounds, s, c)
         return out
 
     @model_validator(mode="after")
@@ -200,6 +253,8 @@ class Scene(_Strict):
         if isinstance(info.context, dict) and info.context.get("suggested"):
             self._suggested = frozenset(info.context["suggested"])
             self._chosen = info.context.get("placement") or ""
+        if isinstance(info.context, dict) and info.context.get("frame"):
+            self._units = info.context["frame"]
         if self.environment.type != "box":
             return self._placement_any()
         lo, hi = np.array(self.room.min), np.array(self.room.max)
@@ -258,6 +313,11 @@ class Scene(_Strict):
         """The placement keys automatic placement chose (the user left them out)."""
         return self._suggested
 
+    def units_line(self) -> str:
+        """How the environment was recentred or rescaled to be measured (:mod:`study.scene.frame`); empty where
+        it was measured as it is."""
+        return self._units
+
     def placement_line(self) -> str:
         """Automatic placement's choice in one line, its score terms named; empty where it chose nothing."""
         return self._chosen
@@ -286,7 +346,7 @@ class Scene(_Strict):
                 data[table].pop(key, None)
             keep = frozenset()
         line = self._chosen if keep == self._suggested else ""
-        return scene_from_dict(data, source=source, suggested=keep, placement=line)
+        return scene_from_dict(data, source=source, suggested=keep, placement=line, units=self._units)
 
     def mesh(self) -> RoomMesh:
         """The environment as triangles (:func:`study.scene.environment.geometry`): the box room and its columns,
@@ -316,6 +376,14 @@ class Scene(_Strict):
         return geometry(self).bounds
 
 
+def _own_sky(env) -> bool:
+    """Whether the environment's file brings its own sky (a Mitsuba ``envmap`` or ``constant`` emitter)."""
+    from study.scene.environment import geometry
+
+    names = (str(e).lower() for e in geometry(env).emitters)
+    return any("environment" in n or "constant" in n or "envmap" in n for n in names)
+
+
 def _box_sphere_distance(lo, hi, p) -> float:
     return float(np.linalg.norm(np.maximum(np.maximum(lo - p, 0), p - hi)))
 
@@ -328,6 +396,7 @@ def scene_from_dict(
     base: str | Path | None = None,
     suggested=frozenset(),
     placement="",
+    units="",
 ) -> Scene:
     """Validate a scene dict; the first problem is one StudyError naming ``source`` and the dotted key. Relative
     ``file`` paths resolve against ``base`` (the scene file's directory; the working directory by default).
@@ -338,6 +407,7 @@ def scene_from_dict(
             "base": str(base) if base is not None else None,
             "suggested": set(suggested),
             "placement": placement,
+            "frame": units,
         }
         return Scene.model_validate(data, context=ctx)
     except ValidationError as err:

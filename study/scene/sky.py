@@ -8,6 +8,8 @@ left out               the file's own sky (a Mitsuba scene's ``envmap`` or ``con
                        ray that leaves the scene sees black, as every scene did before skies existed
 ``"#rrggbb"``          a constant sky of that colour (sRGB, as a colour picker gives it; decoded to linear radiance)
 ``[r, g, b]``          a constant sky of that linear radiance (W/(m² sr), may exceed 1)
+``"studio"``           a studio gradient (:func:`studio`): bright above, dark below, brighter on one side; what
+                       automatic placement gives a single object seen from outside, so that a mirror shows it
 ``"sky.exr"``          an HDR environment map (``.exr`` or ``.hdr``, equirectangular, +y up: Mitsuba's
                        ``envmap``), relative to the scene file; hashed by its bytes in content keys
 =====================  ==========================================================================================
@@ -45,7 +47,8 @@ MAX_TEXELS = 8192 * 4096
 #: How much of a file its header may take (bytes read to find the size).
 HEADER_BYTES = 1 << 16
 EXR_MAGIC = b"\x76\x2f\x31\x01"
-ALLOWED = '"#rrggbb" (sRGB), [r, g, b] (linear radiance, ≥ 0) or an equirectangular .exr/.hdr map'
+ALLOWED = '"#rrggbb" (sRGB), [r, g, b] (linear radiance, ≥ 0), "studio" or an equirectangular .exr/.hdr map'
+STUDIO = "studio"
 
 
 def hex_linear(hex_colour: str) -> tuple[float, float, float]:
@@ -71,6 +74,8 @@ def validate_sky(v: Any, info: ValidationInfo) -> Any:
     if not isinstance(v, (str, Path)):
         raise _bad(f"a {type(v).__name__}")
     s = str(v)
+    if s == STUDIO:
+        return s
     if s.startswith("#"):
         if not re.fullmatch(r"#[0-9a-fA-F]{6}", s):
             raise _bad(f"{s!r} is not a colour #rrggbb")
@@ -210,9 +215,26 @@ def emitter(sky: Any) -> dict | None:
     add)."""
     if sky is None:
         return None
+    if sky == STUDIO:
+        from study import runtime
+
+        return {"type": "envmap", "bitmap": runtime.mitsuba().Bitmap(studio())}
     rgb = sky_radiance(sky)
     if rgb is None:
         return {"type": "envmap", "filename": str(sky)}
     if not any(rgb):
         return None
     return {"type": "constant", "radiance": {"type": "rgb", "value": list(rgb)}}
+
+
+def studio(height: int = 64) -> np.ndarray:
+    """The ``"studio"`` sky: an equirectangular (height, 2·height, 3) float32 map (+y up, as Mitsuba's ``envmap``)
+    of linear radiance 1.0 overhead falling to 0.35 at the horizon and 0.04 underfoot, warm above and cool below,
+    brighter by half on one side (cos of the azimuth): a mirror shows its gradient and its bright side."""
+    v = (np.arange(height) + 0.5) / height
+    u = (np.arange(2 * height) + 0.5) / (2 * height)
+    elev = (0.5 - v)[:, None] * np.pi  # +π/2 overhead
+    level = np.where(elev > 0, 0.35 + 0.65 * np.sin(elev), 0.35 * (1 + np.sin(elev)) + 0.04)
+    side = 0.75 + 0.25 * np.cos(2 * np.pi * u)[None, :]
+    tint = np.where(elev[..., None] > 0, [1.0, 0.97, 0.9], [0.8, 0.85, 1.0])
+    return (level * side)[..., None].astype(np.float32) * tint.astype(np.float32)

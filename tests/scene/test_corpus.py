@@ -1,6 +1,6 @@
-"""A public corpus (tests/assets/corpus/, 31 files made by others; sources, commits and licences in its README and
-manifest.json): every file loads as its format says — and agrees with a second reader — or is refused in one line
-naming what is refused.
+"""A public corpus (tests/assets/corpus/: 31 files made by others, sources, commits and licences in its README and
+manifest.json; 11 generated here by scripts/make_corpus_generated.py): every file loads as its format says — and
+agrees with a second reader — or is refused in one line naming what is refused.
 
 The second reader is trimesh (triangles, world bounds after node transforms, and glTF base colours), for the files
 it reads faithfully; where it does not, the case is named here and tested as trimesh's failure
@@ -49,9 +49,16 @@ def load(entry: dict):
 
 
 def test_the_corpus_is_what_its_readme_says():
-    """≥ 16 files, each ≤ 2 MB, each with its source, commit and licence; every file in the folder accounted for."""
+    """≥ 16 files, each ≤ 2 MB, each with its source, commit and licence (or, generated here, the script that
+    writes it and its bytes' SHA-256); every file in the folder accounted for."""
+    import hashlib
+
     assert len(MANIFEST) >= 16
     for e in MANIFEST:
+        if e.get("generated"):
+            assert (CORPUS.parents[2] / e["generated"]).is_file() and e["license"], e["path"]
+            assert hashlib.sha256((CORPUS / e["path"]).read_bytes()).hexdigest() == e["sha256"], e["path"]
+            continue
         assert e["source"] and len(e["commit"]) == 40 and e["license"], e["path"]
     readme = (CORPUS / "README.md").read_text()
     for f in CORPUS.rglob("*"):
@@ -59,6 +66,23 @@ def test_the_corpus_is_what_its_readme_says():
             assert f.stat().st_size <= 2 * 2**20, f
             if f.name not in ("README.md", "manifest.json", ".gitattributes"):
                 assert f.name in readme, f"{f} is not in the corpus README"
+
+
+def test_the_corpus_has_the_kinds_of_scene_that_once_measured_wrong():
+    """≥ 40 entry files, among them flat files, single objects, scenes far from the origin and in millimetres or
+    kilometres, files with cameras and a Mitsuba scene with a shape in between (scripts/make_corpus_generated.py)."""
+    assert len(MANIFEST) >= 40
+    words = " ".join(" ".join(e["features"]) for e in MANIFEST)
+    for kind in (
+        "flat",
+        "single object",
+        "from the origin",
+        "millimetres",
+        "kilometres",
+        "camera",
+        "between",
+    ):
+        assert kind in words, kind
 
 
 @pytest.mark.parametrize("entry", LOADS, ids=[e["path"] for e in LOADS])
@@ -172,3 +196,13 @@ def test_study_run_on_every_corpus_file(entry, tmp_path):
         pytest.skip("placement: " + res.stderr.strip().splitlines()[-1][:200])
     assert res.returncode == 0, res.stderr[-2000:]
     assert list(out.rglob("*.png")), list(out.rglob("*"))
+    import pandas as pd
+
+    from study.measure import worth
+
+    row = (
+        pd.read_csv(out / "table.csv").iloc[0].to_dict()
+    )  # the case's worth columns (study/measure/worth.py)
+    said = [ln for ln in res.stderr.splitlines() if "not worth looking at" in ln]
+    line = worth.line(row)
+    assert len(said) == (1 if line else 0) and (not line or line in said[0]), (said, line)

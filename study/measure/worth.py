@@ -1,0 +1,115 @@
+"""Whether a run's picture is worth looking at: what a reader would complain about, measured, and the one line
+that names the cause and the key to change.
+
+=====================  =========================================================================================
+``black_share``        share of Mitsuba's picture (with the object) that shows black: luminance under
+                       :data:`BLACK` after its exposure (:func:`study.measure.exposure.auto_exposure`, at most
+                       :data:`MAX_BOOST` EV brighter: a picture that needs more is unlit, and shows black)
+``clipped_share``      share of it above 1 after that exposure (white)
+``object_share``       share of the frame fully on the object (the pixels every column is measured on)
+``mirrored_void``      share of the object's rays whose exact hit leaves the scene: the object mirrors the void
+``reference_seen``     share of the object's bounding sphere the reference point sees unblocked
+                       (:func:`study.scene.placement.sees`): the impostor is captured from there
+=====================  =========================================================================================
+
+Each has a limit (:data:`LIMITS`); :func:`line` names the first that fails, with its number, its cause and the key
+to change, in one line, and ``study run`` prints it as a note (:func:`study.measure.lighting.notes`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from study.measure.exposure import auto_exposure, luminance
+
+BLACK = 0.002  # linear luminance after exposure under which a pixel shows black (about 12/255 in sRGB)
+MAX_BOOST = 8.0  # EV: the most the exposure brightens a picture before it counts as unlit
+
+#: column → (limit, "above"/"below": where it fails, cause, the key to change)
+LIMITS = {
+    "black_share": (
+        0.5,
+        "above",
+        "Mitsuba's picture is {v:.0%} black",
+        "light (light.position, light.intensity, light.enabled) or environment.sky",
+    ),
+    "object_share": (
+        0.02,
+        "below",
+        "the object fills {v:.1%} of the frame",
+        "camera.eye, camera.fov or object.radius (or camera.frame_object = true)",
+    ),
+    "mirrored_void": (
+        0.5,
+        "above",
+        "the object mirrors the void in {v:.0%} of its rays",
+        "environment.sky (a sky it can reflect) or object.center",
+    ),
+    "reference_seen": (
+        0.5,
+        "below",
+        "the reference point sees {v:.0%} of the object",
+        "reference.point (a point that sees the object)",
+    ),
+    "clipped_share": (
+        0.1,
+        "above",
+        "{v:.0%} of Mitsuba's picture is clipped white",
+        "light.intensity",
+    ),
+}
+
+
+def columns(scene, mitsuba: np.ndarray, mask: np.ndarray, escapes: np.ndarray) -> dict[str, float]:
+    """The numbers of the module docstring for one case: Mitsuba's picture ``mitsuba`` (H, W, 3), the object's
+    pixels ``mask`` (H, W) and its rays' ``escapes`` (K,)."""
+    from study.scene.placement import sees
+
+    lum = luminance(np.nan_to_num(np.asarray(mitsuba, float)))
+    ev = auto_exposure(mitsuba)
+    shown = lum * 2.0 ** min(ev if ev is not None else 0.0, MAX_BOOST)
+    with np.errstate(invalid="ignore", divide="ignore"):  # a reference point at the object's centre: NaN
+        seen = sees(scene.mesh(), scene.reference.point, scene.object.center, scene.object.radius)
+    esc = np.asarray(escapes, bool) & ~_sky(scene)  # under a sky, a ray that leaves the scene shows it
+    return {
+        "black_share": float(np.mean(shown < BLACK)),
+        "clipped_share": float(np.mean(shown > 1.0)),
+        "object_share": float(np.mean(np.asarray(mask, bool))),
+        "mirrored_void": float(esc.mean()) if esc.size else math.nan,
+        "reference_seen": seen,
+    }
+
+
+def _sky(scene) -> bool:
+    """Whether rays that leave the scene see something: a sky given (not black), or the file's own emitter at
+    infinity (a Mitsuba ``envmap``, ``constant``)."""
+    from study.scene.environment import geometry
+    from study.scene.sky import sky_radiance
+
+    given = getattr(scene.environment, "sky", None)
+    if given is not None:
+        rgb = sky_radiance(given)
+        return rgb is None or any(rgb)
+    m = [type(e).__name__.lower() + str(e) for e in geometry(scene).emitters]
+    return any(("envmap" in t or "constant" in t) for t in (x.lower() for x in m))
+
+
+def failures(values: dict) -> list[str]:
+    """'cause: change key' for each number of ``values`` past its limit, in the order of :data:`LIMITS`."""
+    out = []
+    for k, (limit, side, cause, key) in LIMITS.items():
+        v = values.get(k, math.nan)
+        if isinstance(v, int | float) and math.isfinite(v) and (v > limit if side == "above" else v < limit):
+            out.append(
+                f"{cause.format(v=v)} ({'over' if side == 'above' else 'under'} {limit:g}): change {key}"
+            )
+    return out
+
+
+def line(values: dict) -> str:
+    """One line saying the picture is not worth looking at, and why (every cause, the first first); '' where it
+    is."""
+    bad = failures(values)
+    return ("the picture is not worth looking at: " + "; ".join(bad)) if bad else ""

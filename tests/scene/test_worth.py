@@ -1,0 +1,68 @@
+"""Worth looking at, checked (issue 54, items 3 and 5): the numbers a reader would complain about, each against a
+limit, in one line naming the cause and the key; RMSE against Mitsuba's render said to be no measure of the
+methods where the exact truth is itself far from that render."""
+
+import math
+
+import numpy as np
+import pytest
+
+from study import columns
+from study.measure import lighting, worth
+
+GOOD = {
+    "black_share": 0.1,
+    "clipped_share": 0.01,
+    "object_share": 0.2,
+    "mirrored_void": 0.0,
+    "reference_seen": 1.0,
+}
+
+
+@pytest.mark.parametrize(
+    "key, value, cause, change",
+    [
+        ("black_share", 0.93, "93% black", "light"),
+        ("object_share", 0.006, "fills 0.6% of the frame", "camera.eye"),
+        ("mirrored_void", 0.8, "mirrors the void in 80%", "environment.sky"),
+        ("reference_seen", 0.0, "sees 0% of the object", "reference.point"),
+        ("clipped_share", 0.3, "30% of Mitsuba's picture is clipped", "light.intensity"),
+    ],
+)
+def test_each_complaint_is_one_line_with_its_cause_and_key(key, value, cause, change):
+    assert worth.line(GOOD) == ""
+    line = worth.line({**GOOD, key: value})
+    assert line.startswith("the picture is not worth looking at: ") and "\n" not in line
+    assert cause in line and f"change {change}" in line, line
+
+
+def test_the_worth_columns_are_declared_and_a_black_picture_counts_black():
+    for k in worth.LIMITS:
+        assert columns.declared(k) is not None, k
+    black = np.zeros((8, 8, 3))
+    lit = np.full((8, 8, 3), 0.2)
+    lum = worth.luminance(black)
+    assert float(np.mean(lum * 2.0**worth.MAX_BOOST < worth.BLACK)) == 1.0
+    ev = worth.auto_exposure(lit)
+    assert float(np.mean(worth.luminance(lit) * 2.0**ev < worth.BLACK)) == 0.0
+
+
+def test_rmse_against_mitsuba_is_not_ranked_and_says_why_where_the_truth_is_far_from_it():
+    """The exact truth_at_hit 0.4 from Mitsuba's render beyond its noise, the best method 0.5: that column measures
+    light no method models (the Cornell sphere: ≈ 0.47 for every row, the truth included) — said in one line; the
+    column is not ranked on (no direction) nor shown by study run."""
+    col = columns.declared("rmse_mitsuba")
+    assert col.lower_is_better is None and "run" not in col.views
+    assert "rmse_mitsuba" not in columns.ORDER["run"]
+    rows = [
+        {"label": "oracle_map", "rmse_mitsuba_debiased": 0.3, "rmse_mitsuba": 0.45},
+        {"label": "truth_at_hit", "rmse_mitsuba_debiased": 0.4, "rmse_mitsuba": 0.47},
+        {"label": "traced", "rmse_mitsuba": 0.52},
+        {"label": "classical", "rmse_mitsuba": 0.5},
+    ]
+    line = lighting.unmodelled_note(rows)
+    assert "not a measure of the methods" in line and "0.4" in line and "\n" not in line
+    rows[1]["rmse_mitsuba_debiased"] = 0.01
+    assert lighting.unmodelled_note(rows) == ""
+    rows[1]["rmse_mitsuba_debiased"] = math.nan
+    assert lighting.unmodelled_note(rows) == ""
