@@ -28,8 +28,23 @@
 # or unpacked from $WHEELS/site.tar.xz (the same wheels unzipped into one folder and tarred with xz: 33 MB, so that
 # they travel beside the repository within the 64 MiB limit).
 # Everything is written under $OUT (default ./out-device): one log per part and one results-<part>.tgz each.
+#
+# Provenance (issue 55): the copy that travels has no .git, so before it travels run, where .git is,
+#   bash scripts/device_run.sh stamp
+# which writes .study-stamp.json (commit, dirty, diff hash: study.harness.provenance.write_stamp; git-ignored, so
+# pass it to the lent machine as carried: run(..., carry=[".study-stamp.json"])). Every table made there names
+# that commit in its metadata.json; without the stamp its git_commit is "unknown" (and this script says so).
 set -uo pipefail
 cd "$(dirname "$0")/.."
+if [ "${1:-}" = stamp ]; then   # here, not on the lent machine: the stamp the copy carries
+  PYTHONPATH=$PWD ${STUDY_PYTHON:-$( [ -x .venv/bin/python ] && echo .venv/bin/python || echo python3 )} -c \
+    "import json; from study.harness.provenance import write_stamp; print(json.dumps(write_stamp()))" || exit 3
+  exit 0
+fi
+if [ ! -d .git ] && [ ! -f .git ] && [ ! -f .study-stamp.json ]; then
+  echo "device_run: no .git and no .study-stamp.json: tables will say git_commit \"unknown\"" \
+       "(run 'bash scripts/device_run.sh stamp' before the copy travels, and carry the file)" >&2
+fi
 OUT=${OUT:-$PWD/out-device}; mkdir -p "$OUT"
 WHEELS=${WHEELS:-.devcarry}
 export PYTHONUNBUFFERED=1 NCCL_NVLS_ENABLE=0

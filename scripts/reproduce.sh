@@ -11,7 +11,21 @@ cd "$(dirname "$0")/.."
 # $REPRODUCE_JOBS commands at a time and $REPRODUCE_BACKEND (numpy by default; cuda: methods, renders and exact
 # hits on the GPU) for every command but those $REPRODUCE_CPU (an extended regex) names, and the main sweep's
 # $REPRODUCE_SWEEP_JOBS (2) cases at a time
+# --verify (anywhere among the arguments): the committed tables are kept aside first (git's HEAD, or the tables as
+# they are before this run where there is no .git), and at the end `study verify` compares the fresh tables with
+# them row by row (within their intervals) → reports/verify/<backend>-vs-committed.md; exit 1 where any disagrees
+args=(); VERIFY=
+for a in "$@"; do if [ "$a" = --verify ]; then VERIFY=1; else args+=("$a"); fi; done
+set -- ${args[@]+"${args[@]}"}
 if [ "${1:-}" = "--no-setup" ]; then shift; else bash scripts/setup.sh "$@"; fi
+if [ -n "$VERIFY" ]; then
+  COMMITTED=$(mktemp -d)/reports
+  if git rev-parse -q HEAD > /dev/null 2>&1; then
+    mkdir -p "$COMMITTED" && git archive HEAD reports | tar -x -C "$(dirname "$COMMITTED")"
+  else
+    cp -r reports "$COMMITTED"
+  fi
+fi
 S=${STUDY:-.venv/bin/study}
 J=${REPRODUCE_JOBS:-2}
 commands=(
@@ -52,4 +66,8 @@ printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:
   || PYTHONPATH=. $P scripts/calibration.py   # the intervals' coverage → reports/calibration.md
 $S pareto   # error vs measured ms per 1080p frame (the committed benches), fronts, budgets → reports/pareto/
 $S report
+if [ -n "$VERIFY" ]; then   # the fresh tables against the committed ones: one table a screen high
+  $S verify reports --against "$COMMITTED" --out "reports/verify/${REPRODUCE_BACKEND:-numpy}-vs-committed.md" \
+    || { echo "reproduce: some values disagree with the committed tables (reports/verify/)"; exit 1; }
+fi
 echo "reproduce: every report written in $(( $(date +%s) - t0 )) s"

@@ -25,6 +25,48 @@ PACKAGE_DIR = Path(__file__).resolve().parent  # the study package directory
 
 def code_hash(*objs) -> str:
     """A short hash (16 hex digits) of the code behind ``objs`` (functions, classes, methods or modules)."""
+    return _combine(_parts(objs))
+
+
+def code_record(*objs) -> dict:
+    """What a table's metadata says of the code that made it: ``code_hash`` (:func:`code_hash` of ``objs``),
+    ``code_files`` (the study source files it covers, relative to the repository root, sorted) and
+    ``code_outside`` (modules outside study it covers, by name: plug-ins, whose files no commit holds).
+
+    With ``code_files`` the hash can be recomputed from any commit's files (:func:`hash_of_sources`), so whether
+    a committed table was made by the code of its commit is checked, not asserted."""
+    parts = _parts(objs)
+    inside = sorted(k for k in parts if k == PACKAGE or k.startswith(PACKAGE + "."))
+    return {
+        "code_hash": _combine(parts),
+        "code_files": sorted(module_file(m) for m in inside),
+        "code_outside": sorted(k for k in parts if k not in inside),
+    }
+
+
+def module_file(name: str) -> str:
+    """The source file of study module ``name``, relative to the repository root (``study/x/__init__.py`` for a
+    package, ``study/x/y.py`` for a module)."""
+    p = _path(name)
+    if p is None:
+        raise ValueError(f"code_hash: no source file for module {name}")
+    return p.relative_to(PACKAGE_DIR.parent).as_posix()
+
+
+def file_module(path: str) -> str:
+    """The module name of a study source file relative to the repository root (the inverse of
+    :func:`module_file`)."""
+    parts = path.removesuffix(".py").split("/")
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def hash_of_sources(sources: dict[str, bytes]) -> str:
+    """:func:`code_hash` from source files' bytes (``{path relative to the repository root: bytes}``), e.g. as
+    a commit holds them: equal to the hash the same files gave when the table was made."""
+    return _combine({file_module(p): hashlib.sha256(b).hexdigest() for p, b in sources.items()})
+
+
+def _parts(objs) -> dict[str, str]:
     parts = {}
     for obj in objs:
         name = _module_of(obj)
@@ -32,6 +74,10 @@ def code_hash(*objs) -> str:
             parts.update(_study_closure(name))
         else:
             parts[name] = _outside_digest(name)
+    return parts
+
+
+def _combine(parts: dict[str, str]) -> str:
     blob = "\n".join(f"{k} {v}" for k, v in sorted(parts.items()))
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 

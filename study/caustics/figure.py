@@ -227,7 +227,7 @@ def _fig8_files(
             methods=labels,
             cases=len(cases),
             kind="caustics",
-            code_hash=code,
+            code=(_resolution_case, *[type(m) for m in methods]),
         )
 
         def check(c: Case, rows: list[dict]) -> bool:

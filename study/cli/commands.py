@@ -220,6 +220,36 @@ def report(
 
 @app.command()
 @guarded()
+def verify(
+    fresh: Path = typer.Argument(
+        ..., help="folder of freshly made tables (a figure's or sweep's folder, or one above)"
+    ),
+    against: Path = typer.Option(Path("reports"), help="the committed reports to compare with"),
+    out: Path | None = typer.Option(
+        None, help="where to write the agreement table (Markdown); default: not written"
+    ),
+):
+    """Compare freshly made tables with the committed ones, row by row: values within their committed intervals
+    (<col>_lo/_hi), deterministic columns within float tolerance on the same backend. Prints the agreement table;
+    exit 1 where a value lies outside its interval."""
+    from study.io import atomic_write
+    from study.report.verify import agreement_markdown
+    from study.report.verify import verify as compare
+
+    t0 = time.perf_counter()
+    results = compare(fresh, against)
+    text = agreement_markdown(results, fresh=fresh.as_posix(), committed=against.as_posix(),
+                              seconds=time.perf_counter() - t0)  # fmt: skip
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(out, text)
+    console.print(text, highlight=False, markup=False, soft_wrap=True)
+    if any(r.outside for r in results) or any(r.det_differ for r in results if r.det_judged):
+        raise typer.Exit(1)
+
+
+@app.command()
+@guarded()
 def pareto(
     reports: str = typer.Option(
         "reports", metavar="PATH", help="directory holding the figures' and sweeps' tables"

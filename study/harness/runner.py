@@ -21,7 +21,6 @@ import hashlib
 import json
 import os
 import platform
-import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -31,9 +30,9 @@ from study import methods as registry
 from study import progress as pg
 from study import runtime
 from study.cache import Cache
-from study.codehash import code_hash
+from study.codehash import code_record
 from study.errors import StudyError, os_problem
-from study.harness import budget, estimate
+from study.harness import budget, estimate, provenance
 from study.harness.cluster import run_dask, warm_worker
 from study.harness.sweep import Case, load_sweep
 from study.impostor.capture import impostor_key
@@ -108,43 +107,36 @@ def _run_one(
             prof.dump_stats(str(Path(prof_dir) / f"{case_id}.prof"))
 
 
-def _git_commit() -> str:
-    try:
-        return subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            capture_output=True,
-            text=True,
-            check=True,
-            cwd=Path(__file__).parent,
-        ).stdout.strip()
-    except Exception:
-        return "unknown"
-
-
-def metadata(config: str | Path, *, backend: str, seed: int, methods: list[str], cases: int, **extra) -> dict:
-    """What a results table was made with: versions, config hash, seed, git commit, backend, command."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    vers = {}
-    for p in ("study", "mitsuba", "drjit", "embreex", "numpy", "scikit-image", "flip-evaluator"):
-        try:
-            vers[p] = version(p)
-        except PackageNotFoundError:
-            vers[p] = None
+def metadata(
+    config: str | Path, *, backend: str, seed: int, methods: list[str], cases: int, code: tuple = (), **extra
+) -> dict:
+    """What a results table was made with, written by code (:mod:`study.harness.provenance`): config hash, seed,
+    git commit and whether the tree was dirty (from ``git``, or the stamp a copy without ``.git`` carries), the
+    backend, the device (CPU model and cores, the GPU's name on cuda), versions (study's own included), the
+    command line, and the code that made it: ``code_hash`` with the files it covers (of ``code``: functions,
+    classes or modules, e.g. the case runner and the method classes; the caller's module where none given)."""
     config = Path(config)
+    if not code:
+        code = (sys.modules[sys._getframe(1).f_globals["__name__"]],)
+    git = provenance.git_state()
     return {
         "config": str(config),
         "config_sha256": hashlib.sha256(config.read_bytes()).hexdigest()[:16],
         "seed": seed,
-        "git_commit": _git_commit(),
+        "git_commit": git["commit"],
+        "git_dirty": git["dirty"],
+        "git_diff_sha256": git["diff_sha256"],
+        "git_from": git["from"],
         "backend": backend,
-        "versions": vers,
+        "device": provenance.device(backend),
+        "versions": provenance.versions(),
         "python": platform.python_version(),
         "machine": platform.machine(),
         "cpus": os.cpu_count(),
-        "command": "study " + " ".join(sys.argv[1:]) if _is_study_cli(sys.argv[0]) else None,
+        "command": provenance.command(),
         "cases": cases,
         "methods": methods,
+        **code_record(*code),
         **extra,
     }
 
@@ -254,7 +246,7 @@ def run_sweep(
         jobs=jobs,
         methods=labels,
         cases=len(sweep.cases),
-        code_hash=code_hash(run_case, *[type(m) for m in sweep.methods]),
+        code=(run_case, *[type(m) for m in sweep.methods]),
     )
 
     def task(c: Case) -> Task:
@@ -461,7 +453,6 @@ def _first_of_each_impostor(todo: list[Case]) -> tuple[list[Case], list[Case]]:
 
 
 def _is_study_cli(argv0: str) -> bool:
-    """Whether this process is the ``study`` command: its script, or ``python -m study.cli`` (also under
-    ``python -m cProfile -m study.cli``), whose argv[0] is study/cli/__main__.py."""
-    p = Path(argv0)
-    return p.name in ("study", "cli.py") or (p.name == "__main__.py" and p.parent.name == "cli")
+    """Whether this process is the ``study`` command: its script, ``python -m study`` or ``python -m study.cli``
+    (also under ``python -m cProfile -m study.cli``)."""
+    return provenance.command([argv0]) == "study"

@@ -148,6 +148,7 @@ def image_grid(
     part: str = "all",
     max_width_px: int | None = None,
     exposure: float = 0.0,
+    wrap: bool = False,
 ) -> bytes | None:
     """Rows: cases; columns: each method's image, the ray-traced (Mitsuba) image (for a rough object the truth,
     :func:`study.measure.truth.lobe_at_hit`, as Mitsuba's camera render adds the point light's highlight), each
@@ -158,7 +159,8 @@ def image_grid(
     point (two classes with a legend where each pixel is one ray). ``part``: ``"images"`` or ``"errors"`` (the
     angular errors, the outcome and hidden maps under them) for only those panels. Images are tone mapped by
     ``exposure`` (EV: × 2^exposure, :func:`figure_exposure`), clipping at 1 and sRGB encoding. ``max_width_px``:
-    panels shrink so the PNG is at most this wide. With ``path`` None: the PNG's bytes."""
+    panels shrink so the PNG is at most this wide, or with ``wrap`` (one case: ``study run``) each row wraps onto
+    as many rows as keep its panels at full size within that width. With ``path`` None: the PNG's bytes."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -168,13 +170,16 @@ def image_grid(
     tpl = _template(labels, part, outcome_panel, occlusion_panel)
     gain = 2.0**exposure
     errs = part != "images"
+    if wrap and max_width_px:  # panels stay legible: a long row goes on over several rows
+        k = max(1, int((max_width_px / _DPI - 1.2 * errs) / 2.3))
+        tpl = [row[i : i + k] for row in tpl for i in range(0, len(row), k)]
     ncol, nrow = max(len(r) for r in tpl), len(tpl) * len(cases)
     side = 2.3
     if max_width_px:
         side = max(0.6, min(side, (max_width_px / _DPI - 1.2 * errs) / ncol))
     kinds = {k for row in tpl for k, _ in row}
     legend_h = 0.75 if kinds & {"outcome", "hidden"} else 0.0  # inches under the grid for the legends
-    height = side * nrow + 0.6 + legend_h
+    height = side * nrow + 0.6 + legend_h + (0.4 * nrow if wrap else 0.0)  # wrapped rows: room for titles
     fig, axes = plt.subplots(nrow, ncol, figsize=(side * ncol + 1.2 * errs, height), squeeze=False)
     ocmap = ListedColormap(OUTCOME_COLORS).with_extremes(bad="white")
     onorm = BoundaryNorm(np.arange(-0.5, 4), ocmap.N)
@@ -234,7 +239,9 @@ def image_grid(
     per_line = max(30, int(fig.get_figwidth() * 72 / (0.6 * tfs)))
     fig.suptitle(textwrap.fill(title + ("" if part == "all" else f" ({part})"), per_line), fontsize=tfs)
     w = fig.get_figwidth()  # the colour bar and its label: 1.1 in on the right, any width
-    fig.tight_layout(rect=(0, legend_h / height, 1 - (1.1 / w if errs else 0), 1))
+    fig.tight_layout(
+        rect=(0, legend_h / height, 1 - (1.1 / w if errs else 0), 1), h_pad=2.5 if wrap else None
+    )
     last = tpl[-1]
     outs = [c for c, (k, _) in enumerate(last) if k == "outcome"]
     if outs:
@@ -251,12 +258,21 @@ def image_grid(
 
 
 def image_grids(
-    name: str, cases, labels, *, title: str, exposure: float | None = None, rule: str | None = None, **kw
+    name: str,
+    cases,
+    labels,
+    *,
+    title: str,
+    exposure: float | None = None,
+    rule: str | None = None,
+    wrap: bool = False,
+    **kw,
 ) -> dict[str, bytes]:
     """The figure's grid PNGs: ``<name>.png`` whole where it is at most :data:`MAX_WIDTH_PX` wide, else the images
     in ``<name>.png`` and the error maps in ``<name>-errors.png``, each shrunk to fit a page. The images' exposure
     (EV; :func:`figure_exposure` of ``cases`` unless given) is stated at the end of the title with its ``rule``
-    (default the figure's: the object's p99 → 0.8)."""
+    (default the figure's: the object's p99 → 0.8). ``wrap``: split grids wrap their rows instead of shrinking
+    their panels (one case, :func:`image_grid`)."""
     if exposure is None:
         exposure = figure_exposure(cases)
     rule = rule or f"object's p99 → {WHITE:g}"
@@ -270,8 +286,12 @@ def image_grids(
     if (2.3 * ncol + 1.2) * _DPI <= MAX_WIDTH_PX:
         return {f"{name}.png": image_grid(cases, labels, None, **kw)}
     return {
-        f"{name}.png": image_grid(cases, labels, None, part="images", max_width_px=MAX_WIDTH_PX, **kw),
-        f"{name}-errors.png": image_grid(cases, labels, None, part="errors", max_width_px=MAX_WIDTH_PX, **kw),
+        f"{name}.png": image_grid(
+            cases, labels, None, part="images", max_width_px=MAX_WIDTH_PX, wrap=wrap, **kw
+        ),
+        f"{name}-errors.png": image_grid(
+            cases, labels, None, part="errors", max_width_px=MAX_WIDTH_PX, wrap=wrap, **kw
+        ),
     }
 
 
@@ -386,6 +406,7 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
             seed=scene.render.seed,
             methods=[m.label for m in methods],
             cases=len(todo),
+            code=(run_config_case, *[type(m) for m in methods]),  # the table's code: cases and methods
             figure=name,
             quality=quality,
             exposure_ev=round(exposure, 4),  # of the grid's images (figure_exposure)

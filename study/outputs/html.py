@@ -27,6 +27,8 @@ from study.outputs.markup import Md, code, esc, inline, link
 from study.tables import fmt_number
 
 _HERE = Path(__file__).resolve().parent
+#: tables longer than this (a figure's every case × method) are folded into a <details> the reader opens
+OPEN_ROWS = 40
 
 
 #: Why the methods' images show no shadow of the object while Mitsuba's does (study/measure/case.py, truth.py).
@@ -109,7 +111,7 @@ def viewer_note(reports: Path, fig: str) -> str:
 
 
 def _viewers_html(
-    reports: Path, fig: str, manifests: dict, made: dict | None = None, heading: str | None = None
+    reports: Path, fig: str, manifests: dict, made: dict | None = None, heading: str | None = None, fold=False
 ) -> str:
     m = _figure_viewers(reports, fig, made)
     if m is None:
@@ -129,14 +131,20 @@ def _viewers_html(
         f'<div class="viewer" tabindex="0" data-fig="{esc(fig)}" data-case="{i}"></div>'
         for i in range(len(m["cases"]))
     )
+    opened, closed = "", ""
+    if fold:  # several figures on the page: each figure's viewers folded until the reader opens them
+        opened = (
+            f'<details class="viewers-box"><summary>{len(m["cases"])} image viewers (click to open)</summary>'
+        )
+        closed = "</details>"
     return (
-        f'<h3 id="viewers-{esc(fig)}">{esc(heading or f"{fig}: images per case")}</h3>'
+        f'<h3 id="viewers-{esc(fig)}">{esc(heading or f"{fig}: images per case")}</h3>{opened}'
         '<p class="note">Click a viewer, then: '
         "number keys pick the image (the references first; digits typed quickly form one number, e.g. 1 2 for the "
         "12th) or ←/→, ↑/↓ the layer (image, angular error, outcome, …); r flips to truth_at_hit and back (A/B), "
         "d shows the difference from it; wheel or +/− to zoom (f: fit), drag to pan; the slider sets the exposure "
         "of the linear radiance (0 = as rendered, clipped at 1, sRGB). The viewers of a figure share exposure "
-        f'and zoom.{note}</p><div class="viewers">{divs}</div>'
+        f'and zoom.{note}</p><div class="viewers">{divs}</div>{closed}'
     )
 
 
@@ -160,19 +168,28 @@ def page(blocks: list[tuple], reports: Path, *, title: str, made: dict | None = 
     """The blocks as one HTML page (``index.html``); ``made``: figure → viewer manifest of files written together
     with the page (not yet on disk)."""
     body, toc, manifests = [], [], {}
+    open_section = False  # each h2 and what follows it: one <section>
+    fold = sum(b[0] == "viewer" for b in blocks) > 1  # several figures' viewers: each folded until opened
     for b in blocks:
         kind = b[0]
         if kind == "h":
             anchor = re.sub(r"[^a-z0-9]+", "-", b[2].lower()).strip("-")
             if b[1] == 2:
                 toc.append(f'<a href="#{anchor}">{inline(b[2])}</a>')
+                body.append("</section><section>" if open_section else "<section>")
+                open_section = True
             body.append(f'<h{b[1]} id="{anchor}">{inline(b[2])}</h{b[1]}>')
         elif kind == "p":
             body.append(f"<p>{inline(b[1])}</p>")
         elif kind == "list":
             body.append("<ul>" + "".join(f"<li>{inline(t)}</li>" for t in b[1]) + "</ul>")
         elif kind == "table":
-            body.append(table(b[1], b[2]))
+            t = table(b[1], b[2])
+            if len(b[1]) > OPEN_ROWS:  # a long table (every case × method) folded: the page stays navigable
+                n = len([c for c in b[2] if any(c in r for r in b[1])])
+                head = f"{len(b[1])} rows × {n} columns (click to show)"
+                t = f'<details class="long"><summary>{head}</summary>{t}</details>'
+            body.append(t)
         elif kind == "img":
             src = esc(quote(b[1], safe="/"))
             body.append(f'<figure><a href="{src}"><img src="{src}" alt="{esc(b[2])}"></a></figure>')
@@ -188,7 +205,9 @@ def page(blocks: list[tuple], reports: Path, *, title: str, made: dict | None = 
             heading = (
                 b[2] if len(b) > 2 else None
             )  # ("viewer", figure, heading): default "<figure>: images …"
-            body.append(_viewers_html(reports, b[1], manifests, (made or {}).get(b[1]), heading))
+            body.append(_viewers_html(reports, b[1], manifests, (made or {}).get(b[1]), heading, fold))
+    if open_section:
+        body.append("</section>")
     css = (_HERE / "html.css").read_text(encoding="utf-8")
     js = (_HERE / "viewer.js").read_text(encoding="utf-8")
     return "\n".join(

@@ -66,24 +66,18 @@ def inline(md: str) -> str:
     parts, out = text.split("`"), []
     if len(parts) % 2 == 0:  # an unmatched backtick is text
         parts[-2:] = [parts[-2] + "`" + parts[-1]]
-    for i, part in enumerate(parts):
-        if i % 2:
-            out.append(hold(f"<code>{esc(_restore(part, held, raw=True))}</code>"))
-            continue
-        t = esc(part)
-        t = re.sub(
-            r"\[([^\]]+)\]\(([^)\s]+)\)",
-            lambda m: (
-                f'<a href="{m.group(2)}">{m.group(1)}</a>'
-                if own_href(_html.unescape(m.group(2)))
-                else m.group(0)
-            ),
-            t,
-        )
-        t = re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", t)
-        t = re.sub(r"(?<![\w*])\*([^*\s][^*]*?)\*(?![\w*])", r"<em>\1</em>", t)
-        out.append(t)
-    return _restore("".join(out), held)
+    for i, part in enumerate(parts):  # code spans held first, so that **bold `code` text** spans them
+        out.append(hold(f"<code>{esc(_restore(part, held, raw=True))}</code>") if i % 2 else esc(part))
+    t = re.sub(
+        r"\[([^\]]+)\]\(([^)\s]+)\)",
+        lambda m: (
+            f'<a href="{m.group(2)}">{m.group(1)}</a>' if own_href(_html.unescape(m.group(2))) else m.group(0)
+        ),
+        "".join(out),
+    )
+    t = re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", t)
+    t = re.sub(r"(?<![\w*])\*([^*\s][^*]*?)\*(?![\w*])", r"<em>\1</em>", t)
+    return _restore(t, held)
 
 
 def _restore(s: str, held: list[str], raw: bool = False) -> str:

@@ -57,6 +57,7 @@ def result_files(
             row_labels=[CASE],
             exposure=exposure,
             rule=RUN_EXPOSURE_RULE,
+            wrap=True,  # one case: rows of legible panels, however many methods
         )
     )
     more, entry = viewer.case_files(CASE, CASE, res, labels, title=title, case_id=CASE, exposure_ev=exposure)

@@ -39,6 +39,17 @@
   }
   fitPage();
   window.addEventListener("resize", fitPage);
+  // Folded parts (long tables, a figure's viewers) open on a click, or when a link names them or their heading.
+  document.querySelectorAll("details").forEach(d => d.addEventListener("toggle", fitPage));
+  function openTarget() {
+    const t = location.hash && document.getElementById(decodeURIComponent(location.hash.slice(1)));
+    if (!t) return;
+    const d = t.closest("details") || (t.nextElementSibling && t.nextElementSibling.tagName === "DETAILS" ?
+                                      t.nextElementSibling : null);
+    if (d && !d.open) { d.open = true; t.scrollIntoView(); }
+  }
+  openTarget();
+  window.addEventListener("hashchange", openTarget);
   if (nav && "ResizeObserver" in window) new ResizeObserver(fitPage).observe(nav);
 
   // ------------------------------------------------------------------ viewers

@@ -193,10 +193,30 @@ def _machine(m: dict) -> str:
     return f"{m.get('cpus', '?')} cores, Python {m.get('python', '?')}, backend {m.get('backend', '?')}"
 
 
+def _device(m: dict) -> str:
+    """The machine a table was made on, from its metadata: the GPU's name on cuda, else the CPU and its cores."""
+    d = m.get("device") if isinstance(m.get("device"), dict) else {}
+    if d.get("gpu"):
+        return str(d["gpu"])
+    if d.get("cpu"):
+        return f"{d['cpu']} ({d.get('cores', '?')} cores)"
+    return f"{m.get('cpus', '?')} cores"
+
+
+def code_mark(m: dict, repo: Path | None = None) -> str:
+    """``current`` where the table's code hash matches the code of its commit
+    (:func:`study.harness.provenance.code_status`), else ``stale: <why>``."""
+    from study.harness import provenance
+
+    why = provenance.code_status(m, **({"repo": repo} if repo is not None else {}))
+    return "current" if why is None else f"stale: {why}"
+
+
 def versions_section(dirs: list[Path]) -> list[tuple]:
     rows = []
     for d in dirs:
         m = meta(d)
+        dirty = m.get("git_dirty")
         rows.append(
             {
                 "table": d.name,
@@ -204,14 +224,35 @@ def versions_section(dirs: list[Path]) -> list[tuple]:
                 "config sha256": str(m.get("config_sha256", "?")),
                 "seed": str(m.get("seed", "?")),
                 "backend": str(m.get("backend", "?")),
-                "git commit": str(m.get("git_commit", "?"))[:10],
+                "device": _device(m),
+                "git commit": str(m.get("git_commit", "?"))[:10] + (" (dirty)" if dirty else ""),
+                "code": code_mark(m),
                 "versions": ", ".join(f"{k} {v}" for k, v in m.get("versions", {}).items() if v),
             }
         )
     if not rows:
         return []
+    cols = [
+        "table",
+        "command",
+        "config sha256",
+        "seed",
+        "backend",
+        "device",
+        "git commit",
+        "code",
+        "versions",
+    ]
     return [
         ("h", 2, "Versions and commands"),
-        ("table", rows, ["table", "command", "config sha256", "seed", "backend", "git commit", "versions"]),
+        (
+            "p",
+            "Written by the commands that made each table (study/harness/provenance.py), none by hand. *code*: "
+            "*current* where the table's code hash equals the hash of the files it lists as its commit holds them; "
+            "*stale* (with why) where it does not, where its commit is not in this repository's history, or where "
+            "its metadata has no code hash (made before study wrote one): remake such a table before trusting it "
+            "to describe this code.",
+        ),
+        ("table", rows, cols),
         ("p", "Regenerate everything: `bash scripts/reproduce.sh` (figures, the main sweep, this report)."),
     ]

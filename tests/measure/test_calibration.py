@@ -115,19 +115,13 @@ def test_the_table_check_catches_a_planted_exclusion():
     assert _excluded(tab) == ["x (1 rows)"]
 
 
-#: Committed tables made before the σ fix in study.measure.case (fig5's oracle_map rmse_truth_debiased was debiased
-#: with σ over the object's pixels and its interval with σ over the held ones): the paper-quality figures come from
-#: a GPU run (scripts/device_run.sh fig4paper), not yet repeated.
-STALE = {"paper/fig5/metrics.csv": ["rmse_truth_debiased (1 rows)"]}
-
-
 def test_no_committed_interval_excludes_its_estimate():
     tables = _committed_tables()
     assert len(tables) > 20
     bad = {
         str(p.relative_to(REPORTS)): b for p in tables if (b := _excluded(pd.read_csv(p, low_memory=False)))
     }
-    assert {k: v for k, v in bad.items() if STALE.get(k) != v} == {}
+    assert bad == {}  # no exception by name: a stale table is removed or regenerated, never listed
 
 
 def test_the_summary_intervals_over_cases_contain_their_medians():

@@ -1,0 +1,171 @@
+"""Outputs a reader can read (issue 54, item 4): ``study run``'s grids wrap so that every panel stays wide and no
+two titles collide, however many methods; the report page is in sections, long tables and several figures' viewers
+folded until opened; its inline Markdown renders (bold around code too); it names the folder its tables came from;
+and a clone without the untracked pictures (issue 55) still makes a page that says how to get them."""
+
+import numpy as np
+import pytest
+
+from study.outputs import figures, html
+from study.outputs.markup import inline
+from tests.report.test_report_html import _fake_case, small_report
+
+LABELS = [
+    "classical",
+    "layered(steps_per_texel=1.0)",
+    "linear_secant(steps_per_texel=1.0)",
+    "localized(iterations=10)",
+    "multi_probe(steps_per_texel=1.0)",
+    "probe_blend(blend=0.25)",
+    "proxy_box",
+    "proxy_sphere",
+    "sdf(res=64)",
+    "ssr(max_steps=512)",
+    "ssr_hiz(max_iterations=128)",
+    "ssr_sdf(max_steps=512)",
+    "traced",
+    "oracle_map",
+]
+
+
+def _grids(monkeypatch, **kw):
+    """The matplotlib figures image_grids draws (drawn, so their text has extents), by part."""
+    figs = []
+    real = figures.png_bytes
+
+    def keep(fig, **k):
+        fig.canvas.draw()
+        figs.append(fig)
+        return real(fig, **k)
+
+    monkeypatch.setattr(figures, "png_bytes", keep)
+    case = _fake_case(LABELS, np.random.default_rng(0))
+    files = figures.image_grids("run", [case], LABELS, title="run: a room", occlusion_panel=True,
+                                outcome_panel=True, row_labels=["run"], **kw)  # fmt: skip
+    return files, figs
+
+
+def _overlaps(a, b) -> bool:
+    return a.x0 < b.x1 - 1 and b.x0 < a.x1 - 1 and a.y0 < b.y1 - 1 and b.y0 < a.y1 - 1
+
+
+def test_a_runs_grids_wrap_so_every_panel_is_legible_and_no_titles_collide(monkeypatch):
+    """14 methods (once 44 panels ≈ 100 px wide in two rows): every panel ≥ 200 px wide, the PNGs within the page's
+    width, and no panel title overlapping another or another panel."""
+    files, figs = _grids(monkeypatch, wrap=True)
+    assert sorted(files) == ["run-errors.png", "run.png"] and len(figs) == 2
+    for fig in figs:
+        assert fig.get_figwidth() * figures._DPI <= figures.MAX_WIDTH_PX
+        panels = [ax for ax in fig.axes if ax.get_visible() and ax.axison and ax.images and ax.get_title()]
+        assert len(panels) >= 14
+        boxes = [ax.get_window_extent() for ax in panels]
+        titles = [ax.title.get_window_extent() for ax in panels]
+        assert min(b.width for b in boxes) >= 200, min(b.width for b in boxes)
+        for i, t in enumerate(titles):
+            for j in range(len(panels)):
+                if j != i:
+                    assert not _overlaps(t, titles[j]), (panels[i].get_title(), panels[j].get_title())
+                    assert not _overlaps(t, boxes[j]), (panels[i].get_title(), "over a panel")
+
+
+def test_without_wrap_a_figure_still_shrinks_its_rows(monkeypatch):
+    """The figures' grids (several cases, one row each) keep their layout: one row per case."""
+    _, figs = _grids(monkeypatch)
+    panels = [ax for ax in figs[0].axes if ax.images]
+    assert len({round(ax.get_position().y0, 3) for ax in panels}) == 1
+
+
+def test_bold_around_code_renders():
+    """The Summary's items: **bold with `code` inside** (once shown as literal asterisks)."""
+    got = inline("**by absolute RMSE `sdf(res=64)` is lower** (absolute errors scale), *a `b`*")
+    assert got == (
+        "<strong>by absolute RMSE <code>sdf(res=64)</code> is lower</strong> (absolute errors scale), "
+        "<em>a <code>b</code></em>"
+    )
+    assert "**" not in inline("x **a `b` c** y `**literal**`".replace("`**literal**`", ""))
+    assert inline("`**kept**`") == "<code>**kept**</code>"
+
+
+def test_the_page_is_in_sections_with_long_tables_folded():
+    rows = [{"case": f"c{i}", "x": float(i)} for i in range(html.OPEN_ROWS + 1)]
+    blocks = [
+        ("h", 1, "T"),
+        ("h", 2, "One"),
+        ("table", rows[:3], ["case", "x"]),
+        ("h", 2, "Two"),
+        ("table", rows, ["case", "x"]),
+    ]
+    page = html.page(blocks, html.Path("."), title="t")
+    assert page.count("<section>") == 2 and page.count("</section>") == 2
+    assert page.count("<details") == 1 and f"{len(rows)} rows × 2 columns" in page
+    body = page[page.index("<main>") : page.index("</main>")]
+    assert body.index('id="two"') < body.index("<details")
+
+
+def test_the_report_names_its_folder_and_folds_several_figures_viewers(tmp_path_factory):
+    import shutil
+
+    from study.report.report import build_report
+
+    reports = small_report(tmp_path_factory)
+    mine = reports.parent / "mine"
+    shutil.copytree(reports, mine)
+    shutil.copytree(reports / "fig4", mine / "fig4b")  # a second figure with viewers
+    for p in (mine / "fig4b" / "viewer").glob("index.json"):
+        p.write_text(p.read_text().replace('"fig4"', '"fig4b"'))
+    build_report(mine)
+    md = (mine / "index.md").read_text()
+    assert f"`{mine.as_posix()}/`" in md and "tables under `reports/`" not in md
+    page = (mine / "index.html").read_text()
+    assert page.count('<details class="viewers-box">') == 2
+    single = (reports / "index.html").read_text()  # one figure: its viewers open, as before
+    assert '<details class="viewers-box">' not in single
+
+
+def test_a_clone_without_the_untracked_pictures_still_makes_a_page(tmp_path_factory):
+    """Viewer images, Parquet, plots gone (as in a fresh clone): the page is written, says how to get them."""
+    from study.report.report import build_report
+
+    reports = small_report(tmp_path_factory)
+    for pat in ("*/viewer/*.js", "*/*.parquet", "*/exr/*", "*/*.png"):
+        for p in reports.glob(pat):
+            p.unlink()
+    assert build_report(reports) is not None
+    md = (reports / "index.md").read_text()
+    assert "bash scripts/reproduce.sh" in md and "are not" in md
+    page = (reports / "index.html").read_text()
+    assert 'id="viewers-fig4"' in page
+
+
+@pytest.mark.parametrize("part", ["viewer", "paper", "parquet", "plots", "index.html"])
+def test_generated_files_are_not_tracked(part):
+    """The light repository: what `scripts/reproduce.sh` makes (viewer images, the paper set, Parquet copies, the
+    sweeps' plots, the HTML page) is ignored by git, so a regeneration never adds it."""
+    import subprocess
+
+    from tests.report.test_provenance import ROOT
+
+    path = {
+        "viewer": "reports/fig4/viewer/fig4-p0.js",
+        "paper": "reports/paper/fig4/metrics.csv",
+        "parquet": "reports/fig4/metrics.parquet",
+        "plots": "reports/sweep-sweep/plots/wrong_fraction_vs_res.png",
+        "index.html": "reports/index.html",
+    }[part]
+    r = subprocess.run(["git", "check-ignore", "-q", "--no-index", path], cwd=ROOT)
+    assert r.returncode == 0, f"{path} is not ignored"
+    tracked = subprocess.run(["git", "ls-files", path], cwd=ROOT, capture_output=True, text=True).stdout
+    assert not tracked.strip(), f"{path} is tracked"
+
+
+def test_the_tracked_tree_is_light():
+    """≤ 25 MB tracked, so the lent GPU machine takes a plain copy (its limit is 64 MiB with the wheels)."""
+    import subprocess
+
+    from tests.report.test_provenance import ROOT
+
+    files = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True, check=True).stdout.split(
+        b"\0"
+    )
+    size = sum((ROOT / f.decode()).stat().st_size for f in files if f and (ROOT / f.decode()).is_file())
+    assert size <= 25_000_000, size
