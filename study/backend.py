@@ -85,10 +85,7 @@ class Backend:
 
     def total(self, a) -> float: ...
     def texture(self, texels: np.ndarray): ...
-    def sample(self, tex, face, u, v, active=None) -> list:
-        """Bilinear channels of ``tex`` at (face, u, v); with ``active`` (a mask), lanes off it read nothing on
-        Dr.Jit (a masked fetch: 0 there) and are computed anyway on numpy: callers must not use them."""
-
+    def sample(self, tex, face, u, v) -> list: ...
     def eval(self, *arrays) -> None: ...
     def loop(self, n: int, state: tuple, body, *, index: bool = False) -> tuple: ...
     def while_loop(self, state: tuple, cond, body, *, limit: int) -> tuple: ...
@@ -227,7 +224,7 @@ class NumpyBackend(Backend):
     def texture(self, texels):
         return np.ascontiguousarray(texels, dtype=np.float32)
 
-    def sample(self, tex, face, u, v, active=None):  # numpy: every lane is read (``active`` aside)
+    def sample(self, tex, face, u, v):
         R, C = tex.shape[1], tex.shape[-1]
         cj = np.clip(u * R - 0.5, 0, R - 1)
         ci = np.clip(v * R - 0.5, 0, R - 1)
@@ -405,12 +402,12 @@ class DrJitBackend(Backend):
             use_accel=self.name == "cuda",
         )
 
-    def sample(self, tex, face, u, v, active=None):
+    def sample(self, tex, face, u, v):
         R = tex.shape[1]
         lo, hi = 0.5 / R, 1 - 0.5 / R
         faces = tex.shape[0] // R  # 6 for a cube map; more for stacked cube maps (probes)
         pos = self.m.Array2f(self.dr.clip(u, lo, hi), (face + self.dr.clip(v, lo, hi)) / float(faces))
-        return list(tex.eval(pos) if active is None else tex.eval(pos, active=self.m.Bool(active)))
+        return list(tex.eval(pos))
 
 
 _cache: dict[str, Backend] = {}

@@ -196,14 +196,6 @@ def run_bench(
                     )
                     row["kernel_ms_per_frame"] = ms_per_frame(exact.mitsuba_kernels(b, v, q), n)
                     rows.append(row)
-            # what a renderer does at the hit besides finding it: traced's shading (SHADING), priced with it
-            t_sh, k_sh = exact.shading(b, v, light)
-            for part in SHADING:
-                if np.isfinite(t_sh[part]):
-                    row = rate_row({"batch": b.name, "backend": dev, "path": part, "label": f"exact: Mitsuba {v}",
-                                    "triangles": len(F), "cube_res": ""}, t_sh[part], n)  # fmt: skip
-                    row["kernel_ms_per_frame"] = ms_per_frame(k_sh[part], n)
-                    rows.append(row)
         log(f"exact ray casting of {b.name} timed")
 
     # ------------------------------------------------------------------ measured floors (Dr.Jit backends)
@@ -229,6 +221,7 @@ def run_bench(
     specs = Views.merge(*(m.views_needed() for m in methods)).probes  # the probe methods' sets
     probe_sets = {nm: {sp: bench_probes(sp, exact.tracer, tex, o, info_env["room"], backends.get(nm)) for sp in specs}
                   for nm in names}  # fmt: skip
+    deferred: list = []  # (row index, method, batch, backend) of the exact-query methods' rows
     for b in batches:
         depth = camera_depth(b.camera, exact.tracer) if want_screen and b.camera is not None else None
         for nm in names:
@@ -238,9 +231,9 @@ def run_bench(
             x, R = b.x[:k] - o, b.R[:k]
             paths = ["frozen"] if nm != "numpy" else ["plain"]
             for m in methods:
-                if getattr(m, "bench_query", None):  # the exact query as a method: its time is the query's
-                    row = exact_query_row(m, exact, b, nm, len(F), floors.get(nm), light=light)
-                    rows.append(with_ratios(row, exact, b, nm))
+                if getattr(m, "bench_query", None):  # the exact query as a method: its time is the query's,
+                    deferred.append((len(rows), m, b, nm))  # priced after every method is timed (below)
+                    rows.append({})
                     continue
                 extra = ["plain"] if nm != "numpy" and m.label == plain_too else []
                 for path in paths + extra:
@@ -275,6 +268,24 @@ def run_bench(
                     row["kernel_ms_per_frame"] = ms_per_frame(kernel[-1], len(x))
                     rows.append(with_floor(with_ratios(row, exact, b, nm), m, floors.get(nm), b))
             log(f"methods on {nm}, {b.name} timed")
+
+    # ------------------------------------------------------------------ the exact query priced with its shading
+    # (after every method: Mitsuba's material calls must not run between the frozen recordings on CUDA)
+    for i, m, b, nm in deferred:
+        rows[i] = with_ratios(
+            exact_query_row(m, exact, b, nm, len(F), floors.get(nm), light=light), exact, b, nm
+        )
+    for b in batches:  # what a renderer does at the hit besides finding it: traced's shading (SHADING)
+        for dev in sorted({"cuda" if nm == "cuda" else "llvm" for nm in names}):
+            v = mitsuba_variant(dev)
+            t_sh, k_sh = exact.shading(b, v, light)
+            for part in SHADING:
+                if np.isfinite(t_sh[part]):
+                    row = rate_row({"batch": b.name, "backend": dev, "path": part, "label": f"exact: Mitsuba {v}",
+                                    "triangles": len(F), "cube_res": ""}, t_sh[part], len(b.x))  # fmt: skip
+                    row["kernel_ms_per_frame"] = ms_per_frame(k_sh[part], len(b.x))
+                    rows.append(row)
+    log("the exact query's shading timed")
 
     if on_table:
         on_table(rows, info)

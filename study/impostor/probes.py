@@ -129,11 +129,9 @@ class ProbeSet:
     def distance(self, k, v: V3):
         return self.B.sample(self.dist, *self._face(k, v))[0]
 
-    def lookup(self, k, v: V3, active=None) -> list:
-        """Colour and distance of probe ``k`` towards v; with ``active``, a masked fetch (:meth:`Backend.sample`:
-        lanes off the mask read nothing on Dr.Jit)."""
+    def lookup(self, k, v: V3) -> list:
         f = self._face(k, v)
-        return self.B.sample(self.tex, *f, active=active) + self.B.sample(self.dist, *f, active=active)
+        return self.B.sample(self.tex, *f) + self.B.sample(self.dist, *f)
 
     def nearest(self, k, v: V3):
         B, R = self.B, float(self.res)

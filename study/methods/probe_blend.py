@@ -135,7 +135,7 @@ class _Only:
         self.env, self.n, self.res = env, 1, getattr(env, "res", 0)
         self.centres = np.zeros((1, 3))
 
-    def lookup(self, k, v, active=None):
+    def lookup(self, k, v):
         return self.env.lookup(v)
 
 
@@ -198,23 +198,20 @@ class ProbeBlend(TracingMethod):
         for xi, a, b in zip((x.x, x.y, x.z), lo, hi):
             inside = inside & (xi >= float(a)) & (xi <= float(b))
         t = B.select(inside, t, zero + float("nan"))
-        dirs, usable = [], []  # each probe's lookup direction and where it has an answer (no fetch yet)
-        for c in P.centres:
+        answers, rads, usable, tols = [], [], [], []
+        for k, c in enumerate(P.centres):
             pk, okk = self._project(B, x, R, c, lo, hi, t)
-            v = pk - V3(*(zero + float(a) for a in c))
-            dirs.append(V3(*(B.select(okk & inside, a, zero + 1.0) for a in (v.x, v.y, v.z))))
+            cv = V3(*(zero + float(a) for a in c))
+            v = pk - cv
+            v = V3(*(B.select(okk & inside, a, zero + 1.0) for a in (v.x, v.y, v.z)))
+            ch = P.lookup(zero + float(k), v)
+            answers.append(cv + B.normalize(v) * ch[3])
+            rads.append(V3(*ch[:3]))
             usable.append(okk & inside)
+            tols.append(B.maximum(ch[3] * (2.0 / max(P.res, 1)), 0.01))
         ndf = [B.select(u, d, zero + 1.0) for u, d in zip(usable[1:], ndf)]  # no answer: no influence
         w, w0 = blend_weights(B, ndf)
         w = [B.select(usable[0], w0, zero) if w0 is not None else B.select(usable[0], zero + 1.0, zero)] + w
-        # the weights are analytic: a probe of weight 0 is not read (a masked fetch on Dr.Jit; its lanes feed
-        # nothing below: the shown point is a probe of weight > 0, a ghost weighs ≥ GHOST_WEIGHT, rad × 0)
-        answers, rads, tols = [], [], []
-        for k, (c, v, wk) in enumerate(zip(P.centres, dirs, w)):
-            ch = P.lookup(zero + float(k), v, active=wk > 0.0)
-            answers.append(V3(*(zero + float(a) for a in c)) + B.normalize(v) * ch[3])
-            rads.append(V3(*ch[:3]))
-            tols.append(B.maximum(ch[3] * (2.0 / max(P.res, 1)), 0.01))
         # ------------------------------------------------------------- blend, dominant probe, ghosting
         best, best_w = zero, zero - 1.0
         for k, wk in enumerate(w):

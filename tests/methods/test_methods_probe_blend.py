@@ -177,23 +177,3 @@ def test_flags_must_be_masks_of_declared_columns(cache):
             overrides=TINY,
             cache=cache,
         )
-
-
-@pytest.mark.skipif("llvm" not in BACKENDS, reason="needs Dr.Jit's LLVM backend")
-def test_probes_of_weight_zero_are_not_read_and_the_blend_is_unchanged():
-    """Issue 56: probe_blend fetches only the probes of weight > 0 (a masked fetch: Dr.Jit reads nothing off the
-    mask and returns 0 there, checked on the texture itself), and its shown points, radiance, lookups and ghosts
-    equal numpy's, which reads every probe."""
-    Bl, Bn = backends.get("llvm"), backends.get("numpy")
-    tex = Bl.texture(np.ones((6, 4, 4, 1), np.float32))
-    on = Bl.m.Bool(np.array([True, False, True]))
-    got = Bl.numpy(Bl.sample(tex, Bl.array(np.zeros(3)), Bl.array(np.full(3, 0.5)), Bl.array(np.full(3, 0.5)),
-                             active=on)[0])  # fmt: skip
-    assert list(got) == [1.0, 0.0, 1.0]
-    x, d = analytic.random_rays(3000, extent=1.3, seed=4)
-    m = methods.make("probe_blend")
-    a, b = _trace(m, Bl, _box_env(Bl), x, d), _trace(m, Bn, _box_env(Bn), x, d)
-    np.testing.assert_allclose(a[0], b[0], atol=2e-4)
-    np.testing.assert_allclose(a[1], b[1], atol=2e-4)
-    assert np.array_equal(a[2], b[2]) and np.array_equal(a[3], b[3]) and np.mean(a[4] != b[4]) < 1e-3
-    assert a[3].mean() < len(GRID)  # fewer reads than the 9 probes (8 and the global one)
