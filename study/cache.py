@@ -10,10 +10,18 @@ never found. Both files are written atomically (temporary file + rename), the JS
 another key (a file copied or renamed), or whose array file is missing, unreadable, of another shape or another
 checksum is recomputed, never trusted. Entries of the format used before (``<key>.exr``, float32 EXR through Mitsuba's
 Bitmap) are still read, with the same checks. :meth:`Cache.info` and :meth:`Cache.clear` serve ``study cache``.
+
+Several commands may share one cache (``--cache``), ``study cache clear`` among them. Two writers of one key write
+the same bytes, each atomically; a reader sees a whole entry or none. ``clear`` removes a kind's directory when it
+empties it, so a writer may find its directory gone between making it and writing into it, or (Python's
+``mkdir(exist_ok=True)``) told that it exists when it no longer does: :meth:`Cache.store` makes it again and
+writes again (:data:`WRITE_ATTEMPTS`). ``info`` and ``clear`` skip a file or directory that vanished while they
+listed it (another ``clear``, a writer's temporary file renamed).
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import json
@@ -83,19 +91,19 @@ class Cache:
         a = np.ascontiguousarray(a, np.float32)
         d = self.root / kind
         meta = json.dumps({"key": key, "shape": list(a.shape), "sha256": _digest(a)}).encode()
-        for attempt in range(
-            3
-        ):  # `study cache clear` running meanwhile may remove the directory: write again
+        data = _npy_bytes(a)
+        for attempt in range(WRITE_ATTEMPTS):  # `study cache clear` meanwhile may remove the directory
             try:
                 d.mkdir(parents=True, exist_ok=True)
-                atomic_write(d / f"{key}.npy", _npy_bytes(a))
+                atomic_write(d / f"{key}.npy", data)
                 atomic_write(d / f"{key}.json", meta)
                 return
-            except FileNotFoundError:
-                if attempt == 2:
+            except (FileNotFoundError, FileExistsError):  # gone, or "exists" as rmdir removed it: again
+                if attempt == WRITE_ATTEMPTS - 1:
                     raise StudyError(
                         "cannot write the cache (its directory keeps vanishing)", file=str(d)
                     ) from None
+                time.sleep(0.001 * 2**attempt)
             except OSError as err:
                 raise StudyError(f"cannot write the cache ({err.strerror})", file=str(d)) from None
 
@@ -129,7 +137,10 @@ class Cache:
         out = {}
         try:
             for d in sorted(p for p in self.root.iterdir() if p.is_dir()):
-                files = sorted(p for p in d.iterdir() if p.is_file())
+                try:
+                    files = sorted(p for p in d.iterdir() if p.is_file())
+                except FileNotFoundError:  # removed meanwhile (another clear)
+                    continue
                 entries = [
                     p for p in files if p.suffix == ".json" and not p.name.startswith(".") and _is_entry(p)
                 ]
@@ -155,10 +166,7 @@ class Cache:
     def info(self) -> dict[str, tuple[int, int]]:
         """Kind → (entries, bytes on disk) of everything the cache holds."""
         return {
-            k: (
-                sum(p.suffix == ".json" and not p.name.startswith(".") for p in fs),
-                sum(p.stat().st_size for p in fs),
-            )
+            k: (sum(p.suffix == ".json" and not p.name.startswith(".") for p in fs), sum(map(_size, fs)))
             for k, fs in self._kinds().items()
         }
 
@@ -179,9 +187,9 @@ class Cache:
             size = 0
             for p in fs:
                 try:
-                    size += p.stat().st_size
+                    size += _size(p)
                     p.unlink()
-                except FileNotFoundError:
+                except FileNotFoundError:  # removed meanwhile (another clear)
                     pass
                 except OSError as err:
                     raise StudyError(f"cannot remove a cache file ({err.strerror})", file=str(p)) from None
@@ -194,6 +202,16 @@ class Cache:
 
 
 _OURS = (".npy", ".exr")  # array files the cache writes (.exr: the older format)
+#: Writes of one entry before :meth:`Cache.store` gives up on a directory that keeps vanishing (backing off 1, 2,
+#: 4, … ms between them).
+WRITE_ATTEMPTS = 8
+
+
+def _size(p: Path) -> int:
+    """``p``'s size in bytes; 0 for a file that vanished since it was listed."""
+    with contextlib.suppress(FileNotFoundError):
+        return p.stat().st_size
+    return 0
 
 
 #: A temporary file younger than this may belong to a write in progress (a running sweep's): clear leaves it.

@@ -181,8 +181,10 @@ def map_problem(path: str, size: int = 0, mtime_ns: int = 0) -> str | None:
     if isinstance(got, str):
         return got
     w, h = got
-    if w < 1 or h < 1 or w * h > MAX_TEXELS:
-        return (f"its header says {w} × {h} texels; a sky map has 1 to {MAX_TEXELS:,} texels (8192 × 4096): "
+    if w < 1 or h < 1:
+        return f"a damaged header (it says {w} × {h} texels)"
+    if w * h > MAX_TEXELS:
+        return (f"its header says {w} × {h} texels; a sky map has at most {MAX_TEXELS:,} (8192 × 4096): "
                 "downscale it")  # fmt: skip
     from study import runtime
 
