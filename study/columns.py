@@ -33,7 +33,7 @@ class TableColumn:
     ] = ()  # printed tables that show it: "run" (study run, Result), "figure" (study figure)
     interval: bool = False  # <name>_lo / <name>_hi beside it
     note: str = ""
-    #: its value hangs on the backend's float32 arithmetic (issue 55): `study check` compares it with a stated floor
+    #: its value hangs on the backend's float32 arithmetic: `study check` compares it with a stated floor
     #: (study.report.check.backend_floor), no ranking uses it (study.report.summary.ranking)
     backend_sensitive: bool = False
     #: the declared column whose calibrated ``_lo``/``_hi`` are this column's 95 % interval, where they are not its
@@ -305,7 +305,7 @@ TABLE: list[TableColumn] = [
         note="1: the method does not model the object's surface (scored with --allow-mismatch)",
     ),
 ]
-#: The columns whose values hang on the backend's float32 arithmetic (issue 55: CUDA against numpy/LLVM differ by up
+#: The columns whose values hang on the backend's float32 arithmetic (CUDA against numpy/LLVM differ by up
 #: to 12 % in them with the same captures): percentiles of near-zero angles and distances, the p95s that non-converged
 #: rays set, march step counts. Marked here (``backend_sensitive``) rather than in each row above, so that other
 #: fields of those rows change apart; a plug-in's column passes ``backend_sensitive=True`` to :func:`declare`.

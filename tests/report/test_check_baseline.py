@@ -5,6 +5,7 @@ OverflowError after the sweep. And the backend-sensitive columns (issue 55): mar
 with a stated floor when the check runs on another backend than its baseline's, ranked by nothing."""
 
 import math
+from pathlib import Path
 
 import pytest
 from conftest import run_cli
@@ -156,3 +157,64 @@ def test_no_ranking_on_a_backend_sensitive_column():
     ]
     assert [r["label"] for r in ranking(tab, "wrong_fraction")] == ["a", "b"]
     assert ranking(tab, "angle_median_deg") == []
+
+
+def test_the_whole_baseline_set_is_checked_before_the_sweep(tmp_path, monkeypatch):
+    """Beside a sound spread table: metadata.json and the replayed seed's results.csv, each refused in one line
+    naming its file (and the row and column of a bad cell) before the sweep runs."""
+    import json
+    import shutil
+
+    config, _ = _planted_baseline(tmp_path, lambda h, rows: _csv_bytes([h, *rows]))
+    monkeypatch.setattr("study.report.check.run_sweep", lambda *a, **k: pytest.fail("the sweep ran"))
+
+    def refused(expected: str) -> None:
+        res = run_cli("check", "--config", config)
+        assert res.exit_code == 2, res.output
+        assert expected in " ".join(res.output.split()), res.output
+
+    refused(f"error: {tmp_path / 'metadata.json'}: missing; re-create the baseline")
+    (tmp_path / "metadata.json").write_text(json.dumps({"seeds": "0-4"}))
+    refused(f"error: {tmp_path / 'metadata.json'}: 'seeds' is 0-4, expected the list of seeds")
+    shutil.copy("reports/baseline/metadata.json", tmp_path / "metadata.json")
+    refused(f"error: {tmp_path / 'results.csv'}: no replay table")
+    text = Path("reports/baseline/results.csv").read_text().splitlines()
+    header = text[0].split(",")
+    cells = text[3].split(",")
+    cells[header.index("rmse_mitsuba")] = "-3.0"
+    (tmp_path / "results.csv").write_text("\n".join([text[0], *text[1:3], ",".join(cells), *text[4:]]) + "\n")
+    refused(f"error: {tmp_path / 'results.csv'}: malformed baseline: line 4, column 'rmse_mitsuba'")
+
+
+def _csv_bytes(rows) -> bytes:
+    import csv
+    import io
+
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerows(rows)
+    return buf.getvalue().encode()
+
+
+def test_run_check_replays_seed_0_and_floors_on_another_backend(monkeypatch):
+    """run_check with the sweep stood in by the baseline's own seed-0 table, one angle moved by 0.01° (below the
+    stated floor of 2 % of a 64² texel, 0.036°): on the baseline's backend (numpy) the replay sees it against
+    the 5e-5° floor; on llvm (no replay: its floats differ) the backend-sensitive column passes within its
+    stated floor."""
+    from study.report import check
+    from study.tables import read_csv
+
+    rows = read_csv(Path("reports/baseline/results.csv"))
+    target = next(r for r in rows if r["case"] == "c0000" and r["label"] == "localized(iterations=10)")
+    target["angle_median_deg"] += 0.01
+    meta = {"seed": 0, "methods": ["x"]}
+    monkeypatch.setattr(check, "_run_at", lambda *a, **k: (rows, {"cases": 4, "seconds": 0.0}, meta))
+    fails, lines = check.run_check("configs/check.toml", backend="numpy")
+    assert [f.message.split(" (by")[0] for f in fails] == [
+        f"angle_median_deg of localized(iterations=10) in c0000 moved from "
+        f"{target['angle_median_deg'] - 0.01:.6g} (the baseline's) to {target['angle_median_deg']:.6g}"
+    ]
+    assert any("replayed against the baseline's seed 0" in ln for ln in lines), lines
+    fails, lines = check.run_check("configs/check.toml", backend="llvm")
+    assert fails == [], [f.message for f in fails]
+    assert any("(llvm, not the baseline's numpy: within 5 sd" in ln for ln in lines), lines
+    assert any("backend-sensitive columns at least their stated floor" in ln for ln in lines), lines
