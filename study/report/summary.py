@@ -490,9 +490,7 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
     """The report blocks of the headline: a heading, the headline paragraph and one sentence per table. Tables of
     rough objects (``object_alpha`` > 0) are left out: a glossy method shows a lobe, not a hit, so wrong hits do
     not rank it; their error split and claims judge them (the glossy figure's section)."""
-    tables = headline_tables(tables)
-    seeds = {n: geometry.seeds_per_geometry(t) for n, t in tables.items()}
-    tables = {n: geometry.pooled(t) for n, t in tables.items()}  # one case per geometry from here on
+    tables = headline_tables(tables)  # each statistic below pools a geometry's seeds and says how many
     head = headline(tables)
     if head is None:
         return []
@@ -504,11 +502,7 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
         ("p", table_notes.interval_note()),
         ("table", interval_rows(tables), INTERVAL_COLUMNS),
         *power.power_blocks(
-            [
-                power.row(name, tab, rank) | {"seeds": seeds[name]}
-                for name, tab in tables.items()
-                if (rank := ranking(tab, WRONG))
-            ]
+            [power.row(name, tab, rank) for name, tab in tables.items() if (rank := ranking(tab, WRONG))]
         ),
     ]
 
