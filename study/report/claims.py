@@ -5,7 +5,7 @@ A claim reads the rows of one table (a figure's metrics.csv or a sweep's results
 :class:`Verdict`; a claim whose table lacks the rows it needs returns ``None`` (not applicable). Each claim is judged
 on the rays or pixels it is about (hidden hits, pixels whose hits the views hold, convex rooms, cases off the
 reference point) and on tails — wrong fractions with their calibrated intervals (the declared column table's,
-:func:`study.report.summary.bounds`), 95th percentiles — not on medians. A claim fails only where the evidence
+:func:`study.report.intervals.bounds`), 95th percentiles — not on medians. A claim fails only where the evidence
 says so ("fails: …"); where it decides neither way the verdict is "undecided at this sample size". Comparisons of
 two methods on the same rays are paired over the cases (:func:`study.report.verdicts.decide`); a case is a
 geometry (its seeds pooled).
@@ -20,8 +20,8 @@ import numpy as np
 from study.report import geometry
 from study.report.claims_convergence import _ladder, converges_occluded, converges_quickly
 from study.report.claims_glossy import glossy_converges, glossy_localized
+from study.report.intervals import bounds, fraction_bounds
 from study.report.power import MIN_HIDDEN, counts
-from study.report.summary import bounds, fraction_bounds
 from study.report.verdicts import (
     Claim,
     Verdict,
