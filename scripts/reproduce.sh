@@ -43,4 +43,5 @@ printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:
   || PYTHONPATH=. ${STUDY_PYTHON:-.venv/bin/python} scripts/calibration.py   # the intervals' coverage → reports/calibration.md
 $S pareto   # error vs measured ms per 1080p frame (the committed benches), fronts, budgets → reports/pareto/
 $S report
+PYTHONPATH=. ${STUDY_PYTHON:-.venv/bin/python} scripts/headline.py --readme README.md   # README's "How sure" from the tables
 echo "reproduce: every report written in $(( $(date +%s) - t0 )) s"
