@@ -267,7 +267,7 @@ def layered_radiance(rows):
 
 def _ci_of(r: dict, col: str) -> str:
     """' [lo–hi]' of a column's interval where the table has it (a sweep's table holds the values alone)."""
-    lo, hi = r.get(f"{col}_lo", np.nan), r.get(f"{col}_hi", np.nan)
+    lo, hi = bounds(r, col)  # the declared calibrated interval
     return f" [{lo:.3g}–{hi:.3g}]" if _finite(lo) and _finite(hi) else " (no interval in a sweep's table)"
 
 
