@@ -66,6 +66,7 @@ printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:
   || PYTHONPATH=. $P scripts/calibration.py   # the intervals' coverage → reports/calibration.md
 $S pareto   # error vs measured ms per 1080p frame (the committed benches), fronts, budgets → reports/pareto/
 $S report
+PYTHONPATH=. $P scripts/headline.py --readme README.md   # README's "How sure" from the tables
 if [ -n "$VERIFY" ]; then   # the fresh tables against the committed ones: one table a screen high
   $S verify reports --against "$COMMITTED" --out "reports/verify/${REPRODUCE_BACKEND:-numpy}-vs-committed.md" \
     || { echo "reproduce: some values disagree with the committed tables (reports/verify/)"; exit 1; }

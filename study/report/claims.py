@@ -5,7 +5,7 @@ A claim reads the rows of one table (a figure's metrics.csv or a sweep's results
 :class:`Verdict`; a claim whose table lacks the rows it needs returns ``None`` (not applicable). Each claim is judged
 on the rays or pixels it is about (hidden hits, pixels whose hits the views hold, convex rooms, cases off the
 reference point) and on tails — wrong fractions with their calibrated intervals (the declared column table's,
-:func:`study.report.summary.bounds`), 95th percentiles — not on medians. A claim fails only where the evidence
+:func:`study.report.intervals.bounds`), 95th percentiles — not on medians. A claim fails only where the evidence
 says so ("fails: …"); where it decides neither way the verdict is "undecided at this sample size". Comparisons of
 two methods on the same rays are paired over the cases (:func:`study.report.verdicts.decide`); a case is a
 geometry (its seeds pooled).
@@ -20,8 +20,8 @@ import numpy as np
 from study.report import geometry
 from study.report.claims_convergence import _ladder, converges_occluded, converges_quickly
 from study.report.claims_glossy import glossy_converges, glossy_localized
+from study.report.intervals import bounds, fraction_bounds
 from study.report.power import MIN_HIDDEN, counts
-from study.report.summary import bounds, fraction_bounds
 from study.report.verdicts import (
     Claim,
     Verdict,
@@ -267,7 +267,7 @@ def layered_radiance(rows):
 
 def _ci_of(r: dict, col: str) -> str:
     """' [lo–hi]' of a column's interval where the table has it (a sweep's table holds the values alone)."""
-    lo, hi = r.get(f"{col}_lo", np.nan), r.get(f"{col}_hi", np.nan)
+    lo, hi = bounds(r, col)  # the declared calibrated interval
     return f" [{lo:.3g}–{hi:.3g}]" if _finite(lo) and _finite(hi) else " (no interval in a sweep's table)"
 
 
@@ -281,7 +281,7 @@ OCCLUDED = (
     "presented approximation scheme would obviously be unable to find that"
 )
 #: a comparison needs no number; a claim the paper gives no number for is measured, never given an invented one
-COMPARE = "none: a comparison of the two 95 % intervals"
+COMPARE = "none: the two calibrated 95 % intervals per case, and the pairs over the cases (Wilcoxon, 5 %)"
 NO_NUMBER = "none in the paper or a cited source: measured, no verdict"
 
 CLAIMS = [
@@ -379,14 +379,14 @@ CLAIMS = [
         "prefiltered cube map",
         "beyond the paper: glossy reflections",
         glossy_localized,
-        threshold="none: a comparison in every case",
+        threshold=COMPARE,
     ),
     Claim(
         "glossy-converges",
         "Beyond the paper: the stochastic glossy method converges to the lobe's truth as its samples grow",
         "beyond the paper: glossy reflections",
         glossy_converges,
-        threshold="none: a fall at every step",
+        threshold="none: a fall at every step (each step as in the comparisons: intervals per case, pairs over cases)",
     ),
 ]
 

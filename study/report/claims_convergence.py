@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from study.report.intervals import fraction_bounds
 from study.report.power import counts
-from study.report.summary import fraction_bounds
 from study.report.verdicts import _cases, _convex, _finite, _measured
 
 

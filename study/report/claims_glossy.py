@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from study.report.summary import bounds
+from study.report.intervals import bounds
 from study.report.verdicts import Pair, _cases, _default, _finite, _verdict, decide, pair
 
 

@@ -10,7 +10,7 @@ Everything here reads results tables (one row per case × method) and nothing el
   difference"; below 6 cases no difference can reach 5 % (:func:`study.measure.stats.min_p`), and the headline
   says so;
 * per case, two wrong fractions are **separated** when their calibrated 95 % intervals over the rays do not
-  overlap (:func:`bounds`: the ``_lo``/``_hi`` columns the declared column table names; none is made up);
+  overlap (:func:`study.report.intervals.bounds`: the ``_lo``/``_hi`` the declared column table names);
 * **the recommendation** is the cheapest method (cube-map lookups per ray) that is *as good as the best* in
   wrong hits: separated above the best's in no case, and not significantly worse over the cases (p ≥ 5 %).
 
@@ -26,11 +26,11 @@ import math
 
 import numpy as np
 
-from study import columns
 from study import methods as registry
 from study.measure import stats
 from study.outputs.markup import code, md_esc
-from study.report import geometry, power, table_notes
+from study.report import geometry, power, significance, table_notes
+from study.report.intervals import separated
 from study.report.power import SIGNIFICANCE, WRONG
 from study.tables import REFERENCE_ROWS, fmt_number
 
@@ -79,43 +79,6 @@ def _labels(tab: list[dict]) -> list[str]:
 def _values(tab: list[dict], label: str, col: str, cases: list[str]) -> np.ndarray:
     by = {r["case"]: r.get(col, math.nan) for r in tab if r["label"] == label}
     return np.array([float(by.get(c, math.nan)) for c in cases], float)
-
-
-def bounds(row: dict, col: str) -> tuple[float, float]:
-    """The calibrated 95 % interval of column ``col`` in one row: the ``_lo``/``_hi`` columns that the declared
-    column table names for it (:func:`study.columns.interval_bounds`: ``wrong_fraction`` → ``wrong_fraction_texel``,
-    rays clustered by pixel; an infinite end is kept: a one-sided interval); (NaN, NaN) where none is declared or the
-    row lacks them. No interval is made from counts: Wilson's over independent rays covered 24 % where rays share
-    texels (reports/calibration.md)."""
-    names = columns.interval_bounds(col)
-    if names is None:
-        return math.nan, math.nan
-    lo, hi = row.get(names[0], math.nan), row.get(names[1], math.nan)
-    ok = all(isinstance(v, int | float) and not math.isnan(v) for v in (lo, hi))  # inf: a one-sided bound
-    return (float(lo), float(hi)) if ok else (math.nan, math.nan)
-
-
-#: a fraction's interval: :func:`bounds` (the name the claims read)
-fraction_bounds = bounds
-
-
-def separated(tab: list[dict], a: str, b: str, col: str = WRONG) -> tuple[int, int, int]:
-    """(cases where a's interval lies wholly below b's, cases where wholly above, cases compared), one case per
-    geometry (:func:`study.report.geometry.pooled`)."""
-    tab = geometry.pooled(tab)
-    rows = {(r["case"], r["label"]): r for r in tab}
-    below = above = n = 0
-    for c in dict.fromkeys(r["case"] for r in tab):
-        ra, rb = rows.get((c, a)), rows.get((c, b))
-        if ra is None or rb is None:
-            continue
-        (alo, ahi), (blo, bhi) = fraction_bounds(ra, col), fraction_bounds(rb, col)
-        if any(math.isnan(v) for v in (alo, ahi, blo, bhi)):
-            continue
-        n += 1
-        below += ahi < blo
-        above += alo > bhi
-    return below, above, n
 
 
 def interval_words(r: dict) -> str:
@@ -270,13 +233,8 @@ def table_sentence(name: str, tab: list[dict]) -> str | None:
         parts.append(text)
     hid = _hidden(tab)
     where = "nothing hidden from the reference point" if hid == 0 else f"median hidden rays {_pct(hid)}"
-    return f"**{md_esc(name)}** ({_count(n, seeds)}, {where}): " + "; ".join(parts) + "."
-
-
-def _count(n: int, seeds: int) -> str:
-    """'12 cases' or, where seeds are pooled, '6 cases (distinct geometries; 2 seeds each pooled)'."""
     pool = f" (distinct geometries; {seeds} seeds each pooled)" if seeds > 1 else ""
-    return f"{n} case{'s' if n != 1 else ''}{pool}"
+    return f"**{md_esc(name)}** ({n} case{'s' if n != 1 else ''}{pool}, {where}): " + "; ".join(parts) + "."
 
 
 def image_column(tab: list[dict]) -> str:
@@ -318,7 +276,8 @@ def _image_text(tab: list[dict]) -> str | None:
 
 
 def headline(tables: dict[str, list[dict]]) -> str | None:
-    """The plain-words headline over all tables: which method to use where, and how sure."""
+    """The plain-words headline over all tables: which method to use where, and how sure
+    (:func:`study.report.significance.how_sure` of :func:`significance_counts`)."""
     recs = {name: recommend(tab) for name, tab in tables.items()}
     recs = {k: v for k, v in recs.items() if v is not None}
     if not recs:
@@ -343,7 +302,7 @@ def headline(tables: dict[str, list[dict]]) -> str | None:
     return (
         f"**Use**, per table, the cheapest method whose wrong-hit fraction is indistinguishable from the best's "
         f"(no case where its rays' 95 % interval lies above the best's, and no significant difference over the "
-        f"cases): {uses}.{where} **How sure:** {how_sure(tables)}"
+        f"cases): {uses}.{where} **How sure:** {significance.how_sure(significance_counts(tables))}"
     )
 
 
@@ -351,7 +310,7 @@ def significance_counts(tables: dict[str, list[dict]]) -> list[dict]:
     """Per table, counted over distinct geometries (:func:`study.report.geometry.pooled`): ``cases`` (geometries),
     ``seeds`` (seeds pooled per geometry), the best and the runner-up in wrong hits with the Wilcoxon p over the
     geometries (``p``, ``best``, ``runner_up``), and the same by image error (``image_p``, on
-    :func:`image_column`); NaN where a table has one method."""
+    :func:`study.report.image_column`); NaN where a table has one method."""
     out = []
     for name, tab in tables.items():
         seeds = geometry.seeds_per_geometry(tab)
@@ -369,36 +328,6 @@ def significance_counts(tables: dict[str, list[dict]]) -> list[dict]:
             row["image_p"] = versus(tab, img[0]["label"], img[1]["label"], col)["p"]
         out.append(row)
     return out
-
-
-def how_sure(tables: dict[str, list[dict]]) -> str:
-    """The headline's "How sure" in words, from :func:`significance_counts` (the README's paragraph is this text,
-    written by ``scripts/headline.py --readme``)."""
-    rows = [r for r in significance_counts(tables) if r["runner_up"]]
-    if not rows:
-        return "no table compares two methods."
-    n = [r["cases"] for r in rows]
-    pooled = [f"{md_esc(r['table'])} ({r['seeds']})" for r in rows if r["seeds"] > 1]
-    sig = [r for r in rows if r["p"] < SIGNIFICANCE]
-    img = [r for r in rows if r["image_p"] < SIGNIFICANCE]
-    few = [md_esc(r["table"]) for r in rows if stats.min_p(r["cases"]) >= SIGNIFICANCE]
-    text = (
-        f"counted over distinct geometries (a case is an object position, scene and object; the seeds of one "
-        f"geometry are pooled, never counted as cases), the tables have {min(n)}–{max(n)} cases"
-        + (f" (seeds pooled per geometry: {', '.join(pooled)})" if pooled else "")
-        + f". The best method beats the runner-up in wrong hits significantly (Wilcoxon signed-rank over the "
-        f"geometries, {100 * SIGNIFICANCE:g} %) in {len(sig)} of {len(rows)} tables"
-        + (f" ({', '.join(md_esc(r['table']) for r in sig)})" if sig else "")
-        + f"; by image error (relMSE after the picture's exposure where a table has it) in {len(img)} of "
-        f"{len(rows)} tables" + (f" ({', '.join(md_esc(r['table']) for r in img)})" if img else "") + "."
-    )
-    if few:
-        text += (
-            f" {len(few)} table{'s have' if len(few) > 1 else ' has'} fewer than 6 geometries ({', '.join(few)}): "
-            "too few for any difference over cases to be significant (p ≥ 2/2ⁿ), so their rankings rest on the "
-            "per-case intervals over rays alone."
-        )
-    return text
 
 
 #: The columns of :func:`interval_rows`.
@@ -484,7 +413,7 @@ def readme_how_sure(tables: dict[str, list[dict]], width: int = 118) -> str:
     """The README's "How sure" bullet: :func:`how_sure` over :func:`headline_tables`, wrapped to ``width``."""
     import textwrap
 
-    text = how_sure(headline_tables(tables))
+    text = significance.how_sure(significance_counts(headline_tables(tables)), names=False)
     return textwrap.fill(
         f"- **How sure:** {text[0].upper()}{text[1:]}", width, subsequent_indent="  ", break_on_hyphens=False
     )
@@ -494,9 +423,7 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
     """The report blocks of the headline: a heading, the headline paragraph and one sentence per table. Tables of
     rough objects (``object_alpha`` > 0) are left out: a glossy method shows a lobe, not a hit, so wrong hits do
     not rank it; their error split and claims judge them (the glossy figure's section)."""
-    tables = headline_tables(tables)
-    seeds = {n: geometry.seeds_per_geometry(t) for n, t in tables.items()}
-    tables = {n: geometry.pooled(t) for n, t in tables.items()}  # one case per geometry from here on
+    tables = headline_tables(tables)  # each statistic below pools a geometry's seeds and says how many
     head = headline(tables)
     if head is None:
         return []
@@ -508,11 +435,7 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
         ("p", table_notes.interval_note()),
         ("table", interval_rows(tables), INTERVAL_COLUMNS),
         *power.power_blocks(
-            [
-                power.row(name, tab, rank) | {"seeds": seeds[name]}
-                for name, tab in tables.items()
-                if (rank := ranking(tab, WRONG))
-            ]
+            [power.row(name, tab, rank) for name, tab in tables.items() if (rank := ranking(tab, WRONG))]
         ),
     ]
 

@@ -10,8 +10,8 @@ import numpy as np
 
 from study import methods as registry
 from study.measure import stats
+from study.report.intervals import bounds, fraction_bounds
 from study.report.power import SIGNIFICANCE
-from study.report.summary import bounds, fraction_bounds
 
 
 @dataclass
@@ -85,7 +85,7 @@ def _verdict(ok: bool | None, subset: str, n: str, number: str) -> Verdict:
 @dataclass
 class Pair:
     """One case of a comparison: a's and b's values of one column (lower is better) with their calibrated 95 %
-    intervals (:func:`study.report.summary.bounds`; NaN where the table has none)."""
+    intervals (:func:`study.report.intervals.bounds`; NaN where the table has none)."""
 
     case: str
     a: float

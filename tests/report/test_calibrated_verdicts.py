@@ -8,7 +8,7 @@ import numpy as np
 from scipy import stats as sps
 
 from study import columns
-from study.report import claims, register, summary
+from study.report import claims, intervals, register, summary
 
 LOC, CLS, LAY = claims._default("localized"), "classical", claims._default("layered")
 RAYS = 10_000
@@ -123,7 +123,7 @@ def test_a_one_sided_interval_is_kept():
         | {"n_rays": float(RAYS), "occluded_fraction": 0.0, "exit": "exact"}
         for k, p95, lo, hi in ((1, 1.48, 0.163, np.inf), (10, 0.0083, 0.0052, 0.0137))
     ]
-    assert summary.bounds(rows[0], "angle_p95_deg") == (0.163, np.inf)
+    assert intervals.bounds(rows[0], "angle_p95_deg") == (0.163, np.inf)
     assert claims.iterations_do_not_hurt(rows).ok is True
     bare = [{k: v for k, v in r.items() if not k.endswith(("_lo", "_hi"))} for r in rows]
     assert claims.iterations_do_not_hurt(bare).undecided

@@ -9,7 +9,7 @@ from scipy import stats as sps
 
 from study.measure import stats
 from study.outputs import plots
-from study.report import claims, power, summary, verdicts
+from study.report import claims, intervals, power, summary, verdicts
 
 #: the paper's text beside the checkout (the team's shared folder; not in a clean clone, where the quotes' check
 #: below is skipped and the rest still runs)
@@ -102,15 +102,15 @@ def test_intervals_are_the_declared_calibrated_ones_never_made_from_counts():
     Wilson's over independent rays made from the counts (24 % coverage where rays share texels), nor a
     ``wrong_fraction_lo`` the column table does not declare; without the declared columns: none (NaN)."""
     row = {"wrong_fraction": 0.1, "rays": 1000.0, "hidden_fraction": 0.2, "wrong_fraction_hidden": 0.5}
-    assert all(np.isnan(summary.fraction_bounds(row, "wrong_fraction")))
-    assert all(np.isnan(summary.fraction_bounds(row, "wrong_fraction_hidden")))
+    assert all(np.isnan(intervals.fraction_bounds(row, "wrong_fraction")))
+    assert all(np.isnan(intervals.fraction_bounds(row, "wrong_fraction_hidden")))
     row.update(wrong_fraction_lo=0.09, wrong_fraction_hi=0.11)
-    assert all(np.isnan(summary.fraction_bounds(row, "wrong_fraction")))
+    assert all(np.isnan(intervals.fraction_bounds(row, "wrong_fraction")))
     row.update(wrong_fraction_texel_lo=0.01, wrong_fraction_texel_hi=0.3)
-    assert summary.fraction_bounds(row, "wrong_fraction") == (0.01, 0.3)
+    assert intervals.fraction_bounds(row, "wrong_fraction") == (0.01, 0.3)
     row.update(wrong_fraction_hidden_lo=0.4, wrong_fraction_hidden_hi=0.6)
-    assert summary.fraction_bounds(row, "wrong_fraction_hidden") == (0.4, 0.6)
-    assert all(np.isnan(summary.bounds(row | {"label_lo": 0.0, "label_hi": 1.0}, "label")))
+    assert intervals.fraction_bounds(row, "wrong_fraction_hidden") == (0.4, 0.6)
+    assert all(np.isnan(intervals.bounds(row | {"label_lo": 0.0, "label_hi": 1.0}, "label")))
 
 
 def test_tolerance_curve_data_and_plot(tmp_path):
