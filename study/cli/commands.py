@@ -217,6 +217,9 @@ def verify(
     out: Path | None = typer.Option(
         None, help="where to write the agreement table (Markdown); default: not written"
     ),
+    note: str = typer.Option(
+        "", help="a line under the title: how the fresh tables were made (command, host)"
+    ),
 ):
     """Compare freshly made tables with the committed ones, row by row: values within their committed intervals
     (<col>_lo/_hi), deterministic columns within float tolerance on the same backend. Prints the agreement table;
@@ -228,7 +231,7 @@ def verify(
     t0 = time.perf_counter()
     results = compare(fresh, against)
     text = agreement_markdown(results, fresh=fresh.as_posix(), committed=against.as_posix(),
-                              seconds=time.perf_counter() - t0)  # fmt: skip
+                              seconds=time.perf_counter() - t0, note=note)  # fmt: skip
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(out, text)

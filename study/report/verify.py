@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from study.errors import StudyError
+from study.outputs.markup import md_esc
 from study.tables import TIMING_COLUMNS, markdown
 
 #: Relative slack on an interval's ends (the CSV keeps floats to their repr; intervals computed in float32).
@@ -40,6 +41,7 @@ class TableAgreement:
     rows: int = 0
     rows_unpaired: int = 0
     interval_cols: int = 0
+    interval_names: list[str] = field(default_factory=list)
     interval_values: int = 0
     outside: int = 0
     det_cols: int = 0
@@ -84,6 +86,7 @@ def compare_table(name: str, fresh: Path, committed: Path) -> TableAgreement:
     bounds = {f"{c}_{e}" for c in bounded for e in ("lo", "hi")}
     det = [c for c in cols if c not in bounded and c not in bounds]
     res.interval_cols = len(bounded)
+    res.interval_names = sorted(bounded)
     used_det = set()
     for ra in a:
         rb = by_key.get(tuple(ra.get(k) for k in KEYS))
@@ -144,7 +147,7 @@ def verify(fresh: str | Path, committed: str | Path) -> list[TableAgreement]:
 
 
 def agreement_markdown(results: list[TableAgreement], *, fresh: str, committed: str, seconds: float | None = None,
-                       worst: int = 8) -> str:  # fmt: skip
+                       worst: int = 8, note: str = "") -> str:  # fmt: skip
     """The one-screen agreement table, and the worst values outside their intervals."""
     rows = []
     for r in results:
@@ -173,6 +176,7 @@ def agreement_markdown(results: list[TableAgreement], *, fresh: str, committed: 
     text = [
         f"# Reproduction: {fresh} against {committed}",
         "",
+        *([md_esc(note), ""] if note else []),
         f"Written by `study verify {fresh} --against {committed}` (study/report/verify.py)"
         + (f" in {seconds:.0f} s" if seconds is not None else "")
         + ". A value with an interval agrees where the fresh value lies within the committed interval "
@@ -182,7 +186,39 @@ def agreement_markdown(results: list[TableAgreement], *, fresh: str, committed: 
         markdown([*rows, tot], cols, digits=4),
         "",
     ]
-    bad = sorted((w for r in results for w in r.worst), reverse=True)[:worst]
+    every = [w for r in results for w in r.worst]
+    names = sorted({c for r in results for c in r.interval_names})
+    clean = [c for c in names if not any(w[3] == c for w in every)]
+    if names:
+        text += [
+            f"Columns with every value inside its interval: {len(clean)} of {len(names)} ({', '.join(clean)}).",
+            "",
+        ]
+    by_col: dict[str, list] = {}
+    for w in every:
+        by_col.setdefault(w[3], []).append(w)
+    if (
+        by_col
+    ):  # which columns disagree, and at what magnitude (near-zero statistics amplify float32 differences)
+        text += [
+            "Outside, by column (the largest magnitudes among them: near-zero statistics amplify float32):",
+            "",
+            markdown(
+                [
+                    {
+                        "column": c,
+                        "outside": len(ws),
+                        "largest fresh (abs)": max(abs(w[4]) for w in ws),
+                        "largest committed end (abs)": max(max(abs(w[5]), abs(w[6])) for w in ws),
+                    }
+                    for c, ws in sorted(by_col.items(), key=lambda kv: -len(kv[1]))
+                ],
+                ["column", "outside", "largest fresh (abs)", "largest committed end (abs)"],
+                digits=3,
+            ),
+            "",
+        ]
+    bad = sorted(every, reverse=True)[:worst]
     if bad:
         text += [
             "Outside their committed intervals (worst first; excess in interval widths):",
