@@ -167,3 +167,25 @@ def test_the_tracked_tree_is_light():
     )
     size = sum((ROOT / f.decode()).stat().st_size for f in files if f and (ROOT / f.decode()).is_file())
     assert size <= 25_000_000, size
+
+
+def test_a_figures_grid_comes_before_its_error_grid(tmp_path):
+    from study.report import sections
+
+    d = tmp_path / "fig4"
+    d.mkdir()
+    for name in ("fig4-errors.png", "fig4.png"):
+        (d / name).write_bytes(b"")
+    assert [b[1] for b in sections._images(d, "fig4")] == ["fig4/fig4.png", "fig4/fig4-errors.png"]
+
+
+def test_no_literal_asterisks_in_the_column_notes():
+    """The comparison's notes render: no emphasis left as literal asterisks outside code spans (once `*dec_**`;
+    a lone `angle_*` is a name with a wildcard, shown as written)."""
+    import re
+
+    from study.report import table_notes
+
+    for note in table_notes.column_notes():
+        text = re.sub(r"<code>.*?</code>", "", inline(note))
+        assert "**" not in text and not re.search(r"(?<![\w*])\*\w[^*]*\*\*", text), text[:200]
