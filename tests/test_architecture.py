@@ -389,7 +389,7 @@ LONG_FUNCTIONS = {
     "study/methods/multi_probe.py::search": 91,
     "study/outputs/animation.py::_animate": 87,
     "study/methods/search.py::first_entry": 126,
-    "study/outputs/figures.py::image_grid": 110,
+    "study/outputs/figures.py::image_grid": 112,
     "study/outputs/figures.py::_figure": 92,
     "study/scene/obj.py::read_obj": 124,
     "study/scene/sources/mitsuba.py::build": 81,

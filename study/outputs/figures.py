@@ -236,9 +236,11 @@ def image_grid(
         )
     tfs = 10 if side >= 1.6 else 8  # the title wrapped to the figure's width (≈ 0.6 em a character)
     per_line = max(30, int(fig.get_figwidth() * 72 / (0.6 * tfs)))
-    fig.suptitle(textwrap.fill(title + ("" if part == "all" else f" ({part})"), per_line), fontsize=tfs)
+    head = textwrap.fill(title + ("" if part == "all" else f" ({part})"), per_line)
+    fig.suptitle(head, fontsize=tfs)
+    top = 1 - ((head.count("\n") + 1) * 1.4 * tfs / 72 + 0.1) / height if wrap else 1  # wrapped: below it
     w = fig.get_figwidth()  # the colour bar and its label: 1.1 in on the right, any width
-    fig.tight_layout(rect=(0, legend_h / height, 1 - (1.1 / w if errs else 0), 1), h_pad=2.5 * wrap or None)
+    fig.tight_layout(rect=(0, legend_h / height, 1 - (1.1 / w if errs else 0), top), h_pad=2.5 * wrap or None)
     last = tpl[-1]
     outs = [c for c, (k, _) in enumerate(last) if k == "outcome"]
     if outs:

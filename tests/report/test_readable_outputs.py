@@ -40,7 +40,11 @@ def _grids(monkeypatch, **kw):
 
     monkeypatch.setattr(figures, "png_bytes", keep)
     case = _fake_case(LABELS, np.random.default_rng(0))
-    files = figures.image_grids("run", [case], LABELS, title="run: a room", occlusion_panel=True,
+    title = (
+        "room.toml: box environment, sphere (radius 0.4, conductor), camera 96×96, cube 32², backend numpy, "
+        * 2
+    )
+    files = figures.image_grids("run", [case], LABELS, title=title, occlusion_panel=True,
                                 outcome_panel=True, row_labels=["run"], **kw)  # fmt: skip
     return files, figs
 
@@ -61,6 +65,8 @@ def test_a_runs_grids_wrap_so_every_panel_is_legible_and_no_titles_collide(monke
         boxes = [ax.get_window_extent() for ax in panels]
         titles = [ax.title.get_window_extent() for ax in panels]
         assert min(b.width for b in boxes) >= 200, min(b.width for b in boxes)
+        head = fig._suptitle.get_window_extent()  # a long title over several lines: above every panel
+        assert not any(_overlaps(head, b) for b in [*boxes, *titles]), "the figure's title runs into a panel"
         for i, t in enumerate(titles):
             for j in range(len(panels)):
                 if j != i:
