@@ -390,7 +390,7 @@ LONG_FUNCTIONS = {
     "study/outputs/animation.py::_animate": 87,
     "study/methods/search.py::first_entry": 126,
     "study/outputs/figures.py::image_grid": 112,
-    "study/outputs/figures.py::_figure": 93,
+    "study/outputs/figures.py::_figure": 92,
     "study/scene/obj.py::read_obj": 124,
     "study/scene/sources/mitsuba.py::build": 81,
 }

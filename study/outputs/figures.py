@@ -101,9 +101,15 @@ def _rough(case: CaseOutput) -> bool:
     return case.scene.object.alpha > 0
 
 
-def _template(labels: list[str], part: str, outcome_panel: bool, occlusion_panel: bool) -> list[list[tuple]]:
+def _template(
+    labels: list[str], part: str, outcome_panel: bool, occlusion_panel: bool, per_row: int | None = None
+) -> list[list[tuple]]:
     """The panels of one case, row by row, as (kind, label): ``all`` one row of everything; ``images`` the images;
-    ``errors`` the angular errors, and under them the outcome maps and the hidden fraction."""
+    ``errors`` the angular errors, and under them the outcome maps and the hidden fraction. ``per_row``: each row
+    wrapped onto rows of at most that many panels."""
+    if per_row:
+        tpl = _template(labels, part, outcome_panel, occlusion_panel)
+        return [row[i : i + per_row] for row in tpl for i in range(0, len(row), per_row)]
     imgs = [("image", lab) for lab in labels] + [("mitsuba", None)]
     angle = [("angle", lab) for lab in labels]
     more = [("outcome", lab) for lab in labels] if outcome_panel else []
@@ -167,12 +173,9 @@ def image_grid(
     import matplotlib.pyplot as plt
     from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
 
-    tpl = _template(labels, part, outcome_panel, occlusion_panel)
-    gain = 2.0**exposure
-    errs = part != "images"
-    if wrap and max_width_px:  # panels stay legible: a long row goes on over several rows
-        k = max(1, int((max_width_px / _DPI - 1.2 * errs) / 2.3))
-        tpl = [row[i : i + k] for row in tpl for i in range(0, len(row), k)]
+    gain, errs = 2.0**exposure, part != "images"
+    per_row = max(1, int((max_width_px / _DPI - 1.2 * errs) / 2.3)) if wrap and max_width_px else None
+    tpl = _template(labels, part, outcome_panel, occlusion_panel, per_row)  # wrapped: panels stay legible
     ncol, nrow = max(len(r) for r in tpl), len(tpl) * len(cases)
     side = 2.3
     if max_width_px:
@@ -207,9 +210,7 @@ def image_grid(
                 ax = axr[c]
                 if kind == "image":
                     ax.imshow(to_ldr(case.images[lab][sy, sx] * gain), interpolation="nearest")
-                elif (
-                    kind == "mitsuba"
-                ):  # a rough object: the lobe's truth (Mitsuba's adds the lamp's highlight)
+                elif kind == "mitsuba":  # rough: the lobe's truth (Mitsuba's adds the lamp's highlight)
                     ref = case.truth if _rough(case) and case.truth is not None else case.mitsuba
                     ax.imshow(to_ldr(ref[sy, sx] * gain), interpolation="nearest")
                 elif kind == "angle":
@@ -233,15 +234,13 @@ def image_grid(
         axes[r * len(tpl), 0].set_ylabel(
             row_labels[r] if row_labels else f"({cx:g}, {cy:g}, {cz:g})", fontsize=fs
         )
-    tfs = (
-        10 if side >= 1.6 else 8
-    )  # the title wrapped to the figure's width (≈ 0.6 em a character): never cut
+    tfs = 10 if side >= 1.6 else 8  # the title wrapped to the figure's width (≈ 0.6 em a character)
     per_line = max(30, int(fig.get_figwidth() * 72 / (0.6 * tfs)))
-    fig.suptitle(textwrap.fill(title + ("" if part == "all" else f" ({part})"), per_line), fontsize=tfs)
+    head = textwrap.fill(title + ("" if part == "all" else f" ({part})"), per_line)
+    fig.suptitle(head, fontsize=tfs)
+    top = 1 - ((head.count("\n") + 1) * 1.4 * tfs / 72 + 0.1) / height if wrap else 1  # wrapped: below it
     w = fig.get_figwidth()  # the colour bar and its label: 1.1 in on the right, any width
-    fig.tight_layout(
-        rect=(0, legend_h / height, 1 - (1.1 / w if errs else 0), 1), h_pad=2.5 if wrap else None
-    )
+    fig.tight_layout(rect=(0, legend_h / height, 1 - (1.1 / w if errs else 0), top), h_pad=2.5 * wrap or None)
     last = tpl[-1]
     outs = [c for c, (k, _) in enumerate(last) if k == "outcome"]
     if outs:
@@ -411,9 +410,7 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
             quality=quality,
             exposure_ev=round(exposure, 4),  # of the grid's images (figure_exposure)
             exposure_rule=EXPOSURE_RULE,
-            seconds=round(
-                time.perf_counter() - t_start, 1
-            ),  # the cases: inputs, references, methods, metrics
+            seconds=round(time.perf_counter() - t_start, 1),  # inputs, references, methods, metrics
         )
         pngs = image_grids(
             name,

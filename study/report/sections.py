@@ -28,7 +28,10 @@ def shown(paths) -> list[Path]:
 
 def _images(d: Path, rel: str) -> list[tuple]:
     """A directory's PNGs (the grid first, then e.g. its error grid) as image blocks."""
-    return [("img", f"{rel}/{png.name}", png.stem) for png in shown(d.glob("*.png"))]
+    pngs = sorted(
+        shown(d.glob("*.png")), key=lambda p: (p.stem != d.name, p.name)
+    )  # fig4.png before fig4-errors
+    return [("img", f"{rel}/{png.name}", png.stem) for png in pngs]
 
 
 def figure_section(reports: Path, d: Path, rows: list[dict], cols: list[str]) -> list[tuple]:

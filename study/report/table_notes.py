@@ -30,7 +30,7 @@ def column_notes() -> list[str]:
         "noise cannot dominate): the same number for a scene and that scene × k; the summary ranks image error on "
         "it. *truth_noise_relmse*: the truth's own noise in that unit.",
         "*_oracle* columns (and the *oracle_map* row) are over the pixels whose every hit the reference point's "
-        "views hold (*held_pixels*); *oracle_map* has no value on the others (*unheld_pixels*). *dec_**: the error "
+        "views hold (*held_pixels*); *oracle_map* has no value on the others (*unheld_pixels*). `dec_*`: the error "
         "split over all object pixels (study/measure/split.py), each with a pixel interval.",
         "In these tables the value per table and method is the median over cases; the summary above gives it "
         "with an interval over the cases and tests differences between methods over the same cases "

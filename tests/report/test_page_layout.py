@@ -147,6 +147,10 @@ def test_the_page_fits_the_window_and_its_top_bar_wraps(browser, pages, width): 
 def test_viewers_use_the_rows_width(browser, pages, width):  # noqa: F811
     for kind in ("mixed", "run"):
         pg, errors = _open(browser, pages[kind], width)
+        for fold in pg.locator(
+            "details.viewers-box > summary"
+        ).all():  # several figures: viewers folded, opened
+            fold.click()
         pg.locator(".viewers").first.scroll_into_view_if_needed()
         pg.wait_for_function("() => window.studyViewers[0].img", timeout=15000)
         for r in pg.evaluate(ROWS):

@@ -40,7 +40,11 @@ def _grids(monkeypatch, **kw):
 
     monkeypatch.setattr(figures, "png_bytes", keep)
     case = _fake_case(LABELS, np.random.default_rng(0))
-    files = figures.image_grids("run", [case], LABELS, title="run: a room", occlusion_panel=True,
+    title = (
+        "room.toml: box environment, sphere (radius 0.4, conductor), camera 96×96, cube 32², backend numpy, "
+        * 2
+    )
+    files = figures.image_grids("run", [case], LABELS, title=title, occlusion_panel=True,
                                 outcome_panel=True, row_labels=["run"], **kw)  # fmt: skip
     return files, figs
 
@@ -61,16 +65,16 @@ def test_a_runs_grids_wrap_so_every_panel_is_legible_and_no_titles_collide(monke
         boxes = [ax.get_window_extent() for ax in panels]
         titles = [ax.title.get_window_extent() for ax in panels]
         assert min(b.width for b in boxes) >= 200, min(b.width for b in boxes)
+        head = fig._suptitle.get_window_extent()  # a long title over several lines: above every panel
+        assert not any(_overlaps(head, b) for b in [*boxes, *titles]), "the figure's title runs into a panel"
         for i, t in enumerate(titles):
             for j in range(len(panels)):
                 if j != i:
                     assert not _overlaps(t, titles[j]), (panels[i].get_title(), panels[j].get_title())
                     assert not _overlaps(t, boxes[j]), (panels[i].get_title(), "over a panel")
 
-
-def test_without_wrap_a_figure_still_shrinks_its_rows(monkeypatch):
-    """The figures' grids (several cases, one row each) keep their layout: one row per case."""
-    _, figs = _grids(monkeypatch)
+    # the figures' grids (several cases, one row each) keep their layout: one row per case, no wrap
+    _, figs = _grids(monkeypatch, wrap=False)
     panels = [ax for ax in figs[0].axes if ax.images]
     assert len({round(ax.get_position().y0, 3) for ax in panels}) == 1
 
@@ -132,7 +136,7 @@ def test_a_clone_without_the_untracked_pictures_still_makes_a_page(tmp_path_fact
             p.unlink()
     assert build_report(reports) is not None
     md = (reports / "index.md").read_text()
-    assert "bash scripts/reproduce.sh" in md and "are not" in md
+    assert "where one is absent, `bash scripts/reproduce.sh` makes it" in md
     page = (reports / "index.html").read_text()
     assert 'id="viewers-fig4"' in page
 
@@ -169,3 +173,25 @@ def test_the_tracked_tree_is_light():
     )
     size = sum((ROOT / f.decode()).stat().st_size for f in files if f and (ROOT / f.decode()).is_file())
     assert size <= 25_000_000, size
+
+
+def test_a_figures_grid_comes_before_its_error_grid(tmp_path):
+    from study.report import sections
+
+    d = tmp_path / "fig4"
+    d.mkdir()
+    for name in ("fig4-errors.png", "fig4.png"):
+        (d / name).write_bytes(b"")
+    assert [b[1] for b in sections._images(d, "fig4")] == ["fig4/fig4.png", "fig4/fig4-errors.png"]
+
+
+def test_no_literal_asterisks_in_the_column_notes():
+    """The comparison's notes render: no emphasis left as literal asterisks outside code spans (once `*dec_**`;
+    a lone `angle_*` is a name with a wildcard, shown as written)."""
+    import re
+
+    from study.report import table_notes
+
+    for note in table_notes.column_notes():
+        text = re.sub(r"<code>.*?</code>", "", inline(note))
+        assert "**" not in text and not re.search(r"(?<![\w*])\*\w[^*]*\*\*", text), text[:200]

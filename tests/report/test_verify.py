@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from conftest import run_cli
 
-from study.report.verify import verify
+from study.report.verify import compare_tables as verify
 from study.tables import write_csv
 
 
