@@ -188,10 +188,16 @@ def device_times(path: str | Path, *, batch: str = "close-up", clock: str = "ker
             put(label, r)
             bare[label] = _ms(r, "query_ms_per_frame") * scale
         cls = registry.REGISTRY[label.split("(")[0]]
+        shaded = [
+            r for r in sel if r["backend"] == backend and r.get("path") == "shaded" and r["label"] == "traced"
+        ]
         for r in exact if not own and getattr(cls, "shades_hit", True) else []:
-            put(label, r, k)
             bare[label] = _ms(r, "ms_per_frame") * scale * k
-            unshaded.append(label)
+            if shaded:  # K shaded exact rays: K times traced's query and shading
+                put(label, shaded[0], k)
+            else:
+                put(label, r, k)
+                unshaded.append(label)
     on_wall = [k for k, v in ms.items() if not math.isfinite(v) and math.isfinite(wall[k])]
     ms.update({k: wall[k] for k in on_wall})
     tag = path.stem.removeprefix("bench-")

@@ -176,7 +176,7 @@ def test_study_pareto_prices_it_at_k_exact_queries_on_a_glossy_table(tmp_path):
     gpu.with_suffix(".md").write_text(
         "# study bench (gpu)\n\nmachine: Test CPU, 2 cores; GPU: NVIDIA Testcard, 1.0, 10 MiB\n\ncode: abc\n"
     )
-    times = pareto.device_times(gpu)
+    times = pareto.device_times(gpu, clock="wall")
     scale = 1920 * 1080 / 1024**2
     for k in (1, 4, 16):
         assert times.ms[f"traced_glossy(samples={k})"] == pytest.approx(0.2 * k * scale)

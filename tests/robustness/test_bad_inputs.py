@@ -563,7 +563,7 @@ MORE_CASES = [
     ),
     (
         "bench-memory",
-        lambda w, mp: ["--max-memory", "1", *bench_args(w, "--scene-res", "4096")],
+        lambda w, mp: ["--max-memory", "2", *bench_args(w, "--scene-res", "4096")],  # fig4's case: 1.1 GiB
         "--scene-res: the ray batches would need about",
         2,
     ),
