@@ -194,6 +194,23 @@ def truth_columns(tests, t: truth.Truth, mitsuba, *, mask, rmse_truth, rmse_mits
 
 
 # ---------------------------------------------------------------------------------------------- a case's methods
+def _against_oracle(imgs, r, backend: str) -> list[dict]:
+    """:func:`errors` against the oracle over its held pixels, each image with its own reference (the oracle where
+    it holds a value, the image elsewhere), all cut to the held pixels' box + FLIP's margin first: SSIM's and FLIP's
+    crops lie inside it, so the values are those of the whole frames."""
+    on = r.on_held
+    if not on.any():
+        return errors(
+            r.oracle, imgs, mask=on, suffix="oracle", backend=backend, with_flip="oracle" in r.against
+        )
+    m, keep, oracle, *cut = _crop(on, metrics.FLIP_MARGIN, r.held_px | ~r.mask, r.oracle, *imgs)
+    cut = np.stack(cut)
+    refs = np.where(keep[..., None], oracle, cut)
+    return errors(
+        oracle, cut, mask=m, suffix="oracle", backend=backend, with_flip="oracle" in r.against, refs=refs
+    )
+
+
 def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[dict], list]:
     """(columns, FLIP maps): per method image of ``images`` (M, H, W, 3), the image columns of
     ``case._image_columns`` (a trace over every object pixel), and with ``intervals`` its whole-frame FLIP map
@@ -204,10 +221,7 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
         return [], []
     mask = r.mask
     fmaps = list(flip_maps(r.truth.image, imgs, backend)) if intervals else [None] * M
-    keep = (r.held_px | ~mask)[..., None]
-    refs = np.where(keep, r.oracle, imgs)  # the oracle where it holds a value, the image elsewhere
-    oracle = errors(r.oracle, imgs, mask=r.on_held, suffix="oracle", backend=backend,
-                    with_flip="oracle" in r.against, refs=refs)  # fmt: skip
+    oracle = _against_oracle(imgs, r, backend)
     tflip = (
         [np.asarray(f)[mask] for f in fmaps] if intervals and "truth" in r.against
         else None if "truth" in r.against else [np.zeros(0)] * M
