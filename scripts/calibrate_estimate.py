@@ -66,8 +66,12 @@ def main(argv=None) -> None:
         seconds[stage] = min(cold[stage], warm[stage]) / max(n[stage], 1.0)
     small_cols = min(cold["columns"], warm["columns"])
     per_px = (measured["large"]["columns"] - small_cols) / max(n2["columns"] - n["columns"], 1.0)
-    seconds["columns"] = max(per_px, 0.0)
-    seconds["columns_method"] = max(small_cols - seconds["columns"] * n["columns"], 0.0) / len(methods)
+    if per_px > 0:  # a cost per pixel and a fixed one per method row
+        seconds["columns"] = per_px
+        seconds["columns_method"] = max(small_cols - per_px * n["columns"], 0.0) / len(methods)
+    else:  # the larger frame was not slower (a busy machine): all of its cost per pixel, an upper bound
+        seconds["columns"] = measured["large"]["columns"] / max(n2["columns"], 1.0)
+        seconds["columns_method"] = 0.0
     seconds["sweep_share"] = min(1.0, sweep.times["columns"] / max(small_cols, 1e-9))
     for stage in ("renders", "probes"):  # what the cold run rendered beyond the warm run's reads
         seconds[stage] = max(cold[stage] - warm[stage], 0.0) / max(n[stage], 1.0)
