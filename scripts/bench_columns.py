@@ -71,7 +71,7 @@ def groups(r, imgs, backend: str):
         return out
 
     def new_truth():
-        fm = batched.flip_stack(r.truth.image, imgs, backend)
+        fm = batched.flip_maps(r.truth.image, imgs, backend)
         maps["truth"] = fm
         return batched.errors(r.truth.image, imgs, mask=r.mask, suffix="truth", backend=backend, with_flip=True,
                               fvals=[f[r.mask] for f in fm])  # fmt: skip

@@ -62,13 +62,16 @@ def main(argv=None) -> None:
     measured["large"] = dict(run_case(big, methods, backend=args.backend, cache=cache, intervals=True).times)
     print(f"sweep: {measured['sweep']}\nlarge: {measured['large']}", flush=True)
     n2 = estimate.units(big, methods, rendered=True, intervals=True)
-    seconds["inputs"] = cold["inputs"] / max(n["inputs"], 1.0)  # with the distances' capture
-    for stage in ("exact", "traces"):  # the same work cold and warm: the faster (a shared machine)
+    for stage in ("inputs", "exact", "traces"):  # the same work cold and warm: the faster (a shared machine)
         seconds[stage] = min(cold[stage], warm[stage]) / max(n[stage], 1.0)
     small_cols = min(cold["columns"], warm["columns"])
     per_px = (measured["large"]["columns"] - small_cols) / max(n2["columns"] - n["columns"], 1.0)
-    seconds["columns"] = max(per_px, 0.0)
-    seconds["columns_method"] = max(small_cols - seconds["columns"] * n["columns"], 0.0) / len(methods)
+    if per_px > 0:  # a cost per pixel and a fixed one per method row
+        seconds["columns"] = per_px
+        seconds["columns_method"] = max(small_cols - per_px * n["columns"], 0.0) / len(methods)
+    else:  # the larger frame was not slower (a busy machine): all of its cost per pixel, an upper bound
+        seconds["columns"] = measured["large"]["columns"] / max(n2["columns"], 1.0)
+        seconds["columns_method"] = 0.0
     seconds["sweep_share"] = min(1.0, sweep.times["columns"] / max(small_cols, 1e-9))
     for stage in ("renders", "probes"):  # what the cold run rendered beyond the warm run's reads
         seconds[stage] = max(cold[stage] - warm[stage], 0.0) / max(n[stage], 1.0)
@@ -81,7 +84,7 @@ def main(argv=None) -> None:
     table = {
         "made_by": "PYTHONPATH=. .venv/bin/python scripts/calibrate_estimate.py "
         + " ".join(argv or sys.argv[1:]),
-        "machine": f"{platform.machine()}, {os.cpu_count()} CPU cores",
+        "machine": f"{platform.machine()}, {os.cpu_count()} CPU cores, load average {os.getloadavg()[0]:.1f}",
         "backend": args.backend,
         "commit": commit,
         "scene": str(Path(args.scene).resolve().relative_to(ROOT))

@@ -402,7 +402,7 @@ def evaluate(
     import pandas as pd
 
     from study.cache import Cache
-    from study.harness import budget
+    from study.harness import budget, estimate
     from study.harness.config import surface_methods
     from study.measure.case import run_case
     from study.measure.metrics import flip_map
@@ -416,12 +416,7 @@ def evaluate(
     chosen = not (isinstance(methods, str) and methods == "all")  # the default set: the surface's family
     ms, wrong = surface_methods(scene, method_list(methods), chosen=chosen, allow_mismatch=allow_mismatch)
     budget.check_backend(backend)
-    budget.check_cases([("run", scene)], ms, source=source)
-    from study import progress
-    from study.harness import estimate
-
-    est = estimate.estimate([scene], ms, cache=Cache(cache))  # told before it starts (study.progress.expect)
-    progress.expect(est.seconds, estimate.told(est))
+    budget.check_cases([("run", scene)], ms, source=source, tell=estimate.teller(ms, Cache(cache)))
     from study import runtime
 
     with runtime.using_render_device("cuda" if backend == "cuda" else None):  # renders and exact hits too, as

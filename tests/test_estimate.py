@@ -45,8 +45,8 @@ def test_renders_are_counted_once_per_impostor_and_not_when_cached(tmp_path):
     table = {**estimate.DEFAULT_RATES, "case": 0.0}
     sc = _scene()
     moved = sc.with_updates({"object.center": [0.5, 1.2, 0.3]})  # the same impostor
-    one = estimate.estimate([sc], ms, table=table)
-    two = estimate.estimate([sc, moved], ms, table=table)
+    one = estimate.forecast([sc], ms, table=table)
+    two = estimate.forecast([sc, moved], ms, table=table)
     assert two.cases == 2 and np.isclose(two.stages["renders"], one.stages["renders"])
     assert np.isclose(two.stages["columns"], 2 * one.stages["columns"], rtol=0.2)
     # the impostor in the cache: no renders at all
@@ -54,16 +54,20 @@ def test_renders_are_counted_once_per_impostor_and_not_when_cached(tmp_path):
     r = sc.render
     cache.get("radiance", impostor_key(sc), lambda: np.zeros(6 * r.cube_res**2 * 3), code=render_cube)
     assert estimate.cached_impostor(sc, cache)
-    assert estimate.estimate([sc], ms, cache=cache, table=table).stages["renders"] == 0.0
-    assert estimate.estimate([sc], ms, cache=Cache(tmp_path / "other"), table=table).stages["renders"] > 0
+    assert estimate.forecast([sc], ms, cache=cache, table=table).stages["renders"] == 0.0
+    assert estimate.forecast([sc], ms, cache=Cache(tmp_path / "other"), table=table).stages["renders"] > 0
 
 
 def test_the_calibrated_table_is_read_and_the_line_names_it(tmp_path):
     path = tmp_path / "costs.json"
     path.write_text(json.dumps({"seconds_per_unit": {"columns": 1.0, "nonsense": 5}}))
     got = estimate.rates(path)
-    assert got["columns"] == 1.0 and "nonsense" not in got and got["renders"] == estimate.DEFAULT_RATES["renders"]
-    est = estimate.Estimate(3, {"renders": 120.0, "columns": 30.0}, fixed=0.0, jobs=2)
+    assert (
+        got["columns"] == 1.0
+        and "nonsense" not in got
+        and got["renders"] == estimate.DEFAULT_RATES["renders"]
+    )
+    est = estimate.Forecast(3, {"renders": 120.0, "columns": 30.0}, fixed=0.0, jobs=2)
     assert est.seconds == 75.0
     line = estimate.told(est, "fig4")
     assert line.startswith("estimate fig4: about 1 min 15 s for 3 cases, 2 at a time (renders 2 min 0 s")

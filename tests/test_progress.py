@@ -55,7 +55,10 @@ def test_figure_reports_every_stage_of_every_case_in_order_with_times(figure_run
     ]
     assert stages == [("1/2 fig_tiny-p0", s) for s in CASE] + [("2/2 fig_tiny-p1", s) for s in CASE]
     text = res.stderr
-    assert lines[0].endswith("fig_tiny 1/2 fig_tiny-p0: load …")  # first: the first stage starts
+    # first the estimate of the whole figure (study.harness.estimate), then the first stage starts
+    assert "] estimate: about " in lines[0] and "for 2 cases" in lines[0], lines[0]
+    lines = lines[1:]
+    assert lines[0].endswith("fig_tiny 1/2 fig_tiny-p0: load …")
     assert lines[1].endswith("fig_tiny 1/2 fig_tiny-p0: load " + lines[1].rsplit(" ", 2)[1] + " s")
     started = [
         m.group(1) for m in (re.search(r"\] fig_tiny \d/2 fig_tiny-p\d: (\w+) …$", ln) for ln in lines) if m

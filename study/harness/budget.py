@@ -293,10 +293,12 @@ def check_cases(
     source: str | None = None,
     jobs: int = 1,
     limits: Limits | None = None,
+    tell: Callable[[list[Scene]], None] | None = None,
 ) -> list[Estimate]:
     """Refuse (StudyError naming ``source``, the case and the key to lower) when a case is out of view
     (:func:`preflight`), when one case needs more than ``--max-memory`` (× ``jobs`` running at once) or when all
-    of them together need more than ``--max-minutes``. ``cases``: (id, scene) pairs. Returns the estimates."""
+    of them together need more than ``--max-minutes``. ``cases``: (id, scene) pairs. Returns the estimates. ``tell``
+    (:func:`study.harness.estimate.teller`) is then given the scenes: it says how long they will take."""
     limits = limits or LIMITS
     seen, ests = set(), []
     for cid, sc in cases:
@@ -331,6 +333,8 @@ def check_cases(
             file=source,
             key=key,
         )
+    if tell is not None:
+        tell([sc for _, sc in cases])
     return ests
 
 

@@ -58,7 +58,7 @@ DEFAULT_RATES = {
 
 
 @dataclass
-class Estimate:
+class Forecast:
     """Seconds of a command's cases: ``stages`` per stage of :data:`CASE_PARTS` summed over ``cases``."""
 
     cases: int
@@ -70,9 +70,9 @@ class Estimate:
     def seconds(self) -> float:
         return (sum(self.stages.values()) + self.fixed) / max(self.jobs, 1)
 
-    def __add__(self, other: Estimate) -> Estimate:
+    def __add__(self, other: Forecast) -> Forecast:
         keys = dict.fromkeys([*self.stages, *other.stages])
-        return Estimate(self.cases + other.cases,
+        return Forecast(self.cases + other.cases,
                         {k: self.stages.get(k, 0.0) + other.stages.get(k, 0.0) for k in keys},
                         self.fixed + other.fixed, max(self.jobs, other.jobs))  # fmt: skip
 
@@ -135,16 +135,16 @@ def units(scene, methods, *, rendered: bool = True, intervals: bool = True) -> d
     }
 
 
-def estimate(scenes, methods, *, cache: Cache | None = None, intervals: bool = True, jobs: int = 1,
-             table: dict[str, float] | None = None) -> Estimate:  # fmt: skip
-    """The :class:`Estimate` of running ``methods`` on each of ``scenes`` (a command's cases, in order): an
+def forecast(scenes, methods, *, cache: Cache | None = None, intervals: bool = True, jobs: int = 1,
+             table: dict[str, float] | None = None) -> Forecast:  # fmt: skip
+    """The :class:`Forecast` of running ``methods`` on each of ``scenes`` (a command's cases, in order): an
     impostor already cached or captured by an earlier case of the list costs no renders (module docstring);
     ``jobs`` cases at a time."""
     from study.impostor.capture import impostor_key
 
     rate = table or rates()
     seen: set[str] = set()
-    est = Estimate(0, dict.fromkeys(CASE_PARTS, 0.0), jobs=jobs)
+    est = Forecast(0, dict.fromkeys(CASE_PARTS, 0.0), jobs=jobs)
     for sc in scenes:
         k = impostor_key(sc)
         rendered = k not in seen and not cached_impostor(sc, cache)
@@ -159,7 +159,7 @@ def estimate(scenes, methods, *, cache: Cache | None = None, intervals: bool = T
     return est
 
 
-def duration(seconds: float) -> str:
+def span(seconds: float) -> str:
     """``42 s``, ``3 min 12 s``, ``1 h 02 min``."""
     if seconds < 60:
         return f"{seconds:.0f} s"
@@ -167,43 +167,64 @@ def duration(seconds: float) -> str:
     return f"{m} min {s} s" if m < 60 else f"{m // 60} h {m % 60:02d} min"
 
 
-def told(est: Estimate, what: str = "") -> str:
+def told(est: Forecast, what: str = "") -> str:
     """One line for the start of a command: the total and its largest stages."""
     parts = sorted(((v, k) for k, v in est.stages.items() if v >= 0.5), reverse=True)
-    split = ", ".join(f"{k} {duration(v)}" for v, k in parts[:4])
+    split = ", ".join(f"{k} {span(v)}" for v, k in parts[:4])
     per = f", {est.jobs} at a time" if est.jobs > 1 else ""
     n = f"{est.cases} case{'s' if est.cases != 1 else ''}"
-    return (f"estimate{' ' + what if what else ''}: about {duration(est.seconds)} for {n}{per}"
+    return (f"estimate{' ' + what if what else ''}: about {span(est.seconds)} for {n}{per}"
             + (f" ({split})" if split else "") + "; from study/harness/stage_costs.json")  # fmt: skip
 
 
-def config_estimate(path, *, backend: str = "numpy", cache: Cache | None = None) -> Estimate:
-    """The :class:`Estimate` of a figure config (``study figure``): its cases (positions or cases × seeds) with its
+def tell(
+    scenes, methods, *, cache: Cache | None = None, intervals: bool = True, jobs: int = 1, what: str = ""
+):
+    """Say the :func:`forecast` of these cases before they start (:func:`study.progress.expect`: a line on stderr,
+    and the ETA of the current task starts from it); a no-op without a progress reporter."""
+    from study import progress
+
+    if progress.current() is None:
+        return
+    est = forecast(scenes, methods, cache=cache, intervals=intervals, jobs=jobs)
+    progress.expect(est.seconds, told(est, what))
+
+
+def teller(methods, cache: Cache | None, *, jobs: int = 1, intervals: bool = True):
+    """``cases → None``: :func:`tell` for a command's cases (scenes, or a sweep's
+    :class:`~study.harness.sweep.Case` list) with ``methods``; what :func:`study.harness.budget.check_cases` calls
+    (its ``tell``) once it accepted them, and a sweep's runner with the cases left."""
+    return lambda cases: tell([getattr(c, "scene", c) for c in cases], methods, cache=cache, intervals=intervals,
+                              jobs=jobs)  # fmt: skip
+
+
+def config_estimate(path, *, backend: str = "numpy", cache: Cache | None = None) -> Forecast:
+    """The :class:`Forecast` of a figure config (``study figure``): its cases (positions or cases × seeds) with its
     methods, as :func:`study.outputs.figures.figure_positions` expands them."""
     from study.harness.config import load_figure_config
 
     cfg, scene, methods = load_figure_config(path)
     preset = {}
     scenes = [scene.with_updates({**over, **preset}) for _, _, over in cfg.case_list()]
-    return estimate(scenes, methods, cache=cache, intervals=True)
+    return forecast(scenes, methods, cache=cache, intervals=True)
 
 
-def commands_estimate(commands, *, cache: Cache | None = None, jobs: int = 1) -> tuple[Estimate, list[str]]:
-    """(the :class:`Estimate` of ``commands``, the commands it does not model): ``figure NAME`` (its config,
+def commands_estimate(commands, *, cache: Cache | None = None, jobs: int = 1) -> tuple[Forecast, list[str]]:
+    """(the :class:`Forecast` of ``commands``, the commands it does not model): ``figure NAME`` (its config,
     ``configs/NAME.toml``) and ``sweep PATH`` (its cases, a sweep's columns) are counted, ``jobs`` of them at a
     time; anything else (the caustics, the animation, the convergence study, the report) is listed, not counted.
     What ``scripts/reproduce.sh`` prints before it starts."""
     from study.harness.sweep import load_sweep
 
     root = Path(__file__).resolve().parents[2]
-    total, left = Estimate(0, dict.fromkeys(CASE_PARTS, 0.0)), []
+    total, left = Forecast(0, dict.fromkeys(CASE_PARTS, 0.0)), []
     for cmd in commands:
         words = cmd.split()
         if len(words) >= 2 and words[0] == "figure":
             total = total + config_estimate(root / "configs" / f"{words[1]}.toml", cache=cache)
         elif len(words) >= 2 and words[0] == "sweep":
             sw = load_sweep(root / words[1])
-            total = total + estimate([c.scene for c in sw.cases], sw.methods, cache=cache, intervals=False)
+            total = total + forecast([c.scene for c in sw.cases], sw.methods, cache=cache, intervals=False)
         elif words:
             left.append(words[0] if words[0] != "figure" else cmd)
     total.jobs = jobs

@@ -267,9 +267,7 @@ def run_sweep(
             warm=(warm_worker, backend),
             group=lambda c: impostor_key(c.scene),
             name=f"sweep {Path(path).stem}",
-            expect=lambda todo: estimate.estimate(
-                [c.scene for c in todo], sweep.methods, cache=Cache(cache_s), intervals=False, jobs=jobs
-            ),  # fmt: skip
+            expect=estimate.teller(sweep.methods, Cache(cache_s), jobs=jobs, intervals=False),
         )
     except StudyError as err:  # a case's refusal names the sweep file
         if err.file:
@@ -297,13 +295,12 @@ def run_cases(
     warm: tuple | None = None,
     group: Callable[[Case], str] | None = None,
     name: str = "cases",
-    expect: Callable[[list[Case]], estimate.Estimate] | None = None,
+    expect: Callable[[list[Case]], None] | None = None,
 ) -> tuple[list[dict], dict]:
     """Run the cases not yet finished under ``out`` and write ``<out>/results.csv`` (+ ``metadata.json``, and
     what ``extra(rows, dir)`` writes) as one output set, swapped in at the end (:func:`study.io.output_set`); with
     ``into`` they go to that directory instead, part of the caller's output set (the case files stay in ``out``).
 
-    ``expect(todo)``: the :class:`~study.harness.estimate.Estimate` of the cases left, told before they start.
     ``task(case)`` gives the function and arguments that compute a case's rows (run here, in ``jobs`` processes or
     on Dask); each row gets the case id and one ``axis:<key>`` column per label of the case. A case file is reused
     only if ``check(case, rows)`` accepts its rows (e.g. :func:`sweep_check`); computed rows must pass it too.
@@ -313,8 +310,7 @@ def run_cases(
     locked for the run; ``name`` names the run in progress lines (:mod:`study.progress`). Returns (rows, stats =
     {cases, cached, computed, seconds}, and on Dask ``dask``: its fixed cost and steady throughput,
     :func:`~study.harness.cluster.throughput`, also in the metadata)."""
-    t0 = time.perf_counter()
-    out = Path(out)
+    t0, out = time.perf_counter(), Path(out)
     task = budget.bounded(task)  # workers stop at the command's --max-minutes too
     with locked(out) if into is None else _locked_into(out, into):
         done: dict[int, list[dict]] = {}
@@ -322,8 +318,7 @@ def run_cases(
             rows = _load_case(out, c, check)
             if rows is not None:
                 done[c.index] = rows
-        cached = len(done)
-        todo = [c for c in cases if c.index not in done]
+        cached, todo = len(done), [c for c in cases if c.index not in done]
 
         def finish(c: Case, rows: list[dict]):
             if not rows or (check and not check(c, rows)):
@@ -345,9 +340,7 @@ def run_cases(
             progress(len(done), len(cases), "")
         timing = None
         with pg.task(name, len(cases), done=len(done)):  # stage lines in this process, the ETA everywhere
-            if expect is not None and todo:  # the estimate of the cases left, before they start
-                est = expect(todo)
-                pg.expect(est.seconds, estimate.told(est))
+            expect(todo) if expect and todo else None  # the cases left's estimate first (estimate.teller)
             if dask and todo:
                 timing = run_dask(batches(todo), task, jobs, dask, finish, warm=warm, group=group)
                 meta = {**meta, "dask": timing}

@@ -29,6 +29,7 @@ import numpy as np
 
 from study.measure import exposure, metrics, split, stats, truth
 from study.measure.metrics import _crop, to_ldr
+from study.measure.pixels import K1, K2, WIN  # scikit-image's SSIM: window size, K₁, K₂
 
 
 # ---------------------------------------------------------------------------------------------- one reference
@@ -47,10 +48,6 @@ def _psnr(ref_ldr: np.ndarray, tests_ldr: np.ndarray) -> np.ndarray:
     mse = np.array([np.mean(q, dtype=np.float64) for q in (ref_ldr - tests_ldr) ** 2])
     with np.errstate(divide="ignore"):
         return np.where(mse == 0, np.inf, 10 * np.log10(1.0 / np.where(mse == 0, 1.0, mse)))
-
-
-#: scikit-image's SSIM: window size, K₁, K₂ (data range 1), sample covariance.
-WIN, K1, K2 = 7, 0.01, 0.03
 
 
 def _window(a: np.ndarray) -> np.ndarray:
@@ -94,11 +91,11 @@ def _flip_values(ref, tests, mask, backend: str, refs=None) -> list[np.ndarray]:
     m, parts = cut[0], cut[1:]
     r, t = (parts[0], np.stack(parts[1:])) if refs is None else (None, np.stack(parts))
     rs = None if refs is None else np.stack(_crop(mask, metrics.FLIP_MARGIN, *refs)[1:])
-    maps = flip_stack(r, t, backend, refs=rs)
+    maps = flip_maps(r, t, backend, refs=rs)
     return [e[m] for e in maps]
 
 
-def flip_stack(ref, tests, backend: str, refs=None) -> np.ndarray:
+def flip_maps(ref, tests, backend: str, refs=None) -> np.ndarray:
     """(M, H, W) FLIP maps of ``tests`` (M, H, W, 3) against ``ref`` (H, W, 3) or ``refs`` (M, H, W, 3), as
     :func:`study.measure.metrics.flip_map` makes each (flip-evaluator per image for ``numpy``; for ``llvm`` and
     ``cuda`` one pass of the array code over the stack, the reference's terms once, on the crop where the images
@@ -197,6 +194,23 @@ def truth_columns(tests, t: truth.Truth, mitsuba, *, mask, rmse_truth, rmse_mits
 
 
 # ---------------------------------------------------------------------------------------------- a case's methods
+def _against_oracle(imgs, r, backend: str) -> list[dict]:
+    """:func:`errors` against the oracle over its held pixels, each image with its own reference (the oracle where
+    it holds a value, the image elsewhere), all cut to the held pixels' box + FLIP's margin first: SSIM's and FLIP's
+    crops lie inside it, so the values are those of the whole frames."""
+    on = r.on_held
+    if not on.any():
+        return errors(
+            r.oracle, imgs, mask=on, suffix="oracle", backend=backend, with_flip="oracle" in r.against
+        )
+    m, keep, oracle, *cut = _crop(on, metrics.FLIP_MARGIN, r.held_px | ~r.mask, r.oracle, *imgs)
+    cut = np.stack(cut)
+    refs = np.where(keep[..., None], oracle, cut)
+    return errors(
+        oracle, cut, mask=m, suffix="oracle", backend=backend, with_flip="oracle" in r.against, refs=refs
+    )
+
+
 def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[dict], list]:
     """(columns, FLIP maps): per method image of ``images`` (M, H, W, 3), the image columns of
     ``case._image_columns`` (a trace over every object pixel), and with ``intervals`` its whole-frame FLIP map
@@ -206,11 +220,8 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
     if M == 0:
         return [], []
     mask = r.mask
-    fmaps = list(flip_stack(r.truth.image, imgs, backend)) if intervals else [None] * M
-    keep = (r.held_px | ~mask)[..., None]
-    refs = np.where(keep, r.oracle, imgs)  # the oracle where it holds a value, the image elsewhere
-    oracle = errors(r.oracle, imgs, mask=r.on_held, suffix="oracle", backend=backend,
-                    with_flip="oracle" in r.against, refs=refs)  # fmt: skip
+    fmaps = list(flip_maps(r.truth.image, imgs, backend)) if intervals else [None] * M
+    oracle = _against_oracle(imgs, r, backend)
     tflip = (
         [np.asarray(f)[mask] for f in fmaps] if intervals and "truth" in r.against
         else None if "truth" in r.against else [np.zeros(0)] * M

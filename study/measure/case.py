@@ -289,23 +289,12 @@ def run_case(
     base.update(worth.columns(scene, mitsuba, mask, exact.escapes))  # worth looking at? (study.measure.worth)
     out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=mitsuba, truth=ref.image, mask=mask, held=held_px,
                      occluded=rays.per_pixel(exact.occluded.astype(float), fill=0.0))  # fmt: skip
-    # every method's image columns in one pass per reference (study.measure.batched); the references' own rows
-    # take the per-trace path (their pixels differ: the oracle's are the held ones)
-    ran = [t for t in traces if not t.reference]
-    batch, fmaps = batched.method_columns(
-        np.stack([t.image for t in ran]) if ran else np.zeros((0, *mask.shape, 3)), refs, backend=backend,
-        intervals=intervals,
-    )  # fmt: skip
-    by_trace = {id(t): (c, f) for t, c, f in zip(ran, batch, fmaps)}
+    by_trace = _method_columns(traces, refs, backend, intervals)  # every method's, one pass per reference
     for t in traces:
         ang = metrics.angular_error(rays.x, t.shown, exact.point)
         oc = _classify(B, backend, rays, t.shown, exact)
         extra = {"held_fraction": float(held.mean()) if len(held) else np.nan} if t.reference else {}
-        cols, fmap = (
-            by_trace[id(t)]
-            if id(t) in by_trace
-            else (_image_columns(t, refs, None, backend, intervals), None)
-        )
+        cols, fmap = by_trace.get(id(t)) or (_image_columns(t, refs, None, backend, intervals), None)
         if PRODUCERS:
             ctx = RayContext(rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image, ref.image,
                              mask, t.label)  # fmt: skip
@@ -372,6 +361,19 @@ def _base_columns(scene: Scene, case_id: str, backend: str, rays, exact: ExactHi
         **rays.stats,
         **lighting.light_columns(scene),  # the file's own lights against study's (study.scene.lights)
     }
+
+
+def _method_columns(traces: list[Traced], r: _Refs, backend: str, intervals: bool) -> dict:
+    """id(trace) → (image columns, FLIP map against the truth or None) of every method's trace, measured together
+    (:func:`study.measure.batched.method_columns`: the images stacked, one pass per reference); the references'
+    own rows take the per-trace path (:func:`_image_columns`: their pixels differ, the oracle's are the held ones)."""
+    ran = [t for t in traces if not t.reference]
+    if not ran:
+        return {}
+    cols, maps = batched.method_columns(
+        np.stack([t.image for t in ran]), r, backend=backend, intervals=intervals
+    )
+    return {id(t): (c, f) for t, c, f in zip(ran, cols, maps)}
 
 
 def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool) -> dict:

@@ -148,7 +148,7 @@ def image_terms(B: Backend, srgb: V3, width: int, height: int, ppd: float = PPD)
     """What FLIP needs of one image alone, (L, a, b, edge, point): its CSF-filtered colour in Hunt-adjusted CIELab
     and the magnitudes of its luminance's first and second derivatives (edges and points). An image's terms do not
     depend on the image it is compared with, so a reference's are computed once for every test image
-    (:func:`compare`; :func:`ldr_flip` is the two in a row). ``B``'s ``shifted`` decides the images' edges: a
+    (:func:`flip_error`; :func:`ldr_flip` is the two in a row). ``B``'s ``shifted`` decides the images' edges: a
     :class:`Stacked` backend filters several images of one size, each with its own clamped edges."""
     w, h = width, height
     y = _ycxcz(B, srgb)
@@ -171,7 +171,7 @@ def image_terms(B: Backend, srgb: V3, width: int, height: int, ppd: float = PPD)
     return lab.x, lab.y, lab.z, edge, point
 
 
-def compare(B: Backend, ref: tuple, test: tuple):
+def flip_error(B: Backend, ref: tuple, test: tuple):
     """The per-pixel FLIP error from two images' :func:`image_terms` (arrays of one length): the HyAB distance of
     their colours raised to q_c and re-mapped to [0, 1], to the power 1 − the feature difference."""
     lr, ar, br, er, pr = ref
@@ -203,7 +203,7 @@ def ldr_flip(B: Backend, ref: V3, test: V3, width: int, height: int, ppd: float 
     -------
     (height · width,) float array of ``B``: the FLIP error per pixel, in [0, 1].
     """
-    return compare(B, image_terms(B, ref, width, height, ppd), image_terms(B, test, width, height, ppd))
+    return flip_error(B, image_terms(B, ref, width, height, ppd), image_terms(B, test, width, height, ppd))
 
 
 class Stacked:
@@ -285,7 +285,7 @@ def flip_stack(
             if one is not None
             else image_terms(S, upload(refs[s : s + step]), w, h)
         )
-        out.append(np.asarray(B.numpy(compare(S, r, t)), np.float32).reshape(len(part), h, w))
+        out.append(np.asarray(B.numpy(flip_error(S, r, t)), np.float32).reshape(len(part), h, w))
     return np.concatenate(out) if out else np.zeros((0, h, w), np.float32)
 
 

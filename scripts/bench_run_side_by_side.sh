@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# `study run scenes/room.toml` (defaults but a 64² cube: the columns' work is the camera's, not the cube's) with this
+# checkout and a second one side by side, alternating, on one render cache: round 0 fills the cache, rounds 1 and 2
+# are warm. Prints each run's wall time and time split, and whether the two tables are equal value by value.
+#   git worktree add /tmp/base 635ec81 && ln -s "$PWD/.venv" /tmp/base/.venv
+#   bash scripts/bench_run_side_by_side.sh /tmp/base
+set -euo pipefail
+base=${1:?usage: bench_run_side_by_side.sh OTHER_CHECKOUT}
+here=$(cd "$(dirname "$0")/.." && pwd)
+cache=$(mktemp -d)
+for round in 0 1 2; do
+  for w in "$base" "$here"; do
+    s=$(date +%s.%N)
+    (cd "$w" && PYTHONPATH=$w STUDY_PROGRESS_EVERY=0 "$w/.venv/bin/python" -m study run scenes/room.toml \
+      --set render.cube_res=64 --set render.cube_spp=16 --cache "$cache" --out "$cache/out-$(basename "$w")" \
+      > "$cache/$(basename "$w")-$round.log" 2>&1)
+    echo "round $round $(basename "$w"): $(echo "$(date +%s.%N) - $s" | bc) s; $(grep 'time split' "$cache/$(basename "$w")-$round.log")"
+  done
+done
+"$here/.venv/bin/python" - "$cache/out-$(basename "$base")/table.csv" "$cache/out-$(basename "$here")/table.csv" <<'PY'
+import sys
+import pandas as pd
+a, b = (pd.read_csv(p) for p in sys.argv[1:])
+cols = [c for c in a.columns if c not in ("seconds", "case_seconds")]
+same = list(a.columns) == list(b.columns) and a[cols].equals(b[cols])
+print(f"tables {a.shape}: {'equal value by value' if same else 'DIFFERENT'} (seconds aside)")
+PY
