@@ -115,6 +115,22 @@ def read_toml(path: str | Path, *, what: str = "config file") -> dict:
         raise StudyError(f"not valid TOML ({err})", file=str(path)) from None
 
 
+def read_json(path: str | Path, *, what: str = "JSON file"):
+    """The JSON file at ``path``: an OSError or ValueError (invalid JSON, not UTF-8) as the caller handles it, but
+    one nested too deeply for Python's parser (``[[[[…]]]]`` 10⁵ deep: RecursionError, a bug's exit 4) is one
+    StudyError naming the file (bad input, exit 2)."""
+    import json
+
+    text = Path(path).read_text(encoding="utf-8")
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise StudyError(
+            f"malformed {what}: its arrays or objects nest too deeply to read; not a file study wrote",
+            file=str(path),
+        ) from None
+
+
 def json_text(obj, *, nonfinite: str = "null", **kw) -> str:
     """``obj`` as strict JSON (``allow_nan=False``: no ``NaN``/``Infinity`` tokens, which most parsers refuse): NaN
     and ±inf become null (``nonfinite="text"``: the strings "NaN", "Infinity", "-Infinity", which ``float()`` reads
@@ -369,7 +385,9 @@ def output_set(
     if out.is_symlink():
         out = out.resolve()  # swap the directory it names, not the link
     with contextlib.suppress(OSError):
-        if Path.cwd().is_relative_to(out.resolve()):  # never exchange the working directory away from under us
+        if Path.cwd().is_relative_to(
+            out.resolve()
+        ):  # never exchange the working directory away from under us
             swap = False
     with locked(out) if lock else contextlib.nullcontext():
         for stale in _stale_temps(out):  # left by a killed run (the lock is held)
