@@ -335,7 +335,7 @@ def scene_plot(name: str, points: list[dict], devices: list[DeviceTimes], metric
     return png_bytes(fig, dpi=110)
 
 
-def results_table(path: Path) -> list[dict]:
+def _results_table(path: Path) -> list[dict]:
     """A figure's or sweep's table, well formed (:func:`~study.report.check.read_table`) and every number possible
     (:func:`study.tables.check_rows`), else one StudyError naming the file, line and column."""
     return check_rows(read_table(path, numeric=["cube_res", *ERRORS]), path)
@@ -360,7 +360,7 @@ def write_pareto(reports: Path, out: Path, benches: list[Path], *, metric: str =
                          file=str(reports))  # fmt: skip
     files, sections, skipped, exact = {}, [], [], []
     for name, path in tables.items():
-        points, note = table_points(results_table(path), metric)  # forged numbers: one line, exit 2
+        points, note = table_points(_results_table(path), metric)  # forged numbers: one line, exit 2
         if not any(p["label"] in d.ms for p in points for d in devices):
             skipped.append(name)
             continue
