@@ -16,17 +16,18 @@ import re
 import sys
 from pathlib import Path
 
+from study.errors import StudyError
 from study.outputs import plots
 from study.report import summary
-from study.report.check import read_table
+from study.report.report import results_table
 from study.tables import markdown
 
 
 def tables_of(reports: Path) -> dict[str, list[dict]]:
     figs = sorted(d for d in reports.glob("fig*") if (d / "metrics.csv").is_file())
     sweeps = sorted(d for d in reports.glob("sweep-*") if (d / "results.csv").is_file())
-    out = {d.name: read_table(d / "metrics.csv") for d in figs}
-    out.update({d.name: read_table(d / "results.csv") for d in sweeps})
+    out = {d.name: results_table(d / "metrics.csv") for d in figs}  # forged numbers: one line, exit 2
+    out.update({d.name: results_table(d / "results.csv") for d in sweeps})
     return out
 
 
@@ -51,7 +52,11 @@ def main() -> None:
     ap.add_argument("--curves", type=Path, help="write <table>-tolerance.png here")
     ap.add_argument("--readme", type=Path, help="rewrite this README's 'How sure' bullet from the tables")
     a = ap.parse_args()
-    tables = tables_of(Path(a.reports))
+    try:
+        tables = tables_of(Path(a.reports))
+    except StudyError as err:  # a malformed or impossible table: one line, exit 2
+        print(f"error: {err}", file=sys.stderr)
+        raise SystemExit(err.code) from None
     if a.readme:
         write_how_sure(a.readme, summary.readme_how_sure(tables))
         print(f"wrote the 'How sure' bullet of {a.readme}")

@@ -34,6 +34,7 @@ ORDER = [
     "tables.py",
     "backend.py",
     "io.py",
+    "owned.py",
     "runtime.py",
     "codehash.py",
     "errors.py",

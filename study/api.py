@@ -313,10 +313,8 @@ class Result:
         """Write what ``study run`` writes, as a figure's outputs are named (:mod:`study.outputs.run_files`): the
         table (``table.csv``, ``table.parquet``), the scene (``scene.json``), one multi-layer EXR ``exr/run.exr``
         (every image and map as a named layer: ``classical``, ``angle-classical``, …, ``mask``; label → layer in
-        ``index.json``), the image grid ``run.png`` and a viewer page ``index.html``, as one output set
-        (:func:`study.io.write_set`, every byte made first): an error leaves what ``out`` held before. Returns the
-        files written. An empty ``out`` (``""``) is a StudyError, never the current directory; a file in ``out``
-        that study did not write is never removed (:data:`study.io.OUTPUTS`)."""
+        ``index.json``), the image grid ``run.png``, a viewer page ``index.html``, as one output set (every byte made
+        first; ``""`` a StudyError, a file study did not write kept: :func:`study.io.write_set`). Returns the files."""
         from study.io import json_text, out_dir, write_set
         from study.outputs.run_files import result_files
         from study.tables import to_csv

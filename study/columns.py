@@ -15,9 +15,13 @@ beside it (its 95 % interval; :mod:`study.measure.stats`), declared with it.
 
 from __future__ import annotations
 
+import math
+import sys
 from dataclasses import dataclass, replace
 
 LOW, HIGH, NONE = True, False, None
+#: the largest finite float: a domain ending here admits every finite number and not ±inf
+FINITE = sys.float_info.max
 
 
 @dataclass(frozen=True)
@@ -39,6 +43,9 @@ class TableColumn:
     #: the declared column whose calibrated ``_lo``/``_hi`` are this column's 95 % interval, where they are not its
     #: own (wrong_fraction → wrong_fraction_texel: the same rays, clustered by pixel); :func:`interval_bounds`
     interval_from: str = ""
+    #: values a table may hold (closed, on the extended reals; NaN, an empty cell, always allowed): None takes the
+    #: unit's (:func:`domain`); (-math.inf, math.inf) checks nothing
+    domain: tuple[float, float] | None = None
 
 
 C = TableColumn
@@ -168,7 +175,13 @@ TABLE: list[TableColumn] = [
     ),
     C("angle_dropped", F, note="rays without a finite angle (no hit), left out of angle_*"),
     C("dist_dropped", F, note="rays without a finite distance, left out of dist_*"),
-    C("angle_p95_all_deg", "deg", LOW, note="angle p95 counting rays without a hit as infinite"),
+    C(
+        "angle_p95_all_deg",
+        "deg",
+        LOW,
+        note="angle p95 counting rays without a hit as infinite",
+        domain=(0.0, math.inf),
+    ),
     C("offscreen_fraction", F, note="rays whose exact hit lies outside the camera's frame"),
     C("wrong_fraction_offscreen", F, LOW, note="wrong among those (what screen-space methods cannot show)"),
     C("flip_oracle_p95", "", LOW),
@@ -226,6 +239,7 @@ TABLE: list[TableColumn] = [
         F,
         note="the file's own lights' power over study's point light's (luminance, W); under 0.05 they are weak and "
         "study's point light is added unless light.enabled is given (study/scene/lights.py); NaN: not judged",
+        domain=(0.0, FINITE),
     ),
     # worth looking at (study/measure/worth.py): past its limit, `study run` names the cause and the key to change
     C(
@@ -283,7 +297,7 @@ TABLE: list[TableColumn] = [
     C("dec_noise", "MSE", LOW, interval=True),
     C("dec_cross", "MSE", interval=True),
     C("dec_residual", "MSE", interval=True),
-    C("dec_sums", F, note="Σ terms / total"),
+    C("dec_sums", F, note="Σ terms / total", domain=(-math.inf, math.inf)),
     C(
         "dec_representation_direct",
         "MSE",
@@ -291,7 +305,12 @@ TABLE: list[TableColumn] = [
         interval=True,
         note="the map's share measured against the truth: oracle vs truth_at_hit on held pixels, noise removed",
     ),
-    C("dec_sums_direct", F, note="search + visibility + representation_direct + noise meet the total"),
+    C(
+        "dec_sums_direct",
+        F,
+        note="search + visibility + representation_direct + noise meet the total",
+        domain=(-math.inf, math.inf),
+    ),
     C("rmse_truth_held", "linear RGB", LOW, interval=True),
     C("rmse_truth_unheld", "linear RGB", LOW, interval=True),
     C(
@@ -370,6 +389,45 @@ def interval_bounds(name: str) -> tuple[str, str] | None:
 def column_names() -> list[str]:
     """Every declared name in table order, each interval column followed by its _lo and _hi."""
     return [n for c in TABLE for n in ((c.name, f"{c.name}_lo", f"{c.name}_hi") if c.interval else (c.name,))]
+
+
+#: the values a column of a unit may hold where its row names no domain: fractions in [0, 1], counts, costs, times
+#: and image errors finite and ≥ 0, angles in [0°, 180°]; errors in metres ≥ 0 (positions are not checked)
+UNIT_DOMAINS = {
+    F: (0.0, 1.0),
+    "count": (0.0, FINITE),
+    "lookups": (0.0, FINITE),
+    "texels": (0.0, FINITE),
+    "px": (0.0, FINITE),
+    "s": (0.0, FINITE),
+    "linear RGB": (0.0, FINITE),
+    "deg": (0.0, 180.0),
+}
+
+
+def domain(name: str) -> tuple[float, float] | None:
+    """The values the declared column ``name`` may hold (its row's ``domain``, else its unit's,
+    :data:`UNIT_DOMAINS`; an error in metres ≥ 0), None where nothing is checked (undeclared, or a unit without
+    one). An interval's ``_lo``/``_hi`` takes its column's.
+
+    Parameters
+    ----------
+    name : str
+        A column of a results table.
+
+    Returns
+    -------
+    tuple of float or None
+        (lowest, highest), closed on the extended reals.
+    """
+    c = declared(name)
+    if c is None:
+        return None
+    if c.domain is not None:
+        return None if c.domain == (-math.inf, math.inf) else c.domain
+    if c.unit == "m" and c.lower_is_better:
+        return (0.0, FINITE)
+    return UNIT_DOMAINS.get(c.unit)
 
 
 def view(name: str) -> list[str]:

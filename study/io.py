@@ -35,11 +35,11 @@ import numpy as np
 
 from study import runtime
 from study.errors import EnvironmentProblem, StudyError, os_problem
+from study.owned import OUTPUTS, carry, in_the_way, out_dir, owned, written_here
+
+__all__ = ["OUTPUTS", "out_dir", "written_here"]  # study.owned's, where output sets are: study.io.OUTPUTS
 
 LOCK = ".lock"
-#: In every output folder: the files study wrote there (relative paths, JSON), the only ones a later command may
-#: remove (an earlier run's output that this run does not write again); anything else in the folder stays.
-OUTPUTS = ".study-outputs.json"
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 _FILE_MODE = 0o666 & ~_UMASK
@@ -113,6 +113,22 @@ def read_toml(path: str | Path, *, what: str = "config file") -> dict:
         raise StudyError(f"not UTF-8 text, expected a {what} (TOML)", file=str(path)) from None
     except tomllib.TOMLDecodeError as err:
         raise StudyError(f"not valid TOML ({err})", file=str(path)) from None
+
+
+def read_json(path: str | Path, *, what: str = "JSON file"):
+    """The JSON file at ``path``: an OSError or ValueError (invalid JSON, not UTF-8) as the caller handles it, but
+    one nested too deeply for Python's parser (``[[[[…]]]]`` 10⁵ deep: RecursionError, a bug's exit 4) is one
+    StudyError naming the file (bad input, exit 2)."""
+    import json
+
+    text = Path(path).read_text(encoding="utf-8")
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise StudyError(
+            f"malformed {what}: its arrays or objects nest too deeply to read; not a file study wrote",
+            file=str(path),
+        ) from None
 
 
 def json_text(obj, *, nonfinite: str = "null", **kw) -> str:
@@ -227,39 +243,6 @@ def read_exr(path: str | Path) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------- output sets
-def out_dir(value: str | Path, *, key: str = "--out") -> Path:
-    """``value`` as an output folder: an empty path (``--out ""``, a shell variable left unset) is one StudyError
-    naming ``key``, never the current directory.
-
-    Parameters
-    ----------
-    value : str or Path
-        The path as given (a ``Path("")`` is already ``"."``: check the text before it becomes a Path).
-    key : str
-        What the error names (``--out``, ``--reports``, ``out``).
-
-    Returns
-    -------
-    Path
-    """
-    if not str(value).strip():
-        raise StudyError("empty path; name a folder (e.g. reports/mine, or . for this one)", key=key)
-    return Path(value)
-
-
-def written_here(out: str | Path) -> set[str]:
-    """The files study wrote in the output folder ``out`` (relative POSIX paths, from its :data:`OUTPUTS`);
-    empty where it has none (a folder study did not make, or one written before study kept the list) or an
-    unreadable one."""
-    import json
-
-    try:
-        files = json.loads((Path(out) / OUTPUTS).read_text(encoding="utf-8")).get("files")
-    except (OSError, ValueError, AttributeError):
-        return set()
-    return {f for f in files if isinstance(f, str)} if isinstance(files, list) else set()
-
-
 @contextlib.contextmanager
 def locked(out: str | Path):
     """Hold ``<out>/.lock`` (created, and removed again at the end) so that one study command at a time writes to
@@ -369,7 +352,9 @@ def output_set(
     if out.is_symlink():
         out = out.resolve()  # swap the directory it names, not the link
     with contextlib.suppress(OSError):
-        if Path.cwd().is_relative_to(out.resolve()):  # never exchange the working directory away from under us
+        if Path.cwd().is_relative_to(
+            out.resolve()
+        ):  # never exchange the working directory away from under us
             swap = False
     with locked(out) if lock else contextlib.nullcontext():
         for stale in _stale_temps(out):  # left by a killed run (the lock is held)
@@ -415,49 +400,6 @@ def _stale_temps(out: Path) -> list[Path]:
     return [p for p in out.parent.glob(f".{glob.escape(out.name)}.new-*") if pat.fullmatch(p.name)]
 
 
-def _owned(rel: str, owns: set[str]) -> bool:
-    return any(rel == o or rel.startswith(o + "/") for o in owns)
-
-
-def _holds_owned(rel: str, owns: set[str]) -> bool:
-    return any(o.startswith(rel + "/") for o in owns)
-
-
-def _carry(src: Path, dst: Path, rel: str, owns: set[str], keeps: set[str]) -> bool:
-    """Hard-link (or copy) the entries of ``src`` that the command does not own into ``dst``; False if one is a
-    directory neither owned in part nor named in ``keeps`` (then the swap is not used)."""
-    for e in sorted(os.scandir(src), key=lambda e: e.name):
-        r = f"{rel}{e.name}"
-        if _owned(r, owns):
-            continue
-        target = dst / e.name
-        if e.is_dir(follow_symlinks=False):
-            if r in keeps:
-                shutil.copytree(e.path, target, symlinks=True, copy_function=_link, dirs_exist_ok=True)
-            elif _holds_owned(r, owns):
-                made = not target.exists()
-                target.mkdir(exist_ok=True)
-                if not _carry(Path(e.path), target, r + "/", owns, keeps):
-                    return False
-                if made and not any(target.iterdir()):  # every file in it was an earlier output: it goes
-                    target.rmdir()
-            else:
-                return False
-        elif not target.exists():
-            if e.is_symlink():
-                os.symlink(os.readlink(e.path), target)
-            else:
-                _link(e.path, target)
-    return True
-
-
-def _link(src, dst) -> None:
-    try:
-        os.link(src, dst)
-    except OSError:
-        shutil.copy2(src, dst)
-
-
 _RENAME_EXCHANGE = 2
 
 
@@ -475,43 +417,20 @@ def _exchange(a: Path, b: Path) -> bool:
     raise OSError(e, os.strerror(e), str(b))
 
 
-def _in_the_way(out: Path, new: set[str], listed: set[str]) -> None:
-    """Refuse (one StudyError, nothing changed yet) where an output would replace something study did not write: a
-    folder where it writes a file, or a file of the user's where it needs a folder."""
-    for rel in sorted(new):
-        p = out / rel
-        if p.is_dir() and not p.is_symlink():
-            raise StudyError(
-                f"{rel} is a folder that study did not write, where it writes a file; move it or choose another "
-                "--out",
-                file=str(out),
-            )
-        for parent in Path(rel).parents:
-            q = out / parent
-            if parent.name and (q.is_symlink() or q.exists()) and not q.is_dir():
-                if parent.as_posix() in listed:
-                    continue  # an earlier output of study's: replaced by the folder
-                raise StudyError(
-                    f"{parent.as_posix()} is a file that study did not write, where it writes the folder of "
-                    f"{rel}; move it or choose another --out",
-                    file=str(out),
-                )
-
-
 def _commit(tmp: Path, out: Path, owns: set[str], keeps: set[str], swap: bool = True) -> None:
     """Put the outputs in ``tmp`` in place in ``out`` (see :func:`output_set`): the files of ``tmp`` replace those
     of their names, the files study wrote before under ``owns`` (:func:`written_here`) and does not write again
     go, and the list :data:`OUTPUTS` is brought up to date. Nothing study did not write is removed."""
     new = {p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if not p.is_dir()} - {OUTPUTS}
     listed = written_here(out)
-    _in_the_way(out, new, listed)
-    stale = {r for r in listed if _owned(r, owns) and r not in new and r != OUTPUTS}
+    in_the_way(out, new, listed)
+    stale = {r for r in listed if owned(r, owns) and r not in new and r != OUTPUTS}
     (tmp / OUTPUTS).write_bytes(
         text_bytes(json_text({"written_by": "study", "files": sorted((listed - stale) | new)}, indent=1))
     )
     owns = new | stale | {OUTPUTS}  # files only: a directory is never replaced whole
     os.chmod(tmp, stat.S_IMODE(os.stat(out).st_mode))
-    if swap and _carry(out, tmp, "", owns, keeps) and _exchange(tmp, out):
+    if swap and carry(out, tmp, "", owns, keeps) and _exchange(tmp, out):
         return  # tmp now holds the old outputs; the caller removes it
     for rel in sorted(owns):  # one by one: each rename is atomic, the set is not
         new_file, old = tmp / rel, out / rel

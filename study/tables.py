@@ -13,7 +13,9 @@ import io
 import math
 from pathlib import Path
 
+from study import columns
 from study.columns import LEAD
+from study.errors import StudyError
 from study.io import atomic_write
 
 #: Column order of every results table (:data:`study.columns.LEAD`); extra keys follow in the order first seen.
@@ -109,6 +111,75 @@ def read_csv(path: str | Path) -> list[dict]:
                     row[k] = v
             out.append(row)
     return out
+
+
+def _allowed(lo: float, hi: float) -> str:
+    def end(v):
+        return "∞" if v == math.inf else "-∞" if v == -math.inf else f"{v:g}"
+
+    if hi == columns.FINITE:
+        return f"a finite number ≥ {end(lo)}"
+    if hi == math.inf:
+        return f"a number ≥ {end(lo)} (∞ allowed)"
+    return f"a number in [{end(lo)}, {end(hi)}]"
+
+
+def check_rows(rows: list[dict], path: str | Path, *, kind: str = "results table") -> list[dict]:
+    """``rows`` of the results table at ``path`` (as :func:`read_csv` reads it) checked against the declared
+    columns (:func:`study.columns.domain`): every number of a declared column within its domain (fractions in
+    [0, 1], counts, lookups, times and RMSEs finite and ≥ 0, …; an empty cell, NaN, is allowed; an interval's
+    ``_hi`` may be +∞), and each (case, label) once. A forged or impossible number is one StudyError naming the
+    file, the line and the column (bad input, exit 2) before any verdict is drawn from it.
+
+    Parameters
+    ----------
+    rows : list of dict
+        The table's rows, line 2 of the file first.
+    path : str or Path
+        The file (named in the error).
+    kind : str
+        What the table is, in the error.
+
+    Returns
+    -------
+    list of dict
+        ``rows``, unchanged.
+    """
+    doms: dict[str, tuple[float, float] | None] = {}
+    first: dict[tuple, int] = {}
+    for i, r in enumerate(rows):
+        line = i + 2
+        if "case" in r and "label" in r:
+            k = (r["case"], r["label"])
+            if k in first:
+                raise StudyError(
+                    f"malformed {kind}: line {line} repeats case {str(k[0])[:40]!r}, label {str(k[1])[:40]!r} "
+                    f"of line {first[k]}; each (case, label) once",
+                    file=str(path),
+                )
+            first[k] = line
+        for c, v in r.items():
+            if not isinstance(v, float) or math.isnan(v):
+                continue
+            if c not in doms:
+                doms[c] = columns.domain(c)
+            dom = doms[c]
+            if dom is None:
+                continue
+            lo, hi = dom
+            if lo <= v <= hi or (c.endswith("_hi") and v == math.inf and columns.declared(c) is not None):
+                continue
+            who = (
+                f" (case {str(r.get('case'))[:40]!r}, label {str(r.get('label'))[:40]!r})"
+                if "label" in r
+                else ""
+            )
+            raise StudyError(
+                f"impossible {kind}: line {line}, column {c!r}{who} holds {v:g}; allowed: {_allowed(lo, hi)} "
+                "or empty",
+                file=str(path),
+            )
+    return rows
 
 
 def fmt_number(v, digits: int = 3) -> str:

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from study.io import file_stems, json_text, layers_exr_bytes
+from study.io import file_stems, json_text, layers_exr_bytes, read_json
 from study.measure.exposure import FRAME_RULE, auto_exposure  # noqa: F401  (re-exported: the viewer's rule)
 from study.measure.outcomes import NAMES as OUTCOME_NAMES
 
@@ -307,7 +307,7 @@ def manifest_text(name: str, cases: list[dict]) -> str:
 def read_manifest(fig_dir: Path) -> dict | None:
     """A figure's viewer manifest, or None where the figure has none (or it is unreadable)."""
     try:
-        m = json.loads((fig_dir / MANIFEST).read_text(encoding="utf-8"))
+        m = read_json(fig_dir / MANIFEST, what="viewer manifest")  # nested 10⁵ deep: one line, exit 2
     except (OSError, ValueError):
         return None
     ok = (

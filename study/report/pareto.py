@@ -47,7 +47,8 @@ from study.errors import StudyError
 from study.io import png_bytes, write_set
 from study.measure.stats import case_interval
 from study.outputs.plots import METRICS, pareto_indices, style
-from study.tables import REFERENCE_ROWS, markdown, read_csv
+from study.report.check import read_table
+from study.tables import REFERENCE_ROWS, check_rows, markdown
 
 #: Rays of a 1080p frame (one secondary ray per pixel) and of the bench's frame.
 RAYS_1080P, RAYS_BENCH = 1920 * 1080, 1024 * 1024
@@ -110,7 +111,7 @@ def _commit_of(path: Path) -> str:
 
 def _header(md: Path) -> tuple[str, str]:
     """(device, code hash) from bench-<tag>.md's machine and code lines."""
-    text = md.read_text() if md.is_file() else ""
+    text = md.read_text(encoding="utf-8", errors="replace") if md.is_file() else ""
     mach = re.search(r"^machine: (.*)$", text, re.M)
     code = re.search(r"^code: (\S+)", text, re.M)  # older benches do not state it
     device = "unknown machine"
@@ -156,12 +157,13 @@ def device_times(path: str | Path, *, batch: str = "close-up", clock: str = "ker
         raise StudyError(f"unknown batch {batch!r}; allowed: {', '.join(BATCHES)}", key="--batch")
     if not path.is_file():
         raise StudyError("no such bench table (study bench writes it)", file=str(path))
-    rows = read_csv(path)
-    need = {"batch", "backend", "path", "label", col}
-    if rows and not need <= set(rows[0]):
-        raise StudyError(
-            f"not a bench table: it lacks {', '.join(sorted(need - set(rows[0])))}", file=str(path)
-        )
+    # UTF-8 CSV with these columns and numbers in the clock's (random bytes, UTF-16: one line naming the file)
+    rows = read_table(
+        path,
+        required=("batch", "backend", "path", "label", "ms_per_frame", col),
+        numeric=list(dict.fromkeys(["ms_per_frame", col])),
+        kind="bench table",
+    )
     backend = "cuda" if any(r["backend"] == "cuda" for r in rows) else "llvm"
     names = [b for b in dict.fromkeys(r["batch"] for r in rows) if BATCHES[batch](b)]
     if not names:
@@ -169,12 +171,15 @@ def device_times(path: str | Path, *, batch: str = "close-up", clock: str = "ker
                          file=str(path), key="--batch")  # fmt: skip
     sel = [r for r in rows if r["batch"] == names[0]]
     scale = RAYS_1080P / RAYS_BENCH
+    line = {id(r): i + 2 for i, r in enumerate(rows)}
     variant = "cuda_ad_rgb" if backend == "cuda" else "llvm_ad_rgb"
     wall, ms, bare, unshaded = {}, {}, {}, []
 
-    def put(label: str, r: dict, k: int = 1) -> None:
-        wall[label] = _ms(r, "ms_per_frame") * scale * k
-        ms[label] = _ms(r, col) * scale * k
+    def put(label: str, r: dict, k: int = 1) -> None:  # an impossible time: one line (_time), never a verdict
+        wall[label] = _time(path, r, "ms_per_frame", line[id(r)]) * scale * k
+        v = r.get(col)  # the kernel clock: a row without one (numpy's) takes the wall's (on_wall)
+        known = col == "ms_per_frame" or (isinstance(v, float) and v == v)
+        ms[label] = _time(path, r, col, line[id(r)]) * scale * k if known else math.nan
 
     for r in sel:
         if r["backend"] == backend and r["path"] == "frozen":
@@ -206,6 +211,20 @@ def device_times(path: str | Path, *, batch: str = "close-up", clock: str = "ker
     return DeviceTimes(tag, device, backend, names[0], str(path), _commit_of(path), code, ms, clock,
                        {k: v for k, v in wall.items() if math.isfinite(v)}, on_wall,
                        {k: v for k, v in bare.items() if math.isfinite(v)}, unshaded)  # fmt: skip
+
+
+def _time(path: Path, r: dict, col: str, line: int) -> float:
+    """A bench row's time that the page places: a finite number > 0 ms, else (−5, 0, NaN, ∞) one StudyError
+    naming the file, line and column (exit 2), never a front or a budget answer."""
+    v = r[col]
+    if isinstance(v, float) and math.isfinite(v) and v > 0:
+        return v
+    raise StudyError(
+        f"impossible bench table: line {line}, column {col!r} (label {str(r.get('label'))[:40]!r}, backend "
+        f"{str(r.get('backend'))[:20]!r}) holds {'nothing' if v != v else f'{v:g}'}; a time per frame is a "
+        "finite number > 0 ms",
+        file=str(path),
+    )
 
 
 def table_points(rows: list[dict], metric: str, *, cube_res: float = 256) -> tuple[list[dict], str]:
@@ -374,6 +393,12 @@ def scene_plot(name: str, points: list[dict], devices: list[DeviceTimes], metric
     return png_bytes(fig, dpi=110)
 
 
+def _results_table(path: Path) -> list[dict]:
+    """A figure's or sweep's table, well formed (:func:`~study.report.check.read_table`) and every number possible
+    (:func:`study.tables.check_rows`), else one StudyError naming the file, line and column."""
+    return check_rows(read_table(path, numeric=["cube_res", *ERRORS]), path)
+
+
 def find_tables(reports: Path) -> dict[str, Path]:
     """Name → results table of every figure and sweep under ``reports`` (as ``study report`` finds them)."""
     figs = sorted(d for d in reports.glob("fig*") if (d / "metrics.csv").is_file())
@@ -404,7 +429,7 @@ def write_pareto(reports: Path, out: Path, benches: list[Path], *, metric: str =
                          file=str(reports))  # fmt: skip
     files, sections, skipped, exact = {}, [], [], []
     for name, path in tables.items():
-        points, note = table_points(read_csv(path), metric)
+        points, note = table_points(_results_table(path), metric)  # forged numbers: one line, exit 2
         if not any(p["label"] in d.ms for p in points for d in devices):
             skipped.append(name)
             continue

@@ -29,6 +29,7 @@ from study.report import kinds, sections, summary, table_notes
 from study.report.check import read_table
 from study.report.register import bench_sentence, motion_sentences, register_markdown
 from study.report.verdicts import verdict_mark
+from study.tables import check_rows
 
 #: Outcome classes first (study.measure.outcomes): the angle alone is blind to a wrong depth on the same ray.
 OUTCOMES = ["wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95", *summary.DROPPED]
@@ -227,11 +228,17 @@ def _sweeps(reports: Path) -> list[Path]:
     return sorted(d for d in reports.glob("sweep-*") if (d / "results.csv").is_file())
 
 
+def results_table(path: Path) -> list[dict]:
+    """A results table read for the report: well formed (:func:`study.report.check.read_table`) and every number
+    possible (:func:`study.tables.check_rows`: within its declared column's domain, each case × label once), else
+    one StudyError naming the file, line and column (exit 2) before any claim or headline is drawn from it."""
+    return check_rows(read_table(path, numeric=["cube_res", *SUMMARY]), path)
+
+
 def tables_of(reports: Path) -> dict[str, list[dict]]:
     """Every figure's and sweep's table under ``reports``, by folder name (what the claims are judged on)."""
-    numeric = ["cube_res", *SUMMARY]
-    tables = {d.name: read_table(d / "metrics.csv", numeric=numeric) for d in _figures(reports)}
-    tables.update({d.name: read_table(d / "results.csv", numeric=numeric) for d in _sweeps(reports)})
+    tables = {d.name: results_table(d / "metrics.csv") for d in _figures(reports)}
+    tables.update({d.name: results_table(d / "results.csv") for d in _sweeps(reports)})
     return tables
 
 
@@ -240,7 +247,6 @@ def blocks(reports: Path, tables: dict[str, list[dict]] | None = None) -> list[t
     made = kinds.found(reports)  # figures of every kind, by the files their runs write (study.report.kinds)
     figs, sweeps = [d for k, d in made if k.tables], _sweeps(reports)
     runs = sections.find_runs(reports)  # by their own files, whatever the folder's name
-    numeric = ["cube_res", *SUMMARY]
     tables = tables_of(reports) if tables is None else tables  # build_report reads them once for both pages
 
     out = _claims_section(tables) + _comparison_section(tables) + _decomposition_section(tables)
@@ -249,7 +255,7 @@ def blocks(reports: Path, tables: dict[str, list[dict]] | None = None) -> list[t
             out += k.section(reports, d, tables.get(d.name, []) if k.tables else [], SUMMARY)
             out += sections.pareto_plot(reports, d.name) if k.tables else []
     for d in runs:  # study run: one scene each, not among the tables the claims are checked on
-        out += sections.run_section(reports, d, read_table(d / "table.csv", numeric=numeric), SUMMARY)
+        out += sections.run_section(reports, d, results_table(d / "table.csv"), SUMMARY)
     for d in sweeps:
         out += sections.sweep_section(d, tables[d.name]) + sections.pareto_plot(reports, d.name)
     for k, d in made:

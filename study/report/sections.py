@@ -5,9 +5,9 @@ output, the figures at the paper's resolution, and the versions table (the other
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
+from study.io import read_json
 from study.outputs import html
 from study.outputs.markup import Md, code, link, md_esc
 from study.tables import REFERENCE_ROWS
@@ -15,7 +15,7 @@ from study.tables import REFERENCE_ROWS
 
 def meta(d: Path) -> dict:
     try:
-        m = json.loads((d / "metadata.json").read_text(encoding="utf-8"))
+        m = read_json(d / "metadata.json", what="metadata.json")  # nested 10⁵ deep: one line, exit 2
     except (OSError, ValueError):
         return {}
     return m if isinstance(m, dict) else {}
@@ -55,7 +55,7 @@ def figure_section(reports: Path, d: Path, rows: list[dict], cols: list[str]) ->
 
 def _json(path: Path) -> dict:
     try:
-        m = json.loads(path.read_text(encoding="utf-8"))
+        m = read_json(path, what=path.name)  # nested 10⁵ deep: one line, exit 2
     except (OSError, ValueError):
         return {}
     return m if isinstance(m, dict) else {}

@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from study import columns
 from study import methods as registry
 from study.measure import stats
 from study.outputs.markup import code, md_esc
