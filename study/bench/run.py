@@ -147,10 +147,6 @@ def run_bench(
     o = np.asarray(scene.reference.point, float)
     V, F = room_triangles(scene)
     exact = Exact(V, F, opt.repeats, log)
-    light = (
-        tuple(scene.light.position),
-        tuple(scene.light.intensity),
-    )  # the point light traced's shading uses
     tex = distance_texels(exact.tracer, o, opt.cube_res)
     batches = [
         scene_rays(scene, opt.position, opt.scene_res),
@@ -270,27 +266,34 @@ def run_bench(
             log(f"methods on {nm}, {b.name} timed")
 
     # ------------------------------------------------------------------ the exact query priced with its shading
-    # (after every method: Mitsuba's material calls must not run between the frozen recordings on CUDA)
+    price_exact(rows, deferred, exact, batches, names, floors, scene, len(F))
+    log("the exact query priced")
+
+    if on_table:
+        on_table(rows, info)
+    scaling = scaling_rows(scene, opt, names, o, tex, exact, log) if opt.scaling else []
+    return rows, scaling, info
+
+
+def price_exact(rows, deferred, exact: Exact, batches, names, floors: dict, scene, triangles: int) -> None:
+    """Fill the exact-query methods' rows (``deferred``: (row index, method, batch, backend)) and append the
+    shading's own rows (:data:`~study.bench.timing.SHADING` per batch and Mitsuba device). Run after every method
+    is timed: Mitsuba's material calls must not run between the frozen recordings on CUDA (Dr.Jit aborts). The
+    shading's point light is the scene's."""
+    light = (tuple(scene.light.position), tuple(scene.light.intensity))
     for i, m, b, nm in deferred:
-        rows[i] = with_ratios(
-            exact_query_row(m, exact, b, nm, len(F), floors.get(nm), light=light), exact, b, nm
-        )
-    for b in batches:  # what a renderer does at the hit besides finding it: traced's shading (SHADING)
+        row = exact_query_row(m, exact, b, nm, triangles, floors.get(nm), light=light)
+        rows[i] = with_ratios(row, exact, b, nm)
+    for b in batches:  # what a renderer does at the hit besides finding it: traced's shading
         for dev in sorted({"cuda" if nm == "cuda" else "llvm" for nm in names}):
             v = mitsuba_variant(dev)
             t_sh, k_sh = exact.shading(b, v, light)
             for part in SHADING:
                 if np.isfinite(t_sh[part]):
                     row = rate_row({"batch": b.name, "backend": dev, "path": part, "label": f"exact: Mitsuba {v}",
-                                    "triangles": len(F), "cube_res": ""}, t_sh[part], len(b.x))  # fmt: skip
+                                    "triangles": triangles, "cube_res": ""}, t_sh[part], len(b.x))  # fmt: skip
                     row["kernel_ms_per_frame"] = ms_per_frame(k_sh[part], len(b.x))
                     rows.append(row)
-    log("the exact query's shading timed")
-
-    if on_table:
-        on_table(rows, info)
-    scaling = scaling_rows(scene, opt, names, o, tex, exact, log) if opt.scaling else []
-    return rows, scaling, info
 
 
 def exact_query_row(

@@ -49,7 +49,7 @@ from study.methods.search import Bracket, refine, secant_point
 class Params(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
     # 128 by default (8 MiB of float32 nodes): at 64³ fig5's first case showed 15.7 % of the rays hidden from o at
-    # a wrong point, at 128³ 3.1 % (≤ 5 %), at 256³ 2.3 % (64 MiB) for +0.4 lookups a ray (issue 56)
+    # a wrong point, at 128³ 3.1 % (≤ 5 %), at 256³ 2.3 % (64 MiB) for +0.4 lookups a ray
     res: Annotated[int, Field(ge=16, le=512, description="grid nodes per axis of the distance field")] = 128
     band: Annotated[float, Field(ge=1, le=32, description="narrow band of exact distances, voxels")] = 4.0
     max_steps: Annotated[int, Field(ge=1, le=4096, description="sphere-tracing step budget (3D fetches)")] = (
