@@ -7,11 +7,14 @@ left out, and only those (:data:`KEYS`), suggested by ray casting with Embree (:
   every surface, as ever; in a room with an open side (the Cornell box's front, a missing ceiling) a point away
   from the opening. No grid point qualifies (a single object seen from outside, :func:`_beside`): a point beside
   the bounds, level with their middle, half their largest extent away, on the side that sees most of them;
+  where the object placed then hides from it behind a shape (:func:`_seeing`), a point around the object that
+  sees it whole;
 * ``object.radius``: a quarter of the reference point's clearance, at most 8 % of the bounds' diagonal;
   ``object.center``: a little below the reference point (on the camera's view axis, before the first surface
   it meets, where the scene has a camera: a Mitsuba sensor or a glTF camera), moved to the nearest free spot
   where the sphere touches nothing;
-* the camera: the scene's own where it has one (Mitsuba sensor, glTF camera); else, of the free eyes around the
+* the camera: the scene's own where it has one (Mitsuba sensor, glTF camera), with its eye, aim, up and field of
+  view (the object on its axis, sized by :func:`_on_axis` to fill some of the frame); else, of the free eyes around the
   object (64 directions × distances of 3, 4 and 5.5 object radii and 1.75 × the clearance) that see it unblocked,
   aimed at the object (and, for an object seen from outside, also halfway to the bounds' middle), the one of the
   highest :func:`score` (:data:`WEIGHTS`): the object's share of the frame (counted up to :data:`FILL`; below
@@ -23,8 +26,11 @@ left out, and only those (:data:`KEYS`), suggested by ray casting with Embree (:
   the clearance above the reference point when the centre is not free, or is the reference point or the
   object) whose intensity scales with the squared diagonal of the bounds: 6 W/sr × (diag / 6.4 m)². The
   irradiance I / r² at walls a fixed fraction of the diagonal away is then the same as in the default
-  4 m × 3 m × 4 m room (diagonal 6.4 m) with its 6 W/sr light.
+  4 m × 3 m × 4 m room (diagonal 6.4 m) with its 6 W/sr light. A flat scene (bounds thinner than :data:`FLAT`
+  of their diagonal) has its light off its plane, half the diagonal away on the reference point's side.
   Where the file's own lights are weak (:mod:`study.scene.lights`), ``light.enabled`` is on beside them.
+* :attr:`Suggestion.outside`: the object is seen from outside, placed by study; where the file and the user give
+  no sky, :mod:`study.scene.schema` gives it the ``"studio"`` sky (:mod:`study.scene.sky`) to reflect.
 """
 
 from __future__ import annotations

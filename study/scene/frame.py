@@ -75,7 +75,7 @@ def mesh_keys(env: dict, s: float, c) -> dict:
     return {**env, "scale": float(env.get("scale", 1.0)) * s, "translate": (s * (t - c)).tolist()}
 
 
-def line(lo, hi, s: float, c) -> str:
+def units_note(lo, hi, s: float, c) -> str:
     """The run's note: how the environment was moved ('' where it was not)."""
     if identity(s, c):
         return ""
