@@ -95,7 +95,7 @@ def units_note(lo, hi, s: float, c) -> str:
 
 #: A Mitsuba scene (not moved) is measured where its diagonal lies in this range and its centre within
 #: :data:`MITSUBA_FAR` diagonals of the origin; else refused (:func:`refusal`).
-MITSUBA_RANGE, MITSUBA_FAR = (0.1, 1000.0), 100.0
+MITSUBA_RANGE, MITSUBA_FAR = (0.1, 10000.0), 100.0
 
 
 def refusal(lo, hi) -> str:
