@@ -152,12 +152,15 @@ def _on_axis(env, sensor, radius: float, diag: float, sized: bool, start) -> tup
     tan = np.tan(np.radians(float(sensor.get("fov", 45.0))) / 2)
 
     def fits(i):  # the radius that fits there (a quarter of the frame's half-width, or more), and its share
-        t = float(np.linalg.norm(inside[i] - eye))
+        t = max(float(np.linalg.norm(inside[i] - eye)), 1e-12)
         r = min(max(radius, 0.25 * t * tan), gaps[i] / 1.5, t / 3)
         return r, min(r / (t * tan), 0.25)
 
     mid = (lo + hi) / 2
     if sized:  # the largest share of the frame (to within 10 %), then nearest the middle
+        ok = [i for i in ok if fits(i)[0] >= 0.1 * radius]  # not a dot at the eye itself
+        if not ok:
+            return start, radius
         top = max(fits(i)[1] for i in ok)
         ok = [i for i in ok if fits(i)[1] >= 0.9 * top]
     i = min(ok, key=lambda i: np.linalg.norm(inside[i] - mid))
@@ -376,10 +379,17 @@ def suggest(env, given: dict[str, Any] | None = None) -> Suggestion:
                 targets.append(centre + 0.5 * ((lo + hi) / 2 - centre))
             eye, target, why = _eye(env, centre, radius, best, gap, up / np.linalg.norm(up), fov, targets)
             out["camera.eye"] = eye.tolist()
-    if want("camera.target"):  # the file's camera aims where the file says
+    if want(
+        "camera.target"
+    ):  # the file's camera aims where the file says (at the object where it is off the axis)
         aim = env.sensor["target"] if env.sensor is not None and want("camera.eye") else None
+        if aim is not None and want("object.center"):
+            axis = np.subtract(aim, env.sensor["eye"])
+            to = centre - np.asarray(env.sensor["eye"], float)
+            if np.linalg.norm(np.cross(axis, to)) > 1e-6 * np.linalg.norm(axis) * np.linalg.norm(to):
+                aim = None  # no free spot on the axis: aimed at the object, as before
         out["camera.target"] = (
-            list(aim) if aim is not None else (target if want("camera.eye") else centre).tolist()
+            list(aim) if aim is not None else (target if target is not None else centre).tolist()
         )
     if want("camera.fov") and env.sensor is not None and want("camera.eye"):  # the file's view, whole
         out["camera.fov"] = env.sensor["fov"]
