@@ -128,15 +128,14 @@ TABLE: list[TableColumn] = [
     C(
         "rmse_mitsuba",
         "linear RGB",
-        NONE,
+        LOW,
         "RMSE Mitsuba",
         ("figure",),
-        note="RMSE against Mitsuba's render with the object: not a measure of the method, so not ranked on (nor "
-        "shown by study run): that render carries light no method models (the point light's highlight on glossy "
-        "and mirror objects, the object's shadow and its own reflections) and both renders' noise, so the exact "
-        "traced row can score worse than a smooth stand-in; truth_at_hit's row gives the share of it no method "
-        "can remove (study/measure/lighting.py says so where it is large); rank on rmse_truth or "
-        "relmse_truth_exposed",
+        note="RMSE against Mitsuba's render with the object: not a measure of the method alone, so not shown "
+        "by study run. That render carries light no method models (the point light's highlight on glossy and "
+        "mirror objects, the object's shadow and own reflections) and both renders' noise, so the exact traced "
+        "row can score worse than a smooth stand-in; truth_at_hit's row gives the part no method can remove "
+        "(study/measure/lighting.py says so where it is large). Rank on rmse_truth or relmse_truth_exposed",
     ),
     C("psnr_mitsuba", "dB", HIGH),
     C("ssim_mitsuba", "", HIGH),
@@ -264,8 +263,8 @@ TABLE: list[TableColumn] = [
     C(
         "rmse_mitsuba_debiased",
         "linear RGB",
-        NONE,
-        note="rmse_mitsuba less Mitsuba's noise: not ranked on either",
+        LOW,
+        note="rmse_mitsuba less Mitsuba's noise (rmse_mitsuba's caveat holds)",
     ),
     C("mitsuba_noise_rmse", "linear RGB", note="Mitsuba's own noise σ over the same pixels"),
     C("mitsuba_noise_flag", note="1 where Mitsuba's noise σ exceeds a third of rmse_mitsuba_debiased"),

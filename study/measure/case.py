@@ -285,8 +285,7 @@ def run_case(
     mark("metrics")
     refs = _Refs(ref, mitsuba, oracle_img, oracle_seed, oracle_coarse, held_px, on_held, mask,
                  sigma=truth.noise_rms(ref.noise, mask), against=scene.render.flip_against)  # fmt: skip
-    base = _base_columns(scene, case_id, backend, rays, exact, o)
-    base.update(worth.columns(scene, mitsuba, mask, exact.escapes))  # worth looking at? (study.measure.worth)
+    base = _base_columns(scene, case_id, backend, rays, exact, o, mitsuba)
     out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=mitsuba, truth=ref.image, mask=mask, held=held_px,
                      occluded=rays.per_pixel(exact.occluded.astype(float), fill=0.0))  # fmt: skip
     by_trace = _method_columns(traces, refs, backend, intervals)  # every method's, one pass per reference
@@ -343,8 +342,11 @@ def _classify(B, backend: str, rays, shown: np.ndarray, exact: ExactHits) -> np.
     )
 
 
-def _base_columns(scene: Scene, case_id: str, backend: str, rays, exact: ExactHits, o: np.ndarray) -> dict:
-    """The case's own columns, the same in each of its rows."""
+def _base_columns(
+    scene: Scene, case_id: str, backend: str, rays, exact: ExactHits, o: np.ndarray, mitsuba
+) -> dict:
+    """The case's own columns, the same in each of its rows (with whether its picture is worth looking at,
+    :mod:`study.measure.worth`, from Mitsuba's picture ``mitsuba``)."""
     return {
         "case": case_id,
         "cube_res": scene.render.cube_res,
@@ -360,6 +362,7 @@ def _base_columns(scene: Scene, case_id: str, backend: str, rays, exact: ExactHi
         "occluded_fraction": float(exact.occluded.mean()) if len(exact.occluded) else np.nan,
         **rays.stats,
         **lighting.light_columns(scene),  # the file's own lights against study's (study.scene.lights)
+        **worth.worth_columns(scene, mitsuba, rays.full, exact.escapes),
     }
 
 

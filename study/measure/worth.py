@@ -12,8 +12,8 @@ that names the cause and the key to change.
                        (:func:`study.scene.placement.sees`): the impostor is captured from there
 =====================  =========================================================================================
 
-Each has a limit (:data:`LIMITS`); :func:`line` names the first that fails, with its number, its cause and the key
-to change, in one line, and ``study run`` prints it as a note (:func:`study.measure.lighting.notes`).
+Each has a limit (:data:`WORTH_LIMITS`); :func:`verdict` names the first that fails, with its number, its cause and
+the key to change, in one line, and ``study run`` prints it as a note (:func:`study.measure.lighting.notes`).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ BLACK = 0.002  # linear luminance after exposure under which a pixel shows black
 MAX_BOOST = 8.0  # EV: the most the exposure brightens a picture before it counts as unlit
 
 #: column → (limit, "above"/"below": where it fails, cause, the key to change)
-LIMITS = {
+WORTH_LIMITS = {
     "black_share": (
         0.5,
         "above",
@@ -62,7 +62,7 @@ LIMITS = {
 }
 
 
-def columns(scene, mitsuba: np.ndarray, mask: np.ndarray, escapes: np.ndarray) -> dict[str, float]:
+def worth_columns(scene, mitsuba: np.ndarray, mask: np.ndarray, escapes: np.ndarray) -> dict[str, float]:
     """The numbers of the module docstring for one case: Mitsuba's picture ``mitsuba`` (H, W, 3), the object's
     pixels ``mask`` (H, W) and its rays' ``escapes`` (K,)."""
     from study.scene.placement import sees
@@ -97,9 +97,9 @@ def _sky(scene) -> bool:
 
 
 def failures(values: dict) -> list[str]:
-    """'cause: change key' for each number of ``values`` past its limit, in the order of :data:`LIMITS`."""
+    """'cause: change key' for each number of ``values`` past its limit, in the order of :data:`WORTH_LIMITS`."""
     out = []
-    for k, (limit, side, cause, key) in LIMITS.items():
+    for k, (limit, side, cause, key) in WORTH_LIMITS.items():
         v = values.get(k, math.nan)
         if isinstance(v, int | float) and math.isfinite(v) and (v > limit if side == "above" else v < limit):
             out.append(
@@ -108,7 +108,7 @@ def failures(values: dict) -> list[str]:
     return out
 
 
-def line(values: dict) -> str:
+def verdict(values: dict) -> str:
     """One line saying the picture is not worth looking at, and why (every cause, the first first); '' where it
     is."""
     bad = failures(values)

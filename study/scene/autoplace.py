@@ -7,11 +7,14 @@ left out, and only those (:data:`KEYS`), suggested by ray casting with Embree (:
   every surface, as ever; in a room with an open side (the Cornell box's front, a missing ceiling) a point away
   from the opening. No grid point qualifies (a single object seen from outside, :func:`_beside`): a point beside
   the bounds, level with their middle, half their largest extent away, on the side that sees most of them;
+  where the object placed then hides from it behind a shape (:func:`_seeing`), a point around the object that
+  sees it whole;
 * ``object.radius``: a quarter of the reference point's clearance, at most 8 % of the bounds' diagonal;
   ``object.center``: a little below the reference point (on the camera's view axis, before the first surface
   it meets, where the scene has a camera: a Mitsuba sensor or a glTF camera), moved to the nearest free spot
   where the sphere touches nothing;
-* the camera: the scene's own where it has one (Mitsuba sensor, glTF camera); else, of the free eyes around the
+* the camera: the scene's own where it has one (Mitsuba sensor, glTF camera), with its eye, aim, up and field of
+  view (the object on its axis, sized by :func:`_on_axis` to fill some of the frame); else, of the free eyes around the
   object (64 directions × distances of 3, 4 and 5.5 object radii and 1.75 × the clearance) that see it unblocked,
   aimed at the object (and, for an object seen from outside, also halfway to the bounds' middle), the one of the
   highest :func:`score` (:data:`WEIGHTS`): the object's share of the frame (counted up to :data:`FILL`; below
@@ -23,8 +26,11 @@ left out, and only those (:data:`KEYS`), suggested by ray casting with Embree (:
   the clearance above the reference point when the centre is not free, or is the reference point or the
   object) whose intensity scales with the squared diagonal of the bounds: 6 W/sr × (diag / 6.4 m)². The
   irradiance I / r² at walls a fixed fraction of the diagonal away is then the same as in the default
-  4 m × 3 m × 4 m room (diagonal 6.4 m) with its 6 W/sr light.
+  4 m × 3 m × 4 m room (diagonal 6.4 m) with its 6 W/sr light. A flat scene (bounds thinner than :data:`FLAT`
+  of their diagonal) has its light off its plane, half the diagonal away on the reference point's side.
   Where the file's own lights are weak (:mod:`study.scene.lights`), ``light.enabled`` is on beside them.
+* :attr:`Suggestion.outside`: the object is seen from outside, placed by study; where the file and the user give
+  no sky, :mod:`study.scene.schema` gives it the ``"studio"`` sky (:mod:`study.scene.sky`) to reflect.
 """
 
 from __future__ import annotations
@@ -146,12 +152,15 @@ def _on_axis(env, sensor, radius: float, diag: float, sized: bool, start) -> tup
     tan = np.tan(np.radians(float(sensor.get("fov", 45.0))) / 2)
 
     def fits(i):  # the radius that fits there (a quarter of the frame's half-width, or more), and its share
-        t = float(np.linalg.norm(inside[i] - eye))
+        t = max(float(np.linalg.norm(inside[i] - eye)), 1e-12)
         r = min(max(radius, 0.25 * t * tan), gaps[i] / 1.5, t / 3)
         return r, min(r / (t * tan), 0.25)
 
     mid = (lo + hi) / 2
     if sized:  # the largest share of the frame (to within 10 %), then nearest the middle
+        ok = [i for i in ok if fits(i)[0] >= 0.1 * radius]  # not a dot at the eye itself
+        if not ok:
+            return start, radius
         top = max(fits(i)[1] for i in ok)
         ok = [i for i in ok if fits(i)[1] >= 0.9 * top]
     i = min(ok, key=lambda i: np.linalg.norm(inside[i] - mid))
@@ -370,10 +379,17 @@ def suggest(env, given: dict[str, Any] | None = None) -> Suggestion:
                 targets.append(centre + 0.5 * ((lo + hi) / 2 - centre))
             eye, target, why = _eye(env, centre, radius, best, gap, up / np.linalg.norm(up), fov, targets)
             out["camera.eye"] = eye.tolist()
-    if want("camera.target"):  # the file's camera aims where the file says
+    if want(
+        "camera.target"
+    ):  # the file's camera aims where the file says (at the object where it is off the axis)
         aim = env.sensor["target"] if env.sensor is not None and want("camera.eye") else None
+        if aim is not None and want("object.center"):
+            axis = np.subtract(aim, env.sensor["eye"])
+            to = centre - np.asarray(env.sensor["eye"], float)
+            if np.linalg.norm(np.cross(axis, to)) > 1e-6 * np.linalg.norm(axis) * np.linalg.norm(to):
+                aim = None  # no free spot on the axis: aimed at the object, as before
         out["camera.target"] = (
-            list(aim) if aim is not None else (target if want("camera.eye") else centre).tolist()
+            list(aim) if aim is not None else (target if target is not None else centre).tolist()
         )
     if want("camera.fov") and env.sensor is not None and want("camera.eye"):  # the file's view, whole
         out["camera.fov"] = env.sensor["fov"]

@@ -75,7 +75,7 @@ def mesh_keys(env: dict, s: float, c) -> dict:
     return {**env, "scale": float(env.get("scale", 1.0)) * s, "translate": (s * (t - c)).tolist()}
 
 
-def line(lo, hi, s: float, c) -> str:
+def units_note(lo, hi, s: float, c) -> str:
     """The run's note: how the environment was moved ('' where it was not)."""
     if identity(s, c):
         return ""
@@ -95,7 +95,7 @@ def line(lo, hi, s: float, c) -> str:
 
 #: A Mitsuba scene (not moved) is measured where its diagonal lies in this range and its centre within
 #: :data:`MITSUBA_FAR` diagonals of the origin; else refused (:func:`refusal`).
-MITSUBA_RANGE, MITSUBA_FAR = (0.1, 1000.0), 100.0
+MITSUBA_RANGE, MITSUBA_FAR = (0.1, 10000.0), 100.0
 
 
 def refusal(lo, hi) -> str:

@@ -238,7 +238,7 @@ class Scene(_Strict):
                 except (TypeError, ValueError):
                     pass  # not a number: the key's own validation says so
         if ctx is not None:
-            ctx["frame"] = frame.line(*bounds, s, c)
+            ctx["frame"] = frame.units_note(*bounds, s, c)
         return out
 
     @model_validator(mode="after")

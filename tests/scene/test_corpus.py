@@ -204,5 +204,5 @@ def test_study_run_on_every_corpus_file(entry, tmp_path):
         pd.read_csv(out / "table.csv").iloc[0].to_dict()
     )  # the case's worth columns (study/measure/worth.py)
     said = [ln for ln in res.stderr.splitlines() if "not worth looking at" in ln]
-    line = worth.line(row)
+    line = worth.verdict(row)
     assert len(said) == (1 if line else 0) and (not line or line in said[0]), (said, line)

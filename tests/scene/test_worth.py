@@ -30,14 +30,14 @@ GOOD = {
     ],
 )
 def test_each_complaint_is_one_line_with_its_cause_and_key(key, value, cause, change):
-    assert worth.line(GOOD) == ""
-    line = worth.line({**GOOD, key: value})
+    assert worth.verdict(GOOD) == ""
+    line = worth.verdict({**GOOD, key: value})
     assert line.startswith("the picture is not worth looking at: ") and "\n" not in line
     assert cause in line and f"change {change}" in line, line
 
 
 def test_the_worth_columns_are_declared_and_a_black_picture_counts_black():
-    for k in worth.LIMITS:
+    for k in worth.WORTH_LIMITS:
         assert columns.declared(k) is not None, k
     black = np.zeros((8, 8, 3))
     lit = np.full((8, 8, 3), 0.2)
@@ -52,7 +52,7 @@ def test_rmse_against_mitsuba_is_not_ranked_and_says_why_where_the_truth_is_far_
     light no method models (the Cornell sphere: ≈ 0.47 for every row, the truth included) — said in one line; the
     column is not ranked on (no direction) nor shown by study run."""
     col = columns.declared("rmse_mitsuba")
-    assert col.lower_is_better is None and "run" not in col.views
+    assert "not a measure of the method" in col.note and "run" not in col.views
     assert "rmse_mitsuba" not in columns.ORDER["run"]
     rows = [
         {"label": "oracle_map", "rmse_mitsuba_debiased": 0.3, "rmse_mitsuba": 0.45},
