@@ -89,13 +89,10 @@ def interval_words(r: dict) -> str:
 
 def ranking(tab: list[dict], col: str) -> list[dict]:
     """Methods by their median over the cases of ``col`` (lowest first; ties to the lower worst case, then to the
-    cheaper), each with
-    ``median``, ``lo``/``hi`` and ``kind`` (:func:`study.measure.stats.case_interval`), ``max`` and ``worst``
-    (the case of the max), ``n`` (cases: distinct geometries, :func:`study.report.geometry.pooled`) and ``cost``
-    (median lookups per ray). A backend-sensitive column (:data:`study.columns.BACKEND_SENSITIVE`: its value hangs
-    on the backend's float32 arithmetic) ranks nothing: empty."""
-    col_decl = columns.declared(col)
-    if col_decl is not None and col_decl.backend_sensitive:
+    cheaper), each with ``median``, ``lo``/``hi``, ``kind`` (:func:`study.measure.stats.case_interval`), ``max``,
+    ``worst`` (its case), ``n`` (distinct geometries, :func:`study.report.geometry.pooled`) and ``cost`` (median
+    lookups per ray). A backend-sensitive column (its value hangs on float32 arithmetic) ranks nothing: empty."""
+    if getattr(columns.declared(col), "backend_sensitive", False):
         return []
     tab = geometry.pooled(tab)
     cases = list(dict.fromkeys(r["case"] for r in tab))
