@@ -382,7 +382,7 @@ MAX_FUNCTION_LINES = 80
 #: The functions longer than :data:`MAX_FUNCTION_LINES` (module::function → its length today, which it may not
 #: exceed): pipelines read top to bottom, one stage after another, that nobody has split yet.
 LONG_FUNCTIONS = {
-    "study/bench/run.py::run_bench": 145,  # + the exact query priced after the methods (CUDA: no Mitsuba call between frozen recordings)
+    "study/bench/run.py::run_bench": 145,  # + the exact query priced after every method (CUDA)
     "study/caustics/figure.py::_fig8_files": 105,
     "study/harness/runner.py::run_cases": 92,
     "study/measure/case.py::run_case": 92,  # the pipeline, a banner per stage (as prb_basic.sample)

@@ -7,8 +7,7 @@ truth_at_hit and Mitsuba (:mod:`study.measure.truth`), and the error split over 
 (:mod:`study.measure.split`, which also defines the oracle).
 
 The references are traces too (:class:`Traced`): ``oracle_map`` and ``truth_at_hit`` show the exact hit, with the
-impostor's radiance and with the truth's, and their rows come from the same producer as every method's
-(:func:`_row`), so no row is written by hand.
+impostor's radiance and with the truth's; their rows come from the same producer as every method's (:func:`_row`).
 """
 
 from __future__ import annotations
@@ -345,8 +344,7 @@ def _classify(B, backend: str, rays, shown: np.ndarray, exact: ExactHits) -> np.
 def _base_columns(
     scene: Scene, case_id: str, backend: str, rays, exact: ExactHits, o: np.ndarray, mitsuba
 ) -> dict:
-    """The case's own columns, the same in each of its rows (with whether its picture is worth looking at,
-    :mod:`study.measure.worth`, from Mitsuba's picture ``mitsuba``)."""
+    """The case's own columns, the same in each of its rows (whether it is worth looking at: study.measure.worth)."""
     return {
         "case": case_id,
         "cube_res": scene.render.cube_res,
@@ -367,9 +365,8 @@ def _base_columns(
 
 
 def _method_columns(traces: list[Traced], r: _Refs, backend: str, intervals: bool) -> dict:
-    """id(trace) → (image columns, FLIP map against the truth or None) of every method's trace, measured together
-    (:func:`study.measure.batched.method_columns`: the images stacked, one pass per reference); the references'
-    own rows take the per-trace path (:func:`_image_columns`: their pixels differ, the oracle's are the held ones)."""
+    """id(trace) → (image columns, FLIP map or None) of every method's trace, measured together, one pass per
+    reference (:func:`study.measure.batched.method_columns`); the references' rows take :func:`_image_columns`."""
     ran = [t for t in traces if not t.reference]
     if not ran:
         return {}
