@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from study.measure import exposure, metrics, split, stats, truth
+from study.measure import bias, exposure, metrics, split, stats, truth
 from study.measure.metrics import _crop, to_ldr
 from study.measure.pixels import K1, K2, WIN  # scikit-image's SSIM: window size, K₁, K₂
 
@@ -240,5 +240,6 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
     for i in range(M):
         px = stats.pixel_columns(imgs[i], r.truth.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS,
                                  emap=fmaps[i])  # fmt: skip
-        out.append({**oracle[i], **tr[i], **mi[i], **tc[i], **px, **sp[i]})
+        bias_cols = bias.bias_columns(imgs[i], r.truth.image, mask=mask & r.held_px)  # signed (measure.bias)
+        out.append({**oracle[i], **tr[i], **mi[i], **tc[i], **px, **sp[i], **bias_cols})
     return out, fmaps
