@@ -179,7 +179,10 @@ def notes(rows: list[dict], scene) -> list[str]:
     """The run's lines about its light and samples (module docstring), in that order; empty where all is well."""
     spp = getattr(getattr(scene, "render", None), "spp", 0)  # 0: not known (a figure's case without a scene)
     units = scene.units_line() if hasattr(scene, "units_line") else ""  # moved to be measured (scene.frame)
-    worth_line = worth.verdict(rows[0]) if rows else ""  # what a reader would complain about (measure.worth)
-    said = (units, worth_line, black_note(rows, scene), light_note(rows, scene), firefly_note(rows, spp),
+    black = black_note(
+        rows, scene
+    )  # a black reference says why in its own line (the worth line says no more)
+    worth_line = worth.verdict(rows[0]) if rows and not black else ""  # what a reader would complain about
+    said = (units, worth_line, black, light_note(rows, scene), firefly_note(rows, spp),
             noise_note(rows, spp), unmodelled_note(rows))  # fmt: skip
     return [s for s in said if s]
