@@ -147,8 +147,8 @@ def register_markdown(tables: dict[str, list[dict]], motion: list[str] | None = 
 def bench_sentence(csv: Path) -> str:
     """localized(10)'s and the cheapest exact query's ms per 1024² frame on the close-up batch of a bench table
     (``reports/performance/bench-gpu.csv``), beside the paper's 50 FPS (20 ms for a whole frame); '' without it."""
-    from study.report.check import read_table
     from study.report.bench_times import _time
+    from study.report.check import read_table
 
     if not csv.is_file():
         return ""
