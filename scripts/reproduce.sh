@@ -51,7 +51,7 @@ commands=(
 t0=$(date +%s)
 P=${STUDY_PYTHON:-.venv/bin/python}
 # a GPU when one is there: --backend cuda where Dr.Jit's CUDA backend runs ($REPRODUCE_BACKEND set, even empty, decides)
-if [ -z "${REPRODUCE_BACKEND+set}" ] && PYTHONPATH=. $P -c 'from study.harness import budget; budget.check_backend("cuda")' >/dev/null 2>&1; then
+if [ -z "${REPRODUCE_BACKEND+set}" ] && PYTHONPATH=.${PYTHONPATH:+:$PYTHONPATH} $P -c 'from study.harness import budget; budget.check_backend("cuda")' >/dev/null 2>&1; then
   REPRODUCE_BACKEND=cuda
   echo "reproduce: a GPU is here: every command with --backend cuda (REPRODUCE_BACKEND= keeps the CPU)"
 fi
@@ -59,14 +59,14 @@ fi
 B=${REPRODUCE_BACKEND:+ --backend $REPRODUCE_BACKEND}
 # the time it will take, before it starts (study/harness/estimate.py: cases × the stage costs measured here)
 mapfile -t todo < <(printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$")
-PYTHONPATH=. $P -m study.harness.estimate --jobs "$J" "${todo[@]}" | sed 's/^/reproduce: /' || true
+PYTHONPATH=.${PYTHONPATH:+:$PYTHONPATH} $P -m study.harness.estimate --jobs "$J" "${todo[@]}" | sed 's/^/reproduce: /' || true
 printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$" | sed -E "\\%^(${REPRODUCE_CPU:-\$^})\$%! s/\$/$B/" \
   | xargs -P "$J" -I CMD bash -c 'set -o pipefail; '"$S"' CMD 2>&1 | sed -u "s|^|[CMD] |"'
 [ -n "${REPRODUCE_SKIP_CALIBRATION:-}" ] \
-  || PYTHONPATH=. $P scripts/calibration.py   # the intervals' coverage → reports/calibration.md
+  || PYTHONPATH=.${PYTHONPATH:+:$PYTHONPATH} $P scripts/calibration.py   # the intervals' coverage → reports/calibration.md
 $S pareto   # error vs measured ms per 1080p frame (the committed benches), fronts, budgets → reports/pareto/
 $S report
-PYTHONPATH=. $P scripts/headline.py --readme README.md   # README's "How sure" from the tables
+PYTHONPATH=.${PYTHONPATH:+:$PYTHONPATH} $P scripts/headline.py --readme README.md   # README's "How sure" from the tables
 if [ -n "$VERIFY" ]; then   # the fresh tables against the committed ones: one table a screen high
   $S verify reports --against "$COMMITTED" --out "reports/verify/${REPRODUCE_BACKEND:-numpy}-vs-committed.md" \
     || { echo "reproduce: some values disagree with the committed tables (reports/verify/)"; exit 1; }

@@ -38,11 +38,39 @@ def _git(*args: str, repo: Path = REPO, data: bytes | None = None) -> bytes | No
     return r.stdout
 
 
+def tree_sha256(repo: Path = REPO) -> str:
+    """SHA-256 (16 hex digits) of the files under :data:`CODE_PATHS` as they lie on disk (relative paths and
+    contents, sorted; compiled files left out): what a stamp was written for."""
+    h = hashlib.sha256()
+    for top in CODE_PATHS:
+        root = repo / top
+        files = [root] if root.is_file() else sorted(root.rglob("*")) if root.is_dir() else []
+        for f in files:
+            if f.is_file() and "__pycache__" not in f.parts and f.suffix != ".pyc":
+                h.update(str(f.relative_to(repo)).encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def _stamp(repo: Path) -> dict | None:
+    try:
+        stamp = json.loads((repo / STAMP).read_text())
+        return {"commit": str(stamp["commit"]), "dirty": bool(stamp["dirty"]),
+                "diff_sha256": stamp.get("diff_sha256"), "tree": stamp.get("tree_sha256")}  # fmt: skip
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
 def git_state(repo: Path = REPO) -> dict:
     """``{"commit", "dirty", "diff_sha256", "from"}``: the commit checked out, whether the code paths
     (:data:`CODE_PATHS`) differ from it (tracked changes or untracked files), the SHA-256 (16 hex digits) of
     ``git diff HEAD`` over those paths (None when clean), and where this came from (``git``, ``stamp`` or
-    ``none``). Without a repository the stamp file is read (:data:`STAMP`)."""
+    ``none``). A stamp (:data:`STAMP`) written for exactly these files (its ``tree_sha256``, :func:`tree_sha256`)
+    is read first: a copy that travels may hold a ``.git`` of another commit (the lent GPU machine's does), and a
+    stale stamp of other files is never taken. Without a matching stamp, ``git``; without a repository, a stamp
+    of other files gives its commit, dirty."""
+    stamp = _stamp(repo)
+    if stamp is not None and stamp.pop("tree") == tree_sha256(repo):
+        return {**stamp, "from": "stamp"}
     head = _git("rev-parse", "HEAD", repo=repo)
     if head is not None:
         diff = _git("diff", "HEAD", "--binary", "--", *CODE_PATHS, repo=repo) or b""
@@ -54,21 +82,20 @@ def git_state(repo: Path = REPO) -> dict:
             "diff_sha256": hashlib.sha256(diff + others).hexdigest()[:16] if dirty else None,
             "from": "git",
         }
-    try:
-        stamp = json.loads((repo / STAMP).read_text())
-        return {"commit": str(stamp["commit"]), "dirty": bool(stamp["dirty"]),
-                "diff_sha256": stamp.get("diff_sha256"), "from": "stamp"}  # fmt: skip
-    except (OSError, ValueError, KeyError, TypeError):
-        return {"commit": "unknown", "dirty": None, "diff_sha256": None, "from": "none"}
+    if stamp is not None:  # a stamp of other files than these: its commit, and the tree differs from it
+        return {**stamp, "dirty": True, "from": "stamp"}
+    return {"commit": "unknown", "dirty": None, "diff_sha256": None, "from": "none"}
 
 
 def write_stamp(repo: Path = REPO) -> dict:
     """Write :data:`STAMP` from ``git`` (what :func:`git_state` gives here), for a copy that travels without
     ``.git``; returns it. Raises RuntimeError where there is no repository to read."""
+    if (repo / STAMP).exists():
+        (repo / STAMP).unlink()  # not read back by git_state below
     state = git_state(repo)
     if state["from"] != "git":
         raise RuntimeError(f"no git repository at {repo}: nothing to stamp")
-    stamp = {k: state[k] for k in ("commit", "dirty", "diff_sha256")}
+    stamp = {**{k: state[k] for k in ("commit", "dirty", "diff_sha256")}, "tree_sha256": tree_sha256(repo)}
     (repo / STAMP).write_text(json.dumps(stamp, indent=1) + "\n")
     return stamp
 

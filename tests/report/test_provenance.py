@@ -77,8 +77,16 @@ def test_git_state_dirty_and_the_stamp_of_a_copy_without_git(tmp_path):
     state = provenance.git_state(repo)
     assert state["dirty"] is True and state["diff_sha256"] == hashlib.sha256(diff).hexdigest()[:16]
     stamp = provenance.write_stamp(repo)
-    shutil.rmtree(repo / ".git")  # the copy that travels to the GPU machine
-    assert provenance.git_state(repo) == {**stamp, "from": "stamp"}
+    want = {k: stamp[k] for k in ("commit", "dirty", "diff_sha256")}
+    assert provenance.git_state(repo) == {**want, "from": "stamp"}  # the stamp is of exactly these files
+    # the copy that travels to the GPU machine holds a .git of another commit (the session's first): the stamp wins
+    _git(repo, "-c", "user.email=a@b", "-c", "user.name=a", "commit", "-qam", "another")
+    assert provenance.git_state(repo) == {**want, "from": "stamp"}
+    shutil.rmtree(repo / ".git")  # or none at all
+    assert provenance.git_state(repo) == {**want, "from": "stamp"}
+    with open(repo / "study/errors.py", "a") as f:  # a stale stamp: its commit, dirty
+        f.write("\n# another change\n")
+    assert provenance.git_state(repo) == {**want, "dirty": True, "from": "stamp"}
     (repo / provenance.STAMP).unlink()
     assert provenance.git_state(repo) == {
         "commit": "unknown",
@@ -103,7 +111,8 @@ def test_the_stamp_script_writes_what_study_reads(tmp_path):
     r = subprocess.run(["bash", "scripts/device_run.sh", "stamp"], cwd=repo, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     got = json.loads((repo / ".study-stamp.json").read_text())
-    assert got == {"commit": _git(repo, "rev-parse", "HEAD"), "dirty": False, "diff_sha256": None}
+    assert got == {"commit": _git(repo, "rev-parse", "HEAD"), "dirty": False, "diff_sha256": None,
+                   "tree_sha256": provenance.tree_sha256(repo)}  # fmt: skip
 
 
 def test_metadata_is_written_by_code(tmp_path, monkeypatch):
