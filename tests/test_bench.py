@@ -98,13 +98,21 @@ def test_bench_cli_tiny_writes_tables(tmp_path):
         else:
             traced = r["label"] == "traced"  # the exact query: no floor (a traversal, not fetches)
             assert 0 < r["kernel_ms_per_frame"] and traced != math.isfinite(r["kernel_x_floor"]), r["label"]
-    for r in (r for r in timed if r["label"] == "traced"):  # not timed twice: the exact query's own numbers
-        path, label = (
-            ("embree", "exact: Embree") if r["backend"] == "numpy" else
-            ("ray_intersect_preliminary", "exact: Mitsuba llvm_ad_rgb")
+    for r in (r for r in timed if r["label"] == "traced"):  # not timed twice: the exact rows' own numbers
+
+        def ms(label, path, b=r["batch"]):
+            return next(e for e in rows if e["batch"] == b and e["label"] == label and e["path"] == path)[
+                "ms_per_frame"
+            ]
+
+        mi = "exact: Mitsuba llvm_ad_rgb"
+        bare, full = (
+            (ms("exact: Embree", "embree"),) * 2 if r["backend"] == "numpy" else
+            (ms(mi, "ray_intersect_preliminary"), ms(mi, "ray_intersect"))
         )  # fmt: skip
-        q = next(e for e in rows if e["batch"] == r["batch"] and e["label"] == label and e["path"] == path)
-        assert r["path"] == path and r["ms_per_call"] == q["ms_per_call"] and r["rays"] == q["rays"]
+        shading = ms(mi, "shade_material") + ms(mi, "shadow_ray")  # a renderer's shading at the hit (LLVM's)
+        assert r["path"] == "shaded" and math.isclose(r["query_ms_per_frame"], bare, rel_tol=1e-6)
+        assert math.isclose(r["ms_per_frame"], full + shading, rel_tol=1e-6)
     for r in timed:  # what a ray reads (study.bench.carry): within the method's bound, bytes from lookups
         assert 0 <= r["lookups_mean"] <= r["lookups_bound"] * (1 + 1e-6)
         assert r["bytes_per_ray"] == pytest.approx((r["lookups_mean"] + 1) * 16 + 64 + 53)
@@ -118,7 +126,13 @@ def test_bench_cli_tiny_writes_tables(tmp_path):
             if e["batch"] == r["batch"] and e["label"] == "exact: Mitsuba llvm_ad_rgb"
         }
         if mit:  # Mitsuba's LLVM variant present: every query, ratios right
-            assert set(mit) == {"ray_intersect", "ray_intersect_preliminary", "ray_test"}
+            assert set(mit) == {
+                "ray_intersect",
+                "ray_intersect_preliminary",
+                "ray_test",
+                "shade_material",
+                "shadow_ray",
+            }
             for q, col in [
                 ("ray_intersect", "x_vs_mitsuba"),
                 ("ray_intersect_preliminary", "x_vs_preliminary"),
