@@ -249,12 +249,12 @@ def find_tables(reports: Path) -> dict[str, Path]:
 
 def _launch_line(d: DeviceTimes) -> str:
     """One line of the page: what the host's launch share (wall − kernel) adds per frame on device ``d``."""
-    share = sorted(d.wall[k] - d.ms[k] for k in d.ms if k in d.wall and k not in d.on_wall)
+    share = sorted(max(d.wall[k] - d.ms[k], 0.0) for k in d.ms if k in d.wall and k not in d.on_wall)
     if d.clock != "kernel" or not share:
         return ""
     med = share[len(share) // 2]
     wall = f"; on the wall clock ({', '.join(f'`{k}`' for k in d.on_wall)})" if d.on_wall else ""
-    return (f"  Launch share left out (wall − kernel per call, scaled to the frame): median {_fmt(med)} ms, "
+    return (f"  Launch share left out (wall − kernel per call where the wall is longer, scaled to the frame): median {_fmt(med)} ms, "
             f"{_fmt(share[0])}–{_fmt(share[-1])} ms over the rows{wall}.")  # fmt: skip
 
 
