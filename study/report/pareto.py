@@ -253,9 +253,10 @@ def _launch_line(d: DeviceTimes) -> str:
     if d.clock != "kernel" or not share:
         return ""
     med = share[len(share) // 2]
-    wall = f"; on the wall clock ({', '.join(f'`{k}`' for k in d.on_wall)})" if d.on_wall else ""
-    return (f"  Launch share left out (wall − kernel per call where the wall is longer, scaled to the frame): median {_fmt(med)} ms, "
-            f"{_fmt(share[0])}–{_fmt(share[-1])} ms over the rows{wall}.")  # fmt: skip
+    names = ", ".join(f"`{k}`" for k in d.on_wall)
+    wall = f"; on the wall clock ({names})" if d.on_wall else ""
+    return (f"  Launch share left out (wall − kernel per call where the wall is longer, scaled to the frame): "
+            f"median {_fmt(med)} ms, {_fmt(share[0])}–{_fmt(share[-1])} ms over the rows{wall}.")  # fmt: skip
 
 
 def write_pareto(reports: Path, out: Path, benches: list[Path], *, metric: str = "wrong_fraction",
