@@ -124,6 +124,22 @@ def _allowed(lo: float, hi: float) -> str:
     return f"a number in [{end(lo)}, {end(hi)}]"
 
 
+def unique_cases(rows: list[dict], path: str | Path, *, kind: str = "results table") -> None:
+    """Each (case, label) of ``rows`` once (rows without both are not counted), else one StudyError naming the
+    file and the two lines (a line is the row's index + 2: the header is line 1)."""
+    first: dict[tuple, int] = {}
+    for i, r in enumerate(rows):
+        if "case" in r and "label" in r:
+            k = (r["case"], r["label"])
+            if k in first:
+                raise StudyError(
+                    f"malformed {kind}: line {i + 2} repeats case {str(k[0])[:40]!r}, label {str(k[1])[:40]!r} "
+                    f"of line {first[k]}; each (case, label) once",
+                    file=str(path),
+                )
+            first[k] = i + 2
+
+
 def check_rows(rows: list[dict], path: str | Path, *, kind: str = "results table") -> list[dict]:
     """``rows`` of the results table at ``path`` (as :func:`read_csv` reads it) checked against the declared
     columns (:func:`study.columns.domain`): every number of a declared column within its domain (fractions in
@@ -146,18 +162,9 @@ def check_rows(rows: list[dict], path: str | Path, *, kind: str = "results table
         ``rows``, unchanged.
     """
     doms: dict[str, tuple[float, float] | None] = {}
-    first: dict[tuple, int] = {}
+    unique_cases(rows, path, kind=kind)
     for i, r in enumerate(rows):
         line = i + 2
-        if "case" in r and "label" in r:
-            k = (r["case"], r["label"])
-            if k in first:
-                raise StudyError(
-                    f"malformed {kind}: line {line} repeats case {str(k[0])[:40]!r}, label {str(k[1])[:40]!r} "
-                    f"of line {first[k]}; each (case, label) once",
-                    file=str(path),
-                )
-            first[k] = line
         for c, v in r.items():
             if not isinstance(v, float) or math.isnan(v):
                 continue

@@ -23,7 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from study import columns
 from study.errors import StudyError, os_problem
 from study.scene.schema import MAX_SEED, Float
-from study.tables import read_csv
+from study.tables import read_csv, unique_cases
 
 #: The baseline's table of seed-to-seed spread (beside its results.csv).
 SPREAD = "spread.csv"
@@ -296,16 +296,8 @@ def check_baseline(
         The check file's ``k``.
     """
     tolerance = tolerance or {}
-    first = {}
-    for i, r in enumerate(rows):
-        key = (r["case"], r["label"])
-        if key in first:
-            raise StudyError(
-                f"malformed baseline: line {i + 2} repeats case {key[0]!r}, label {key[1]!r} of line "
-                f"{first[key]}; each (case, label) once",
-                file=str(path),
-            )
-        first[key] = i + 2
+    unique_cases(rows, path, kind="baseline")
+    for i in range(len(rows)):
         _check_row(rows, i, metrics, path)
     for m in metrics:
         _check_metric(rows, m, tolerance.get(m), k, path)
