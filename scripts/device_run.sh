@@ -174,26 +174,32 @@ print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' 
 s.print_callees('run_case')" "$OUT/fp.prof" > "$OUT/profile-fig4prof.txt" 2>&1; rm -f "$OUT/fp.prof"
     timed fig4prof-paper-kernels-warm $S figure fig4 --quality paper --backend cuda --cache "$W/fp2" \
       --out "$W/fp/fig4-warm" > /dev/null 2>&1 ;;
-  side)    # issue-41 targets, the commit before ($OLD, default .devold: `git archive <rev> study configs scenes
-           # pyproject.toml | tar x -C .devold`) and this one side by side on one host, each cold (fresh study and
-           # kernel caches): fig4 at paper quality cold and with the kernels warm, then the 256² fig4 + fig5 + fig6 +
-           # main sweep; this commit's fig4 at paper quality under cProfile → profile-side-new.txt
+  side)    # issue-52 targets, the commit before ($OLD, default .devold: `git archive <rev> study configs scenes
+           # pyproject.toml | tar x -C .devold`, plus configs/bench/) and this one side by side on one host, each cold
+           # (fresh study and kernel caches): the same-work config (configs/bench/fig4_samework.toml) at paper quality
+           # cold and with the kernels warm, fig4 at paper quality cold (this commit's under cProfile →
+           # profile-side-new.txt, its time split → split-side-*.txt), then the 256² fig4 + fig5 + fig6 + main sweep.
+           # $SIDE (default "old new"): which of the two, so that a 10-minute call limit can split them.
     OLD=${OLD:-.devold}
-    for which in old new; do
+    for which in ${SIDE:-old new}; do
       src=$PWD; [ "$which" = old ] && src=$(cd "$OLD" && pwd)
       export HOME=$W/home-$which; mkdir -p "$HOME"
       ( cd "$src" && export PYTHONPATH=/tmp/site:$src
+        timed "$which-samework-paper-cold" $S figure --config configs/bench/fig4_samework.toml --quality paper \
+          --backend cuda --cache "$W/$which-s1" --out "$W/$which/samework" > "$OUT/log-side-$which-samework.txt" 2>&1
+        timed "$which-samework-paper-kernels-warm" $S figure --config configs/bench/fig4_samework.toml \
+          --quality paper --backend cuda --cache "$W/$which-s2" --out "$W/$which/samework-warm" > /dev/null 2>&1
+        export HOME=$W/home-$which-f4; mkdir -p "$HOME"
         if [ "$which" = new ]; then
           timed "$which-fig4-paper-cold" python3 -m cProfile -o "$OUT/side-new.prof" -m study.cli figure fig4 \
-            --quality paper --backend cuda --cache "$W/$which-p1" --out "$W/$which/paper-fig4" > /dev/null 2>&1
-          python3 -c "import pstats,sys; pstats.Stats(sys.argv[1]).sort_stats('cumulative').print_stats(70)" \
-            "$OUT/side-new.prof" > "$OUT/profile-side-new.txt" 2>&1; rm -f "$OUT/side-new.prof"
+            --quality paper --backend cuda --cache "$W/$which-p1" --out "$W/$which/paper-fig4" \
+            > "$OUT/split-side-$which.txt" 2>&1
+          python3 -c "import pstats,sys; s = pstats.Stats(sys.argv[1]); s.sort_stats('cumulative').print_stats(70)
+s.print_callees('run_case')" "$OUT/side-new.prof" > "$OUT/profile-side-new.txt" 2>&1; rm -f "$OUT/side-new.prof"
         else
           timed "$which-fig4-paper-cold" $S figure fig4 --quality paper --backend cuda --cache "$W/$which-p1" \
-            --out "$W/$which/paper-fig4" > /dev/null 2>&1
+            --out "$W/$which/paper-fig4" > "$OUT/split-side-$which.txt" 2>&1
         fi
-        timed "$which-fig4-paper-kernels-warm" $S figure fig4 --quality paper --backend cuda --cache "$W/$which-p2" \
-          --out "$W/$which/paper-fig4-warm" > /dev/null 2>&1
         export HOME=$W/home-$which-256; mkdir -p "$HOME"
         for f in fig4 fig5 fig6; do
           timed "$which-$f-256" $S figure $f --backend cuda --cache "$W/$which-c256" --out "$W/$which/$f" > /dev/null 2>&1
@@ -201,7 +207,8 @@ s.print_callees('run_case')" "$OUT/fp.prof" > "$OUT/profile-fig4prof.txt" 2>&1; 
         timed "$which-sweep-256" timeout 300 $S sweep configs/sweep.toml --backend cuda --cache "$W/$which-c256" \
           --out "$W/$which/sweep" --jobs 8 --no-plots > /dev/null 2>&1 )
     done
-    tar czf "$OUT/results-side.tgz" -C "$W" --exclude=exr --exclude=viewer --exclude="*.png" --exclude=cases old new ;;
+    tar czf "$OUT/results-side.tgz" -C "$W" --exclude=exr --exclude=viewer --exclude="*.png" --exclude=cases \
+      $(cd "$W" && ls -d old new 2>/dev/null) ;;
   reproduce)  # scripts/reproduce.sh's commands on this host's CPU cores (numpy methods, Mitsuba on LLVM: the
               # committed tables' backends), $REPRODUCE_JOBS at a time; the reports back as reports-part-*.tar.xz
     export HOME=$W/home-repro; mkdir -p "$HOME"
