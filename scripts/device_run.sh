@@ -179,18 +179,20 @@ s.print_callees('run_case')" "$OUT/fp.prof" > "$OUT/profile-fig4prof.txt" 2>&1; 
            # (fresh study and kernel caches): the same-work config (configs/bench/fig4_samework.toml) at paper quality
            # cold and with the kernels warm, fig4 at paper quality cold (this commit's under cProfile →
            # profile-side-new.txt, its time split → split-side-*.txt), then the 256² fig4 + fig5 + fig6 + main sweep.
-           # $SIDE (default "old new"): which of the two, so that a 10-minute call limit can split them.
+           # $SIDE (default "old new"): which of the two; SIDE_PAPER=0 / SIDE_256=0 skip the paper-quality or the 256²
+           # part (so that the 10-minute call limit can split them).
     OLD=${OLD:-.devold}
     for which in ${SIDE:-old new}; do
       src=$PWD; [ "$which" = old ] && src=$(cd "$OLD" && pwd)
       export HOME=$W/home-$which; mkdir -p "$HOME"
       ( cd "$src" && export PYTHONPATH=/tmp/site:$src
+        if [ "${SIDE_PAPER:-1}" = 1 ]; then
         timed "$which-samework-paper-cold" $S figure --config configs/bench/fig4_samework.toml --quality paper \
           --backend cuda --cache "$W/$which-s1" --out "$W/$which/samework" > "$OUT/log-side-$which-samework.txt" 2>&1
         timed "$which-samework-paper-kernels-warm" $S figure --config configs/bench/fig4_samework.toml \
           --quality paper --backend cuda --cache "$W/$which-s2" --out "$W/$which/samework-warm" > /dev/null 2>&1
         export HOME=$W/home-$which-f4; mkdir -p "$HOME"
-        if [ "$which" = new ]; then
+        if [ "$which" = new ] && [ "${SIDE_PROFILE:-1}" = 1 ]; then   # SIDE_PROFILE=0: no cProfile
           timed "$which-fig4-paper-cold" python3 -m cProfile -o "$OUT/side-new.prof" -m study.cli figure fig4 \
             --quality paper --backend cuda --cache "$W/$which-p1" --out "$W/$which/paper-fig4" \
             > "$OUT/split-side-$which.txt" 2>&1
@@ -200,12 +202,15 @@ s.print_callees('run_case')" "$OUT/side-new.prof" > "$OUT/profile-side-new.txt" 
           timed "$which-fig4-paper-cold" $S figure fig4 --quality paper --backend cuda --cache "$W/$which-p1" \
             --out "$W/$which/paper-fig4" > "$OUT/split-side-$which.txt" 2>&1
         fi
+        fi
+        if [ "${SIDE_256:-1}" = 1 ]; then
         export HOME=$W/home-$which-256; mkdir -p "$HOME"
         for f in fig4 fig5 fig6; do
           timed "$which-$f-256" $S figure $f --backend cuda --cache "$W/$which-c256" --out "$W/$which/$f" > /dev/null 2>&1
         done
         timed "$which-sweep-256" timeout 300 $S sweep configs/sweep.toml --backend cuda --cache "$W/$which-c256" \
-          --out "$W/$which/sweep" --jobs 8 --no-plots > /dev/null 2>&1 )
+          --out "$W/$which/sweep" --jobs 8 --no-plots > /dev/null 2>&1
+        fi )
     done
     tar czf "$OUT/results-side.tgz" -C "$W" --exclude=exr --exclude=viewer --exclude="*.png" --exclude=cases \
       $(cd "$W" && ls -d old new 2>/dev/null) ;;
