@@ -65,6 +65,7 @@ from study.report.baseline import (  # re-exported: the check's API keeps its na
     spread_of,
     spread_table,
 )
+from study.report.verdicts import verdict_mark
 from study.scene.schema import MAX_SEED, Float
 from study.tables import read_csv, to_csv, without_timing, write_csv
 from study.validation import validate_file
@@ -77,6 +78,7 @@ __all__ = [
     "Failure",
     "Tolerance",
     "backend_floor",
+    "check_claims",
     "check_baseline",
     "compare",
     "load_check",
@@ -294,14 +296,23 @@ def run_check(
             f"({why}: within {cfg.k:g} sd over {int(base[0].get('seeds', 0))} seeds + floor"
             + ("; backend-sensitive columns at least their stated floor)" if other else ")")
         )
-    verdicts = {c.id: (c, v) for c, v in claim_registry.judge_claims(parsed)}
-    for cid in cfg.claims:
+    claim_fails, claim_lines = check_claims(parsed, cfg.claims)
+    return fails + claim_fails, lines + claim_lines
+
+
+def check_claims(rows: list[dict], ids: list[str]) -> tuple[list[Failure], list[str]]:
+    """The check's claims ``ids`` judged on ``rows``: a failure only where the evidence contradicts a claim
+    (``ok`` False) or no row applies; an undecided claim (the evidence decides neither way at this sample size)
+    or a measured one (no threshold) is reported with its mark, never a regression."""
+    fails, lines = [], []
+    verdicts = {c.id: (c, v) for c, v in claim_registry.judge_claims(rows)}
+    for cid in ids:
         if cid not in verdicts:
             fails.append(Failure(f"claim {cid}: the check sweep has no rows it applies to"))
             continue
         c, v = verdicts[cid]
-        lines.append(f"claim {cid}: {'✓' if v.ok else '✗'} {v.number}")
-        if not v.ok:
+        lines.append(f"claim {cid}: {verdict_mark(v)} {v.number}")
+        if v.ok is False:
             fails.append(Failure(f"claim {cid} ({c.text}) does not hold: {v.number}"))
     return fails, lines
 

@@ -227,3 +227,25 @@ def test_an_infinite_baseline_value_is_matched_exactly():
         "x of m in c0 moved from inf to 3"
         in compare([{"case": "c0", "label": "m", "x": 3.0}], base, tol)[0].message
     )
+
+
+def test_only_a_contradicted_claim_fails_the_check(monkeypatch):
+    """An undecided claim (the evidence decides neither way at this sample size) or a measured one is reported, not
+    a failure; a claim the evidence contradicts fails (before: every claim without ``ok`` True failed)."""
+    from study.report import check
+    from study.report.claims import CLAIMS
+    from study.report.verdicts import Verdict
+
+    a, b, c = CLAIMS[0], CLAIMS[1], CLAIMS[2]
+    verdicts = [
+        (a, Verdict(None, "undecided at this sample size: 0.4 [0.1, 0.9]", undecided=True)),
+        (b, Verdict(None, "0.3 measured")),
+        (c, Verdict(False, "fails: 0.9 [0.8, 1.0]")),
+    ]
+    monkeypatch.setattr(check.claim_registry, "judge_claims", lambda rows: verdicts)
+    fails, lines = check.check_claims([], [a.id, b.id])
+    assert fails == [] and lines[0].startswith(f"claim {a.id}: undecided ")
+    assert lines[1].startswith(f"claim {b.id}: measured ")
+    fails, lines = check.check_claims([], [a.id, c.id, "absent"])
+    assert [f.message.split(" ")[1].rstrip(":") for f in fails] == [c.id, "absent"]
+    assert "does not hold: fails: 0.9" in fails[0].message and lines[1].startswith(f"claim {c.id}: ✗ ")
