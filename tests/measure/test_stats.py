@@ -5,6 +5,7 @@ statistic drops rays silently."""
 import math
 
 import numpy as np
+import pytest
 from conftest import BOX_HI, BOX_LO
 from scipy import stats as sps
 
@@ -252,3 +253,51 @@ def test_an_unknown_noise_gives_an_unknown_debiased_rmse():
     assert known["rmse_truth_debiased_lo"] == 0.0 == known["rmse_truth_debiased_trim"]
     assert math.isnan(truth.debiased(0.3, math.nan)) and math.isnan(truth.debiased(math.nan, 0.1))
     assert truth.debiased(0.1, 0.2) == 0.0 and truth.debiased(0.5, 0.3) == 0.4
+
+
+def _wilcoxon_p_by_hand(d) -> float:
+    """The obvious twin of stats.wilcoxon_p for ties or zeros: r⁺ (zero ranks split in half) over every one of the
+    2ⁿ sign flips, one at a time; the two-sided p-value is twice the smaller tail, at most 1."""
+    import itertools
+
+    from scipy.stats import rankdata
+
+    r = rankdata(np.abs(d))
+
+    def r_plus(x):
+        return sum(ri for xi, ri in zip(x, r) if xi > 0) + sum(ri for xi, ri in zip(x, r) if xi == 0) / 2
+
+    obs = r_plus(d)
+    null = [r_plus(np.asarray(s) * d) for s in itertools.product((1.0, -1.0), repeat=len(d))]
+    return min(1.0, 2 * min(sum(v <= obs for v in null), sum(v >= obs for v in null)) / len(null))
+
+
+def test_wilcoxon_p_is_scipys_to_the_bit():
+    """stats.wilcoxon_p (paired's p-value, its sign flips one matrix product) equals the old call,
+    scipy.stats.wilcoxon(d, zero_method="zsplit").pvalue, and a by-hand enumeration, on random differences with
+    ties and zeros (scipy's permutation branch), without (its exact distribution) and above 13 and 50 cases
+    (its normal approximation)."""
+    from scipy.stats import wilcoxon
+
+    rng = np.random.default_rng(7)
+    draws = {
+        "ties and zeros": lambda n: rng.integers(-3, 4, n).astype(float),
+        "halves": lambda n: rng.integers(-1, 2, n) * 0.5,
+        "rounded": lambda n: np.round(rng.normal(size=n), 1),
+        "distinct": lambda n: rng.normal(size=n),
+    }
+    seen = 0
+    for kind, draw in draws.items():
+        for n in [*range(1, 12), 13, 14, 20, 51, 60]:
+            d = draw(n)
+            if not d.any():
+                continue
+            p = stats.wilcoxon_p(d)
+            assert p == float(wilcoxon(d, zero_method="zsplit").pvalue), (kind, d)
+            if n <= 9 and (np.any(d == 0) or np.unique(np.abs(d)).size < n):
+                assert p == pytest.approx(_wilcoxon_p_by_hand(d), abs=1e-15), (kind, d)
+                seen += 1
+    assert seen >= 10
+    assert stats.paired([1, 2, 2, 3, 0], [1, 1, 3, 1, 1])["p"] == float(
+        wilcoxon(np.array([0, 1, -1, 2, -1.0]), zero_method="zsplit").pvalue
+    )
