@@ -118,3 +118,38 @@ def test_seeds_of_one_geometry_read_one_distance_capture_and_draw_their_own_radi
     # another reference point is another capture of distances
     inputs.impostor(sc.with_updates({"reference.point": [0.2, 1.4, 0.0]}), cache)
     assert calls["distance"] == 2
+
+
+def test_reproduce_estimate_names_every_command_and_counts_the_unmodelled_ones(tmp_path, capsys, monkeypatch):
+    """scripts/reproduce.sh's estimate: one line per command, the ones the stage model does not count (caustics,
+    animation, convergence) from their last run's metadata.json seconds, and a total that includes them (before:
+    one line that left them out)."""
+    (tmp_path / "animation").mkdir()
+    (tmp_path / "animation" / "metadata.json").write_text(
+        json.dumps({"seconds": 600.0, "backend": "numpy", "cpus": 2})
+    )
+    steps = estimate.step_estimates(
+        ["figure fig_attic", "animate", "caustics-sweep", "convergence"], cache=Cache(None), reports=tmp_path
+    )
+    by = {c: (s, how) for c, s, how in steps}
+    assert by["animate"] == (600.0, "its last run, numpy on 2 cores")
+    assert by["caustics-sweep"][0] is None and by["convergence"][0] is None
+    fig = by["figure fig_attic"][0]
+    assert (
+        fig
+        == estimate.config_estimate(
+            estimate.Path("configs/fig_attic.toml").resolve(), cache=Cache(None)
+        ).seconds
+    )
+    assert estimate.wall(steps, 2) == max((fig + 600.0) / 2, fig, 600.0)
+    assert estimate.wall([("a", 100.0, ""), ("b", 10.0, ""), ("c", None, "")], 2) == 100.0
+    monkeypatch.setattr(
+        estimate, "measured", lambda cmd, reports=None: (60.0, "x") if cmd == "animate" else None
+    )
+    estimate.main(["--jobs", "2", "--cache", str(tmp_path / "c"), "animate", "convergence"])
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "  animate: about 1 min 0 s (x)" and out[1].startswith("  convergence: unknown")
+    assert (
+        out[2].startswith("estimate: about 1 min 0 s wall for 2 commands on 2 cores")
+        and "not counted: convergence" in out[2]
+    )

@@ -209,6 +209,54 @@ def config_estimate(path, *, backend: str = "numpy", cache: Cache | None = None)
     return forecast(scenes, methods, cache=cache, intervals=True)
 
 
+#: The commands the stage model does not count (their cases are neither a figure's nor a sweep's) → the folder under
+#: reports/ whose metadata.json holds the ``seconds`` their last run took (with its ``backend`` and ``cpus``).
+MEASURED = {"caustics-sweep": "fig8/sweep", "animate": "animation", "convergence": "convergence"}
+
+
+def measured(command: str, reports: Path | None = None) -> tuple[float, str] | None:
+    """(seconds, where they come from) of ``command``'s last run (:data:`MEASURED`), or None where it wrote none."""
+    root = Path(__file__).resolve().parents[2] / "reports" if reports is None else Path(reports)
+    name = MEASURED.get(command.split()[0] if command.split() else "")
+    try:
+        meta = json.loads((root / str(name) / "metadata.json").read_text())
+        seconds = float(meta["seconds"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return seconds, f"its last run, {meta.get('backend', '?')} on {meta.get('cpus', '?')} cores"
+
+
+def step_estimates(commands, *, cache: Cache | None = None, reports: Path | None = None):
+    """One (command, seconds or None, how it was found) per command: ``figure NAME`` (its config,
+    ``configs/NAME.toml``) and ``sweep PATH`` (its cases, a sweep's columns) from the stage model, the commands of
+    :data:`MEASURED` from their last run's seconds, None for anything else. An impostor cached by an earlier
+    command is not counted again only where the cache holds it (each command is modelled on its own)."""
+    from study.harness.sweep import load_sweep
+
+    root = Path(__file__).resolve().parents[2]
+    out = []
+    for cmd in commands:
+        words = cmd.split()
+        if len(words) >= 2 and words[0] == "figure":
+            est = config_estimate(root / "configs" / f"{words[1]}.toml", cache=cache)
+            out.append((cmd, est.seconds, f"{est.cases} cases, stage model"))
+        elif len(words) >= 2 and words[0] == "sweep":
+            sw = load_sweep(root / words[1])
+            est = forecast([c.scene for c in sw.cases], sw.methods, cache=cache, intervals=False)
+            out.append((cmd, est.seconds, f"{est.cases} cases, stage model"))
+        elif words:
+            m = measured(cmd, reports)
+            out.append((cmd, *(m or (None, "not modelled, no measured run"))))
+    return out
+
+
+def wall(steps, cores: int) -> float:
+    """Wall seconds of ``steps`` ((command, core seconds or None, …), each command's single-core seconds) on
+    ``cores`` cores kept busy: their sum over the cores, never less than the longest command."""
+    known = [s for _, s, _ in steps if s is not None]
+    return max(sum(known) / max(cores, 1), max(known, default=0.0))
+
+
 def commands_estimate(commands, *, cache: Cache | None = None, jobs: int = 1) -> tuple[Forecast, list[str]]:
     """(the :class:`Forecast` of ``commands``, the commands it does not model): ``figure NAME`` (its config,
     ``configs/NAME.toml``) and ``sweep PATH`` (its cases, a sweep's columns) are counted, ``jobs`` of them at a
@@ -232,8 +280,9 @@ def commands_estimate(commands, *, cache: Cache | None = None, jobs: int = 1) ->
 
 
 def main(argv=None) -> None:
-    """``python -m study.harness.estimate [--jobs J] [--cache DIR] COMMAND...``: one line, the estimate of
-    ``study`` commands (:func:`commands_estimate`)."""
+    """``python -m study.harness.estimate [--jobs J] [--cache DIR] COMMAND...``: the estimate of ``study``
+    commands, one line per command (:func:`step_estimates`: seconds on one core) and the total on ``jobs`` cores
+    (:func:`wall`)."""
     import argparse
 
     ap = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])
@@ -241,9 +290,16 @@ def main(argv=None) -> None:
     ap.add_argument("--cache", default=".cache")
     ap.add_argument("commands", nargs="*")
     args = ap.parse_args(argv)
-    est, left = commands_estimate(args.commands, cache=Cache(args.cache), jobs=args.jobs)
-    rest = f"; not counted: {', '.join(left)}" if left else ""
-    print(told(est, "of the figures and sweeps") + rest)
+    steps = step_estimates(args.commands, cache=Cache(args.cache))
+    for cmd, sec, how in sorted(steps, key=lambda x: -(x[1] or 0)):
+        print(f"  {cmd}: {'unknown' if sec is None else 'about ' + span(sec)} ({how})")
+    known = [s for _, s, _ in steps if s is not None]
+    left = [c for c, s, _ in steps if s is None]
+    print(
+        f"estimate: about {span(wall(steps, args.jobs))} wall for {len(steps)} commands on {args.jobs} cores "
+        f"({span(sum(known))} of commands on one); from study/harness/stage_costs.json and the measured runs above"
+        + (f"; not counted: {', '.join(left)}" if left else "")
+    )
 
 
 if __name__ == "__main__":
