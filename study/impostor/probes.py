@@ -15,13 +15,14 @@ import numpy as np
 
 from study import progress
 from study.backend import V3, Backend
-from study.cache import Cache
+from study.cache import Cache, content_key
 from study.impostor import cubemap
 from study.impostor.capture import distances_from, impostor_key, render_cube
 from study.impostor.pyramid import MinPyramid
 from study.impostor.views import ProbeSpec
 from study.reference.embree import Tracer
 from study.scene import Scene, placement
+from study.scene.environment import env_key
 from study.validation import KeyedError
 
 
@@ -59,6 +60,16 @@ def probe_texels(tracer: Tracer, point, res: int, radiance, dist: np.ndarray | N
     return np.concatenate([rgb, dist[..., None]], -1).astype(np.float32)
 
 
+def probe_distance_key(at: Scene) -> str:
+    """Content key of a probe's distances (``at``: the scene with the probe's centre as its reference point): the
+    environment's triangles, the centre and the cube resolution, nothing path traced (Embree's exact distances,
+    :func:`~study.impostor.capture.distances_from`): not the seed, the samples, the bounces or the light, so the
+    seeds of one geometry read one capture (their radiance, path traced, is drawn per seed)."""
+    return content_key(
+        env_key(at), [float(c) for c in at.reference.point], at.render.cube_res, "probe-distance-v1"
+    )
+
+
 def capture_probes(
     scene: Scene, spec: ProbeSpec, cache: Cache, texels0: np.ndarray, tracer: Tracer, bounds=None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -83,7 +94,7 @@ def capture_probes(
         )
         dist = cache.get(
             "distance",
-            impostor_key(at),
+            probe_distance_key(at),
             lambda p=p: distances_from(tracer, p, r.cube_res, key="method.points"),
             code=distances_from,
         )

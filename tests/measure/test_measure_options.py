@@ -82,3 +82,36 @@ def test_the_hardly_visible_claim_skips_a_table_without_flip_against_the_oracle(
     assert v is not None and v.ok is None and "0.004 (c" in v.number
     v = hardly_visible(rows(0.2))
     assert v is not None and v.ok is None and v.number.startswith("worst p95 FLIP vs the oracle 0.2")
+
+
+def test_seeds_of_one_geometry_read_one_probe_distance_capture(tmp_path, monkeypatch):
+    """A second seed of one geometry redraws its probes' path-traced radiance but reads their exact distances from
+    the first seed's capture, with the same values (before: the distances were keyed with the seed and traced
+    again); another probe resolution traces them anew."""
+    calls = {"radiance": 0, "distance": 0}
+
+    def fake_render(scene, res, spp):
+        calls["radiance"] += 1
+        return np.full((6, res, res, 3), scene.render.seed, np.float32)
+
+    def counted(tracer, p, res, **k):
+        calls["distance"] += 1
+        return distances_from(tracer, p, res, **k)
+
+    from study.impostor.capture import distances_from
+
+    monkeypatch.setattr(probes, "render_cube", fake_render)
+    monkeypatch.setattr(probes, "distances_from", counted)
+    sc = load_scene(small_scene_dict(), overrides=TINY)
+    tracer = make_tracer(sc.mesh())
+    texels0 = np.zeros((6, 16, 16, 4), np.float32)
+    a, centres = probes.capture_probes(sc, ProbeSpec(grid=(2, 1, 1)), Cache(tmp_path), texels0, tracer)
+    n = len(centres) - 1
+    assert n >= 1 and calls == {"radiance": n, "distance": n}
+    b, _ = probes.capture_probes(
+        sc.with_updates({"render.seed": 3}), ProbeSpec(grid=(2, 1, 1)), Cache(tmp_path), texels0, tracer
+    )
+    assert calls == {"radiance": 2 * n, "distance": n}
+    np.testing.assert_array_equal(a[1:, ..., 3], b[1:, ..., 3])  # the distances: one capture, the same values
+    assert not np.array_equal(a[1:, ..., :3], b[1:, ..., :3])  # the radiance: drawn per seed
+    np.testing.assert_array_equal(b[1, ..., 3], distances_from(tracer, centres[1], sc.render.cube_res))
