@@ -57,7 +57,8 @@ if [ -z "${REPRODUCE_BACKEND+set}" ] && PYTHONPATH=.${PYTHONPATH:+:$PYTHONPATH} 
 fi
 # $REPRODUCE_SKIP: an extended regex of commands left out (a lent host without the video extra skips "animate")
 B=${REPRODUCE_BACKEND:+ --backend $REPRODUCE_BACKEND}
-# the time it will take, before it starts (study/harness/estimate.py: cases × the stage costs measured here)
+# the time it will take, before it starts: one line per command and the total on $J cores (study/harness/estimate.py:
+# figures and sweeps as cases × the stage costs measured here, caustics, animation and convergence from their last run)
 mapfile -t todo < <(printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$")
 PYTHONPATH=.${PYTHONPATH:+:$PYTHONPATH} $P -m study.harness.estimate --jobs "$J" "${todo[@]}" | sed 's/^/reproduce: /' || true
 printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$" | sed -E "\\%^(${REPRODUCE_CPU:-\$^})\$%! s/\$/$B/" \
