@@ -255,6 +255,12 @@ TABLE: list[TableColumn] = [
         F,
         note="the object's bounding sphere as seen unblocked from the reference point; < 0.5",
     ),
+    C(
+        "own_shadow",
+        F,
+        note="the object's rays whose exact hit lies in the object's own shadow from the point light: Mitsuba's "
+        "render is darker there than truth_at_hit (taken without the object); NaN: no point light",
+    ),
     C("truth_noise_rmse", "linear RGB", note="the truth's own noise σ"),
     C(
         "truth_noise_flag",

@@ -85,7 +85,7 @@ def capture_probes(
         progress.note(
             f"probe {i + 1}/{len(pts)}: its cube map, path traced"
         )  # long: the stage's lines say so
-        at = scene.with_updates({"reference.point": [float(c) for c in p]})
+        at = scene.with_updates({"reference.point": [float(c) for c in p]}, frame="measured")
         rad = cache.get(
             "radiance",
             impostor_key(at, spp=spp),

@@ -360,7 +360,7 @@ def _base_columns(
         "occluded_fraction": float(exact.occluded.mean()) if len(exact.occluded) else np.nan,
         **rays.stats,
         **lighting.light_columns(scene),  # the file's own lights against study's (study.scene.lights)
-        **worth.worth_columns(scene, mitsuba, rays.full, exact.escapes),
+        **worth.worth_columns(scene, mitsuba, rays.full, exact.escapes, exact.point),
     }
 
 

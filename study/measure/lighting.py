@@ -153,6 +153,7 @@ def picture_label(rows: list[dict]) -> str:
 #: The truth's own distance from Mitsuba's render (rmse_mitsuba_debiased of truth_at_hit) over this share of the
 #: smallest method's rmse_mitsuba: that column measures light no method models more than it measures the methods.
 UNMODELLED_SHARE = 0.5
+OWN_SHADOW = 0.05  # share of the object's rays in its own shadow over which the line names it as the cause
 
 
 def unmodelled_note(rows: list[dict]) -> str:
@@ -167,11 +168,17 @@ def unmodelled_note(rows: list[dict]) -> str:
     best = float(np.nanmin(errs))
     if not own > UNMODELLED_SHARE * best:
         return ""
+    shade = float(rows[0].get("own_shadow", math.nan))
+    why = (
+        f"mostly the object's own shadow: {shade:.0%} of its rays see surfaces it shades from the point light, "
+        "lit in the truth (taken without the object)"
+        if shade > OWN_SHADOW
+        else "the point light's highlight, the object's shadow and own reflections"
+    )
     return (
         f"RMSE against Mitsuba's render is not a measure of the methods here: the exact truth_at_hit is itself "
         f"{own:.3g} from it beyond its noise ({own / best:.0%} of the best method's {best:.3g}): light no method "
-        "models (the point light's highlight, the object's shadow and own reflections); rank on rmse_truth or "
-        "relMSE after exposure"
+        f"models ({why}); rank on rmse_truth or relMSE after exposure"
     )
 
 

@@ -62,9 +62,11 @@ WORTH_LIMITS = {
 }
 
 
-def worth_columns(scene, mitsuba: np.ndarray, mask: np.ndarray, escapes: np.ndarray) -> dict[str, float]:
+def worth_columns(
+    scene, mitsuba: np.ndarray, mask: np.ndarray, escapes: np.ndarray, points: np.ndarray | None = None
+) -> dict[str, float]:
     """The numbers of the module docstring for one case: Mitsuba's picture ``mitsuba`` (H, W, 3), the object's
-    pixels ``mask`` (H, W) and its rays' ``escapes`` (K,)."""
+    pixels ``mask`` (H, W), its rays' ``escapes`` (K,) and exact hits ``points`` (K, 3; :func:`own_shadow`)."""
     from study.scene.placement import sees
 
     lum = luminance(np.nan_to_num(np.asarray(mitsuba, float)))
@@ -79,7 +81,24 @@ def worth_columns(scene, mitsuba: np.ndarray, mask: np.ndarray, escapes: np.ndar
         "object_share": float(np.mean(np.asarray(mask, bool))),
         "mirrored_void": float(esc.mean()) if esc.size else math.nan,
         "reference_seen": seen,
+        "own_shadow": own_shadow(scene, points, escapes) if points is not None else math.nan,
     }
+
+
+def own_shadow(scene, points: np.ndarray, escapes: np.ndarray) -> float:
+    """Share of the object's rays whose exact hit lies in the object's own shadow from the point light (the
+    segment from the hit to ``light.position`` crosses the object's bounding sphere): there Mitsuba's render
+    with the object is darker than truth_at_hit, which is taken without it (the object's shadow is light no
+    method models). NaN where the point light is not rendered or no ray hits."""
+    if not scene.lamp():
+        return math.nan
+    p = np.asarray(points, float)[~np.asarray(escapes, bool)]
+    if not len(p):
+        return math.nan
+    c, r = np.asarray(scene.object.center, float), float(scene.object.radius)
+    d = np.asarray(scene.light.position, float) - p  # hit → light
+    t = np.clip(np.einsum("ij,ij->i", c - p, d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-30), 0.0, 1.0)
+    return float(np.mean(np.linalg.norm(p + t[:, None] * d - c, axis=1) < r))
 
 
 def _sky(scene) -> bool:

@@ -68,6 +68,22 @@ def apply(key: str, value, s: float, c):
     return value
 
 
+def user_updates(updates: dict, s: float, c) -> dict:
+    """A user's dotted-key ``updates`` of a loaded scene (file units and coordinates: ``--set``, ``[overrides]``,
+    sweep axes, API keywords) in its measuring frame (s, c), as loading the file with them would measure them;
+    unchanged where the frame is the file's, where the environment itself is updated, or for a value that is not
+    a number (the key's own validation says so)."""
+    if identity(s, c) or any(k.startswith("environment") for k in updates):
+        return updates
+    out = {}
+    for k, v in updates.items():
+        try:
+            out[k] = apply(k, v, s, np.asarray(c, float))
+        except (TypeError, ValueError):
+            out[k] = v
+    return out
+
+
 def mesh_keys(env: dict, s: float, c) -> dict:
     """A mesh environment's table moved into the measuring frame: x' = s·(M x + t − c), so its ``scale`` is
     multiplied by s and its ``translate`` becomes s·(t − c)."""

@@ -142,6 +142,7 @@ class Scene(_Strict):
     _units: str = PrivateAttr(
         default=""
     )  # how the environment was moved into its measuring frame (scene.frame)
+    _measure: tuple = PrivateAttr(default=(1.0, (0.0, 0.0, 0.0)))  # that frame's (s, c): x → s·(x − c)
 
     @field_validator("columns", mode="before")
     @classmethod
@@ -239,6 +240,7 @@ class Scene(_Strict):
                     pass  # not a number: the key's own validation says so
         if ctx is not None:
             ctx["frame"] = frame.units_note(*bounds, s, c)
+            ctx["measure"] = (float(s), tuple(float(x) for x in c))
         return out
 
     @model_validator(mode="after")
@@ -255,6 +257,8 @@ class Scene(_Strict):
             self._chosen = info.context.get("placement") or ""
         if isinstance(info.context, dict) and info.context.get("frame"):
             self._units = info.context["frame"]
+        if isinstance(info.context, dict) and info.context.get("measure"):
+            self._measure = tuple(info.context["measure"])
         if self.environment.type != "box":
             return self._placement_any()
         lo, hi = np.array(self.room.min), np.array(self.room.max)
@@ -323,9 +327,22 @@ class Scene(_Strict):
         return self._chosen
 
     # ------------------------------------------------------------------ derived geometry
-    def with_updates(self, updates: dict[str, Any], *, source: str = "<override>") -> Scene:
-        """A new scene with dotted-key overrides (``{"object.center": [1, 1, 0]}``), validated again."""
+    def with_updates(
+        self, updates: dict[str, Any], *, source: str = "<override>", frame: str = "file"
+    ) -> Scene:
+        """A new scene with dotted-key overrides (``{"object.center": [1, 1, 0]}``), validated again.
+
+        ``frame="file"`` (users' ``--set``, ``[overrides]``, sweep axes, API keywords): points, lengths and
+        intensities are in the environment file's own units and coordinates, moved into the scene's measuring
+        frame as loading the file with them would (:mod:`study.scene.frame`); ``frame="measured"``: values
+        already in that frame (what the scene's own keys and bounds hold, e.g. probe points), taken as they are.
+        The two agree for every scene measured where it lies (the box room, files in metres near the origin)."""
+        assert frame in ("file", "measured"), frame
         data = self.model_dump(mode="python")
+        if frame == "file":
+            from study.scene.frame import user_updates
+
+            updates = user_updates(updates, *self._measure)
         for key, value in updates.items():
             node, parts = data, key.split(".")
             for i, p in enumerate(parts):
@@ -346,7 +363,9 @@ class Scene(_Strict):
                 data[table].pop(key, None)
             keep = frozenset()
         line = self._chosen if keep == self._suggested else ""
-        return scene_from_dict(data, source=source, suggested=keep, placement=line, units=self._units)
+        return scene_from_dict(
+            data, source=source, suggested=keep, placement=line, units=self._units, measure=self._measure
+        )
 
     def mesh(self) -> RoomMesh:
         """The environment as triangles (:func:`study.scene.environment.geometry`): the box room and its columns,
@@ -397,6 +416,7 @@ def scene_from_dict(
     suggested=frozenset(),
     placement="",
     units="",
+    measure=None,
 ) -> Scene:
     """Validate a scene dict; the first problem is one StudyError naming ``source`` and the dotted key. Relative
     ``file`` paths resolve against ``base`` (the scene file's directory; the working directory by default).
@@ -408,6 +428,7 @@ def scene_from_dict(
             "suggested": set(suggested),
             "placement": placement,
             "frame": units,
+            "measure": measure,
         }
         return Scene.model_validate(data, context=ctx)
     except ValidationError as err:

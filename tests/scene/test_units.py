@@ -98,3 +98,28 @@ def test_a_mitsuba_scene_far_from_the_origin_is_refused_naming_float_precision()
     with pytest.raises(StudyError) as e:
         study.load_scene(far)
     assert "float32" in str(e.value) and "\n" not in str(e.value)
+
+
+def file_units(p, scale: float, offset: float) -> list[float]:
+    """The metre room's point ``p`` in the file's units and coordinates of the room scaled and moved."""
+    return (np.asarray(p, float) * scale + offset).tolist()
+
+
+def test_set_keys_are_read_in_the_files_units(metres):
+    """``--set``, ``[overrides]``, sweep axes and API keywords on a loaded scene (Scene.with_updates) are in the
+    file's units and coordinates, as keys given on loading are: the object moved in the 4 mm room 10⁵ mm from the
+    origin measures what the metre room measures with the object moved to the same place. Before, the values were
+    read in the moved (internal) frame: the object was placed 10⁵ m from the room."""
+    to = (np.asarray(metres.scene.object.center) + [0.15, 0.0, -0.1]).tolist()
+    moved = study.evaluate(metres.scene, METHODS, cache=None, overrides={"object.center": to})
+    scale, offset = 1e-3, 1e5
+    env = {"type": "mesh", "file": str(ROOM), "scale": scale, "translate": [offset] * 3}
+    far = study.load_scene({"environment": env}, SMALL)
+    assert far.object.center == pytest.approx(metres.scene.object.center)
+    sc = far.with_updates({"object.center": file_units(to, scale, offset)}, source="--set")
+    assert sc.object.center == pytest.approx(to)
+    assert sc.object.radius == pytest.approx(metres.scene.object.radius)
+    same_measurement(study.evaluate(sc, METHODS, cache=None), moved)
+    assert far.with_updates({"object.radius": 2e-4}).object.radius == pytest.approx(0.2)
+    r = far.with_updates({"object.center": to}, frame="measured")  # internal callers: already measured
+    assert r.object.center == pytest.approx(to)
