@@ -98,6 +98,23 @@ def _flip_values(ref, tests, mask, backend: str, refs=None) -> list[np.ndarray]:
     return [e[m] for e in maps]
 
 
+def _differing_any(ref, tests) -> np.ndarray:
+    """(H, W) bool: the pixels where some image of ``tests`` (M, H, W, 3) differs from ``ref`` ((H, W, 3) or
+    (M, H, W, 3), one per test) in some channel, NaN compared as a value: the union of
+    :func:`study.measure.metrics.differing` over the stack, in one pass over the frames (NaN looked at only
+    where the values compare unequal)."""
+    ref, tests = np.asarray(ref), np.asarray(tests)
+    every = np.broadcast_to(ref, tests.shape)
+    acc = np.zeros(tests.shape[1:], bool)
+    for a, b in zip(every, tests):  # image by image (no (M, H, W, 3) temporary), channels last
+        acc |= a != b
+    hit = np.logical_or.reduce([acc[..., c] for c in range(acc.shape[-1])])
+    ys, xs = np.nonzero(hit)
+    a, b = every[:, ys, xs], tests[:, ys, xs]  # (M, K, 3)
+    hit[ys, xs] = np.any((a != b) & ~(np.isnan(a) & np.isnan(b)), axis=(0, -1))
+    return hit
+
+
 def flip_maps(ref, tests, backend: str, refs=None) -> np.ndarray:
     """(M, H, W) FLIP maps of ``tests`` (M, H, W, 3) against ``ref`` (H, W, 3) or ``refs`` (M, H, W, 3), as
     :func:`study.measure.metrics.flip_map` makes each (flip-evaluator per image for ``numpy``; for ``llvm`` and
@@ -108,8 +125,7 @@ def flip_maps(ref, tests, backend: str, refs=None) -> np.ndarray:
         return np.stack([metrics.flip_map(ref if refs is None else refs[i], t) for i, t in enumerate(tests)])
     from study.measure import flip
 
-    every = refs if refs is not None else np.broadcast_to(ref, tests.shape)
-    diff = np.any([metrics.differing(a, b) for a, b in zip(every, tests)], axis=0) if len(tests) else None
+    diff = _differing_any(ref if refs is None else refs, tests) if len(tests) else None
     out = np.zeros(tests.shape[:3], np.float32)
     if diff is None or not diff.any():
         return out
