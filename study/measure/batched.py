@@ -75,14 +75,13 @@ def _ssim(x, y, mask, moments=None, y_moments=None) -> np.ndarray:
     else:
         ux, uxx = _window(x), _window(x * x)
     uy, uyy = y_moments if y_moments is not None else ssim_moments(y)
-    # the map only where it is averaged: each masked pixel's value is the whole crop's, summed in the same order
-    ux, uxx, uy, uyy, uxy = (a[..., mask, :] for a in (ux, uxx, uy, uyy, _window(x * y)))
+    uxy = _window(x * y)
     np_ = WIN * WIN
     cov = np_ / (np_ - 1)
     vx, vy, vxy = cov * (uxx - ux * ux), cov * (uyy - uy * uy), cov * (uxy - ux * uy)
     c1, c2 = K1**2, K2**2
     s = ((2 * ux * uy + c1) * (2 * vxy + c2)) / ((ux**2 + uy**2 + c1) * (vx + vy + c2))
-    return np.array([float(m.mean(axis=-1).mean()) for m in s])
+    return np.array([float(m.mean(axis=-1)[mask].mean()) for m in s])
 
 
 def _flip_values(ref, tests, mask, backend: str, refs=None) -> list[np.ndarray]:
