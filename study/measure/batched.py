@@ -64,16 +64,18 @@ def ssim_moments(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return _window(x), _window(x * x)
 
 
-def _ssim(x, y, mask, moments=None) -> np.ndarray:
+def _ssim(x, y, mask, moments=None, y_moments=None) -> np.ndarray:
     """(M,) mean SSIM over ``mask`` (h, w) of LDR crops ``y`` (M, h, w, C) against ``x`` ((h, w, C) with its
-    :func:`ssim_moments` given or not, or (M, h, w, C)): scikit-image's map per channel, averaged over channels."""
+    :func:`ssim_moments` given or not, or (M, h, w, C)): scikit-image's map per channel, averaged over channels.
+    ``y_moments``: ``y``'s :func:`ssim_moments`, when already computed against another reference."""
     y = np.asarray(y, np.float64)
     x = np.asarray(x, np.float64)
     if moments is not None:
         ux, uxx = moments
     else:
         ux, uxx = _window(x), _window(x * x)
-    uy, uyy, uxy = _window(y), _window(y * y), _window(x * y)
+    uy, uyy = y_moments if y_moments is not None else ssim_moments(y)
+    uxy = _window(x * y)
     np_ = WIN * WIN
     cov = np_ / (np_ - 1)
     vx, vy, vxy = cov * (uxx - ux * ux), cov * (uyy - uy * uy), cov * (uxy - ux * uy)
@@ -95,6 +97,23 @@ def _flip_values(ref, tests, mask, backend: str, refs=None) -> list[np.ndarray]:
     return [e[m] for e in maps]
 
 
+def _differing_any(ref, tests) -> np.ndarray:
+    """(H, W) bool: the pixels where some image of ``tests`` (M, H, W, 3) differs from ``ref`` ((H, W, 3) or
+    (M, H, W, 3), one per test) in some channel, NaN compared as a value: the union of
+    :func:`study.measure.metrics.differing` over the stack, in one pass over the frames (NaN looked at only
+    where the values compare unequal)."""
+    ref, tests = np.asarray(ref), np.asarray(tests)
+    every = np.broadcast_to(ref, tests.shape)
+    acc = np.zeros(tests.shape[1:], bool)
+    for a, b in zip(every, tests):  # image by image (no (M, H, W, 3) temporary), channels last
+        acc |= a != b
+    hit = np.logical_or.reduce([acc[..., c] for c in range(acc.shape[-1])])
+    ys, xs = np.nonzero(hit)
+    a, b = every[:, ys, xs], tests[:, ys, xs]  # (M, K, 3)
+    hit[ys, xs] = np.any((a != b) & ~(np.isnan(a) & np.isnan(b)), axis=(0, -1))
+    return hit
+
+
 def flip_maps(ref, tests, backend: str, refs=None) -> np.ndarray:
     """(M, H, W) FLIP maps of ``tests`` (M, H, W, 3) against ``ref`` (H, W, 3) or ``refs`` (M, H, W, 3), as
     :func:`study.measure.metrics.flip_map` makes each (flip-evaluator per image for ``numpy``; for ``llvm`` and
@@ -105,8 +124,7 @@ def flip_maps(ref, tests, backend: str, refs=None) -> np.ndarray:
         return np.stack([metrics.flip_map(ref if refs is None else refs[i], t) for i, t in enumerate(tests)])
     from study.measure import flip
 
-    every = refs if refs is not None else np.broadcast_to(ref, tests.shape)
-    diff = np.any([metrics.differing(a, b) for a, b in zip(every, tests)], axis=0) if len(tests) else None
+    diff = _differing_any(ref if refs is None else refs, tests) if len(tests) else None
     out = np.zeros(tests.shape[:3], np.float32)
     if diff is None or not diff.any():
         return out
@@ -123,28 +141,42 @@ def flip_maps(ref, tests, backend: str, refs=None) -> np.ndarray:
     return out
 
 
+def _tests_of(tests, mask, shared: dict | None) -> dict:
+    """What :func:`errors` needs of the test images alone over ``mask``: their masked pixels (``px``), those
+    pixels' LDR (``ldr``), SSIM's LDR crop (``crop``) and its :func:`ssim_moments` (``moments``); kept in
+    ``shared`` (when given) for the next reference over the same images and mask (the truth, then Mitsuba)."""
+    if shared is not None and shared:
+        return shared
+    px = np.asarray(tests)[:, mask]
+    out = {"px": px, "ldr": to_ldr(px)}
+    if mask.any():
+        crop = to_ldr(np.stack(_crop(mask, 8, *tests)[1:]))
+        out |= {"crop": crop, "moments": ssim_moments(crop)}
+    if shared is not None:
+        shared.update(out)
+    return out
+
+
 def errors(
-    ref, tests, *, mask, suffix: str, backend: str, with_flip: bool, fvals=None, refs=None
+    ref, tests, *, mask, suffix: str, backend: str, with_flip: bool, fvals=None, refs=None, shared=None
 ) -> list[dict]:
     """Per test image, :func:`study.measure.metrics.image_errors`'s columns (``rmse_<suffix>``, ``psnr_``,
     ``ssim_``, ``flip_``, ``flip_<suffix>_p95``) against ``ref`` (H, W, 3), or against ``refs`` (M, H, W, 3)
     where each test has its own reference that equals ``ref`` on ``mask`` (the oracle: its unheld pixels take
-    the image's value); ``fvals``: the FLIP values over ``mask`` already measured, per image."""
+    the image's value); ``fvals``: the FLIP values over ``mask`` already measured, per image; ``shared``: a dict
+    that carries the test images' own terms (:func:`_tests_of`) from one reference to the next over the same
+    ``tests`` and ``mask`` (start it empty)."""
     M = len(tests)
     if fvals is None:
         fvals = _flip_values(ref, tests, mask, backend, refs) if with_flip else [np.zeros(0)] * M
-    ref_px, tests_px = np.asarray(ref)[mask], np.asarray(tests)[:, mask]
+    own = _tests_of(tests, mask, shared if refs is None else None)
+    ref_px, tests_px = np.asarray(ref)[mask], own["px"]
     e_rmse = _rmse(ref_px, tests_px)
-    e_psnr = _psnr(to_ldr(ref_px), to_ldr(tests_px))
+    e_psnr = _psnr(to_ldr(ref_px), own["ldr"])
     if mask.any():
-        cut = _crop(mask, 8, *([ref] if refs is None else []), *tests)
-        m = cut[0]
-        if refs is None:
-            x = to_ldr(cut[1])
-            e_ssim = _ssim(x, to_ldr(np.stack(cut[2:])), m, ssim_moments(x))
-        else:
-            x = to_ldr(np.stack(_crop(mask, 8, *refs)[1:]))
-            e_ssim = _ssim(x, to_ldr(np.stack(cut[1:])), m)
+        m, *xs = _crop(mask, 8, *([ref] if refs is None else refs))  # the tests' crop: own["crop"]
+        x = to_ldr(xs[0] if refs is None else np.stack(xs))
+        e_ssim = _ssim(x, own["crop"], m, ssim_moments(x) if refs is None else None, own["moments"])
     else:
         e_ssim = np.full(M, np.nan)
     return [
@@ -226,11 +258,11 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
         [np.asarray(f)[mask] for f in fmaps] if intervals and "truth" in r.against
         else None if "truth" in r.against else [np.zeros(0)] * M
     )  # fmt: skip
+    shared: dict = {}  # the images' own terms over ``mask``: once for the truth and Mitsuba
     tr = errors(r.truth.image, imgs, mask=mask, suffix="truth", backend=backend,
-                with_flip="truth" in r.against, fvals=tflip)  # fmt: skip
-    mi = errors(
-        r.mitsuba, imgs, mask=mask, suffix="mitsuba", backend=backend, with_flip="mitsuba" in r.against
-    )
+                with_flip="truth" in r.against, fvals=tflip, shared=shared)  # fmt: skip
+    mi = errors(r.mitsuba, imgs, mask=mask, suffix="mitsuba", backend=backend,
+                with_flip="mitsuba" in r.against, shared=shared)  # fmt: skip
     tc = truth_columns(imgs, r.truth, r.mitsuba, mask=mask, rmse_truth=[c["rmse_truth"] for c in tr],
                        rmse_mitsuba=[c["rmse_mitsuba"] for c in mi])  # fmt: skip
     sigma = truth.noise_rms(r.truth.noise, mask)

@@ -29,8 +29,8 @@ def radiance_bias(img: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> float
         The signed relative bias; NaN without pixels or where the truth sums to 0 or is not finite.
     """
     m = np.asarray(mask, bool)
-    a = float(np.asarray(img, np.float64)[m].sum())
-    b = float(np.asarray(truth, np.float64)[m].sum())
+    a = float(np.asarray(img)[m].astype(np.float64).sum())  # the masked pixels first, then float64
+    b = float(np.asarray(truth)[m].astype(np.float64).sum())
     if not m.any() or not (np.isfinite(a) and np.isfinite(b)) or b <= 0:
         return float("nan")
     return a / b - 1.0

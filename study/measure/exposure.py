@@ -92,12 +92,13 @@ def exposed_stack(images, ref, noise, *, mask, ev: float, interval=None) -> list
     image."""
     mask = np.asarray(mask, bool)
     g = 2.0**ev
-    r_px = np.asarray(ref, np.float64)[mask]
+    # the masked pixels first, then float64 (not a stack of whole frames: the same values)
+    r_px = np.asarray(ref)[mask].astype(np.float64)
     r = g * r_px
     den = r * r + EXPOSED_EPS
-    n = g * np.asarray(noise, np.float64)[mask]
+    n = g * np.asarray(noise)[mask].astype(np.float64)
     noise_rel = float(np.mean(n * n / den)) if n.size else math.nan
-    d = g * (np.asarray(images, np.float64)[:, mask] - r_px)
+    d = g * (np.asarray(images)[:, mask].astype(np.float64) - r_px)
     per_pixel = np.mean(d * d / den, axis=-1)  # (M, P)
     out = []
     for pp in per_pixel:

@@ -119,3 +119,25 @@ def test_flip_stack_is_each_pairs_array_flip():
         np.testing.assert_allclose(got, flip.ldr_flip_image(ref, img, "llvm", linear=True), atol=1e-6)
     # images stacked are filtered each with its own edges: a bright first row of one image leaks into no other
     np.testing.assert_allclose(flip.flip_stack(ref, tests[2:3], "llvm")[0], stack[2], atol=1e-6)
+
+
+def test_the_stack_differs_where_some_image_differs():
+    # the union over the stack of metrics.differing, with NaN equal to NaN and −0.0 equal to 0.0 (a bitwise or a
+    # NaN-blind comparison fails it), against one reference and against one reference per image
+    rng = np.random.default_rng(3)
+    ref = rng.random((9, 11, 3)).astype(np.float32)
+    ref[1, 2, 0], ref[4, 4, 1] = np.nan, 0.0
+    tests = np.repeat(ref[None], 4, 0)
+    tests[0, 5, 6, 2] += 0.5  # differs
+    tests[1, 4, 4, 1] = -0.0  # equal as values
+    tests[2, 7, 1, 0] = np.nan  # differs (a value against NaN)
+    tests[3, 1, 2, 0] = np.float32("nan") * -1  # NaN against NaN: equal
+    per = np.stack([ref, ref, ref + 0, ref])
+    per[3, 0, 0, 0] += 1.0  # the fourth image's own reference differs there
+    for r in (ref, per):
+        want = np.any(
+            [metrics.differing(a, b) for a, b in zip(np.broadcast_to(r, tests.shape), tests)], axis=0
+        )
+        got = batched._differing_any(r, tests)
+        assert got.dtype == bool and np.array_equal(got, want)
+        assert want.sum() == (2 if r is ref else 3)
