@@ -226,7 +226,7 @@ def _jod(rng, before: bool, segments: int = 4):
 
 
 # ------------------------------------------------------------------------------- error fields beyond the tuned one
-#: The error fields the pixel and ray intervals were not tuned on (issue 53): long correlation (filter σ 8 px),
+#: The error fields the pixel and ray intervals were not tuned on: long correlation (filter σ 8 px),
 #: anisotropic streaks (filter σ 0.8 × 12 px, along a random axis: a reflected edge smeared along the edge), sparse
 #: heavy-tailed blobs (squared error exp(g) where a σ 3 px field g passes BLOB_LEVEL, 0 elsewhere), and a small
 #: object (a disc of SMALL_DISC px radius, ≈ 200 pixels).

@@ -12,9 +12,14 @@ block bootstrap's variance with blocks a few correlation lengths wide, moved pix
 fixed grid, without the Bartlett taper that makes non-overlapping blocks miss the covariance across their edges
 (with blocks three correlation lengths wide that bias alone halves the variance).
 
-The correlation length (:func:`correlation_length`) is where the radially averaged autocorrelation of the residuals
-first falls below 1/e (pixels, interpolated between rings). A window that sums to less than the independent
-pixels' variance is raised to it: correlation is never credited with narrowing an interval.
+The window's flat part follows the 2-D correlogram, not its radial average: per direction (:data:`ANGLES` bins
+over a half-turn) it reaches the farthest lag of the region around lag 0 where the correlogram (smoothed over 3 × 3
+lags) stays at or above :data:`WINDOW_LEVEL`, so a streak (a reflected edge) is summed along its length; it is capped
+only at :data:`MAX_REACH_SHARE` of the region's smaller extent (lags beyond have few pixel pairs), the few windows a
+long correlation leaves lowering the degrees of freedom instead. The reported correlation length (``corr_px``) is
+where the radially averaged correlogram first falls below 1/e (interpolated between rings, at most
+:data:`MAX_LENGTH_SHARE` of the extent). A window that sums to less than the independent pixels' variance is raised
+to it: correlation is never credited with narrowing an interval.
 """
 
 from __future__ import annotations
@@ -29,9 +34,12 @@ WINDOW_LEVEL = 0.1
 MIN_WINDOW = 2.0
 #: The centring correction divides by at least this (a window as wide as the region would divide by 0).
 MIN_KEPT = 0.25
-#: The correlation length is at most this share of the masked region's smaller extent (a window larger than the
-#: region would sum lags no pixel pair has).
+#: The reported correlation length is at most this share of the masked region's smaller extent.
 MAX_LENGTH_SHARE = 0.125
+#: The flat part of the lag window reaches at most this share of the masked region's smaller extent.
+MAX_REACH_SHARE = 0.5
+#: Angular bins of the lag window's reach (over a half-turn): a streak's correlation reaches far along it only.
+ANGLES = 24
 #: Fewer tiles than this measure no kurtosis (:func:`kurtosis_factor`).
 MIN_TILES = 8
 #: Heavy tails lower the degrees of freedom to no fewer than this (a kurtosis from few tiles is itself noisy).
@@ -114,6 +122,33 @@ def kurtosis_factor(resid: np.ndarray, mask: np.ndarray, area: float) -> float:
     return 2.0 / (2.0 + max(0.0, kappa))
 
 
+def _reach_by_angle(rho: np.ndarray, radii: np.ndarray, bins: np.ndarray, limit: float) -> np.ndarray:
+    """(:data:`ANGLES`,) the flat part of the lag window per direction: the farthest lag of each angular bin in
+    the region around lag 0 where the correlogram ``rho`` (centred (2R + 1, 2R + 1) lags, smoothed over 3 × 3
+    lags against single noisy lags) stays at or above :data:`WINDOW_LEVEL`, widened to its neighbouring bins,
+    between :data:`MIN_WINDOW` and ``limit``."""
+    from scipy import ndimage
+
+    smooth = ndimage.uniform_filter(np.nan_to_num(rho, nan=0.0), 3, mode="constant")
+    above = smooth >= WINDOW_LEVEL
+    c = rho.shape[0] // 2
+    above[c, c] = True
+    labels, _ = ndimage.label(above)
+    inside = labels == labels[c, c]
+    reach = np.zeros(ANGLES)
+    np.maximum.at(reach, bins[inside], radii[inside])
+    reach = np.maximum(reach, np.maximum(np.roll(reach, 1), np.roll(reach, -1)))
+    return np.clip(reach, MIN_WINDOW, max(MIN_WINDOW, limit))
+
+
+def _lag_grid(reach: int) -> tuple[np.ndarray, np.ndarray]:
+    """The radii and angular bins (of :data:`ANGLES` over a half-turn: lags h and −h share one) of the centred
+    (2·reach + 1)² lags."""
+    dy, dx = np.mgrid[-reach : reach + 1, -reach : reach + 1]
+    angle = np.mod(np.arctan2(dy, dx), math.pi)
+    return np.hypot(dy, dx), np.minimum(ANGLES - 1, (angle / math.pi * ANGLES).astype(int))
+
+
 def ratio_variance(nums, den, mask) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(ratios, variances, correlation lengths, degrees of freedom): per sample of ``nums`` (k, H, W) (or one
     (H, W)), the ratio Σ num / Σ den over ``mask`` (H, W), the variance of that ratio under spatial correlation
@@ -140,26 +175,33 @@ def ratio_variance(nums, den, mask) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     sub = np.where(m, nums[:, y0:y1, x0:x1], 0.0)
     r = sub.sum(axis=(1, 2)) / total
     resid = np.where(m, sub - r[:, None, None] * d, 0.0)
-    limit = max(1.0, MAX_LENGTH_SHARE * min(m.shape))
-    # only the lags that the correlogram (rings ≤ limit + 1) or the window (< 2 · max(MIN_WINDOW, limit)) reach
-    reach = math.ceil(max(2 * max(MIN_WINDOW, limit), int(limit) + 1.5))
+    length_limit = max(1.0, MAX_LENGTH_SHARE * min(m.shape))
+    limit = max(1.0, MAX_REACH_SHARE * min(m.shape))
+    # the lags the correlogram and the window (< 2 · limit) reach, centred: lag (dy, dx) at [R + dy, R + dx]
+    reach = math.ceil(max(2 * max(MIN_WINDOW, limit), int(length_limit) + 1.5))
     sums = lag_sums(np.concatenate([resid, m[None].astype(float)]), reach)
-    near = _near_lags(sums.shape[-2:], reach)
-    sums, radii = sums[:, near[0], near[1]], _radii(sums.shape[-2:])[near]
+    rows, cols = (np.arange(-reach, reach + 1) % n for n in sums.shape[-2:])
+    sums = sums[:, rows[:, None], cols[None, :]]
+    radii, bins = _lag_grid(reach)
     pairs, sums = sums[-1], sums[:-1]
     lengths, var, dof = np.empty(k), np.empty(k), np.empty(k)
     n = float(m.sum())
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_pair = np.where(pairs > 0.5, 1.0 / pairs, math.nan)
     for i in range(k):
-        rho = correlogram(sums[i], pairs, radii, int(limit) + 1)
-        lengths[i] = min(limit, crossing(rho, math.exp(-1)))
-        w = window(radii, min(limit, crossing(rho, WINDOW_LEVEL)))
+        with np.errstate(invalid="ignore", divide="ignore"):  # a constant sample: NaN, the smallest window
+            rho = sums[i] * per_pair / (sums[i, reach, reach] * per_pair[reach, reach])
+        ring = correlogram(*(np.fft.ifftshift(a) for a in (sums[i], pairs, radii)), int(length_limit) + 1)
+        lengths[i] = min(length_limit, crossing(ring, math.exp(-1)))  # lag 0 first for correlogram
+        flat = _reach_by_angle(rho, radii, bins, limit)
+        w = np.clip(2.0 - radii / flat[bins], 0.0, 1.0)
         # the residuals are centred on the estimated ratio, which takes (Σ w·pairs / n²) of the window's sum away
         share = float(np.sum(w * pairs)) / (n * n)
         gauss = max(1.0, 1.0 / share - 1.0)
         dof[i] = max(min(gauss, MIN_DOF), gauss * kurtosis_factor(resid[i], m, share * n))
         keep = max(MIN_KEPT, 1.0 - share)
         v = float(np.sum(w * sums[i])) / keep
-        var[i] = max(v, float(sums[i].flat[0])) / (total * total)  # never below independent pixels
+        var[i] = max(v, float(sums[i, reach, reach])) / (total * total)  # never below independent pixels
     return (r[0], var[0], lengths[0], dof[0]) if one else (r, var, lengths, dof)
 
 
