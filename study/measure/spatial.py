@@ -42,6 +42,8 @@ MAX_REACH_SHARE = 0.5
 ANGLES = 24
 #: Fewer tiles than this measure no kurtosis (:func:`kurtosis_factor`).
 MIN_TILES = 8
+#: The skewness shift of a mean's interval is at most this share of its half-width (the estimate stays inside).
+MAX_SKEW_SHIFT = 0.5
 #: Heavy tails lower the degrees of freedom to no fewer than this (a kurtosis from few tiles is itself noisy).
 MIN_DOF = 4.0
 
@@ -101,6 +103,31 @@ def window(radii: np.ndarray, reach: float) -> np.ndarray:
     return np.clip(2.0 - radii / m, 0.0, 1.0)
 
 
+def _tile_sums(resid: np.ndarray, mask: np.ndarray, area: float) -> np.ndarray:
+    """The sums of ``resid`` over the square tiles of about ``area`` pixels that hold pixels of ``mask``."""
+    t = max(1, round(math.sqrt(max(area, 1.0))))
+    h, w = resid.shape
+    hh, ww = -(-h // t) * t, -(-w // t) * t
+    sums = np.zeros((2, hh, ww))
+    sums[0, :h, :w], sums[1, :h, :w] = resid, mask
+    s, inside = sums.reshape(2, hh // t, t, ww // t, t).sum(axis=(2, 4)).reshape(2, -1)
+    return s[inside > 0]
+
+
+def mean_skewness(resid: np.ndarray, mask: np.ndarray, area: float, windows: float) -> float:
+    """The skewness of the mean of ``resid`` (residuals about it, over ``mask``): the skewness of its sums over
+    tiles of about ``area`` pixels (the window's effective size) over √(tiles); with fewer than
+    :data:`MIN_TILES` tiles the pixels' own skewness over √``windows`` (larger than the windows' would be: a sum
+    over a window is less skewed than its pixels). A constant residual: 0."""
+    s = _tile_sums(resid, mask, area)
+    if s.size < MIN_TILES:
+        s, scale = resid[mask], math.sqrt(max(windows, 1.0))
+    else:
+        scale = math.sqrt(s.size)
+    s2 = float(np.mean(s * s))
+    return float(np.mean(s**3)) / s2**1.5 / scale if s2 > 0 else 0.0
+
+
 def kurtosis_factor(resid: np.ndarray, mask: np.ndarray, area: float) -> float:
     """2 / (2 + κ): the share of the window's degrees of freedom that heavy-tailed residuals keep. The window's
     count of independent windows holds for Gaussian residuals, whose squared window sums vary as 2σ⁴; sums with
@@ -108,13 +135,7 @@ def kurtosis_factor(resid: np.ndarray, mask: np.ndarray, area: float) -> float:
     (rare events, e.g. the rays beyond a 95th percentile, are heavy-tailed). κ is measured on the sums of
     ``resid`` over square tiles of about ``area`` pixels (the window's effective size) that hold pixels of
     ``mask``; κ ≤ 0 or fewer than :data:`MIN_TILES` tiles: 1."""
-    t = max(1, round(math.sqrt(max(area, 1.0))))
-    h, w = resid.shape
-    hh, ww = -(-h // t) * t, -(-w // t) * t
-    sums = np.zeros((2, hh, ww))
-    sums[0, :h, :w], sums[1, :h, :w] = resid, mask
-    s, inside = sums.reshape(2, hh // t, t, ww // t, t).sum(axis=(2, 4)).reshape(2, -1)
-    s = s[inside > 0]
+    s = _tile_sums(resid, mask, area)
     s2 = float(np.sum(s * s))
     if s.size < MIN_TILES or s2 <= 0:
         return 1.0
@@ -149,14 +170,15 @@ def _lag_grid(reach: int) -> tuple[np.ndarray, np.ndarray]:
     return np.hypot(dy, dx), np.minimum(ANGLES - 1, (angle / math.pi * ANGLES).astype(int))
 
 
-def ratio_variance(nums, den, mask) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def ratio_variance(nums, den, mask, skews: bool = False) -> tuple[np.ndarray, ...]:
     """(ratios, variances, correlation lengths, degrees of freedom): per sample of ``nums`` (k, H, W) (or one
     (H, W)), the ratio Σ num / Σ den over ``mask`` (H, W), the variance of that ratio under spatial correlation
     (module docstring), the residuals' correlation length in pixels, and the degrees of freedom of that
     variance: the region's count of windows (1 / share − 1, share = Σ weight·pairs / n²) times
     :func:`kurtosis_factor` (at least min(that count, :data:`MIN_DOF`)). ``den`` (H, W): the weight of each
     pixel (1 for a mean over pixels). Pixels where a sample is NaN count as outside the mask for every sample.
-    Fewer than two pixels, or Σ den = 0: NaN variance."""
+    Fewer than two pixels, or Σ den = 0: NaN variance. ``skews``: a fifth result, the skewness of each ratio
+    (:func:`mean_skewness`; 0 where the variance is NaN)."""
     mask = np.asarray(mask, bool)
     nums = np.asarray(nums, float)
     one = nums.ndim == 2
@@ -168,7 +190,9 @@ def ratio_variance(nums, den, mask) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     total = float(den[mask].sum()) if ys.size else 0.0
     if ys.size < 2 or total <= 0:
         r = np.array([float(n[mask].sum() / total) if total > 0 else math.nan for n in nums])
-        out = (r, np.full(k, math.nan), np.full(k, math.nan), np.full(k, math.nan))
+        out = (r, np.full(k, math.nan), np.full(k, math.nan), np.full(k, math.nan)) + (
+            (np.zeros(k),) if skews else ()
+        )
         return tuple(v[0] for v in out) if one else out
     y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1  # the mask's bounding box only
     m, d = mask[y0:y1, x0:x1], den[y0:y1, x0:x1]
@@ -184,7 +208,7 @@ def ratio_variance(nums, den, mask) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     sums = sums[:, rows[:, None], cols[None, :]]
     radii, bins = _lag_grid(reach)
     pairs, sums = sums[-1], sums[:-1]
-    lengths, var, dof = np.empty(k), np.empty(k), np.empty(k)
+    lengths, var, dof, skew = np.empty(k), np.empty(k), np.empty(k), np.zeros(k)
     n = float(m.sum())
     with np.errstate(invalid="ignore", divide="ignore"):
         per_pair = np.where(pairs > 0.5, 1.0 / pairs, math.nan)
@@ -199,10 +223,13 @@ def ratio_variance(nums, den, mask) -> tuple[np.ndarray, np.ndarray, np.ndarray,
         share = float(np.sum(w * pairs)) / (n * n)
         gauss = max(1.0, 1.0 / share - 1.0)
         dof[i] = max(min(gauss, MIN_DOF), gauss * kurtosis_factor(resid[i], m, share * n))
+        if skews:
+            skew[i] = mean_skewness(resid[i], m, share * n, gauss)
         keep = max(MIN_KEPT, 1.0 - share)
         v = float(np.sum(w * sums[i])) / keep
         var[i] = max(v, float(sums[i, reach, reach])) / (total * total)  # never below independent pixels
-    return (r[0], var[0], lengths[0], dof[0]) if one else (r, var, lengths, dof)
+    out = (r, var, lengths, dof) + ((skew,) if skews else ())
+    return tuple(v[0] for v in out) if one else out
 
 
 def _quantile(level: float, dof) -> np.ndarray:
@@ -222,12 +249,16 @@ def mean_intervals(samples, mask, level: float) -> tuple[list[tuple[float, float
     xs = np.asarray(samples, float).reshape(len(samples), -1)
     imgs = np.zeros((len(xs), *mask.shape))
     imgs[:, mask] = xs
-    r, var, lengths, dof = ratio_variance(imgs, 1.0, mask)
-    half = _quantile(level, dof) * np.sqrt(var)
+    r, var, lengths, dof, skew = ratio_variance(imgs, 1.0, mask, skews=True)
+    t = _quantile(level, dof)
+    # skewed samples (squared errors, sparse blobs): both ends move by c·√var towards the long tail (Hall 1992)
+    c = np.clip(skew * (2 * t * t + 1) / 6, -MAX_SKEW_SHIFT * t, MAX_SKEW_SHIFT * t)
+    half = t * np.sqrt(var)
+    r_lo, r_hi = r - (t - c) * np.sqrt(var), r + (t + c) * np.sqrt(var)
     floor = np.where((xs >= 0).all(axis=1), 0.0, -np.inf)  # a mean of values ≥ 0 is ≥ 0
     out = [
-        (float(m), float(m)) if not h == h else (float(max(f, m - h)), float(m + h))
-        for m, h, f in zip(r, half, floor)
+        (float(m), float(m)) if not h == h else (float(max(f, a)), float(b))
+        for m, h, f, a, b in zip(r, half, floor, r_lo, r_hi)
     ]
     return out, float(lengths[0])
 
