@@ -55,6 +55,13 @@ BEFORE_RESAMPLES = 200
 BEFORE_REPLICATES = 500
 #: The band a calibrated 95 % interval's coverage must lie in, per tier.
 BANDS = {FAST: (0.85, 0.99), SLOW: (0.93, 0.97)}
+#: From this many replicates on, a row is judged by the slow tier's band (binomial spread ≤ 1.1 points).
+SLOW_FROM = 400
+
+
+def band(replicates: int) -> tuple[float, float]:
+    """The coverage band for a table of ``replicates`` per row: :data:`SLOW`'s from :data:`SLOW_FROM` on."""
+    return BANDS[SLOW] if replicates >= SLOW_FROM else BANDS[FAST]
 
 
 #: Pixel intervals resample the tiles of a BLOCK_GRID × BLOCK_GRID grid over the frame (:func:`pixel_blocks`):
@@ -418,7 +425,7 @@ def _pct(v: float) -> str:
 
 def calibration_page(rows: list[Row], powers: dict[int, float], replicates: int, seed: int) -> str:
     """reports/calibration.md: the coverage table and the power check."""
-    band = BANDS.get(replicates, BANDS[FAST])
+    limits = band(replicates)
     lines = [
         "# Calibration: how often the printed 95 % intervals cover the truth",
         "",
@@ -427,13 +434,13 @@ def calibration_page(rows: list[Row], powers: dict[int, float], replicates: int,
         "the estimates' true spread over the replicates (1: as wide as a calibrated interval needs to be). "
         "*before*: the interval the tables printed until the calibration (fixed 64 × 64 pixel grid with a "
         f"percentile bootstrap, Wilson over independent rays, percentile bootstraps); *flag*: a coverage outside "
-        f"{100 * band[0]:.0f}–{100 * band[1]:.0f} %.",
+        f"{100 * limits[0]:.0f}–{100 * limits[1]:.0f} %.",
         "",
         "| interval | variant | n | coverage | width / ideal | contains its estimate | flag |",
         "|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        flag = "outside" if r.flagged(band) else ("(a range, not a CI)" if not r.banded else "")
+        flag = "outside" if r.flagged(limits) else ("(a range, not a CI)" if not r.banded else "")
         lines.append(
             f"| {r.interval} | {r.variant} | {r.n} | {_pct(r.coverage)} | {r.width_ratio:.2f} | "
             f"{_pct(r.contains_estimate)} | {flag} |"
