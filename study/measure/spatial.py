@@ -170,6 +170,12 @@ def _lag_grid(reach: int) -> tuple[np.ndarray, np.ndarray]:
     return np.hypot(dy, dx), np.minimum(ANGLES - 1, (angle / math.pi * ANGLES).astype(int))
 
 
+def _centre(half: int, reach: int) -> tuple[slice, slice]:
+    """The centred lags within ``half`` pixels along each axis of a (2·reach + 1)² lag array."""
+    h = min(half, reach)
+    return (slice(reach - h, reach + h + 1),) * 2
+
+
 def ratio_variance(nums, den, mask, skews: bool = False) -> tuple[np.ndarray, ...]:
     """(ratios, variances, correlation lengths, degrees of freedom): per sample of ``nums`` (k, H, W) (or one
     (H, W)), the ratio Σ num / Σ den over ``mask`` (H, W), the variance of that ratio under spatial correlation
@@ -213,20 +219,24 @@ def ratio_variance(nums, den, mask, skews: bool = False) -> tuple[np.ndarray, ..
     with np.errstate(invalid="ignore", divide="ignore"):
         per_pair = np.where(pairs > 0.5, 1.0 / pairs, math.nan)
     for i in range(k):
+        c = _centre(math.ceil(limit), reach)  # the lags the flat part may reach
         with np.errstate(invalid="ignore", divide="ignore"):  # a constant sample: NaN, the smallest window
-            rho = sums[i] * per_pair / (sums[i, reach, reach] * per_pair[reach, reach])
-        ring = correlogram(*(np.fft.ifftshift(a) for a in (sums[i], pairs, radii)), int(length_limit) + 1)
-        lengths[i] = min(length_limit, crossing(ring, math.exp(-1)))  # lag 0 first for correlogram
-        flat = _reach_by_angle(rho, radii, bins, limit)
-        w = np.clip(2.0 - radii / flat[bins], 0.0, 1.0)
+            rho = sums[i][c] * per_pair[c] / (sums[i, reach, reach] * per_pair[reach, reach])
+        c = _centre(int(length_limit) + 2, reach)  # the rings of the correlation length, lag 0 first
+        ring = correlogram(*(np.fft.ifftshift(a[c]) for a in (sums[i], pairs, radii)), int(length_limit) + 1)
+        lengths[i] = min(length_limit, crossing(ring, math.exp(-1)))
+        c = _centre(math.ceil(limit), reach)
+        flat = _reach_by_angle(rho, radii[c], bins[c], limit)
+        c = _centre(math.ceil(2 * flat.max()), reach)  # the lags the window reaches
+        w = np.clip(2.0 - radii[c] / flat[bins[c]], 0.0, 1.0)
         # the residuals are centred on the estimated ratio, which takes (Σ w·pairs / n²) of the window's sum away
-        share = float(np.sum(w * pairs)) / (n * n)
+        share = float(np.sum(w * pairs[c])) / (n * n)
         gauss = max(1.0, 1.0 / share - 1.0)
         dof[i] = max(min(gauss, MIN_DOF), gauss * kurtosis_factor(resid[i], m, share * n))
         if skews:
             skew[i] = mean_skewness(resid[i], m, share * n, gauss)
         keep = max(MIN_KEPT, 1.0 - share)
-        v = float(np.sum(w * sums[i])) / keep
+        v = float(np.sum(w * sums[i][c])) / keep
         var[i] = max(v, float(sums[i, reach, reach])) / (total * total)  # never below independent pixels
     out = (r, var, lengths, dof) + ((skew,) if skews else ())
     return tuple(v[0] for v in out) if one else out
