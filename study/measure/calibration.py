@@ -55,6 +55,13 @@ BEFORE_RESAMPLES = 200
 BEFORE_REPLICATES = 500
 #: The band a calibrated 95 % interval's coverage must lie in, per tier.
 BANDS = {FAST: (0.85, 0.99), SLOW: (0.93, 0.97)}
+#: From this many replicates on, a row is judged by the slow tier's band (binomial spread ≤ 1.1 points).
+SLOW_FROM = 400
+
+
+def band(replicates: int) -> tuple[float, float]:
+    """The coverage band for a table of ``replicates`` per row: :data:`SLOW`'s from :data:`SLOW_FROM` on."""
+    return BANDS[SLOW] if replicates >= SLOW_FROM else BANDS[FAST]
 
 
 #: Pixel intervals resample the tiles of a BLOCK_GRID × BLOCK_GRID grid over the frame (:func:`pixel_blocks`):
@@ -225,6 +232,53 @@ def _jod(rng, before: bool, segments: int = 4):
     return whole, video.segment_interval(whole, parts, stats.LEVEL), old
 
 
+# ------------------------------------------------------------------------------- error fields beyond the tuned one
+#: The error fields the pixel and ray intervals were not tuned on: long correlation (filter σ 8 px),
+#: anisotropic streaks (filter σ 0.8 × 12 px, along a random axis: a reflected edge smeared along the edge), sparse
+#: heavy-tailed blobs (squared error exp(g) where a σ 3 px field g passes BLOB_LEVEL, 0 elsewhere), and a small
+#: object (a disc of SMALL_DISC px radius, ≈ 200 pixels).
+LONG_SIGMA, STREAK_SIGMA, BLOB_SIGMA, BLOB_LEVEL, SMALL_DISC = 8.0, (0.8, 12.0), 3.0, 2.0, 8.0
+#: E[exp(g); g > BLOB_LEVEL] for a standard normal g: the blob design's true mean squared error.
+BLOB_MSE = math.exp(0.5) * float(sps.norm.cdf(1.0 - BLOB_LEVEL))
+
+
+def _small_disc() -> np.ndarray:
+    yy, xx = np.mgrid[:SIZE, :SIZE]
+    c = (SIZE - 1) / 2
+    return (yy - c) ** 2 + (xx - c) ** 2 < SMALL_DISC**2
+
+
+def _streaks(rng) -> np.ndarray:
+    f = correlated_field(rng, sigma=STREAK_SIGMA)
+    return f if rng.random() < 0.5 else f.T
+
+
+def _blobs(rng) -> np.ndarray:
+    g = correlated_field(rng, sigma=BLOB_SIGMA)
+    return np.where(g > BLOB_LEVEL, np.exp(g), 0.0)
+
+
+def _field_rmse(rng, before: bool, field, mask, squared: bool = False):
+    """(RMSE, its interval by :func:`study.measure.stats.pixel_columns`, None): the per-pixel error 0.5 + the
+    unit-variance ``field`` (truth √1.25), or, ``squared``, the field is the squared error itself."""
+    f = field(rng)
+    err = np.sqrt(f) if squared else 0.5 + f
+    ref = np.zeros((*mask.shape, 3))
+    now = stats.pixel_columns(ref + err[..., None], ref, mask=mask, sigma=0.0, rel_eps=1e-2)
+    return math.sqrt(float(np.mean(err[mask] ** 2))), (now["rmse_truth_lo"], now["rmse_truth_hi"]), None
+
+
+def _field_fraction(rng, before: bool, sigma, mask, rays_per_pixel: int = 4):
+    """The ray-fraction row's design on another field (filter ``sigma``, a random axis) or object ``mask``."""
+    z = correlated_field(rng, sigma=sigma)
+    z = z if rng.random() < 0.5 else z.T
+    p = sps.norm.cdf(-1.5 + z)[mask]
+    pix = np.repeat(np.flatnonzero(mask), rays_per_pixel)
+    wrong = rng.random(pix.size) < np.repeat(p, rays_per_pixel)
+    ((now,), _) = stats.fraction_cis([wrong], pix, mask.shape)
+    return float(wrong.mean()), now, None
+
+
 #: name → (draw(rng, with_before) → (estimate, now, before or None), truth, n in words, whether the band applies)
 ROWS = {
     "pixel error (RMSE)": (
@@ -241,6 +295,54 @@ ROWS = {
     "case range (n < 10)": (lambda r, b: _case_median(r, False, 3), 1.0, "3 cases", False),
     "paired difference": (lambda r, b: _paired(r, 12), 0.0, "12 cases", True),
     "JOD over segments": (_jod, 0.0, "4 segments", True),
+    "RMSE, long correlation (σ 8 px)": (
+        lambda r, b: _field_rmse(r, b, lambda g: correlated_field(g, sigma=LONG_SIGMA), _disc()),
+        math.sqrt(1.25),
+        "pixels of a 40 px disc",
+        True,
+    ),
+    "RMSE, streaks (σ 0.8 × 12 px)": (
+        lambda r, b: _field_rmse(r, b, _streaks, _disc()),
+        math.sqrt(1.25),
+        "pixels of a 40 px disc",
+        True,
+    ),
+    "RMSE, sparse heavy-tailed blobs": (
+        lambda r, b: _field_rmse(r, b, _blobs, _disc(), squared=True),
+        math.sqrt(BLOB_MSE),
+        "pixels of a 40 px disc",
+        True,
+    ),
+    "RMSE, ≈ 200-pixel object": (
+        lambda r, b: _field_rmse(r, b, correlated_field, _small_disc()),
+        math.sqrt(1.25),
+        "pixels of an 8 px disc",
+        True,
+    ),
+    "RMSE, ≈ 200 pixels with blobs": (
+        lambda r, b: _field_rmse(r, b, _blobs, _small_disc(), squared=True),
+        math.sqrt(BLOB_MSE),
+        "pixels of an 8 px disc",
+        True,
+    ),
+    "ray fraction, long correlation (σ 8 px)": (
+        lambda r, b: _field_fraction(r, b, LONG_SIGMA, _disc()),
+        float(sps.norm.cdf(-1.5 / math.sqrt(2))),
+        "4 rays × 5024 pixels",
+        True,
+    ),
+    "ray fraction, streaks (σ 0.8 × 12 px)": (
+        lambda r, b: _field_fraction(r, b, STREAK_SIGMA, _disc()),
+        float(sps.norm.cdf(-1.5 / math.sqrt(2))),
+        "4 rays × 5024 pixels",
+        True,
+    ),
+    "ray fraction, ≈ 200-pixel object": (
+        lambda r, b: _field_fraction(r, b, FIELD_SIGMA, _small_disc()),
+        float(sps.norm.cdf(-1.5 / math.sqrt(2))),
+        "4 rays × 200 pixels",
+        True,
+    ),
 }
 
 
@@ -323,7 +425,7 @@ def _pct(v: float) -> str:
 
 def calibration_page(rows: list[Row], powers: dict[int, float], replicates: int, seed: int) -> str:
     """reports/calibration.md: the coverage table and the power check."""
-    band = BANDS.get(replicates, BANDS[FAST])
+    limits = band(replicates)
     lines = [
         "# Calibration: how often the printed 95 % intervals cover the truth",
         "",
@@ -332,13 +434,13 @@ def calibration_page(rows: list[Row], powers: dict[int, float], replicates: int,
         "the estimates' true spread over the replicates (1: as wide as a calibrated interval needs to be). "
         "*before*: the interval the tables printed until the calibration (fixed 64 × 64 pixel grid with a "
         f"percentile bootstrap, Wilson over independent rays, percentile bootstraps); *flag*: a coverage outside "
-        f"{100 * band[0]:.0f}–{100 * band[1]:.0f} %.",
+        f"{100 * limits[0]:.0f}–{100 * limits[1]:.0f} %.",
         "",
         "| interval | variant | n | coverage | width / ideal | contains its estimate | flag |",
         "|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        flag = "outside" if r.flagged(band) else ("(a range, not a CI)" if not r.banded else "")
+        flag = "outside" if r.flagged(limits) else ("(a range, not a CI)" if not r.banded else "")
         lines.append(
             f"| {r.interval} | {r.variant} | {r.n} | {_pct(r.coverage)} | {r.width_ratio:.2f} | "
             f"{_pct(r.contains_estimate)} | {flag} |"

@@ -12,9 +12,14 @@ block bootstrap's variance with blocks a few correlation lengths wide, moved pix
 fixed grid, without the Bartlett taper that makes non-overlapping blocks miss the covariance across their edges
 (with blocks three correlation lengths wide that bias alone halves the variance).
 
-The correlation length (:func:`correlation_length`) is where the radially averaged autocorrelation of the residuals
-first falls below 1/e (pixels, interpolated between rings). A window that sums to less than the independent
-pixels' variance is raised to it: correlation is never credited with narrowing an interval.
+The window's flat part follows the 2-D correlogram, not its radial average: per direction (:data:`ANGLES` bins
+over a half-turn) it reaches the farthest lag of the region around lag 0 where the correlogram (smoothed over 3 × 3
+lags) stays at or above :data:`WINDOW_LEVEL`, so a streak (a reflected edge) is summed along its length; it is capped
+only at :data:`MAX_REACH_SHARE` of the region's smaller extent (lags beyond have few pixel pairs), the few windows a
+long correlation leaves lowering the degrees of freedom instead. The reported correlation length (``corr_px``) is
+where the radially averaged correlogram first falls below 1/e (interpolated between rings, at most
+:data:`MAX_LENGTH_SHARE` of the extent). A window that sums to less than the independent pixels' variance is raised
+to it: correlation is never credited with narrowing an interval.
 """
 
 from __future__ import annotations
@@ -29,11 +34,16 @@ WINDOW_LEVEL = 0.1
 MIN_WINDOW = 2.0
 #: The centring correction divides by at least this (a window as wide as the region would divide by 0).
 MIN_KEPT = 0.25
-#: The correlation length is at most this share of the masked region's smaller extent (a window larger than the
-#: region would sum lags no pixel pair has).
+#: The reported correlation length is at most this share of the masked region's smaller extent.
 MAX_LENGTH_SHARE = 0.125
+#: The flat part of the lag window reaches at most this share of the masked region's smaller extent.
+MAX_REACH_SHARE = 0.5
+#: Angular bins of the lag window's reach (over a half-turn): a streak's correlation reaches far along it only.
+ANGLES = 24
 #: Fewer tiles than this measure no kurtosis (:func:`kurtosis_factor`).
 MIN_TILES = 8
+#: The skewness shift of a mean's interval is at most this share of its half-width (the estimate stays inside).
+MAX_SKEW_SHIFT = 0.5
 #: Heavy tails lower the degrees of freedom to no fewer than this (a kurtosis from few tiles is itself noisy).
 MIN_DOF = 4.0
 
@@ -93,6 +103,31 @@ def window(radii: np.ndarray, reach: float) -> np.ndarray:
     return np.clip(2.0 - radii / m, 0.0, 1.0)
 
 
+def _tile_sums(resid: np.ndarray, mask: np.ndarray, area: float) -> np.ndarray:
+    """The sums of ``resid`` over the square tiles of about ``area`` pixels that hold pixels of ``mask``."""
+    t = max(1, round(math.sqrt(max(area, 1.0))))
+    h, w = resid.shape
+    hh, ww = -(-h // t) * t, -(-w // t) * t
+    sums = np.zeros((2, hh, ww))
+    sums[0, :h, :w], sums[1, :h, :w] = resid, mask
+    s, inside = sums.reshape(2, hh // t, t, ww // t, t).sum(axis=(2, 4)).reshape(2, -1)
+    return s[inside > 0]
+
+
+def mean_skewness(resid: np.ndarray, mask: np.ndarray, area: float, windows: float) -> float:
+    """The skewness of the mean of ``resid`` (residuals about it, over ``mask``): the skewness of its sums over
+    tiles of about ``area`` pixels (the window's effective size) over √(tiles); with fewer than
+    :data:`MIN_TILES` tiles the pixels' own skewness over √``windows`` (larger than the windows' would be: a sum
+    over a window is less skewed than its pixels). A constant residual: 0."""
+    s = _tile_sums(resid, mask, area)
+    if s.size < MIN_TILES:
+        s, scale = resid[mask], math.sqrt(max(windows, 1.0))
+    else:
+        scale = math.sqrt(s.size)
+    s2 = float(np.mean(s * s))
+    return float(np.mean(s**3)) / s2**1.5 / scale if s2 > 0 else 0.0
+
+
 def kurtosis_factor(resid: np.ndarray, mask: np.ndarray, area: float) -> float:
     """2 / (2 + κ): the share of the window's degrees of freedom that heavy-tailed residuals keep. The window's
     count of independent windows holds for Gaussian residuals, whose squared window sums vary as 2σ⁴; sums with
@@ -100,13 +135,7 @@ def kurtosis_factor(resid: np.ndarray, mask: np.ndarray, area: float) -> float:
     (rare events, e.g. the rays beyond a 95th percentile, are heavy-tailed). κ is measured on the sums of
     ``resid`` over square tiles of about ``area`` pixels (the window's effective size) that hold pixels of
     ``mask``; κ ≤ 0 or fewer than :data:`MIN_TILES` tiles: 1."""
-    t = max(1, round(math.sqrt(max(area, 1.0))))
-    h, w = resid.shape
-    hh, ww = -(-h // t) * t, -(-w // t) * t
-    sums = np.zeros((2, hh, ww))
-    sums[0, :h, :w], sums[1, :h, :w] = resid, mask
-    s, inside = sums.reshape(2, hh // t, t, ww // t, t).sum(axis=(2, 4)).reshape(2, -1)
-    s = s[inside > 0]
+    s = _tile_sums(resid, mask, area)
     s2 = float(np.sum(s * s))
     if s.size < MIN_TILES or s2 <= 0:
         return 1.0
@@ -114,14 +143,48 @@ def kurtosis_factor(resid: np.ndarray, mask: np.ndarray, area: float) -> float:
     return 2.0 / (2.0 + max(0.0, kappa))
 
 
-def ratio_variance(nums, den, mask) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _reach_by_angle(rho: np.ndarray, radii: np.ndarray, bins: np.ndarray, limit: float) -> np.ndarray:
+    """(:data:`ANGLES`,) the flat part of the lag window per direction: the farthest lag of each angular bin in
+    the region around lag 0 where the correlogram ``rho`` (centred (2R + 1, 2R + 1) lags, smoothed over 3 × 3
+    lags against single noisy lags) stays at or above :data:`WINDOW_LEVEL`, widened to its neighbouring bins,
+    between :data:`MIN_WINDOW` and ``limit``."""
+    from scipy import ndimage
+
+    smooth = ndimage.uniform_filter(np.nan_to_num(rho, nan=0.0), 3, mode="constant")
+    above = smooth >= WINDOW_LEVEL
+    c = rho.shape[0] // 2
+    above[c, c] = True
+    labels, _ = ndimage.label(above)
+    inside = labels == labels[c, c]
+    reach = np.zeros(ANGLES)
+    np.maximum.at(reach, bins[inside], radii[inside])
+    reach = np.maximum(reach, np.maximum(np.roll(reach, 1), np.roll(reach, -1)))
+    return np.clip(reach, MIN_WINDOW, max(MIN_WINDOW, limit))
+
+
+def _lag_grid(reach: int) -> tuple[np.ndarray, np.ndarray]:
+    """The radii and angular bins (of :data:`ANGLES` over a half-turn: lags h and −h share one) of the centred
+    (2·reach + 1)² lags."""
+    dy, dx = np.mgrid[-reach : reach + 1, -reach : reach + 1]
+    angle = np.mod(np.arctan2(dy, dx), math.pi)
+    return np.hypot(dy, dx), np.minimum(ANGLES - 1, (angle / math.pi * ANGLES).astype(int))
+
+
+def _centre(half: int, reach: int) -> tuple[slice, slice]:
+    """The centred lags within ``half`` pixels along each axis of a (2·reach + 1)² lag array."""
+    h = min(half, reach)
+    return (slice(reach - h, reach + h + 1),) * 2
+
+
+def ratio_variance(nums, den, mask, skews: bool = False) -> tuple[np.ndarray, ...]:
     """(ratios, variances, correlation lengths, degrees of freedom): per sample of ``nums`` (k, H, W) (or one
     (H, W)), the ratio Σ num / Σ den over ``mask`` (H, W), the variance of that ratio under spatial correlation
     (module docstring), the residuals' correlation length in pixels, and the degrees of freedom of that
     variance: the region's count of windows (1 / share − 1, share = Σ weight·pairs / n²) times
     :func:`kurtosis_factor` (at least min(that count, :data:`MIN_DOF`)). ``den`` (H, W): the weight of each
     pixel (1 for a mean over pixels). Pixels where a sample is NaN count as outside the mask for every sample.
-    Fewer than two pixels, or Σ den = 0: NaN variance."""
+    Fewer than two pixels, or Σ den = 0: NaN variance. ``skews``: a fifth result, the skewness of each ratio
+    (:func:`mean_skewness`; 0 where the variance is NaN)."""
     mask = np.asarray(mask, bool)
     nums = np.asarray(nums, float)
     one = nums.ndim == 2
@@ -133,34 +196,50 @@ def ratio_variance(nums, den, mask) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     total = float(den[mask].sum()) if ys.size else 0.0
     if ys.size < 2 or total <= 0:
         r = np.array([float(n[mask].sum() / total) if total > 0 else math.nan for n in nums])
-        out = (r, np.full(k, math.nan), np.full(k, math.nan), np.full(k, math.nan))
+        out = (r, np.full(k, math.nan), np.full(k, math.nan), np.full(k, math.nan)) + (
+            (np.zeros(k),) if skews else ()
+        )
         return tuple(v[0] for v in out) if one else out
     y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1  # the mask's bounding box only
     m, d = mask[y0:y1, x0:x1], den[y0:y1, x0:x1]
     sub = np.where(m, nums[:, y0:y1, x0:x1], 0.0)
     r = sub.sum(axis=(1, 2)) / total
     resid = np.where(m, sub - r[:, None, None] * d, 0.0)
-    limit = max(1.0, MAX_LENGTH_SHARE * min(m.shape))
-    # only the lags that the correlogram (rings ≤ limit + 1) or the window (< 2 · max(MIN_WINDOW, limit)) reach
-    reach = math.ceil(max(2 * max(MIN_WINDOW, limit), int(limit) + 1.5))
+    length_limit = max(1.0, MAX_LENGTH_SHARE * min(m.shape))
+    limit = max(1.0, MAX_REACH_SHARE * min(m.shape))
+    # the lags the correlogram and the window (< 2 · limit) reach, centred: lag (dy, dx) at [R + dy, R + dx]
+    reach = math.ceil(max(2 * max(MIN_WINDOW, limit), int(length_limit) + 1.5))
     sums = lag_sums(np.concatenate([resid, m[None].astype(float)]), reach)
-    near = _near_lags(sums.shape[-2:], reach)
-    sums, radii = sums[:, near[0], near[1]], _radii(sums.shape[-2:])[near]
+    rows, cols = (np.arange(-reach, reach + 1) % n for n in sums.shape[-2:])
+    sums = sums[:, rows[:, None], cols[None, :]]
+    radii, bins = _lag_grid(reach)
     pairs, sums = sums[-1], sums[:-1]
-    lengths, var, dof = np.empty(k), np.empty(k), np.empty(k)
+    lengths, var, dof, skew = np.empty(k), np.empty(k), np.empty(k), np.zeros(k)
     n = float(m.sum())
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_pair = np.where(pairs > 0.5, 1.0 / pairs, math.nan)
     for i in range(k):
-        rho = correlogram(sums[i], pairs, radii, int(limit) + 1)
-        lengths[i] = min(limit, crossing(rho, math.exp(-1)))
-        w = window(radii, min(limit, crossing(rho, WINDOW_LEVEL)))
+        c = _centre(math.ceil(limit), reach)  # the lags the flat part may reach
+        with np.errstate(invalid="ignore", divide="ignore"):  # a constant sample: NaN, the smallest window
+            rho = sums[i][c] * per_pair[c] / (sums[i, reach, reach] * per_pair[reach, reach])
+        c = _centre(int(length_limit) + 2, reach)  # the rings of the correlation length, lag 0 first
+        ring = correlogram(*(np.fft.ifftshift(a[c]) for a in (sums[i], pairs, radii)), int(length_limit) + 1)
+        lengths[i] = min(length_limit, crossing(ring, math.exp(-1)))
+        c = _centre(math.ceil(limit), reach)
+        flat = _reach_by_angle(rho, radii[c], bins[c], limit)
+        c = _centre(math.ceil(2 * flat.max()), reach)  # the lags the window reaches
+        w = np.clip(2.0 - radii[c] / flat[bins[c]], 0.0, 1.0)
         # the residuals are centred on the estimated ratio, which takes (Σ w·pairs / n²) of the window's sum away
-        share = float(np.sum(w * pairs)) / (n * n)
+        share = float(np.sum(w * pairs[c])) / (n * n)
         gauss = max(1.0, 1.0 / share - 1.0)
         dof[i] = max(min(gauss, MIN_DOF), gauss * kurtosis_factor(resid[i], m, share * n))
+        if skews:
+            skew[i] = mean_skewness(resid[i], m, share * n, gauss)
         keep = max(MIN_KEPT, 1.0 - share)
-        v = float(np.sum(w * sums[i])) / keep
-        var[i] = max(v, float(sums[i].flat[0])) / (total * total)  # never below independent pixels
-    return (r[0], var[0], lengths[0], dof[0]) if one else (r, var, lengths, dof)
+        v = float(np.sum(w * sums[i][c])) / keep
+        var[i] = max(v, float(sums[i, reach, reach])) / (total * total)  # never below independent pixels
+    out = (r, var, lengths, dof) + ((skew,) if skews else ())
+    return tuple(v[0] for v in out) if one else out
 
 
 def _quantile(level: float, dof) -> np.ndarray:
@@ -180,12 +259,16 @@ def mean_intervals(samples, mask, level: float) -> tuple[list[tuple[float, float
     xs = np.asarray(samples, float).reshape(len(samples), -1)
     imgs = np.zeros((len(xs), *mask.shape))
     imgs[:, mask] = xs
-    r, var, lengths, dof = ratio_variance(imgs, 1.0, mask)
-    half = _quantile(level, dof) * np.sqrt(var)
+    r, var, lengths, dof, skew = ratio_variance(imgs, 1.0, mask, skews=True)
+    t = _quantile(level, dof)
+    # skewed samples (squared errors, sparse blobs): both ends move by c·√var towards the long tail (Hall 1992)
+    c = np.clip(skew * (2 * t * t + 1) / 6, -MAX_SKEW_SHIFT * t, MAX_SKEW_SHIFT * t)
+    half = t * np.sqrt(var)
+    r_lo, r_hi = r - (t - c) * np.sqrt(var), r + (t + c) * np.sqrt(var)
     floor = np.where((xs >= 0).all(axis=1), 0.0, -np.inf)  # a mean of values ≥ 0 is ≥ 0
     out = [
-        (float(m), float(m)) if not h == h else (float(max(f, m - h)), float(m + h))
-        for m, h, f in zip(r, half, floor)
+        (float(m), float(m)) if not h == h else (float(max(f, a)), float(b))
+        for m, h, f, a, b in zip(r, half, floor, r_lo, r_hi)
     ]
     return out, float(lengths[0])
 
