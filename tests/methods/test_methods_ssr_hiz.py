@@ -249,18 +249,3 @@ def test_normals_from_depth_agree_with_the_g_buffer(room):
     rec = np.stack([n.x, n.y, n.z], 1) @ np.stack([scr.right, scr.up, scr.forward])  # camera axes → world
     cos = np.sum(rec * g, 1) / np.linalg.norm(rec, axis=1)
     assert np.mean(cos > np.cos(np.radians(5))) >= 0.9  # measured 93 %
-
-
-@pytest.mark.parametrize("name", BACKENDS)
-def test_level_by_selects_is_the_level_table(name):
-    """HiZ.level(m) (selects on m) is the (offset, side, cell size) of the levels as hiz_levels builds them, for
-    every level of an odd-sized buffer (300 × 517: levels padded at the odd sides)."""
-    B = backends.get(name)
-    z = np.random.default_rng(0).uniform(1.0, 5.0, (300, 517)).astype(np.float32)
-    hz = H.HiZ(z, B)
-    levels = H.hiz_levels(z)
-    offs = np.cumsum([0] + [a.size for a in levels[:-1]])
-    m = np.arange(len(levels), dtype=np.float32)
-    got = np.stack([B.numpy(a) for a in hz.level(B.array(m))], 1)
-    want = np.array([(o, a.shape[0], 2.0**k) for k, (o, a) in enumerate(zip(offs, levels))])
-    np.testing.assert_array_equal(got, want)
