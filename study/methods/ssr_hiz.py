@@ -114,18 +114,12 @@ class HiZ:
         offs = np.cumsum([0] + [a.size for a in levels[:-1]])
         table = np.array([(o, a.shape[0], 2.0**m) for m, (o, a) in enumerate(zip(offs, levels))], np.float32)
         flat = np.concatenate([a.ravel() for a in levels])
-        self.table_at, self.table = float(flat.size), table
+        self.table_at = float(flat.size)
         self.data = B.array(np.concatenate([flat, table.ravel()]))
 
     def level(self, m):
-        """(offset, side, cell size) of level m (per ray): by selects on m, not read from the table, so that a
-        step's one dependent read is its cell's (the table read before it was a second)."""
-        B, zero = self.B, m * 0.0
-        out = tuple(zero + float(v) for v in self.table[0])
-        for k, row in enumerate(self.table[1:], 1):
-            at = m >= float(k)
-            out = tuple(B.select(at, float(v), o) for v, o in zip(row, out))
-        return out
+        """(offset, side, cell size) of level m (per ray)."""
+        return tuple(self.B.gather(self.data, self.table_at + m * 3.0 + c) for c in (0.0, 1.0, 2.0))
 
     def read(self, off, side, cx, cy):
         """d of cell (cx, cy) of the level at ``off`` of side ``side`` (clamped into it): one lookup."""
