@@ -91,13 +91,7 @@ class MinPyramid:
         # the lowest level q with width ≤ 2^q + 1 (its dilated texel at the box's start covers the box):
         # q = ⌈log₂(width − 1)⌉ = ⌊log₂(2 width − 3)⌋ for whole width ≥ 2, and 0 at width 1
         q = B.minimum(B.exponent(B.maximum(2.0 * width - 3.0, 1.0)), len(self.offsets) - 1.0)
-        # the level's (offset, side, 2^−q) by selects on q, not read from the table: the texel read is the
-        # step's one dependent read (the table read before it was a second)
-        zero = q * 0.0
-        off, side, scale = (zero + float(v) for v in (*self.offsets[0], 1.0))
-        for k, (o, s) in enumerate(self.offsets[1:], 1):
-            at = q >= float(k)
-            off, side, scale = B.select(at, o, off), B.select(at, s, side), B.select(at, 2.0**-k, scale)
+        off, side, scale = (B.gather_at(self.data, self.levels_at, q * 3.0 + c) for c in (0.0, 1.0, 2.0))
         i, j = B.floor(i0 * scale), B.floor(j0 * scale)
         value = B.gather_at(self.data, off, (face0 * side + i) * side + j)  # integers: past 2²⁴ texels
         same = face0 == face1
