@@ -198,20 +198,26 @@ class ProbeBlend(TracingMethod):
         for xi, a, b in zip((x.x, x.y, x.z), lo, hi):
             inside = inside & (xi >= float(a)) & (xi <= float(b))
         t = B.select(inside, t, zero + float("nan"))
-        answers, rads, usable, tols = [], [], [], []
-        for k, c in enumerate(P.centres):
-            pk, okk = self._project(B, x, R, c, lo, hi, t)
-            cv = V3(*(zero + float(a) for a in c))
-            v = pk - cv
-            v = V3(*(B.select(okk & inside, a, zero + 1.0) for a in (v.x, v.y, v.z)))
-            ch = P.lookup(zero + float(k), v)
-            answers.append(cv + B.normalize(v) * ch[3])
-            rads.append(V3(*ch[:3]))
-            usable.append(okk & inside)
-            tols.append(B.maximum(ch[3] * (2.0 / max(P.res, 1)), 0.01))
+        # ------------------------------------------------------------- the weights, before any lookup
+        projected = [self._project(B, x, R, c, lo, hi, t) for c in P.centres]
+        usable = [okk & inside for _, okk in projected]
         ndf = [B.select(u, d, zero + 1.0) for u, d in zip(usable[1:], ndf)]  # no answer: no influence
         w, w0 = blend_weights(B, ndf)
         w = [B.select(usable[0], w0, zero) if w0 is not None else B.select(usable[0], zero + 1.0, zero)] + w
+        # ------------------------------------------------------------- each probe's answer
+        # a probe k ≥ 1 of weight 0 reads one fixed texel (the direction (1, 1, 1), as an unusable lane does): its
+        # answer is used nowhere (shown is a probe of weight > 0, or probe 0's; ghosting needs GHOST_WEIGHT), so
+        # its fetch costs a cached read, not a scattered one
+        answers, rads, tols = [], [], []
+        for k, (c, (pk, _)) in enumerate(zip(P.centres, projected)):
+            cv = V3(*(zero + float(a) for a in c))
+            v = pk - cv
+            read = usable[k] if k == 0 else usable[k] & (w[k] > 0.0)
+            v = V3(*(B.select(read, a, zero + 1.0) for a in (v.x, v.y, v.z)))
+            ch = P.lookup(zero + float(k), v)
+            answers.append(cv + B.normalize(v) * ch[3])
+            rads.append(V3(*ch[:3]))
+            tols.append(B.maximum(ch[3] * (2.0 / max(P.res, 1)), 0.01))
         # ------------------------------------------------------------- blend, dominant probe, ghosting
         best, best_w = zero, zero - 1.0
         for k, wk in enumerate(w):

@@ -92,6 +92,26 @@ def test_exact_in_the_box_room_and_blending_costs_lookups(name):
     assert np.mean(np.linalg.norm(shown_s - exact, axis=1) <= eps) < 0.6
 
 
+def test_probes_of_weight_zero_read_one_fixed_texel():
+    """The masked fetch (issue 56): a probe k ≥ 1 of weight 0 is looked up in the direction (1, 1, 1) (one cached
+    texel), not its scattered one; a probe of weight > 0, and the global probe 0, in their own directions. A point
+    deep inside cell 1 (probe 1 alone: 1 lookup) and the room's centre (all 8 probes)."""
+    B = backends.get("numpy")
+    env = _box_env(B)
+    P = next(iter(env.probes.values()))
+    seen = []
+    plain = P.lookup
+    P.lookup = lambda k, v: (seen.append((int(k[0]), B.to_numpy(v))), plain(k, v))[1]
+    pts = np.array([[-1.0, -0.75, -1.0], [0.0, 0.0, 0.0]])
+    dirs = np.tile([0.0, 1.0, 0.0], (2, 1))
+    assert list(_trace(methods.make("probe_blend"), B, env, pts, dirs)[3]) == [1.0, 8.0]
+    fixed = {k: np.all(v == 1.0, axis=1) for k, v in seen}
+    assert sorted(fixed) == list(range(9))
+    assert list(fixed[1]) == [False, False]  # probe 1 (centre GRID[0]) weighs > 0 at both points
+    assert all(list(fixed[k]) == [True, False] for k in range(2, 9))  # weight 0 at the first point alone
+    assert not fixed[0].any()  # the global probe: always its own direction
+
+
 COLUMN = {"center": [-0.8, 0.3], "footprint": [0.5, 0.5], "height": 2.0}
 
 
