@@ -22,6 +22,10 @@ case range          3 cases: below 10 cases the study prints their range, not a 
 paired difference   12 paired differences, symmetric about 0: the Wilcoxon signed-rank test keeps the null
                     (its coverage: 1 − its false-positive rate)
 JOD over segments   4 segment scores, truth + normal noise; the whole sequence's score their mean
+study's own maps    :data:`STUDY_ROWS`: the frame tiled with copies of study's own error map of a reflected edge
+                    (classical, a room case) or of its wrong-hit region (localized, no iteration), each turned,
+                    mirrored and scaled at random, the tiling at a random offset, plus a correlated noise field:
+                    the RMSE and the wrong ray fraction (truths analytic: every pixel a uniform draw of the tile)
 ==================  ===========================================================================================
 
 Each row has its interval *before* (what the tables printed until then: a fixed 64 × 64 grid of pixel blocks
@@ -40,13 +44,25 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 from scipy import stats as sps
 
 from study.measure import spatial, stats, video
+from study.measure.fields import (  # the synthetic fields (correlated_field re-exported: the tests draw it here)
+    BLOB_MSE,
+    EDGE_MSE,
+    FIELD_SIGMA,
+    LONG_SIGMA,
+    STREAK_SIGMA,
+    correlated_field,
+    study_wrong_probit,
+    study_wrong_truth,
+)
+from study.measure.fields import blobs as _blobs
+from study.measure.fields import disc as _disc
+from study.measure.fields import small_disc as _small_disc
+from study.measure.fields import streaks as _streaks
+from study.measure.fields import study_edge as _study_edge
 
-#: The synthetic images: a (SIZE, SIZE) frame, the object a disc of DISC px radius, fields filtered at FIELD_SIGMA.
-SIZE, DISC, FIELD_SIGMA = 96, 40, 2.0
 #: Replicates of the fast tier (tests) and of the slow tier (tests marked slow, reports/calibration.md).
 FAST, SLOW = 100, 2000
 #: Resamples of the *before* bootstraps in the harness (fewer than the study's 1000: the harness runs thousands).
@@ -137,22 +153,6 @@ def mean_cis(
 
 
 # ---------------------------------------------------------------------------------------------- synthetic draws
-def _disc() -> np.ndarray:
-    yy, xx = np.mgrid[:SIZE, :SIZE]
-    c = (SIZE - 1) / 2
-    return (yy - c) ** 2 + (xx - c) ** 2 < DISC**2
-
-
-def correlated_field(rng, shape=None, sigma: float = FIELD_SIGMA) -> np.ndarray:
-    """A stationary Gaussian field of unit variance: white noise filtered by a Gaussian of ``sigma`` px
-    (periodic), rescaled by the filter's norm; ``shape`` default (:data:`SIZE`, :data:`SIZE`)."""
-    shape = (SIZE, SIZE) if shape is None else shape
-    delta = np.zeros(shape)
-    delta[shape[0] // 2, shape[1] // 2] = 1
-    norm = np.sqrt(np.sum(ndimage.gaussian_filter(delta, sigma, mode="wrap") ** 2))
-    return ndimage.gaussian_filter(rng.normal(size=shape), sigma, mode="wrap") / norm
-
-
 def _pixel_error(rng, before: bool, debias: bool):
     mask = _disc()
     err = 0.5 + correlated_field(rng)
@@ -233,31 +233,7 @@ def _jod(rng, before: bool, segments: int = 4):
 
 
 # ------------------------------------------------------------------------------- error fields beyond the tuned one
-#: The error fields the pixel and ray intervals were not tuned on: long correlation (filter σ 8 px),
-#: anisotropic streaks (filter σ 0.8 × 12 px, along a random axis: a reflected edge smeared along the edge), sparse
-#: heavy-tailed blobs (squared error exp(g) where a σ 3 px field g passes BLOB_LEVEL, 0 elsewhere), and a small
-#: object (a disc of SMALL_DISC px radius, ≈ 200 pixels).
-LONG_SIGMA, STREAK_SIGMA, BLOB_SIGMA, BLOB_LEVEL, SMALL_DISC = 8.0, (0.8, 12.0), 3.0, 2.0, 8.0
-#: E[exp(g); g > BLOB_LEVEL] for a standard normal g: the blob design's true mean squared error.
-BLOB_MSE = math.exp(0.5) * float(sps.norm.cdf(1.0 - BLOB_LEVEL))
-
-
-def _small_disc() -> np.ndarray:
-    yy, xx = np.mgrid[:SIZE, :SIZE]
-    c = (SIZE - 1) / 2
-    return (yy - c) ** 2 + (xx - c) ** 2 < SMALL_DISC**2
-
-
-def _streaks(rng) -> np.ndarray:
-    f = correlated_field(rng, sigma=STREAK_SIGMA)
-    return f if rng.random() < 0.5 else f.T
-
-
-def _blobs(rng) -> np.ndarray:
-    g = correlated_field(rng, sigma=BLOB_SIGMA)
-    return np.where(g > BLOB_LEVEL, np.exp(g), 0.0)
-
-
+# (the fields themselves in study.measure.fields: long correlation, streaks, blobs, a small object, study's own maps)
 def _field_rmse(rng, before: bool, field, mask, squared: bool = False):
     """(RMSE, its interval by :func:`study.measure.stats.pixel_columns`, None): the per-pixel error 0.5 + the
     unit-variance ``field`` (truth √1.25), or, ``squared``, the field is the squared error itself."""
@@ -279,7 +255,31 @@ def _field_fraction(rng, before: bool, sigma, mask, rays_per_pixel: int = 4):
     return float(wrong.mean()), now, None
 
 
-#: name → (draw(rng, with_before) → (estimate, now, before or None), truth, n in words, whether the band applies)
+def _study_wrong(rng, before: bool, rays_per_pixel: int = 4):
+    """The ray-fraction design on the wrong-hit template (:func:`study.measure.fields.study_wrong_probit`)."""
+    mask = _disc()
+    p = sps.norm.cdf(study_wrong_probit(rng))[mask]
+    pix = np.repeat(np.flatnonzero(mask), rays_per_pixel)
+    wrong = rng.random(pix.size) < np.repeat(p, rays_per_pixel)
+    ((now,), _) = stats.fraction_cis([wrong], pix, mask.shape)
+    return float(wrong.mean()), now, None
+
+
+#: The designs on study's own error maps (also measured, with a simulated check of their truths, by
+#: scripts/measure_study_fields.py); the last rows of :data:`ROWS`.
+STUDY_ROWS = {
+    "RMSE, study's reflected-edge map": (
+        lambda r, b: _field_rmse(r, b, _study_edge, _disc(), squared=True),
+        math.sqrt(EDGE_MSE),
+        "pixels of a 40 px disc",
+        True,
+    ),
+    "ray fraction, study's wrong-hit map": (_study_wrong, study_wrong_truth, "4 rays × 5024 pixels", True),
+}
+
+
+#: name → (draw(rng, with_before) → (estimate, now, before or None), truth (or a function giving it), n in words,
+#: whether the band applies)
 ROWS = {
     "pixel error (RMSE)": (
         lambda r, b: _pixel_error(r, b, False),
@@ -343,6 +343,7 @@ ROWS = {
         "4 rays × 200 pixels",
         True,
     ),
+    **STUDY_ROWS,
 }
 
 
@@ -385,6 +386,7 @@ def coverage(
     there is one) over the first ``before`` of them (default min(replicates, :data:`BEFORE_REPLICATES`); 0: none).
     ``shrink``: narrow every *now* interval about its estimate by this factor (a planted error)."""
     draw, truth, n, banded = ROWS[name]
+    truth = truth() if callable(truth) else truth
     rng = np.random.default_rng([seed, list(ROWS).index(name)])
     before = min(replicates, BEFORE_REPLICATES) if before is None else before
     est, now, old = [], [], []

@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from study.measure import calibration, spatial, stats
+from study.measure import calibration, fields, spatial, stats
 from study.report import summary
 
 REPORTS = Path(__file__).resolve().parents[2] / "reports"
@@ -20,7 +20,8 @@ FAST_BAND = calibration.BANDS[calibration.FAST]
 #: Designs the estimator still misses in the fast band (a 200-pixel object whose sparse blobs are often absent:
 #: the sample alone gives [0, 0]). Before the 2-D lag window, 1000 replicates: σ 8 px 86.0 %, streaks 81.8 %,
 #: blobs 81.6 %, 200 px 81.3 %, 200 px + blobs 27.4 %; ray fraction σ 8 px 88.6 %, streaks 74.7 %, 200 px 83.6 %.
-KNOWN_MISSES = {"RMSE, ≈ 200 pixels with blobs"}
+#: The wrong-hit template's interval is too wide instead (2.3 × the ideal width: 100 % of 100).
+KNOWN_MISSES = {"RMSE, ≈ 200 pixels with blobs", "ray fraction, study's wrong-hit map"}
 
 
 @pytest.mark.parametrize(
@@ -36,6 +37,24 @@ def test_every_interval_covers_the_truth_in_the_fast_band(name):
     assert not now.flagged(FAST_BAND), now
     if math.isfinite(now.contains_estimate):
         assert now.contains_estimate == 1.0, now
+
+
+def _study_means(replicates: int = 1000):
+    """The edge design's mean squared error over the disc and the wrong-hit design's ray fraction, each averaged
+    over ``replicates`` simulated draws, with their standard errors."""
+    rng, disc = np.random.default_rng(7), fields.disc()
+    mse = np.array([fields.study_edge(rng)[disc].mean() for _ in range(replicates)])
+    wrong = np.array([calibration._study_wrong(rng, False)[0] for _ in range(replicates // 2)])
+    return [(v.mean(), v.std() / np.sqrt(len(v))) for v in (mse, wrong)]
+
+
+def test_the_designs_on_studys_own_maps_have_the_truth_they_declare():
+    """The analytic truths (every pixel a uniform draw of the template's tile) against the means over simulated
+    replicates, within 4 standard errors. Planted (each > 4 SE off at this seed, checked): E[a]² for E[a²] in the
+    edge's truth (1.09 for 1.17: 4.8 SE), the wrong-hit's truth without its background term (0.278 for 0.299)."""
+    edge, wrong = calibration.STUDY_ROWS.values()
+    for (mean, se), truth in zip(_study_means(), (edge[1] ** 2, wrong[1]())):
+        assert abs(mean - truth) < 4 * se, (mean, se, truth)
 
 
 @pytest.mark.parametrize("name", ["pixel error (RMSE)", "ray fraction", "case median", "JOD over segments"])
@@ -157,13 +176,19 @@ def test_the_summary_intervals_over_cases_contain_their_medians():
                 assert r[f"{col}_lo"] - tol <= r[col] <= r[f"{col}_hi"] + tol, r
 
 
-#: The committed table's rows outside 93–97 % (the estimator's open misses: heavy tails and ≈ 200-pixel objects).
+#: The committed table's rows outside 93–97 % (the estimator's open misses: heavy tails and ≈ 200-pixel objects
+#: below the band, the templates from study's own error maps above it).
 #: A new row outside, or one of these brought inside without updating this set, fails.
 OUTSIDE_IN_THE_REPORT = {
     "RMSE, sparse heavy-tailed blobs",
     "RMSE, ≈ 200-pixel object",
     "RMSE, ≈ 200 pixels with blobs",
     "ray fraction, ≈ 200-pixel object",
+    # above the band on the templates from study's own maps (1.6 and 2.2 × the ideal width: the lag window reads the
+    # template's large structures as long-range correlation, while the tiled copies, one per tile, vary less
+    # between replicates): 98.2 % and 99.2 % of 400, 97.5 % and 99.4 % of 2000
+    "RMSE, study's reflected-edge map",
+    "ray fraction, study's wrong-hit map",
 }
 
 
