@@ -241,14 +241,15 @@ def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str =
     ``_hi`` (when the FLIP map ``emap`` is given); ``rmse_<suffix>_trim`` / ``rmse_<suffix>_debiased_trim``: the
     RMSE without the worst :data:`TRIM` of pixels (≥ 1 pixel); ``sqerr_top_share_<suffix>``: the share of the
     summed squared error that those worst pixels carry (near 1: the RMSE is decided by a handful of pixels)."""
-    img, ref, mask = np.asarray(img, float), np.asarray(ref, float), np.asarray(mask, bool)
-    d, r = (img - ref)[mask], ref[mask]
+    mask = np.asarray(mask, bool)
+    r = np.asarray(ref)[mask].astype(float)  # the masked pixels first, then float64 (not whole frames)
+    d = np.asarray(img)[mask].astype(float) - r
     se = np.mean(d * d, axis=-1)  # per pixel, mean over channels: mean(se) = RMSE²
     rel = np.mean(d * d / (r * r + rel_eps), axis=-1)
     names, samples = [f"rmse_{suffix}", f"relmse_{suffix}"], [se, rel]
     if emap is not None:
         names.append(f"flip_{suffix}")
-        samples.append(np.asarray(emap, float)[mask])
+        samples.append(np.asarray(emap)[mask].astype(float))
     intervals, length = (
         spatial.mean_intervals(samples, mask, LEVEL) if se.size else ([(math.nan,) * 2] * 3, math.nan)
     )
