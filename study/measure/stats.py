@@ -218,7 +218,11 @@ def _mean(x, axis=-1):
 
 def trimmed_mean(values, trim: float = TRIM) -> float:
     """The mean of ``values`` without the largest ``trim`` share of them (at least one left out)."""
-    v = np.sort(np.asarray(values, float))
+    return _trimmed_sorted(np.sort(np.asarray(values, float)), trim)
+
+
+def _trimmed_sorted(v: np.ndarray, trim: float = TRIM) -> float:
+    """:func:`trimmed_mean` of values ``v`` already sorted (ascending)."""
     drop = max(1, math.ceil(trim * v.size))
     return float(v[: v.size - drop].mean()) if v.size > drop else math.nan
 
@@ -244,8 +248,9 @@ def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str =
     mask = np.asarray(mask, bool)
     r = np.asarray(ref)[mask].astype(float)  # the masked pixels first, then float64 (not whole frames)
     d = np.asarray(img)[mask].astype(float) - r
-    se = np.mean(d * d, axis=-1)  # per pixel, mean over channels: mean(se) = RMSE²
-    rel = np.mean(d * d / (r * r + rel_eps), axis=-1)
+    dd = d * d
+    se = np.mean(dd, axis=-1)  # per pixel, mean over channels: mean(se) = RMSE²
+    rel = np.mean(dd / (r * r + rel_eps), axis=-1)
     names, samples = [f"rmse_{suffix}", f"relmse_{suffix}"], [se, rel]
     if emap is not None:
         names.append(f"flip_{suffix}")
@@ -262,11 +267,12 @@ def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str =
         out[f"rmse_{suffix}_debiased_{k}"] = _debiased_root(b, sigma)
     for name, (a, b) in cis.items():
         out[f"{name}_lo"], out[f"{name}_hi"] = a, b
-    tm = trimmed_mean(se)
+    ranked = np.sort(se)  # sorted once: the trimmed mean and the worst pixels' share
+    tm = _trimmed_sorted(ranked)
     out[f"rmse_{suffix}_trim"] = math.sqrt(tm) if tm == tm else math.nan
     out[f"rmse_{suffix}_debiased_trim"] = _debiased_root(tm, sigma)
     total = float(se.sum())
-    top = np.sort(se)[::-1][: max(1, math.ceil(TRIM * se.size))].sum() if se.size else math.nan
+    top = ranked[::-1][: max(1, math.ceil(TRIM * se.size))].sum() if se.size else math.nan
     out[f"sqerr_top_share_{suffix}"] = float(top / total) if total > 0 else math.nan
     return out
 
