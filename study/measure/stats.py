@@ -233,7 +233,9 @@ def _debiased_root(mse: float, sigma: float) -> float:
     return math.nan if math.isnan(d) else math.sqrt(max(0.0, d))
 
 
-def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str = "truth", emap=None) -> dict:
+def pixel_columns(
+    img, ref, *, mask, sigma: float, rel_eps: float, suffix: str = "truth", emap=None, shared=None
+) -> dict:
     """Intervals and robust variants of one image's errors against ``ref`` over ``mask`` (pixels, spatially
     correlated: :mod:`study.measure.spatial`).
 
@@ -244,13 +246,19 @@ def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str =
     ``relmse_<suffix>_lo``/``_hi`` (relMSE with ε = ``rel_eps``), ``flip_<suffix>_lo``/
     ``_hi`` (when the FLIP map ``emap`` is given); ``rmse_<suffix>_trim`` / ``rmse_<suffix>_debiased_trim``: the
     RMSE without the worst :data:`TRIM` of pixels (≥ 1 pixel); ``sqerr_top_share_<suffix>``: the share of the
-    summed squared error that those worst pixels carry (near 1: the RMSE is decided by a handful of pixels)."""
+    summed squared error that those worst pixels carry (near 1: the RMSE is decided by a handful of pixels).
+    ``shared``: a dict the calls of one ``ref``, ``mask`` and ``rel_eps`` pass along (several images of a case),
+    which keeps the reference's masked pixels and relMSE denominators for the next call."""
     mask = np.asarray(mask, bool)
-    r = np.asarray(ref)[mask].astype(float)  # the masked pixels first, then float64 (not whole frames)
+    if shared is None or "r" not in shared:  # the masked pixels first, then float64 (not whole frames)
+        r = np.asarray(ref)[mask].astype(float)
+        shared = {} if shared is None else shared
+        shared["r"], shared["den"] = r, r * r + rel_eps
+    r, den = shared["r"], shared["den"]
     d = np.asarray(img)[mask].astype(float) - r
     dd = d * d
     se = np.mean(dd, axis=-1)  # per pixel, mean over channels: mean(se) = RMSE²
-    rel = np.mean(dd / (r * r + rel_eps), axis=-1)
+    rel = np.mean(dd / den, axis=-1)
     names, samples = [f"rmse_{suffix}", f"relmse_{suffix}"], [se, rel]
     if emap is not None:
         names.append(f"flip_{suffix}")
