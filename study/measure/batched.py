@@ -268,10 +268,10 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
     sigma = truth.noise_rms(r.truth.noise, mask)
     sp = split.split_stack(imgs, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
                            mask=mask, held_px=r.held_px, intervals=intervals)  # fmt: skip
-    out = []
+    out, px_shared = [], {}  # the truth's masked pixels: once for every image
     for i in range(M):
         px = stats.pixel_columns(imgs[i], r.truth.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS,
-                                 emap=fmaps[i])  # fmt: skip
+                                 emap=fmaps[i], shared=px_shared)  # fmt: skip
         bias_cols = bias.bias_columns(imgs[i], r.truth.image, mask=mask & r.held_px)  # signed (measure.bias)
         out.append({**oracle[i], **tr[i], **mi[i], **tc[i], **px, **sp[i], **bias_cols})
     return out, fmaps

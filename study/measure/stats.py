@@ -218,7 +218,11 @@ def _mean(x, axis=-1):
 
 def trimmed_mean(values, trim: float = TRIM) -> float:
     """The mean of ``values`` without the largest ``trim`` share of them (at least one left out)."""
-    v = np.sort(np.asarray(values, float))
+    return _trimmed_sorted(np.sort(np.asarray(values, float)), trim)
+
+
+def _trimmed_sorted(v: np.ndarray, trim: float = TRIM) -> float:
+    """:func:`trimmed_mean` of values ``v`` already sorted (ascending)."""
     drop = max(1, math.ceil(trim * v.size))
     return float(v[: v.size - drop].mean()) if v.size > drop else math.nan
 
@@ -229,7 +233,9 @@ def _debiased_root(mse: float, sigma: float) -> float:
     return math.nan if math.isnan(d) else math.sqrt(max(0.0, d))
 
 
-def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str = "truth", emap=None) -> dict:
+def pixel_columns(
+    img, ref, *, mask, sigma: float, rel_eps: float, suffix: str = "truth", emap=None, shared=None
+) -> dict:
     """Intervals and robust variants of one image's errors against ``ref`` over ``mask`` (pixels, spatially
     correlated: :mod:`study.measure.spatial`).
 
@@ -240,15 +246,23 @@ def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str =
     ``relmse_<suffix>_lo``/``_hi`` (relMSE with ε = ``rel_eps``), ``flip_<suffix>_lo``/
     ``_hi`` (when the FLIP map ``emap`` is given); ``rmse_<suffix>_trim`` / ``rmse_<suffix>_debiased_trim``: the
     RMSE without the worst :data:`TRIM` of pixels (≥ 1 pixel); ``sqerr_top_share_<suffix>``: the share of the
-    summed squared error that those worst pixels carry (near 1: the RMSE is decided by a handful of pixels)."""
-    img, ref, mask = np.asarray(img, float), np.asarray(ref, float), np.asarray(mask, bool)
-    d, r = (img - ref)[mask], ref[mask]
-    se = np.mean(d * d, axis=-1)  # per pixel, mean over channels: mean(se) = RMSE²
-    rel = np.mean(d * d / (r * r + rel_eps), axis=-1)
+    summed squared error that those worst pixels carry (near 1: the RMSE is decided by a handful of pixels).
+    ``shared``: a dict the calls of one ``ref``, ``mask`` and ``rel_eps`` pass along (several images of a case),
+    which keeps the reference's masked pixels and relMSE denominators for the next call."""
+    mask = np.asarray(mask, bool)
+    if shared is None or "r" not in shared:  # the masked pixels first, then float64 (not whole frames)
+        r = np.asarray(ref)[mask].astype(float)
+        shared = {} if shared is None else shared
+        shared["r"], shared["den"] = r, r * r + rel_eps
+    r, den = shared["r"], shared["den"]
+    d = np.asarray(img)[mask].astype(float) - r
+    dd = d * d
+    se = np.mean(dd, axis=-1)  # per pixel, mean over channels: mean(se) = RMSE²
+    rel = np.mean(dd / den, axis=-1)
     names, samples = [f"rmse_{suffix}", f"relmse_{suffix}"], [se, rel]
     if emap is not None:
         names.append(f"flip_{suffix}")
-        samples.append(np.asarray(emap, float)[mask])
+        samples.append(np.asarray(emap)[mask].astype(float))
     intervals, length = (
         spatial.mean_intervals(samples, mask, LEVEL) if se.size else ([(math.nan,) * 2] * 3, math.nan)
     )
@@ -261,11 +275,12 @@ def pixel_columns(img, ref, *, mask, sigma: float, rel_eps: float, suffix: str =
         out[f"rmse_{suffix}_debiased_{k}"] = _debiased_root(b, sigma)
     for name, (a, b) in cis.items():
         out[f"{name}_lo"], out[f"{name}_hi"] = a, b
-    tm = trimmed_mean(se)
+    ranked = np.sort(se)  # sorted once: the trimmed mean and the worst pixels' share
+    tm = _trimmed_sorted(ranked)
     out[f"rmse_{suffix}_trim"] = math.sqrt(tm) if tm == tm else math.nan
     out[f"rmse_{suffix}_debiased_trim"] = _debiased_root(tm, sigma)
     total = float(se.sum())
-    top = np.sort(se)[::-1][: max(1, math.ceil(TRIM * se.size))].sum() if se.size else math.nan
+    top = ranked[::-1][: max(1, math.ceil(TRIM * se.size))].sum() if se.size else math.nan
     out[f"sqerr_top_share_{suffix}"] = float(top / total) if total > 0 else math.nan
     return out
 
