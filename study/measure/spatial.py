@@ -218,15 +218,17 @@ def ratio_variance(nums, den, mask, skews: bool = False) -> tuple[np.ndarray, ..
     n = float(m.sum())
     with np.errstate(invalid="ignore", divide="ignore"):
         per_pair = np.where(pairs > 0.5, 1.0 / pairs, math.nan)
+    # what every sample shares: the lags the flat part may reach, and the rings of the correlation length (lag 0
+    # first) with their pair counts and radii
+    fc, rc = _centre(math.ceil(limit), reach), _centre(int(length_limit) + 2, reach)
+    f_per_pair, f_radii, f_bins = per_pair[fc], radii[fc], bins[fc]
+    r_pairs, r_radii = np.fft.ifftshift(pairs[rc]), np.fft.ifftshift(radii[rc])
     for i in range(k):
-        c = _centre(math.ceil(limit), reach)  # the lags the flat part may reach
         with np.errstate(invalid="ignore", divide="ignore"):  # a constant sample: NaN, the smallest window
-            rho = sums[i][c] * per_pair[c] / (sums[i, reach, reach] * per_pair[reach, reach])
-        c = _centre(int(length_limit) + 2, reach)  # the rings of the correlation length, lag 0 first
-        ring = correlogram(*(np.fft.ifftshift(a[c]) for a in (sums[i], pairs, radii)), int(length_limit) + 1)
+            rho = sums[i][fc] * f_per_pair / (sums[i, reach, reach] * per_pair[reach, reach])
+        ring = correlogram(np.fft.ifftshift(sums[i][rc]), r_pairs, r_radii, int(length_limit) + 1)
         lengths[i] = min(length_limit, crossing(ring, math.exp(-1)))
-        c = _centre(math.ceil(limit), reach)
-        flat = _reach_by_angle(rho, radii[c], bins[c], limit)
+        flat = _reach_by_angle(rho, f_radii, f_bins, limit)
         c = _centre(math.ceil(2 * flat.max()), reach)  # the lags the window reaches
         w = np.clip(2.0 - radii[c] / flat[bins[c]], 0.0, 1.0)
         # the residuals are centred on the estimated ratio, which takes (Σ w·pairs / n²) of the window's sum away
