@@ -257,28 +257,6 @@ def wall(steps, cores: int) -> float:
     return max(sum(known) / max(cores, 1), max(known, default=0.0))
 
 
-def commands_estimate(commands, *, cache: Cache | None = None, jobs: int = 1) -> tuple[Forecast, list[str]]:
-    """(the :class:`Forecast` of ``commands``, the commands it does not model): ``figure NAME`` (its config,
-    ``configs/NAME.toml``) and ``sweep PATH`` (its cases, a sweep's columns) are counted, ``jobs`` of them at a
-    time; anything else (the caustics, the animation, the convergence study, the report) is listed, not counted.
-    What ``scripts/reproduce.sh`` prints before it starts."""
-    from study.harness.sweep import load_sweep
-
-    root = Path(__file__).resolve().parents[2]
-    total, left = Forecast(0, dict.fromkeys(CASE_PARTS, 0.0)), []
-    for cmd in commands:
-        words = cmd.split()
-        if len(words) >= 2 and words[0] == "figure":
-            total = total + config_estimate(root / "configs" / f"{words[1]}.toml", cache=cache)
-        elif len(words) >= 2 and words[0] == "sweep":
-            sw = load_sweep(root / words[1])
-            total = total + forecast([c.scene for c in sw.cases], sw.methods, cache=cache, intervals=False)
-        elif words:
-            left.append(words[0] if words[0] != "figure" else cmd)
-    total.jobs = jobs
-    return total, left
-
-
 def main(argv=None) -> None:
     """``python -m study.harness.estimate [--jobs J] [--cache DIR] COMMAND...``: the estimate of ``study``
     commands, one line per command (:func:`step_estimates`: seconds on one core) and the total on ``jobs`` cores
