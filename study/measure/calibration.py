@@ -244,25 +244,25 @@ def _field_rmse(rng, before: bool, field, mask, squared: bool = False):
     return math.sqrt(float(np.mean(err[mask] ** 2))), (now["rmse_truth_lo"], now["rmse_truth_hi"]), None
 
 
-def _field_fraction(rng, before: bool, sigma, mask, rays_per_pixel: int = 4):
+def _rays_wrong(rng, probit: np.ndarray, mask, rays_per_pixel: int = 4):
+    """(wrong fraction, its interval by :func:`study.measure.stats.fraction_cis`, None): ``rays_per_pixel`` rays
+    per pixel of ``mask``, each wrong with probability Φ(``probit``) of its pixel."""
+    p = sps.norm.cdf(probit)[mask]
+    pix = np.repeat(np.flatnonzero(mask), rays_per_pixel)
+    wrong = rng.random(pix.size) < np.repeat(p, rays_per_pixel)
+    ((now,), _) = stats.fraction_cis([wrong], pix, mask.shape)
+    return float(wrong.mean()), now, None
+
+
+def _field_fraction(rng, before: bool, sigma, mask):
     """The ray-fraction row's design on another field (filter ``sigma``, a random axis) or object ``mask``."""
     z = correlated_field(rng, sigma=sigma)
-    z = z if rng.random() < 0.5 else z.T
-    p = sps.norm.cdf(-1.5 + z)[mask]
-    pix = np.repeat(np.flatnonzero(mask), rays_per_pixel)
-    wrong = rng.random(pix.size) < np.repeat(p, rays_per_pixel)
-    ((now,), _) = stats.fraction_cis([wrong], pix, mask.shape)
-    return float(wrong.mean()), now, None
+    return _rays_wrong(rng, -1.5 + (z if rng.random() < 0.5 else z.T), mask)
 
 
-def _study_wrong(rng, before: bool, rays_per_pixel: int = 4):
+def _study_wrong(rng, before: bool):
     """The ray-fraction design on the wrong-hit template (:func:`study.measure.fields.study_wrong_probit`)."""
-    mask = _disc()
-    p = sps.norm.cdf(study_wrong_probit(rng))[mask]
-    pix = np.repeat(np.flatnonzero(mask), rays_per_pixel)
-    wrong = rng.random(pix.size) < np.repeat(p, rays_per_pixel)
-    ((now,), _) = stats.fraction_cis([wrong], pix, mask.shape)
-    return float(wrong.mean()), now, None
+    return _rays_wrong(rng, study_wrong_probit(rng), _disc())
 
 
 #: The designs on study's own error maps (also measured, with a simulated check of their truths, by
