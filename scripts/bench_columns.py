@@ -55,7 +55,7 @@ def frame(n: int, methods: int, rng):
 
 def groups(r, imgs, backend: str):
     """(name, per-method path, batched path) of each column group: functions of no argument."""
-    from study.measure import batched, metrics, split, stats, truth
+    from study.measure import batched, case_columns, metrics, split, truth
 
     keep = (r.held_px | ~r.mask)[..., None]
     refs = np.where(keep, r.oracle, imgs)
@@ -101,10 +101,10 @@ def groups(r, imgs, backend: str):
          lambda: batched.errors(r.mitsuba, imgs, mask=r.mask, suffix="mitsuba", backend=backend, with_flip=False)),
         ("the truth's columns (relMSE, debiased, exposed relMSE and its interval, noise, fireflies)",
          old_truth_cols, new_truth_cols),
-        ("pixel intervals (stats.pixel_columns: RMSE, relMSE, FLIP; per method in both)",
-         lambda: [stats.pixel_columns(img, r.truth.image, mask=r.mask, sigma=sigma, rel_eps=truth.REL_EPS)
+        ("pixel intervals (case_columns.pixel_columns: RMSE, relMSE, FLIP; per method in both)",
+         lambda: [case_columns.pixel_columns(img, r.truth.image, mask=r.mask, sigma=sigma, rel_eps=truth.REL_EPS)
                   for img in imgs],
-         lambda: [stats.pixel_columns(img, r.truth.image, mask=r.mask, sigma=sigma, rel_eps=truth.REL_EPS)
+         lambda: [case_columns.pixel_columns(img, r.truth.image, mask=r.mask, sigma=sigma, rel_eps=truth.REL_EPS)
                   for img in imgs]),
         ("the error split with its intervals",
          lambda: [split.split_columns(img, *split_args(), mask=r.mask, held_px=r.held_px) for img in imgs],

@@ -1,5 +1,5 @@
 """Write reports/calibration.md: how often each interval the report prints covers a known truth
-(study.measure.calibration; slow tier, 2000 replicates per row, ≈ 10 minutes on one core; 400 in ≈ 2).
+(study.stats.calibration; slow tier, 2000 replicates per row, ≈ 10 minutes on one core; 400 in ≈ 2).
 
     PYTHONPATH=. .venv/bin/python scripts/calibration.py [--replicates N] [--seed S] [--out PATH]
 """
@@ -10,7 +10,7 @@ import argparse
 import time
 from pathlib import Path
 
-from study.measure import calibration
+from study.stats import calibration
 
 
 def main() -> None:

@@ -36,6 +36,7 @@ ORDER = [
     "io.py",
     "owned.py",
     "runtime.py",
+    "stats",
     "codehash.py",
     "errors.py",
     "progress.py",

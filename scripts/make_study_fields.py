@@ -1,5 +1,5 @@
-"""Write study/measure/data/study_fields.npz: the calibration's error templates taken from study's own output
-(study.measure.calibration's rows on study's own error maps). One small case of scenes/room.toml (96 × 96 px,
+"""Write study/stats/data/study_fields.npz: the calibration's error templates taken from study's own output
+(study.stats.calibration's rows on study's own error maps). One small case of scenes/room.toml (96 × 96 px,
 fov 40°, cube_res 64, 16 spp, numpy backend): classical's per-pixel RMS error against truth_at_hit (a reflected
 edge: the error sits in a thin streak where a bright edge of the room is reflected at the wrong place) and the
 wrong-hit mask of localized(iterations=0) (its majority outcome is not the exact hit: a large connected region),
@@ -17,7 +17,7 @@ import numpy as np
 
 import study
 
-OUT = Path(__file__).resolve().parents[1] / "study" / "measure" / "data" / "study_fields.npz"
+OUT = Path(__file__).resolve().parents[1] / "study" / "stats" / "data" / "study_fields.npz"
 SETTINGS = {
     "render.cube_res": 64,
     "render.spp": 16,

@@ -1,5 +1,5 @@
 """Coverage of the pixel-RMSE and ray-fraction intervals on the designs made from study's own error maps
-(study.measure.calibration.STUDY_ROWS: a reflected edge's error and a wrong-hit region, placed, turned, mirrored and
+(study.stats.calibration.STUDY_ROWS: a reflected edge's error and a wrong-hit region, placed, turned, mirrored and
 scaled at random, plus noise), and a check of each design's truth by simulation (the mean over the replicates).
 
     PYTHONPATH=. .venv/bin/python scripts/measure_study_fields.py [--replicates N] [--seed S]
@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from study.measure import calibration
+from study.stats import calibration
 
 
 def main() -> None:

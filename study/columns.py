@@ -10,7 +10,7 @@ plug-in that adds it — then it reaches every output with no other file touched
 
 Directions: ``lower_is_better`` True for errors and costs, False for scores (PSNR, SSIM, correct fraction), None
 for what describes the case (counts, positions, context). An ``interval`` column has ``<name>_lo`` / ``<name>_hi``
-beside it (its 95 % interval; :mod:`study.measure.stats`), declared with it.
+beside it (its 95 % interval; :mod:`study.stats`), declared with it.
 """
 
 from __future__ import annotations
@@ -149,7 +149,7 @@ TABLE: list[TableColumn] = [
     C("rays", "count", note="the object's secondary rays"),
     C("backend", note="numpy, llvm or cuda"),
     C("seconds", "s", LOW, note="wall time of the trace (measured, never in a baseline)"),
-    # ------------------------------------------------------------------ counts and intervals (study.measure.stats)
+    # ----------------------------------------------------------- counts and intervals (study.measure.case_columns)
     C("n_rays", "count"),
     C(
         "rays_deff",

@@ -15,8 +15,9 @@ and its fireflies. :func:`method_columns` computes the latter once and the forme
 * FLIP runs where :func:`study.measure.metrics.flip_map` runs it: flip-evaluator for ``numpy`` (one call per
   image, on the crop where the images differ), the array code over the whole stack for ``llvm`` and ``cuda``.
 
-The pixel intervals (:func:`study.measure.spatial.mean_intervals` through :func:`study.measure.stats.pixel_columns`,
-the exposed relMSE's and the split's) are called per method as before. The values are those of the per-method path
+The pixel intervals (:func:`study.stats.spatial.mean_intervals` through
+:func:`study.measure.case_columns.pixel_columns`, the exposed relMSE's and the split's) are called per method as
+before. The values are those of the per-method path
 (``case._image_columns``, kept for the references' rows): ``tests/measure/test_batched_columns.py`` compares them
 column by column (on ``numpy`` bit for bit: each image's means are summed as one image's; on ``llvm`` where the
 per-method path measured RMSE, PSNR and SSIM with :mod:`study.measure.pixels`, within its 1e-12 of numpy, and FLIP
@@ -27,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from study.measure import bias, exposure, metrics, split, stats, truth
+from study.measure import bias, case_columns, exposure, metrics, split, truth
 from study.measure.metrics import _crop, to_ldr
 from study.measure.pixels import K1, K2, WIN  # scikit-image's SSIM: window size, K₁, K₂
 
@@ -270,8 +271,8 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
                            mask=mask, held_px=r.held_px, intervals=intervals)  # fmt: skip
     out, px_shared = [], {}  # the truth's masked pixels: once for every image
     for i in range(M):
-        px = stats.pixel_columns(imgs[i], r.truth.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS,
-                                 emap=fmaps[i], shared=px_shared)  # fmt: skip
+        px = case_columns.pixel_columns(imgs[i], r.truth.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS,
+                                        emap=fmaps[i], shared=px_shared)  # fmt: skip
         bias_cols = bias.bias_columns(imgs[i], r.truth.image, mask=mask & r.held_px)  # signed (measure.bias)
         out.append({**oracle[i], **tr[i], **mi[i], **tc[i], **px, **sp[i], **bias_cols})
     return out, fmaps

@@ -23,12 +23,13 @@ from study.cache import Cache
 from study.errors import StudyError
 from study.impostor.envmap import EnvMap
 from study.impostor.views import Lobe
-from study.measure import batched, bias, lighting, metrics, outcomes, spatial, split, stats, truth, worth
+from study.measure import batched, bias, case_columns, lighting, metrics, outcomes, split, truth, worth
 from study.measure.inputs import camera_render, capture_views, impostor, second_captures
 from study.methods import Method
 from study.optics import shading
 from study.reference.tracer import make_tracer
 from study.scene import Scene
+from study.stats.spatial import ray_pixels
 
 
 @dataclass
@@ -391,9 +392,9 @@ def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool) -> 
         **metrics.image_errors(r.mitsuba, img, mask=over, suffix="mitsuba", backend=backend,
                                with_flip="mitsuba" in r.against),
         **truth.columns(img, r.truth, r.mitsuba, mask=over, backend=backend),
-        **stats.pixel_columns(img, r.truth.image, mask=over,  # σ over the same pixels as truth.columns
-                              sigma=truth.noise_rms(r.truth.noise, over),
-                              rel_eps=truth.REL_EPS, emap=fmap),
+        **case_columns.pixel_columns(img, r.truth.image, mask=over,  # σ over the same pixels as truth.columns
+                                     sigma=truth.noise_rms(r.truth.noise, over),
+                                     rel_eps=truth.REL_EPS, emap=fmap),
         **split.split_columns(img, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
                               mask=over, held_px=r.held_px, intervals=intervals),  # sweeps: values only
         **bias.bias_columns(img, r.truth.image, mask=over & r.held_px),  # signed: a gain shows with its sign
@@ -406,6 +407,7 @@ def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool) -> 
 def _row(t: Traced, base: dict, rays, ang, oc, exact: ExactHits, image_cols: dict, extra: dict) -> dict:
     """One trace's row: the case's columns, the method's knobs, geometry (angle, distance), outcome classes and
     their intervals, off-screen hits, image columns, then validity, the search's residual and its cost."""
+    pix = ray_pixels(rays.hit, rays.src)  # counts, intervals, fixed tolerances over the rays
     return {
         **base,
         "method": t.method,
@@ -414,14 +416,8 @@ def _row(t: Traced, base: dict, rays, ang, oc, exact: ExactHits, image_cols: dic
         **metrics.value_stats(ang, "angle", "_deg"),
         "dist_median": float(np.nanmedian(np.linalg.norm(t.shown - exact.point, axis=-1))),
         **outcomes.outcome_columns(oc, exact.occluded, ang),
-        **stats.ray_columns(
-            oc,
-            ang,
-            exact.occluded,
-            rays.x,
-            exact.point,  # counts, intervals, fixed tolerances
-            pixels=spatial.ray_pixels(rays.hit, rays.src),
-            shape=rays.hit.shape[:2],
+        **case_columns.ray_columns(
+            oc, ang, exact.occluded, rays.x, exact.point, pixels=pix, shape=rays.hit.shape[:2]
         ),
         **outcomes.offscreen_columns(oc, exact.offscreen),
         **image_cols,

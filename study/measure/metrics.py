@@ -29,7 +29,7 @@ def value_stats(values: np.ndarray, prefix: str, unit: str = "") -> dict[str, fl
     """``{prefix}_median{unit}``, ``_p95``, ``_max`` of the finite values (NaN if none).
 
     Rays without a finite value (no hit) are left out here; the share left out is the ``angle_dropped`` column of
-    :func:`study.measure.stats.ray_columns`, and ``angle_p95_all_deg`` counts them as infinite error."""
+    :func:`study.measure.case_columns.ray_columns`, and ``angle_p95_all_deg`` counts them as infinite error."""
     v = np.asarray(values, float)
     v = v[np.isfinite(v)]
     stats = (np.median(v), np.percentile(v, 95), v.max()) if v.size else (np.nan,) * 3

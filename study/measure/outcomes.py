@@ -26,7 +26,7 @@ The tolerance is per ray, ``ε = max(EPS_FIXED, texel_footprint(o, exact, res))`
 one centimetre, or the world-space size of one cube-map texel at the exact hit seen from the reference point o,
 whichever is larger — a method that reads a cube map cannot be asked to be finer than one of its texels. This
 tolerance is *texel-relative*: it changes with the cube resolution (about 6 cm at 64², 1 cm at 512²), so a finer
-map can make a method look worse; :mod:`study.measure.stats` adds wrong fractions at fixed distances
+map can make a method look worse; :mod:`study.stats` adds wrong fractions at fixed distances
 (``wrong_fraction_1cm``, ``_3cm``, ``_10cm``, …) and at a fixed angle, which keep one meaning.
 
 Which ray: the exact ray is the one Embree traced, from its origin (``exact_origin``, by default the method's
@@ -301,7 +301,7 @@ def outcome_columns(outcomes: Outcomes, hidden, angle) -> dict[str, float]:
         ``angle_p95_visible_deg`` / ``angle_p95_hidden_deg``. Every fraction counts secondary rays, unweighted.
         ``wrong_fraction`` uses the texel-relative ε of :func:`tolerance` (also written as
         ``wrong_fraction_texel``); the dist/angle percentiles leave out the rays without a finite value, and
-        :func:`study.measure.stats.ray_columns` writes how many (``dist_dropped``, ``angle_dropped``) beside the
+        :func:`study.measure.case_columns.ray_columns` writes how many (``dist_dropped``, ``angle_dropped``) beside the
         counts, intervals and fixed-tolerance fractions.
     """
     c = np.asarray(outcomes.cls)

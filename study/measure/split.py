@@ -65,7 +65,7 @@ its own term.
 
 Each term has a 95 % interval over the object's spatially correlated pixels (the mean ± t·√variance, the variance
 from the term's own autocovariance over a lag window sized by its correlation length:
-:func:`study.measure.spatial.mean_intervals`), written ``dec_<term>_lo``/``_hi``. ``dec_sums`` is 1 when the
+:func:`study.stats.spatial.mean_intervals`), written ``dec_<term>_lo``/``_hi``. ``dec_sums`` is 1 when the
 parts add up to the total within their intervals: the parts'
 summed interval [Σ lo, Σ hi] meets the total's. ``dec_residual``'s own interval is the stricter, paired check (it
 excludes 0 where the map misses more than seed and resolution explain, e.g. at the edge of an emitter, where texel
@@ -80,8 +80,8 @@ import math
 import numpy as np
 
 from study.impostor.cubemap import FAR
-from study.measure.spatial import mean_intervals
-from study.measure.stats import LEVEL
+from study.stats import LEVEL
+from study.stats.spatial import mean_intervals
 
 #: The colour of oracle_map pixels whose hits the views do not hold (linear RGB).
 MARK = (1.0, 0.0, 1.0)

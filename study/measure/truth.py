@@ -33,14 +33,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from study import backend as backends
+from study import stats
 from study.cache import Cache, content_key
 from study.impostor import ggx
-from study.measure import exposure, spatial, stats
+from study.measure import exposure
 from study.measure.metrics import _crop, image_backend, rmse
 from study.optics import shading
 from study.reference.mitsuba import radiance_along
 from study.scene import Scene
 from study.scene.sources import key_fields
+from study.stats import spatial
 
 REL_EPS = 1e-2  # ε of relMSE, (W/m²/sr)²
 SEED_OFFSET = 7919  # the second seed of every two-seed Mitsuba reference

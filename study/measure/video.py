@@ -74,19 +74,6 @@ def jod(test: np.ndarray, ref: np.ndarray, *, fps: float, metric=None) -> float:
     return float(q)
 
 
-def segment_interval(whole: float, parts, level: float = 0.95) -> tuple[float, float]:
-    """(lo, hi): the ``level`` interval of a whole sequence's score from its k segments' scores ``parts``: ``whole``
-    ± t₍ₖ₋₁₎ · sd(parts) / √k (the segments as independent draws of the score, the whole as their mean; it
-    contains ``whole``). Equal parts: (whole, whole)."""
-    from scipy.stats import t
-
-    p = np.asarray(parts, float)
-    if p.size < 2 or np.ptp(p) == 0:
-        return float(whole), float(whole)
-    half = float(t.ppf(0.5 + level / 2, p.size - 1) * p.std(ddof=1) / np.sqrt(p.size))
-    return float(whole) - half, float(whole) + half
-
-
 def on_object(
     test: np.ndarray, ref: np.ndarray, masks: np.ndarray, crop: tuple[slice, slice]
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -100,21 +87,6 @@ def object_jod(test, ref, masks, crop, *, fps: float, metric=None) -> float:
     """:func:`jod` of ``test`` against ``ref`` on the object's pixels (:func:`on_object`)."""
     t, r = on_object(test, ref, masks, crop)
     return jod(t, r, fps=fps, metric=metric)
-
-
-def seed_interval(values) -> tuple[float, float, float]:
-    """(mean, 95 % low, high) of per-seed values: Student-t over the seeds (the replicates are independent);
-    (mean, nan, nan) from one seed; NaN values are left out."""
-    from scipy.stats import t as student
-
-    v = np.asarray([x for x in values if np.isfinite(x)], float)
-    if v.size == 0:
-        return np.nan, np.nan, np.nan
-    mean = float(v.mean())
-    if v.size < 2:
-        return mean, np.nan, np.nan
-    half = float(student.ppf(0.975, v.size - 1) * v.std(ddof=1) / np.sqrt(v.size))
-    return mean, mean - half, mean + half
 
 
 def motion_claim(rows: list[dict], *, bound: float = BOUND_JOD) -> list[str]:

@@ -40,6 +40,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from study import progress as pg
+from study import stats
 from study.cache import Cache
 from study.errors import StudyError
 from study.harness import budget
@@ -364,7 +365,7 @@ def motion_table(
     fps: float,
 ) -> tuple[list[dict], list[str]]:
     """(``motion.csv``'s rows, the motion claim's sentences): per sequence (object) and method, and for the noise
-    floor (``truth_at_hit``), the means over seeds with their 95 % intervals (:func:`video.seed_interval`) of the
+    floor (``truth_at_hit``), the means over seeds with their 95 % intervals (:func:`stats.seed_interval`) of the
     per-frame FLIP against truth_at_hit on the object (``flip_truth``), E_warp on the object's pixels along the
     exact motion and — with ColorVideoVDP — the JOD on the object's pixels (a crop around them) against
     truth_at_hit (``jod``; the floor's: truth_at_hit of the next seed), its ``gap`` below the floor (paired by
@@ -417,7 +418,7 @@ def motion_table(
                    "object_pixels": float(masks.sum(axis=(1, 2)).mean()), "crop": f"{side}x{side}"}  # fmt: skip
             for k in ("flip_truth", "ewarp_l2", "ewarp_flip", "jod", "gap", "jod_mitsuba"):
                 if k in vals:
-                    row[k], row[f"{k}_lo"], row[f"{k}_hi"] = video.seed_interval(vals[k])
+                    row[k], row[f"{k}_lo"], row[f"{k}_hi"] = stats.seed_interval(vals[k])
                 else:
                     row[k] = row[f"{k}_lo"] = row[f"{k}_hi"] = NO_CVVDP
             row |= (

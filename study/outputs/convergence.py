@@ -21,7 +21,7 @@ a rung's numbers are those of a method of the same name in any figure. Outputs (
   columns of :data:`CURVE_COLUMNS`;
 * ``reach.csv``: per scene × ladder × reach column × target: the smallest rung from which on every rung of the
   case is at or below the target (``value_to_reach``: the median over the cases, with the interval of
-  :func:`study.measure.stats.case_interval`: the cases' range below 10 cases, a bootstrap CI from 10; where a case
+  :func:`study.stats.case_interval`: the cases' range below 10 cases, a bootstrap CI from 10; where a case
   never reaches it, it counts as inf, beyond the ladder, and the interval is the range), how many cases reach it
   (``reached``/``n_cases``) and each case's value (``per_case``);
 * ``breakdown.csv``: :func:`study.measure.convergence.breakdown` of each case's breakdown rungs;
@@ -48,7 +48,7 @@ from study.harness.config import load_figure_config
 from study.harness.runner import metadata
 from study.io import locked, png_bytes, write_set
 from study.measure.convergence import CAUSES, Ladder, run_ladders
-from study.measure.stats import case_interval
+from study.stats import case_interval
 from study.tables import markdown, to_csv
 from study.validation import validate_file
 

@@ -2,7 +2,7 @@
 
 Per case (an ``object.alpha`` × object position of ``configs/fig_glossy.toml``), over the object's pixels
 (``mask``), each part is an RMSE between two images of the case's EXR, with a 95 % interval over the spatially
-correlated pixels (:func:`study.measure.spatial.mean_intervals` on the per-pixel squared errors, the interval's ends
+correlated pixels (:func:`study.stats.spatial.mean_intervals` on the per-pixel squared errors, the interval's ends
 square-rooted):
 
 ==============  =======================================  ===================================================
@@ -33,8 +33,8 @@ import numpy as np
 import pandas as pd
 
 from study.io import atomic_write, file_stem, read_exr_layers
-from study.measure.spatial import mean_intervals
-from study.measure.stats import LEVEL
+from study.stats import LEVEL
+from study.stats.spatial import mean_intervals
 from study.tables import markdown
 
 #: (part, first image, second image, pixels): image names are file stems of labels (``study.io.file_stem``)

@@ -23,7 +23,7 @@ methods at its cube resolution (256²) on the fig4 room, whatever the table's sc
 scene's. Table labels the bench did not time (other parameters) are listed, not placed.
 
 **Error.** The median over the table's cases of ``metric`` (``wrong_fraction`` by default: the share of rays whose
-shown point is not the exact hit) with its interval over the cases (:func:`study.measure.stats.case_interval`: the
+shown point is not the exact hit) with its interval over the cases (:func:`study.stats.case_interval`: the
 95 % bootstrap from 10 cases on, else the range). A sweep that varies the cube resolution is read at the bench's
 (its cases at 256²) where it has it, else over all its cases; the page says which.
 
@@ -42,7 +42,6 @@ import numpy as np
 from study import methods as registry
 from study.errors import StudyError
 from study.io import png_bytes, write_set
-from study.measure.stats import case_interval
 from study.outputs.plots import METRICS, pareto_indices, style
 from study.report.bench_times import (
     CLOCK_WORDS,
@@ -54,6 +53,7 @@ from study.report.bench_times import (
     exact_priced,
 )
 from study.report.check import read_table
+from study.stats import case_interval
 from study.tables import REFERENCE_ROWS, check_rows, markdown
 
 #: Budgets (ms per 1080p frame) the page answers, per bench tag; others get :data:`DEFAULT_BUDGETS`.

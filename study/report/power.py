@@ -1,7 +1,7 @@
 """How much a results table can tell: per table the cases, the object rays and hidden rays per case, and the
 smallest difference in wrong fraction it could detect (two-sided 5 %, 80 % power;
-:func:`study.measure.stats.detectable_fraction` within a case over its rays,
-:func:`study.measure.stats.detectable_shift` over the cases), for the report's summary
+:func:`study.stats.detectable_fraction` within a case over its rays,
+:func:`study.stats.detectable_shift` over the cases), for the report's summary
 (:func:`study.report.summary.headline_blocks`). Claims about hidden hits should rest on cases with at least
 :data:`MIN_HIDDEN` hidden rays.
 """
@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from study.measure import stats
+from study import stats
 from study.report import geometry
 from study.tables import REFERENCE_ROWS
 
@@ -119,7 +119,7 @@ def row(name: str, tab: list[dict], rank: list[dict]) -> dict:
 
 def detectable(tab: list[dict], a: str, b: str, col: str) -> float:
     """The smallest difference in ``col`` between methods a and b that the table's cases could detect
-    (:func:`study.measure.stats.detectable_difference`: 80 % power, 5 %, from the spread of the per-case
+    (:func:`study.stats.detectable_difference`: 80 % power, 5 %, from the spread of the per-case
     differences over the geometries: the seeds of one pooled, :func:`study.report.geometry.pooled`)."""
     tab = geometry.pooled(tab)
     cases = list(dict.fromkeys(r["case"] for r in tab))

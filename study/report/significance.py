@@ -4,7 +4,7 @@
 
 from __future__ import annotations
 
-from study.measure import stats
+from study import stats
 from study.outputs.markup import md_esc
 from study.report.power import SIGNIFICANCE
 

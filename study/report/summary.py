@@ -5,9 +5,9 @@ Everything here reads results tables (one row per case × method) and nothing el
 * **the best** method for a metric is the one with the lowest median over the table's cases; its median comes
   with an order-statistic interval over the cases (their range below 10 cases) and its worst case (a median
   hides failures);
-* **the runner-up** is compared with it over the same cases (:func:`study.measure.stats.paired`: Wilcoxon
+* **the runner-up** is compared with it over the same cases (:func:`study.stats.paired`: Wilcoxon
   signed-rank, two-sided, with the count of cases each wins): "significant at 1 %/5 %" or "no significant
-  difference"; below 6 cases no difference can reach 5 % (:func:`study.measure.stats.min_p`), and the headline
+  difference"; below 6 cases no difference can reach 5 % (:func:`study.stats.min_p`), and the headline
   says so;
 * per case, two wrong fractions are **separated** when their calibrated 95 % intervals over the rays do not
   overlap (:func:`study.report.intervals.bounds`: the ``_lo``/``_hi`` the declared column table names);
@@ -26,9 +26,9 @@ import math
 
 import numpy as np
 
-from study import columns
+from study import columns, stats
 from study import methods as registry
-from study.measure import stats
+from study.measure import case_columns
 from study.outputs.markup import code, md_esc
 from study.report import geometry, power, significance, table_notes
 from study.report.intervals import separated
@@ -89,7 +89,7 @@ def interval_words(r: dict) -> str:
 
 def ranking(tab: list[dict], col: str) -> list[dict]:
     """Methods by their median over the cases of ``col`` (lowest first; ties to the lower worst case, then to the
-    cheaper), each with ``median``, ``lo``/``hi``, ``kind`` (:func:`study.measure.stats.case_interval`), ``max``,
+    cheaper), each with ``median``, ``lo``/``hi``, ``kind`` (:func:`study.stats.case_interval`), ``max``,
     ``worst`` (its case), ``n`` (distinct geometries, :func:`study.report.geometry.pooled`) and ``cost`` (median
     lookups per ray). A backend-sensitive column (its value hangs on float32 arithmetic) ranks nothing: empty."""
     if getattr(columns.declared(col), "backend_sensitive", False):
@@ -139,7 +139,7 @@ def cost_front(rank: list[dict]) -> list[dict]:
 
 
 def versus(tab: list[dict], a: str, b: str, col: str) -> dict:
-    """Paired comparison of methods a and b over the table's geometries (:func:`study.measure.stats.paired`; the
+    """Paired comparison of methods a and b over the table's geometries (:func:`study.stats.paired`; the
     seeds of a geometry pooled, :func:`study.report.geometry.pooled`)."""
     tab = geometry.pooled(tab)
     cases = list(dict.fromkeys(r["case"] for r in tab))
@@ -440,13 +440,13 @@ def headline_blocks(tables: dict[str, list[dict]]) -> list[tuple]:
 
 def tolerance_curve_rows(tab: list[dict]) -> list[dict]:
     """The wrong-fraction-versus-tolerance curve per method: median over the cases of ``wrong_fraction_<tol>``
-    at each fixed tolerance of :data:`study.measure.stats.TOLERANCES` (rows: label, tolerance_m, wrong,
+    at each fixed tolerance of :data:`study.measure.case_columns.TOLERANCES` (rows: label, tolerance_m, wrong,
     wrong_max); empty for a table written before those columns."""
     tab = geometry.pooled(tab)
     cases = list(dict.fromkeys(r["case"] for r in tab))
     out = []
     for lab in _labels(tab):
-        for name, tol in stats.TOLERANCES.items():
+        for name, tol in case_columns.TOLERANCES.items():
             v = _values(tab, lab, f"wrong_fraction_{name}", cases)
             if np.isfinite(v).any():
                 out.append(

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from study.measure import stats
+from study import stats
 
 
 def column_notes() -> list[str]:
-    """What the uncertainty columns of a results table mean (:mod:`study.measure.stats`), for the report."""
+    """What the uncertainty columns of a results table mean (:mod:`study.stats`), for the report."""
     return [
         "*wrong_fraction* (= *wrong_fraction_texel*): tolerance texel-relative, ε = max(1 cm, one cube-map texel "
         "at the hit), so it tightens as the map gets finer; *wrong_fraction_1cm / _3cm / _10cm*: the same "
@@ -44,7 +44,7 @@ def interval_note() -> str:
         "Intervals: 95 %, their coverage measured by simulation (reports/calibration.md); per case over the rays "
         "(Wilson at the rays' effective number, clustered by pixel) or over the spatially correlated pixels, "
         f"over cases the median's order-statistic interval from {stats.MIN_CASES_CI} cases on, else the cases' "
-        "range (an interval over 2–4 cases covers the truth 52–87 % of the time; study/measure/stats.py); "
+        "range (an interval over 2–4 cases covers the truth 52–87 % of the time; study/stats/intervals.py); "
         "*wrong hits* use the "
         "texel-relative tolerance ε = max(1 cm, one texel); the fixed-tolerance columns (wrong_fraction_1cm, "
         "_3cm, _10cm) keep one meaning at every cube resolution. A case is a distinct geometry (object position, "

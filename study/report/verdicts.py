@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from study import methods as registry
-from study.measure import stats
+from study import stats
 from study.report.intervals import bounds, fraction_bounds
 from study.report.power import SIGNIFICANCE
 
@@ -114,7 +114,7 @@ def pair(rows, case, a_label, b_label, col, b_col: str | None = None) -> Pair | 
 
 def decide(pairs: list[Pair]) -> tuple[bool | None, str]:
     """Is a lower than b? From each case's calibrated intervals and, paired over the cases (the same geometries;
-    :func:`study.measure.stats.paired`, Wilcoxon signed-rank), their differences: True where every case has a's
+    :func:`study.stats.paired`, Wilcoxon signed-rank), their differences: True where every case has a's
     interval wholly below b's, or none has it above and the paired test finds a lower (p < 5 %); False where the
     evidence says otherwise — a case with a's interval wholly above, or the paired test finding a higher; None
     (undecided at this sample size) else. Returns the verdict and its evidence in words."""

@@ -1,6 +1,6 @@
-"""Numbers with their uncertainty (study.measure.stats): intervals agree with scipy's closed forms, paired tests
-find a planted difference and not a null one, fixed tolerances keep their meaning across cube resolutions, and no
-statistic drops rays silently."""
+"""Numbers with their uncertainty (study.stats, study.measure.case_columns): intervals agree with scipy's closed
+forms, paired tests find a planted difference and not a null one, fixed tolerances keep their meaning across cube
+resolutions, and no statistic drops rays silently."""
 
 import math
 
@@ -10,10 +10,11 @@ from conftest import BOX_HI, BOX_LO
 from scipy import stats as sps
 
 from study import backend as backends
-from study import methods
+from study import methods, stats
 from study.impostor import analytic
 from study.impostor.envmap import EnvMap
-from study.measure import calibration, metrics, outcomes, stats
+from study.measure import case_columns, metrics, outcomes
+from study.stats import calibration
 
 
 def test_bootstrap_mean_matches_the_t_interval():
@@ -89,7 +90,9 @@ def test_fixed_tolerance_does_not_rise_with_cube_resolution():
         shown = B.to_numpy(tr.shown).astype(float)
         eps = outcomes.tolerance(np.zeros(3), exact, res)
         oc = outcomes.classify(x, R, shown, exact, eps=eps)
-        cols = stats.ray_columns(oc, metrics.angular_error(x, shown, exact), np.zeros(len(x), bool), x, exact)
+        cols = case_columns.ray_columns(
+            oc, metrics.angular_error(x, shown, exact), np.zeros(len(x), bool), x, exact
+        )
         curve[res] = (cols["wrong_fraction_1cm"], cols["wrong_fraction_3cm"], cols["wrong_fraction_10cm"])
         texel_eps[res] = float(np.median(eps))
     assert texel_eps[32] > 0.05 > 0.02 > texel_eps[256]  # the texel tolerance changes meaning
@@ -109,7 +112,7 @@ def test_a_method_that_misses_most_rays_reports_what_it_dropped():
     shown[: int(0.96 * n)] = np.nan
     oc = outcomes.classify(x, R, shown, exact, eps=0.01)
     ang = metrics.angular_error(x, shown, exact)
-    cols = stats.ray_columns(oc, ang, np.zeros(n, bool), x, exact)
+    cols = case_columns.ray_columns(oc, ang, np.zeros(n, bool), x, exact)
     assert (
         metrics.value_stats(ang, "angle", "_deg")["angle_p95_deg"] < 1e-3
     )  # what the finite-only column says
@@ -128,7 +131,7 @@ def test_pixel_columns_flag_a_handful_of_bad_pixels():
     img = ref + rng.normal(0, 0.01, ref.shape)
     img[:1, :10] += 5.0  # 10 fireflies among 10⁴ pixels
     mask = np.ones((100, 100), bool)
-    cols = stats.pixel_columns(img, ref, mask=mask, sigma=0.0, rel_eps=1e-2)
+    cols = case_columns.pixel_columns(img, ref, mask=mask, sigma=0.0, rel_eps=1e-2)
     r = metrics.rmse(ref, img, mask=mask)
     assert cols["rmse_truth_lo"] <= r <= cols["rmse_truth_hi"]
     assert cols["sqerr_top_share_truth"] > 0.99
@@ -172,8 +175,8 @@ def test_pixel_intervals_mean_the_same_at_every_resolution():
     mask = np.zeros((64, 64), bool)
     mask[8:56, 8:56] = True
     up = [np.repeat(np.repeat(a, 4, 0), 4, 1) for a in (img, ref, mask)]
-    c1 = stats.pixel_columns(img, ref, mask=mask, sigma=0.0, rel_eps=1e-2)
-    c4 = stats.pixel_columns(*up[:2], mask=up[2], sigma=0.0, rel_eps=1e-2)
+    c1 = case_columns.pixel_columns(img, ref, mask=mask, sigma=0.0, rel_eps=1e-2)
+    c4 = case_columns.pixel_columns(*up[:2], mask=up[2], sigma=0.0, rel_eps=1e-2)
     w1, w4 = (c["rmse_truth_hi"] - c["rmse_truth_lo"] for c in (c1, c4))
     assert c4["n_pixels"] == 16 * c1["n_pixels"]
     assert c1["corr_px"] < 1 and 2 < c4["corr_px"] < 5, (c1["corr_px"], c4["corr_px"])
@@ -244,12 +247,12 @@ def test_an_unknown_noise_gives_an_unknown_debiased_rmse():
     ref = rng.uniform(0.2, 0.8, (40, 40, 3))
     img = ref + rng.normal(0, 0.05, ref.shape)
     mask = np.ones((40, 40), bool)
-    cols = stats.pixel_columns(img, ref, mask=mask, sigma=math.nan, rel_eps=1e-2)
+    cols = case_columns.pixel_columns(img, ref, mask=mask, sigma=math.nan, rel_eps=1e-2)
     debiased = {k: v for k, v in cols.items() if "debiased" in k}
     assert set(debiased) == {"rmse_truth_debiased_lo", "rmse_truth_debiased_hi", "rmse_truth_debiased_trim"}
     assert all(math.isnan(v) for v in debiased.values()), debiased
     assert cols["rmse_truth_lo"] > 0  # the plain columns are unaffected
-    known = stats.pixel_columns(img, ref, mask=mask, sigma=1.0, rel_eps=1e-2)
+    known = case_columns.pixel_columns(img, ref, mask=mask, sigma=1.0, rel_eps=1e-2)
     assert known["rmse_truth_debiased_lo"] == 0.0 == known["rmse_truth_debiased_trim"]
     assert math.isnan(truth.debiased(0.3, math.nan)) and math.isnan(truth.debiased(math.nan, 0.1))
     assert truth.debiased(0.1, 0.2) == 0.0 and truth.debiased(0.5, 0.3) == 0.4

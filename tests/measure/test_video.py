@@ -5,6 +5,7 @@ the motion claim's verdicts follow."""
 import numpy as np
 import pytest
 
+from study import stats
 from study.measure import video
 
 needs_cvvdp = pytest.mark.skipif(
@@ -79,13 +80,13 @@ def test_seed_interval_is_students_t():
     from scipy.stats import t
 
     v = [1.0, 2.0, 4.0]
-    mean, lo, hi = video.seed_interval(v)
+    mean, lo, hi = stats.seed_interval(v)
     half = t.ppf(0.975, 2) * np.std(v, ddof=1) / np.sqrt(3)  # 4.303 × 1.528 / 1.732
     assert (
         mean == pytest.approx(7 / 3) and hi - mean == pytest.approx(half) and mean - lo == pytest.approx(half)
     )
     assert half == pytest.approx(3.7953, abs=1e-3)
-    assert np.isnan(video.seed_interval([5.0])[1]) and video.seed_interval([5.0, np.nan])[0] == 5.0
+    assert np.isnan(stats.seed_interval([5.0])[1]) and stats.seed_interval([5.0, np.nan])[0] == 5.0
 
 
 def test_on_object_keeps_only_the_object_and_crops():

@@ -16,7 +16,7 @@ RAYS = 10_000
 
 def _clustered(p: float, n: float = RAYS, deff: float = 8.0, col: str = "wrong_fraction_texel") -> dict:
     """The interval of a fraction over n rays clustered by pixel: Wilson's at the effective count n / deff (what
-    study.measure.spatial prints; design effect 8: four rays a pixel and neighbouring pixels sharing texels)."""
+    study.stats.spatial prints; design effect 8: four rays a pixel and neighbouring pixels sharing texels)."""
     ci = sps.binomtest(round(p * n / deff), round(n / deff)).proportion_ci(method="wilson")
     return {f"{col}_lo": float(ci.low), f"{col}_hi": float(ci.high)}
 

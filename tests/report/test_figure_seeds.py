@@ -18,7 +18,7 @@ from tests.conftest import error_output, scene_toml, small_scene_dict
 
 ROOT = Path(__file__).resolve().parents[2]
 #: fewest distinct geometries per figure: calibrated case intervals (the median's order-statistic CI from 10 cases on,
-#: study.measure.stats.case_interval) and paired tests with power
+#: study.stats.case_interval) and paired tests with power
 MIN_CASES = 12
 #: figure configs whose kind has no positions or cases (one scene measured another way), and why
 NOT_CASES = {

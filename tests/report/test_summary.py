@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from study.measure import stats
+from study import stats
 from study.outputs import plots
 from study.report import claims, intervals, power, summary, verdicts
 

@@ -8,11 +8,11 @@ normal interval) and how often it contains its own estimate:
 ==================  ===========================================================================================
 pixel error         an image whose per-pixel error is 0.5 + a Gaussian-filtered noise field (correlation length
                     :data:`FIELD_SIGMA` px of filter σ) on a disc of :data:`DISC` px radius: RMSE (truth √1.25)
-                    by :func:`study.measure.stats.pixel_columns`
+                    by :func:`study.measure.case_columns.pixel_columns`
 debiased RMSE       the same against a reference with white noise of σ = 0.5 (measured, as the study does):
                     √max(0, MSE − σ²) (truth √1.25)
 split term          a signed cross term 2·a·b of two correlated fields (truth 1), paired with a² and b² in one
-                    call, as the error split's terms are (:func:`study.measure.spatial.mean_intervals`)
+                    call, as the error split's terms are (:func:`study.stats.spatial.mean_intervals`)
 ray fraction        4 rays per pixel, each wrong with probability Φ(−1.5 + z) for a correlated field z (rays of
                     neighbouring pixels share texels): the wrong fraction (truth Φ(−1.5/√2))
 ray percentile      4 rays per pixel, each 0.8·z + 0.6·(own noise), so N(0, 1): the 95th percentile (truth
@@ -31,7 +31,7 @@ study's own maps    :data:`STUDY_ROWS`: the frame tiled with copies of study's o
 Each row has its interval *before* (what the tables printed until then: a fixed 64 × 64 grid of pixel blocks
 with a percentile bootstrap, Wilson over independent rays, a percentile bootstrap of the median or of the
 segments) and *now*. ``power`` rows check the smallest detectable shift over cases
-(:func:`study.measure.stats.detectable_shift`): paired differences shifted by it are detected ≈ 80 % of the time.
+(:func:`study.stats.detectable_shift`): paired differences shifted by it are detected ≈ 80 % of the time.
 
 Deterministic for a seed; ``replicates`` sets the tier (the tests' fast tier 100, ``reports/calibration.md`` and
 the slow tests 2000). ``shrink`` < 1 narrows every *now* interval about its estimate: a planted error that the
@@ -46,8 +46,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats as sps
 
-from study.measure import spatial, stats, video
-from study.measure.fields import (  # the synthetic fields (correlated_field re-exported: the tests draw it here)
+from study import stats
+from study.stats import spatial
+from study.stats.fields import (  # the synthetic fields (correlated_field re-exported: the tests draw it here)
     BLOB_MSE,
     EDGE_MSE,
     FIELD_SIGMA,
@@ -57,11 +58,11 @@ from study.measure.fields import (  # the synthetic fields (correlated_field re-
     study_wrong_probit,
     study_wrong_truth,
 )
-from study.measure.fields import blobs as _blobs
-from study.measure.fields import disc as _disc
-from study.measure.fields import small_disc as _small_disc
-from study.measure.fields import streaks as _streaks
-from study.measure.fields import study_edge as _study_edge
+from study.stats.fields import blobs as _blobs
+from study.stats.fields import disc as _disc
+from study.stats.fields import small_disc as _small_disc
+from study.stats.fields import streaks as _streaks
+from study.stats.fields import study_edge as _study_edge
 
 #: Replicates of the fast tier (tests) and of the slow tier (tests marked slow, reports/calibration.md).
 FAST, SLOW = 100, 2000
@@ -165,17 +166,17 @@ def _pixel_error(rng, before: bool, debias: bool):
         sigma = float(np.sqrt(np.mean(noise[mask] ** 2)))
     se = np.mean((img - ref)[mask] ** 2, axis=-1)
     est = math.sqrt(se.mean())
-    now = stats.pixel_columns(img, ref, mask=mask, sigma=sigma, rel_eps=1e-2)
+    now, now_debiased = stats.rmse_interval(se, mask, sigma)
     old = None
     if before:
         ((blo, bhi),) = mean_cis(se, blocks=pixel_blocks(mask), n_resamples=BEFORE_RESAMPLES)
         old = (math.sqrt(blo), math.sqrt(bhi))
         if debias:
-            old = (stats._debiased_root(blo, sigma), stats._debiased_root(bhi, sigma))
+            old = (stats.debiased_root(blo, sigma), stats.debiased_root(bhi, sigma))
     if debias:
-        est = stats._debiased_root(se.mean(), sigma)
-        return est, (now["rmse_truth_debiased_lo"], now["rmse_truth_debiased_hi"]), old
-    return est, (now["rmse_truth_lo"], now["rmse_truth_hi"]), old
+        est = stats.debiased_root(se.mean(), sigma)
+        return est, now_debiased, old
+    return est, now, old
 
 
 def _split_term(rng, before: bool):
@@ -229,23 +230,23 @@ def _jod(rng, before: bool, segments: int = 4):
     if before:
         ci = sps.bootstrap((parts,), np.mean, n_resamples=2000, method="percentile", random_state=0)
         old = (ci.confidence_interval.low, ci.confidence_interval.high)
-    return whole, video.segment_interval(whole, parts, stats.LEVEL), old
+    return whole, stats.segment_interval(whole, parts, stats.LEVEL), old
 
 
 # ------------------------------------------------------------------------------- error fields beyond the tuned one
-# (the fields themselves in study.measure.fields: long correlation, streaks, blobs, a small object, study's own maps)
+# (the fields themselves in study.stats.fields: long correlation, streaks, blobs, a small object, study's own maps)
 def _field_rmse(rng, before: bool, field, mask, squared: bool = False):
-    """(RMSE, its interval by :func:`study.measure.stats.pixel_columns`, None): the per-pixel error 0.5 + the
+    """(RMSE, its interval by :func:`study.stats.rmse_interval`, as
+    :func:`study.measure.case_columns.pixel_columns` writes it, None): the per-pixel error 0.5 + the
     unit-variance ``field`` (truth √1.25), or, ``squared``, the field is the squared error itself."""
     f = field(rng)
     err = np.sqrt(f) if squared else 0.5 + f
-    ref = np.zeros((*mask.shape, 3))
-    now = stats.pixel_columns(ref + err[..., None], ref, mask=mask, sigma=0.0, rel_eps=1e-2)
-    return math.sqrt(float(np.mean(err[mask] ** 2))), (now["rmse_truth_lo"], now["rmse_truth_hi"]), None
+    now, _ = stats.rmse_interval(err[mask] ** 2, mask)
+    return math.sqrt(float(np.mean(err[mask] ** 2))), now, None
 
 
 def _rays_wrong(rng, probit: np.ndarray, mask, rays_per_pixel: int = 4):
-    """(wrong fraction, its interval by :func:`study.measure.stats.fraction_cis`, None): ``rays_per_pixel`` rays
+    """(wrong fraction, its interval by :func:`study.stats.fraction_cis`, None): ``rays_per_pixel`` rays
     per pixel of ``mask``, each wrong with probability Φ(``probit``) of its pixel."""
     p = sps.norm.cdf(probit)[mask]
     pix = np.repeat(np.flatnonzero(mask), rays_per_pixel)
@@ -261,7 +262,7 @@ def _field_fraction(rng, before: bool, sigma, mask):
 
 
 def _study_wrong(rng, before: bool):
-    """The ray-fraction design on the wrong-hit template (:func:`study.measure.fields.study_wrong_probit`)."""
+    """The ray-fraction design on the wrong-hit template (:func:`study.stats.fields.study_wrong_probit`)."""
     return _rays_wrong(rng, study_wrong_probit(rng), _disc())
 
 
@@ -404,7 +405,7 @@ def coverage(
 
 def power(n: int, replicates: int = FAST, seed: int = 0) -> float:
     """The share of ``replicates`` draws of n paired normal differences shifted by
-    :func:`study.measure.stats.detectable_shift`(n) standard deviations that the Wilcoxon test finds at 5 %."""
+    :func:`study.stats.detectable_shift`(n) standard deviations that the Wilcoxon test finds at 5 %."""
     shift = stats.detectable_shift(n)
     rng = np.random.default_rng([seed, 1000 + n])
     return float(np.mean([math.isnan(_paired(rng, n, shift)[1][0]) for _ in range(replicates)]))
@@ -431,7 +432,7 @@ def calibration_page(rows: list[Row], powers: dict[int, float], replicates: int,
     lines = [
         "# Calibration: how often the printed 95 % intervals cover the truth",
         "",
-        f"Simulated with known truths (`study/measure/calibration.py`), {replicates} replicates per row, seed "
+        f"Simulated with known truths (`study/stats/calibration.py`), {replicates} replicates per row, seed "
         f"{seed}; written by `python scripts/calibration.py`. *width / ideal*: the mean width over 2 × 1.96 × "
         "the estimates' true spread over the replicates (1: as wide as a calibrated interval needs to be). "
         "*before*: the interval the tables printed until the calibration (fixed 64 × 64 pixel grid with a "
@@ -449,7 +450,7 @@ def calibration_page(rows: list[Row], powers: dict[int, float], replicates: int,
         )
     lines += [
         "",
-        "Smallest detectable difference over cases (`study.measure.stats.detectable_shift`, 80 % power, 5 %): "
+        "Smallest detectable difference over cases (`study.stats.detectable_shift`, 80 % power, 5 %): "
         "the share of paired normal differences shifted by it that the Wilcoxon signed-rank test finds: "
         + ", ".join(f"{n} cases {100 * p:.0f} %" for n, p in powers.items())
         + ".",

@@ -1,4 +1,4 @@
-"""The two-sided Wilcoxon signed-rank p-value of paired differences (:func:`study.measure.stats.paired`), scipy's
+"""The two-sided Wilcoxon signed-rank p-value of paired differences (:func:`study.stats.paired`), scipy's
 to the bit, with its exact permutation branch as one matrix product."""
 
 from __future__ import annotations

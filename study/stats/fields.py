@@ -1,4 +1,4 @@
-"""The synthetic error fields of the calibration harness (study.measure.calibration): a stationary Gaussian field,
+"""The synthetic error fields of the calibration harness (study.stats.calibration): a stationary Gaussian field,
 the designs beyond the one the intervals were tuned on (long correlation, streaks, heavy-tailed blobs, a small
 object) and the mosaics of study's own error maps (a reflected edge, a wrong-hit region) with their analytic truths.
 """
@@ -60,7 +60,7 @@ def blobs(rng) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------ study's own error maps as templates
-#: study/measure/data/study_fields.npz (scripts/make_study_fields.py): the per-pixel error of classical on a small
+#: study/stats/data/study_fields.npz (scripts/make_study_fields.py): the per-pixel error of classical on a small
 #: room case (a reflected edge, ``edge``) and the wrong-hit mask of localized(iterations=0) (``wrong``), each on the
 #: object's square bounding box (0 off the object).
 STUDY_FIELDS = Path(__file__).resolve().parent / "data" / "study_fields.npz"

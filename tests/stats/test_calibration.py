@@ -1,4 +1,4 @@
-"""Coverage of the printed intervals, measured against known truths (study.measure.calibration): every interval type
+"""Coverage of the printed intervals, measured against known truths (study.stats.calibration): every interval type
 covers 95 % of the time within the tier's band, a planted too-narrow interval (and each interval the tables printed
 before) is flagged, the harness is deterministic, and no committed table holds an interval that excludes its own
 estimate."""
@@ -10,8 +10,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from study.measure import calibration, fields, spatial, stats
+from study import stats
 from study.report import summary
+from study.stats import calibration, fields, spatial
 
 REPORTS = Path(__file__).resolve().parents[2] / "reports"
 FAST_BAND = calibration.BANDS[calibration.FAST]
@@ -117,7 +118,7 @@ def test_independent_rays_keep_wilsons_interval():
 def test_every_interval_covers_93_to_97_percent_in_the_slow_tier():
     """Every interval in 93–97 %, the clustered ray percentile too (92.5 % at seed 0 with Wilson's interval of
     the share and the window's Gaussian degrees of freedom; 94.5 % with a normal interval and the degrees of
-    freedom lowered for heavy tails, study.measure.spatial.kurtosis_factor)."""
+    freedom lowered for heavy tails, study.stats.spatial.kurtosis_factor)."""
     rows, powers = calibration.coverage_table(calibration.SLOW)
     band = calibration.BANDS[calibration.SLOW]
     flagged = {r.interval for r in rows if r.variant == "now" and r.flagged(band)}

@@ -1,11 +1,11 @@
-"""The clustered ray percentile's interval (study.measure.spatial.quantile_interval) and the degrees of freedom of
+"""The clustered ray percentile's interval (study.stats.spatial.quantile_interval) and the degrees of freedom of
 heavy-tailed residuals (spatial.kurtosis_factor): rare events make the lag-window variance less certain than its
 count of windows says, and the percentile's misses fall on both sides alike."""
 
 import numpy as np
 from scipy import stats as sps
 
-from study.measure import calibration, spatial
+from study.stats import calibration, spatial
 
 
 def test_gaussian_residuals_keep_their_degrees_of_freedom():
