@@ -304,3 +304,21 @@ def test_wilcoxon_p_is_scipys_to_the_bit():
     assert stats.paired([1, 2, 2, 3, 0], [1, 1, 3, 1, 1])["p"] == float(
         wilcoxon(np.array([0, 1, -1, 2, -1.0]), zero_method="zsplit").pvalue
     )
+
+
+def test_the_calibrated_rmse_interval_is_the_one_pixel_columns_writes():
+    """The calibration simulates stats.rmse_interval (study.stats sits below the case pipeline); the pipeline writes
+    case_columns.pixel_columns' rmse_*_lo/_hi. They are one interval: equal to the bit on random correlated
+    images with a noisy reference (debiased ends too), so the coverage measured is the coverage of the tables."""
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        mask = np.zeros((48, 64), bool)
+        mask[6:40, 10:55] = rng.random((34, 45)) < 0.9
+        ref = rng.normal(0.0, 0.3, (48, 64, 3))
+        img = ref + rng.normal(0.5, 1.0, (48, 64, 1)) * rng.random((48, 64, 3))
+        sigma = float(rng.uniform(0.0, 0.4))
+        cols = case_columns.pixel_columns(img, ref, mask=mask, sigma=sigma, rel_eps=1e-2)
+        se = np.mean((img - ref)[mask] ** 2, axis=-1)
+        (lo, hi), (dlo, dhi) = stats.rmse_interval(se, mask, sigma)
+        assert (lo, hi) == (cols["rmse_truth_lo"], cols["rmse_truth_hi"])
+        assert (dlo, dhi) == (cols["rmse_truth_debiased_lo"], cols["rmse_truth_debiased_hi"])
