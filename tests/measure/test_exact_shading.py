@@ -69,3 +69,20 @@ def test_same_rays_is_within_float_rounding_of_the_scenes_size():
     assert not truth.same_rays(o, d, o, d + 2e-5, size).any()
     assert not truth.same_rays(o, d, o[:-1], d[:-1], size).any()
     assert truth.same_rays(o, d, o, d, size).dtype == bool
+
+
+def test_the_estimate_prices_no_path_traced_set_for_the_exact_query_on_a_mirror(scene):
+    """study's time estimate (:func:`study.harness.budget.estimate`): traced on a mirror reads the truth's values,
+    so its renders cost what classical's do; sdf(shading="exact") still path traces a set of rays of its own, and
+    so does traced on a glass object (its rays through the distance map are not the exact ones)."""
+    from study import methods
+    from study.harness import budget
+
+    def renders(sc, *ms):
+        return budget.estimate(sc, [methods.make("classical"), *ms]).time["render.spp"]
+
+    base = renders(scene)
+    assert renders(scene, methods.make("traced")) == base
+    assert renders(scene, methods.make("sdf", shading="exact")) > base
+    glass = scene.with_updates({"object.material": {"type": "dielectric", "ior": 1.5}})
+    assert renders(glass, methods.make("traced")) > renders(glass)
