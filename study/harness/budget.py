@@ -204,7 +204,10 @@ def estimate(
     if lookups is None:
         lookups = sum(m.lookup_bound(r.cube_res) for m in methods)  # bounds: no method spends more
     steps = sum(_host_steps(m, r.cube_res) for m in methods)  # whatever the rays: a loop over samples, …
-    shade = int(Views.merge(*(m.views_needed() for m in methods)).shade)  # one more path-traced set of rays
+    # one more path-traced set of rays for exact shading (sdf(shading="exact"), hit_cache's escaping rays); the
+    # exact query on a mirror object reads the truth's own values (study.measure.inputs.exact_shading): no more
+    mirror = glass == 1 and scene.object.alpha == 0
+    shade = int(any(m.views_needed().shade and (m.reads_views or not mirror) for m in methods))
     shade += sum(
         getattr(m, "queries", 0) for m in methods if m.glossy
     )  # traced_glossy: K lobe rays a ray, shaded
@@ -217,7 +220,7 @@ def estimate(
     }
     time = {
         "environment": tris * SECONDS_PER_TRIANGLE,
-        # camera renders, the truth's two seeds and exact shading's own seed (traced, sdf(shading="exact"))
+        # camera renders, the truth's two seeds and exact shading's own seed (sdf(shading="exact"), glass, rough)
         "render.spp": (3 * c.width * c.height + (2 + shade) * rays) * r.spp / rate,
         sub_key: SECONDS_PER_CASE + sub * SECONDS_PER_SUBPIXEL + rays * len(methods) * SECONDS_PER_OBJECT_RAY,
         "methods": rays * lookups * SECONDS_PER_LOOKUP + steps * SECONDS_PER_STEP,

@@ -115,7 +115,8 @@ class Captured:
     screen     the camera's depth and colour buffer (:class:`~study.impostor.screen.ScreenView`), or None
     sdfs       {:class:`SdfSpec`: SdfGrid} signed distance fields of the environment (:mod:`study.impostor.sdf`)
     shade      exact shading, not an image-based view: a function (origins, dirs), world (N, 3) numpy arrays →
-               (N, 3) radiance arriving along each ray (Mitsuba, the scene without the object), or None
+               (N, 3) radiance arriving along each ray (Mitsuba, the scene without the object; on the case's
+               exact rays truth_at_hit's own values: :func:`study.measure.inputs.exact_shading`), or None
     hits       the exact query, not an image-based view: a function (origins, dirs), world (N, 3) numpy arrays →
                (N, 3) first hits on the environment's triangles (the case's exact tracer, Embree or OptiX;
                non-finite where the ray leaves the scene), or None

@@ -24,7 +24,7 @@ from study.errors import StudyError
 from study.impostor.envmap import EnvMap
 from study.impostor.views import Lobe
 from study.measure import batched, bias, case_columns, lighting, metrics, outcomes, split, truth, worth
-from study.measure.inputs import camera_render, capture_views, impostor, second_captures
+from study.measure.inputs import camera_render, capture_views, finite, impostor, second_captures
 from study.methods import Method
 from study.optics import shading
 from study.reference.tracer import make_tracer
@@ -160,6 +160,7 @@ class Traced:
     reference: str = ""  # "oracle_map" / "truth_at_hit" for the references' rows
     over: np.ndarray | None = None  # pixels its image columns are taken over (None: every object pixel)
     flags: dict = field(default_factory=dict)  # the method's declared diagnostics: column → fraction of rays
+    reads_views: bool = True  # False: it reads no cube map (Method.reads_views): no oracle/split columns
 
 
 def _exact(scene: Scene, tracer, rays, o: np.ndarray) -> ExactHits:
@@ -202,7 +203,7 @@ def _trace(m: Method, B, env, x, R, rays, o: np.ndarray, F: np.ndarray, backgrou
         if columns.declared(k) is None:
             raise StudyError(f"method {m.name!r} flags the column {k!r}, which is not declared", key="method")
     return Traced(m.name, m.label, knob_columns(m), shown, image, ratio, valid, lookups, bound, seconds,
-                  flags=flags)  # fmt: skip
+                  flags=flags, reads_views=m.reads_views)  # fmt: skip
 
 
 def _reference_trace(name: str, image: np.ndarray, exact: ExactHits, over: np.ndarray) -> Traced:
@@ -249,23 +250,23 @@ def run_case(
     mark("capture")
     imp = impostor(scene, cache, tracer)
     background = camera_render(scene, cache, with_object=False)
-    for what, img in (("impostor radiance", imp.radiance), ("camera render", background)):
-        _finite(scene, what, img)
+    finite(scene, "impostor radiance", imp.radiance)
+    finite(scene, "camera render", background)
     mark("probes")
     lobe = Lobe(scene.object.alpha, B.vec(rays.N), scene.render.seed) if rays.src is None else None
-    env = capture_views(scene, methods, imp, B, cache=cache, tracer=tracer, background=background, lobe=lobe)
+    env = capture_views(scene, methods, imp, B, cache=cache, tracer=tracer, background=background, lobe=lobe,
+                        truth_along=(pair := truth.TruthPair(scene, cache, rays)).along)  # fmt: skip
 
     # ------------------------------------------------------------------ exact hits and references
     mark("references")
     seeds = [camera_render(sc, cache, with_object=True)  # Mitsuba with the object, two seeds
              for sc in (scene, scene.with_updates({"render.seed": scene.render.seed + truth.SEED_OFFSET}))]  # fmt: skip
-    for img in seeds:
-        _finite(scene, "render", img)
+    finite(scene, "render", *seeds)
     mitsuba = (seeds[0] + seeds[1]) / 2
     F = shading.fresnel(scene, rays)
     mask = rays.full
     exact = _exact(scene, tracer, rays, o)
-    ref = truth.build(scene, cache, rays, F, background, seeds)  # truth_at_hit and the noise images
+    ref = truth.build(scene, cache, rays, F, background, seeds, pair())  # truth_at_hit (once), noise images
     held = split.held(exact.occluded, exact.escapes)  # hits o's views hold: seen from o, or escaping
     held_px = split.held_pixels(rays, held)
     nb = backends.get("numpy")
@@ -420,7 +421,7 @@ def _row(t: Traced, base: dict, rays, ang, oc, exact: ExactHits, image_cols: dic
             oc, ang, exact.occluded, rays.x, exact.point, pixels=pix, shape=rays.hit.shape[:2]
         ),
         **outcomes.offscreen_columns(oc, exact.offscreen),
-        **image_cols,
+        **(image_cols if t.reads_views else split.unread_blank(image_cols)),  # the exact row: no map columns
         **extra,
         **t.flags,
         "valid_fraction": float(t.valid.mean()),
@@ -429,28 +430,3 @@ def _row(t: Traced, base: dict, rays, ang, oc, exact: ExactHits, image_cols: dic
         "lookups_bound": t.bound,
         "seconds": t.seconds,
     }
-
-
-#: A light this strong can overflow Mitsuba's float32 radiance (3.4e38) in a render; a weaker one cannot.
-OVERFLOWING_INTENSITY = 1e30
-
-
-def _finite(scene: Scene, what: str, img: np.ndarray) -> None:
-    """Refuse a render that is not finite: float32 overflow would still give plausible metrics. The light is
-    blamed only where it is strong enough to overflow; else the environment, whose file or plug-in brought the
-    non-finite value (colours, textures and emissions are checked when it is built: here whatever is left)."""
-    if np.isfinite(img).all():
-        return
-    intensity = max(scene.light.intensity)
-    if intensity >= OVERFLOWING_INTENSITY:
-        raise StudyError(
-            f"the {what} is not finite (Mitsuba's float32 radiance overflows); lower "
-            f"light.intensity (now {intensity:g})",
-            key="light.intensity",
-        )
-    raise StudyError(
-        f"the {what} is not finite ({int((~np.isfinite(img)).any(-1).sum())} pixel(s) NaN or inf) with a light "
-        f"of intensity {intensity:g}, which cannot overflow: a non-finite value in the environment "
-        f"({scene.environment.label()}): a colour, texture or emission of its file",
-        key="environment",
-    )

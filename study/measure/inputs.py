@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from study.cache import Cache, content_key
+from study.errors import StudyError
 from study.impostor import hitcache, prefilter, probes, screen
 from study.impostor.capture import Impostor, capture_distance, impostor_key, render_cube
 from study.impostor.cubemap import FAR_MIN
@@ -107,12 +108,15 @@ def capture_views(
     tracer: Tracer,
     background: np.ndarray | None = None,
     lobe: Lobe | None = None,
+    truth_along=None,
 ) -> Captured:
     """What ``methods`` search, captured for ``scene``: the impostor ``imp`` on backend ``B``, the views their
     :meth:`~study.methods.base.Method.views_needed` ask for (depth layers, probe sets, the camera's buffer, whose
     colour is ``background``: the camera's render without the object, rendered here when not given, the
     prefiltered impostor, the exact tracer's hits: ``tracer``) and the scene knowledge, with ``lobe`` (the rays'
-    roughness and normals); a method asking for a view that is missing is then an error, not a fallback."""
+    roughness and normals) and ``truth_along`` (a function () → the case's exact rays and truth_at_hit's radiance
+    along them, which exact shading hands back on those rays: :func:`exact_shading`); a method asking for a view
+    that is missing is then an error, not a fallback."""
     o = np.asarray(scene.reference.point, float)
     views = Views.merge(*(m.views_needed() for m in methods))
     layers, probe_sets, scr = (), {}, None
@@ -128,11 +132,8 @@ def capture_views(
         scr = screen.ScreenView.of_scene(scene, background, tracer, B)
     fields = {spec: SdfGrid(*sdf_grid(scene, spec, cache), o, B) for spec in views.sdfs}  # distance fields
 
-    def shade(
-        origins, dirs
-    ):  # exact shading: Mitsuba along the rays, as truth_at_hit, with a seed of its own
-        seed = scene.render.seed + 2 * truth.SEED_OFFSET  # not the truth's two seeds: its noise is not shared
-        return radiance_along(scene, origins, dirs, spp=scene.render.spp, seed=seed)
+    def shade(origins, dirs):  # exact shading (exact_shading): the truth's own values on its rays
+        return exact_shading(scene, origins, dirs, truth_along)
 
     pre = prefiltered(scene, cache, imp, B) if views.prefiltered else None
     cached = hit_caches(scene, cache, tracer, views.caches) if views.caches else None
@@ -150,6 +151,30 @@ def capture_views(
         lobe=lobe,
         **env_info(scene),
     )
+
+
+def exact_shading(scene: Scene, origins: np.ndarray, dirs: np.ndarray, truth_along=None) -> np.ndarray:
+    """(N, 3) the radiance arriving along each ray (``Captured.shade``, world origins and directions), as the case's
+    truth estimates it: on the case's own exact rays (``truth_along()`` = their origins, directions and
+    truth_at_hit's two-seed mean, the same rays in the same order up to float32 rounding:
+    :func:`study.measure.truth.same_rays`) truth_at_hit's own value, so a method that traces and shades those rays
+    exactly (``traced``) shows the truth's image, not a second estimate of it with noise of its own; on any other
+    ray path traced by Mitsuba, as the truth is, at ``render.spp`` with a seed of its own (not the truth's two: its
+    noise is not shared). A rough object's truth is its lobe's average, not the radiance along the ray: every ray
+    is then path traced."""
+    o, d = np.asarray(origins, float), np.asarray(dirs, float)
+    same = np.zeros(len(o), bool)
+    if truth_along is not None and scene.object.alpha == 0 and len(o):
+        ex_o, ex_d, along = truth_along()
+        lo, hi = scene.bounds()
+        same = truth.same_rays(ex_o, ex_d, o, d, float(np.linalg.norm(np.subtract(hi, lo))))
+    out = np.zeros((len(o), 3), np.float32)
+    if same.any():
+        out[same] = along[same]
+    if not same.all():
+        seed = scene.render.seed + 2 * truth.SEED_OFFSET
+        out[~same] = radiance_along(scene, o[~same], d[~same], spp=scene.render.spp, seed=seed)
+    return out
 
 
 def second_captures(scene: Scene, cache: Cache, imp: Impostor) -> tuple[np.ndarray, np.ndarray]:
@@ -219,3 +244,30 @@ def fill_key(scene: Scene) -> str:
     parts = {"environment": env_key(scene), "light": key_fields(scene.light), "lamp": scene.lamp(),
              "spp": r.spp, "max_depth": r.max_depth, "seed": r.seed}  # fmt: skip
     return content_key(parts, hitcache.FILL_SAMPLES, "hit-cache-samples-v2")
+
+
+#: A light this strong can overflow Mitsuba's float32 radiance (3.4e38) in a render; a weaker one cannot.
+OVERFLOWING_INTENSITY = 1e30
+
+
+def finite(scene: Scene, what: str, *imgs: np.ndarray) -> None:
+    """Refuse a render that is not finite: float32 overflow would still give plausible metrics. The light is
+    blamed only where it is strong enough to overflow; else the environment, whose file or plug-in brought the
+    non-finite value (colours, textures and emissions are checked when it is built: here whatever is left).
+    ``imgs``: the renders called ``what`` (a case's camera renders, its impostor's radiance)."""
+    img = next((i for i in imgs if not np.isfinite(i).all()), None)
+    if img is None:
+        return
+    intensity = max(scene.light.intensity)
+    if intensity >= OVERFLOWING_INTENSITY:
+        raise StudyError(
+            f"the {what} is not finite (Mitsuba's float32 radiance overflows); lower "
+            f"light.intensity (now {intensity:g})",
+            key="light.intensity",
+        )
+    raise StudyError(
+        f"the {what} is not finite ({int((~np.isfinite(img)).any(-1).sum())} pixel(s) NaN or inf) with a light "
+        f"of intensity {intensity:g}, which cannot overflow: a non-finite value in the environment "
+        f"({scene.environment.label()}): a colour, texture or emission of its file",
+        key="environment",
+    )

@@ -145,6 +145,17 @@ def oracle_radiance(looked_up, background_along, held_rays, escapes) -> np.ndarr
     return np.where(np.asarray(held_rays, bool)[:, None], out, np.nan)
 
 
+def measures_the_map(col: str) -> bool:
+    """Whether ``col`` is measured against the cube map at the exact hit (the oracle_map, the split's terms): what
+    the row of a method that reads no cube map leaves out (``Method.reads_views`` False: the exact query)."""
+    return "oracle" in col or col.startswith("dec_")
+
+
+def unread_blank(cols: dict) -> dict:
+    """``cols`` with every column :func:`measures_the_map` NaN: the row of a method that reads no cube map."""
+    return {k: (np.nan if measures_the_map(k) else v) for k, v in cols.items()}
+
+
 def held_pixels(rays, held_rays) -> np.ndarray:
     """(H, W) bool: pixels none of whose object rays has a hit the views do not hold."""
     return rays.per_pixel((~np.asarray(held_rays, bool)).astype(float), fill=0.0) == 0

@@ -100,6 +100,46 @@ def lobe_at_hit(scene: Scene, rays: shading.ObjectRays, seed: int) -> np.ndarray
     return np.where(den > 0, num / np.maximum(den, 1e-30), along_R if along_R is not None else 0.0)
 
 
+@dataclass
+class TruthPair:
+    """:func:`truth_at_hit`'s two seeds of a case, computed on the first call only (the truth and exact shading,
+    :func:`study.measure.inputs.exact_shading`, read them)."""
+
+    scene: Scene
+    cache: Cache
+    rays: shading.ObjectRays
+    seeds: tuple | None = None
+
+    def __call__(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.seeds is None:
+            self.seeds = truth_at_hit(self.scene, self.cache, self.rays)
+        return self.seeds
+
+    def along(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The exact rays (origins, directions) and the radiance along them (the two seeds' mean)."""
+        t1, t2 = self()
+        return (*self.rays.exact_rays(), (t1 + t2) / 2)
+
+
+#: Two rays are one ray when their origins lie within this share of the scene's size and their unit directions
+#: within this distance (the methods' rays are float32 copies of the exact rays relative to the reference point:
+#: their rounding, ~1e-7, is a hundredth of it).
+SAME_RAY = 1e-5
+
+
+def same_rays(
+    ref_o: np.ndarray, ref_d: np.ndarray, origins: np.ndarray, dirs: np.ndarray, size: float
+) -> np.ndarray:
+    """(N,) bool: which of (``origins``, ``dirs``) are the rays of (``ref_o``, ``ref_d``) in the same order, within
+    :data:`SAME_RAY` (origins over ``size``, the scene's extent); none where the two sets differ in length (a
+    method hands the case's rays in the case's order, or other rays)."""
+    o, d = np.asarray(origins, float), np.asarray(dirs, float)
+    if o.shape != np.shape(ref_o) or d.shape != np.shape(ref_d):
+        return np.zeros(len(o), bool)
+    with np.errstate(invalid="ignore"):
+        return (np.abs(o - ref_o).max(-1) <= SAME_RAY * size) & (np.abs(d - ref_d).max(-1) <= SAME_RAY)
+
+
 def build(
     scene: Scene,
     cache: Cache,
@@ -107,9 +147,11 @@ def build(
     F: np.ndarray,
     background: np.ndarray,
     mitsuba: tuple[np.ndarray, np.ndarray],
+    pair: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Truth:
-    """The truth image and the noise images (module docstring); ``mitsuba`` = the camera render's two seeds."""
-    t1, t2 = truth_at_hit(scene, cache, rays)
+    """The truth image and the noise images (module docstring); ``mitsuba`` = the camera render's two seeds,
+    ``pair`` = :func:`truth_at_hit`'s two seeds where the case already has them."""
+    t1, t2 = truth_at_hit(scene, cache, rays) if pair is None else pair
     zero = np.zeros_like(background)
     image = shading.composite(rays, (t1 + t2) / 2 * F, background)
     return Truth(

@@ -118,6 +118,9 @@ class Method(ABC):
     Params: ClassVar[type[BaseModel]] = NoParams
     knob: ClassVar[Knob | None] = None
     glossy: ClassVar[bool] = False  # a method for rough objects (module docstring: families)
+    #: False for a method that reads none of the reference point's views (the exact query, ``traced``): its rows
+    #: leave out the columns measured against the cube map it does not read (``*_oracle``, the split ``dec_*``).
+    reads_views: ClassVar[bool] = True
 
     def __init__(self, **params):
         try:

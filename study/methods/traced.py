@@ -4,10 +4,18 @@ against the environment's own triangles by the case's exact tracer — Embree on
 
 What it is for: the row that answers "would tracing the rays be cheaper?" on the same rays and the same columns as
 the stand-ins. Its hit is the exact hit (zero wrong hits in the outcome columns, up to float32 rounding of the ray),
-its radiance is the radiance arriving along the ray, path traced by Mitsuba in the scene without the object
-(``Captured.shade``, as ``truth_at_hit`` but with a seed of its own, as ``sdf(shading="exact")``), so its image
-error against the truth is the two renders' noise alone. A ray that leaves an open environment is shown at infinity
-along its direction (``cubemap.FAR``) with the radiance Mitsuba finds along it.
+its radiance is the radiance arriving along the ray (``Captured.shade``,
+:func:`study.measure.inputs.exact_shading`): on the case's exact rays ``truth_at_hit``'s own value (the same rays,
+the same samples), so on a mirror object its image is the truth's up to float rounding and it never ranks below a
+stand-in on a column against the truth for path-tracing noise of its own; on other rays (a glass object's rays
+through its distance map, which are not the exact ones; a rough object, whose truth is its lobe's average) path
+traced by Mitsuba in the scene without the object with a seed of its own. A ray that leaves an open environment
+is shown at infinity along its direction (``cubemap.FAR``) with the radiance found along it.
+
+Columns: it reads none of the reference point's views (:attr:`reads_views` False), so its rows leave out (NaN) the
+columns measured against the cube map at the exact hit: every ``*_oracle`` column and the error split ``dec_*``.
+With its image the truth's, img − oracle is truth − oracle, the map's own error, not the method's (the truth's row
+leaves the split out for the same reason).
 
 Inputs: the case hands over the exact tracer's first hits (``Captured.hits``, asked for with ``Views(hits=True)``)
 and exact shading; the method reads no image-based view. Rays are traced from their own origins whatever the
@@ -51,6 +59,8 @@ class ExactQuery(TracingMethod):
     #: Priced with the shading a renderer does at the hit (``study bench``: the material towards the point light
     #: and the shadow ray, :data:`study.bench.timing.SHADING`), as each stand-in's price holds its radiance fetch.
     shades_hit: ClassVar[bool] = True
+    #: It reads no cube map: its rows leave out the oracle's and the split's columns (module docstring).
+    reads_views: ClassVar[bool] = False
 
     def views_needed(self) -> Views:
         return Views(hits=True, shade=True)

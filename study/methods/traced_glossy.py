@@ -3,14 +3,16 @@ shade a glossy reflection. Per secondary ray (x, mirror direction R) leaving a s
 normal n (``Captured.lobe``), ``samples`` = K half vectors are importance-sampled from the lobe (seeded, one set per
 ray, :func:`study.impostor.ggx.half_vectors`), each reflected ray is traced exactly and its hit shaded exactly
 (``Captured.shade``: the radiance arriving along it, path traced by Mitsuba in the scene without the object, with
-exact shading's own seed, as ``traced``), and the K radiances are averaged with the weights G (v·h)/((n·h)(n·v))
-(self-normalized): the estimator of the glossy truth (:func:`study.measure.truth.lobe_at_hit`, 16 directions) at
-a budget of K traced rays per pixel. Its shown point is the exact hit of R (outcome columns: zero wrong hits); a
-ray whose K samples all fall below the surface (grazing) shows the radiance along R.
+exact shading's own seed: the lobe's rays are not the case's exact rays, whose truth ``traced`` reads), and the
+K radiances are averaged with the weights G (v·h)/((n·h)(n·v)) (self-normalized): the estimator of the glossy
+truth (:func:`study.measure.truth.lobe_at_hit`, 16 directions) at a budget of K traced rays per pixel. Its shown
+point is the exact hit of R (outcome columns: zero wrong hits); a ray whose K samples all fall below the surface
+(grazing) shows the radiance along R.
 
 What it is for: the row that answers "would tracing the lobe's rays be cheaper?" on the glossy tables. Its error
 against the truth is the lobe's sampling noise at K rays (falling as 1/√K) and the renders' noise; ``samples`` is
-its knob, so ``study pareto`` draws its error against K queries' time.
+its knob, so ``study pareto`` draws its error against K queries' time. Like ``traced`` it reads no cube map, so its
+rows leave out the oracle's and the split's columns (``reads_views``).
 
 Cost: K lookups per ray (the K hits' radiance reads); ``study bench`` does not time its Python path: its price is
 K times the exact query's (:attr:`queries` × :data:`ExactQuery.bench_query`, ``study pareto``'s ``exact_priced``),

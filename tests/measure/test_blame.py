@@ -11,7 +11,7 @@ import pytest
 from conftest import error_output, run_cli
 
 from study.errors import StudyError
-from study.measure import case
+from study.measure import inputs
 from study.scene import scene_from_dict
 from tests.conftest import small_scene_dict
 from tests.robustness.test_bad_inputs import digest
@@ -46,10 +46,10 @@ def test_a_non_finite_render_blames_the_light_only_where_it_can_overflow():
     img[1, 2, 0] = np.nan
     weak = scene_from_dict(small_scene_dict())
     with pytest.raises(StudyError) as err:
-        case._finite(weak, "camera render", img)
+        inputs.finite(weak, "camera render", img)
     assert err.value.key == "environment" and "1 pixel(s) NaN or inf" in str(err.value)
     assert "intensity 7, which cannot overflow" in str(err.value) and "box room" in str(err.value)
     strong = weak.with_updates({"light.intensity": [1e39, 1e39, 1e39]})
     with pytest.raises(StudyError, match=r"light.intensity: .*lower light.intensity \(now 1e\+39\)"):
-        case._finite(strong, "camera render", img)
-    case._finite(weak, "camera render", np.ones((4, 4, 3), np.float32))  # finite: no error
+        inputs.finite(strong, "camera render", img)
+    inputs.finite(weak, "camera render", np.ones((4, 4, 3), np.float32))  # finite: no error
