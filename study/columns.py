@@ -447,3 +447,5 @@ def headers() -> dict[str, str]:
 
 for _c in TABLE:  # the table's own columns, indexed by name
     _index(_c)
+#: the built-in columns (each interval's ``_lo``/``_hi`` with it): a plug-in's producer may write none of them
+BUILTIN = frozenset(column_names())

@@ -25,6 +25,7 @@ from study.impostor.envmap import EnvMap
 from study.impostor.views import Lobe
 from study.measure import batched, bias, lighting, metrics, outcomes, spatial, split, stats, truth, worth
 from study.measure.inputs import camera_render, capture_views, impostor, second_captures
+from study.measure.producers import PRODUCERS, RayContext, _produced, producer  # noqa: F401 - plug-ins' road
 from study.methods import Method
 from study.optics import shading
 from study.reference.tracer import make_tracer
@@ -81,51 +82,6 @@ def knob_columns(m: Method) -> dict:
         "knob": m.knob.param if m.knob else "",
         "knob_value": float(m.knob_value) if m.knob else np.nan,
     }
-
-
-# ---------------------------------------------------------------------------------------------- more columns
-@dataclass(frozen=True)
-class RayContext:
-    """What a column producer sees of one trace in one case: per ray (K) and per pixel (H, W)."""
-
-    x: np.ndarray  # (K, 3) shading points
-    R: np.ndarray  # (K, 3) secondary ray directions
-    shown: np.ndarray  # (K, 3) the trace's shown points
-    exact: np.ndarray  # (K, 3) the exact hits (escaping rays at FAR)
-    occluded: np.ndarray  # (K,) the exact hit is hidden from the reference point
-    classes: np.ndarray  # (K,) outcome classes (study.measure.outcomes)
-    angle: np.ndarray  # (K,) angular error, degrees
-    image: np.ndarray  # (H, W, 3) the trace's image
-    truth: np.ndarray  # (H, W, 3) truth_at_hit
-    mask: np.ndarray  # (H, W) pixels fully on the object
-    label: str  # the method's label (or the reference's name)
-
-
-#: column producers beyond the built-in ones (:func:`producer`), called for every trace of every case
-PRODUCERS: list = []
-
-
-def producer(fn):
-    """Register ``fn(ctx: RayContext) -> {column: value}``: its columns join every row of every case, and so every
-    table, API result and report, once each is declared (:func:`study.columns.declare`). A column that is not
-    declared is an error naming the producer."""
-    PRODUCERS.append(fn)
-    return fn
-
-
-def _produced(ctx: RayContext) -> dict:
-    out = {}
-    for fn in PRODUCERS:
-        cols = fn(ctx)
-        for k in cols:
-            if columns.declared(k) is None:
-                raise StudyError(
-                    f"{fn.__module__}.{fn.__qualname__} writes the column {k!r}, which is not declared; declare it "
-                    "with study.columns.declare(TableColumn(...))",
-                    key="columns",
-                )
-        out.update(cols)
-    return out
 
 
 # ---------------------------------------------------------------------------------------------- stage records
@@ -296,7 +252,7 @@ def run_case(
         if PRODUCERS:
             ctx = RayContext(rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image, ref.image,
                              mask, t.label)  # fmt: skip
-            extra = {**extra, **_produced(ctx)}
+            extra = {**extra, **_produced(ctx, taken=t.flags)}
         out.rows.append(_row(t, base, rays, ang, oc, exact, cols, extra))
         if keep_images and not t.reference:
             out.images[t.label] = t.image

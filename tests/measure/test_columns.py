@@ -129,3 +129,59 @@ def test_an_undeclared_column_from_a_producer_is_one_line(tmp_path):
 @pytest.mark.parametrize("name", ["wrong_fraction_texel_lo", "dec_search_hi"])
 def test_an_interval_column_resolves_to_its_column(name):
     assert columns.declared(name) is columns.declared(name.rsplit("_", 1)[0])
+
+
+def test_a_producer_declaring_a_built_in_column_is_one_line_at_registration():
+    """A plug-in producer that declares ``wrong_fraction`` fails when it registers, naming itself and the built-in
+    writer; on main it registered and replaced the outcome classes' value in every row."""
+    from study.errors import StudyError
+    from study.measure import producers
+
+    def scratch(ctx):
+        return {"wrong_fraction": 0.0}
+
+    before = list(producers.PRODUCERS)
+    with pytest.raises(StudyError) as err:
+        producers.producer(columns=("wrong_fraction",))(scratch)
+    line = str(err.value)
+    assert "\n" not in line and "scratch" in line and "'wrong_fraction'" in line and "built-in" in line, line
+    assert producers.PRODUCERS == before and "wrong_fraction" not in producers.WRITERS
+
+
+def test_two_producers_declaring_one_column_is_one_line_at_registration():
+    from study.columns import TableColumn, declare
+    from study.errors import StudyError
+    from study.measure import producers
+
+    def first(ctx):
+        return {"twice_fraction": 0.0}
+
+    def second(ctx):
+        return {"twice_fraction": 1.0}
+
+    if columns.declared("twice_fraction") is None:
+        declare(TableColumn("twice_fraction", "fraction"))
+    try:
+        producers.producer(columns=["twice_fraction"])(first)
+        with pytest.raises(
+            StudyError, match=r"second writes the column 'twice_fraction', which .*first already"
+        ):
+            producers.producer(columns=["twice_fraction"])(second)
+    finally:
+        producers.PRODUCERS[:] = [p for p in producers.PRODUCERS if p is not first]
+        producers.WRITERS.pop("twice_fraction", None)
+
+
+def test_a_bare_producer_writing_a_built_in_column_is_one_line(tmp_path):
+    """The old ``@producer`` shape (no declared columns) is checked when it first writes: exit 2, one line."""
+    (tmp_path / "clash.py").write_text(
+        "from study.measure.case import producer\n@producer\ndef f(ctx):\n    return {'wrong_fraction': 0.0}\n"
+    )
+    (tmp_path / "s.toml").write_text(scene_toml(small_scene_dict()))
+    env = {"PYTHONPATH": f"{tmp_path}:{ROOT}", "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
+    cli = [sys.executable, "-m", "study.cli", "--plugin", "clash", "run", str(tmp_path / "s.toml"), "-m",
+           "classical", "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "c")]  # fmt: skip
+    r = subprocess.run(cli, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    assert (
+        r.returncode == 2 and "clash.f writes the column 'wrong_fraction', which study's built-in" in r.stderr
+    ), r.stderr[-2000:]
