@@ -41,6 +41,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from study import columns
 from study import methods as registry
 from study.cache import Cache
 from study.errors import StudyError
@@ -61,16 +62,8 @@ CURVE_COLUMNS = (
     "wrong_fraction_visible_hi", "wrong_fraction_hidden", "angle_p95_deg",
     "angle_p95_all_deg", "rmse_truth", "hidden_fraction",
 )  # fmt: skip
-#: The plotted metrics: (column, axis label, log axis).
-PANELS = (
-    ("wrong_fraction_texel", "wrong (> 1 texel)", True),
-    ("wrong_fraction_visible", "wrong (> 1 texel), hits o sees", True),
-    ("wrong_fraction_1cm", "wrong (> 1 cm)", True),
-    ("wrong_fraction_3cm", "wrong (> 3 cm)", True),
-    ("wrong_fraction_10cm", "wrong (> 10 cm)", True),
-    ("angle_p95_deg", "p95 angle, °", True),
-    ("rmse_truth", "RMSE vs truth_at_hit", True),
-)
+#: The plotted metrics: (column, axis label, log axis): the declared columns of view "convergence" (study/columns.py).
+PANELS = tuple((c.name, c.axis, True) for c in columns.in_view("convergence"))
 #: Below this a fraction is drawn at it on the log axis (0 wrong).
 LOG_FLOOR = 1e-4
 

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from study import columns
 from study import progress as pg
 from study.errors import StudyError
 from study.io import locked, write_set
@@ -31,57 +32,11 @@ from study.report.register import bench_sentence, motion_sentences, register_mar
 from study.report.verdicts import verdict_mark
 from study.tables import check_rows
 
-#: Outcome classes first (study.measure.outcomes): the angle alone is blind to a wrong depth on the same ray.
-OUTCOMES = ["wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95", *summary.DROPPED]
-SUMMARY = [
-    *OUTCOMES,
-    "wrong_fraction_offscreen",
-    "angle_median_deg",
-    "angle_p95_deg",
-    "rmse_oracle",
-    "rmse_truth_debiased",
-    "rmse_mitsuba_debiased",
-    "flip_truth",
-    "occluded_fraction",
-    "lookups_per_ray",
-]
-#: The error split over every object pixel (study.measure.split): MSE parts that add up to dec_total.
-DECOMPOSITION = [
-    "dec_total",
-    "dec_search",
-    "dec_visibility",
-    "dec_representation",
-    "dec_noise",
-    "dec_cross",
-    "dec_residual",
-    "dec_sums",
-    "dec_representation_direct",
-    "dec_sums_direct",
-    "held_pixels",
-    "unheld_pixels",
-    "rmse_truth_held",
-    "rmse_truth_unheld",
-    "rmse_truth",
-    "rmse_truth_debiased",
-    "truth_noise_rmse",
-    "truth_noise_flag",
-    "rmse_mitsuba",
-    "rmse_mitsuba_debiased",
-    "mitsuba_noise_rmse",
-    "mitsuba_noise_flag",
-]
-COMPARISON = [
-    *OUTCOMES,
-    *summary.COMPARED,
-    "wrong_fraction_offscreen",
-    "angle_p95_deg",
-    "rmse_oracle",
-    "rmse_truth_debiased",
-    "rmse_mitsuba_debiased",
-    "flip_truth",
-    "valid_fraction",
-    "lookups_per_ray",
-]
+#: The report's tables read their columns from the declared table (study/columns.py, views "summary",
+#: "decomposition" and "comparison"): outcome classes first, the error split, the comparison's fixed tolerances.
+SUMMARY = columns.view("summary")
+DECOMPOSITION = columns.view("decomposition")
+COMPARISON = columns.view("comparison")
 
 
 def _medians(tables: dict[str, list[dict]], cols: list[str]) -> list[dict]:

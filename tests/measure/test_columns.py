@@ -185,3 +185,30 @@ def test_a_bare_producer_writing_a_built_in_column_is_one_line(tmp_path):
     assert (
         r.returncode == 2 and "clash.f writes the column 'wrong_fraction', which study's built-in" in r.stderr
     ), r.stderr[-2000:]
+
+
+def test_the_hand_lists_read_the_table():
+    """The report's tables, the plots' metrics, the pareto axis and the convergence panels are views of the declared
+    table: their columns and labels come from the rows (one axis label per column, as the row spells it)."""
+    from study.outputs import convergence, plots
+    from study.report import pareto, report
+
+    assert report.SUMMARY == columns.view("summary") and report.COMPARISON == columns.view("comparison")
+    assert report.DECOMPOSITION == columns.view("decomposition") and report.DECOMPOSITION[0] == "dec_total"
+    for view in ("summary", "decomposition", "comparison", "plots", "pareto", "convergence", "run", "figure"):
+        assert all(view in c.views for c in columns.in_view(view)), view
+    assert plots.METRICS["wrong_fraction"] == (columns.axis("wrong_fraction"), 1e-4)
+    assert pareto.ERRORS["wrong_fraction_1cm"].startswith(columns.axis("wrong_fraction_1cm"))
+    assert (
+        dict((c, a) for c, a, _ in convergence.PANELS)["angle_p95_deg"] == plots.METRICS["angle_p95_deg"][0]
+    )
+    drawn = [*plots.METRICS, *pareto.ERRORS, *(c for c, _, _ in convergence.PANELS)]
+    assert all(columns.declared(c).axis for c in drawn), [c for c in drawn if not columns.declared(c).axis]
+
+
+def test_a_view_naming_an_undeclared_column_fails_at_import():
+    code = (
+        "import study.column_rows as r\nr.ORDER['plots'].insert(0, 'no_such_column')\nimport study.columns\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode != 0 and "views name undeclared columns" in r.stderr and "no_such_column" in r.stderr
