@@ -7,7 +7,8 @@ truth_at_hit and Mitsuba (:mod:`study.measure.truth`), and the error split over 
 (:mod:`study.measure.split`, which also defines the oracle).
 
 The references are traces too (:class:`Traced`): ``oracle_map`` and ``truth_at_hit`` show the exact hit, with the
-impostor's radiance and with the truth's; their rows come from the same producer as every method's (:func:`_row`).
+impostor's radiance and with the truth's; their rows come from the same producers as every method's
+(:func:`study.measure.groups.row_of`: the built-in column groups, then the plug-ins' producers).
 """
 
 from __future__ import annotations
@@ -24,8 +25,9 @@ from study.errors import StudyError
 from study.impostor.envmap import EnvMap
 from study.impostor.views import Lobe
 from study.measure import batched, bias, lighting, metrics, outcomes, spatial, split, stats, truth, worth
+from study.measure.groups import row_of
 from study.measure.inputs import camera_render, capture_views, impostor, second_captures
-from study.measure.producers import PRODUCERS, RayContext, _produced, producer  # noqa: F401 - plug-ins' road
+from study.measure.producers import PRODUCERS, RayContext, producer  # noqa: F401 - plug-ins' road
 from study.methods import Method
 from study.optics import shading
 from study.reference.tracer import make_tracer
@@ -180,9 +182,9 @@ def run_case(
     keep_images: bool = True,
     intervals: bool | None = None,
 ) -> CaseOutput:
-    """Every method and both references on the same rays of one case: their rows (one per trace, columns of
-    :func:`_row`) and, with ``keep_images``, their images and per-pixel maps. ``intervals`` (default
-    ``keep_images``): a figure's columns, the pixel intervals and the FLIP maps; False: a sweep's (its images,
+    """Every method and both references on the same rays of one case: their rows (one per trace,
+    :func:`study.measure.groups.row_of`) and, with ``keep_images``, their images and per-pixel maps. ``intervals``
+    (default ``keep_images``): a figure's columns, the pixel intervals and the FLIP maps; False: a sweep's (its images,
     with ``keep_images``, leave its rows as they are)."""
     intervals = keep_images if intervals is None else intervals
     cache = cache or Cache(None)
@@ -244,16 +246,16 @@ def run_case(
     out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=mitsuba, truth=ref.image, mask=mask, held=held_px,
                      occluded=rays.per_pixel(exact.occluded.astype(float), fill=0.0))  # fmt: skip
     by_trace = _method_columns(traces, refs, backend, intervals)  # every method's, one pass per reference
+    pixels = spatial.ray_pixels(
+        rays.hit, rays.src
+    )  # each ray's pixel (the ray intervals' clusters), once per case
     for t in traces:
         ang = metrics.angular_error(rays.x, t.shown, exact.point)
         oc = _classify(B, backend, rays, t.shown, exact)
-        extra = {"held_fraction": float(held.mean()) if len(held) else np.nan} if t.reference else {}
         cols, fmap = by_trace.get(id(t)) or (_image_columns(t, refs, None, backend, intervals), None)
-        if PRODUCERS:
-            ctx = RayContext(rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image, ref.image,
-                             mask, t.label)  # fmt: skip
-            extra = {**extra, **_produced(ctx, taken=t.flags)}
-        out.rows.append(_row(t, base, rays, ang, oc, exact, cols, extra))
+        out.rows.append(row_of(RayContext(  # the built-in groups' and the plug-ins' columns (study.measure.groups)
+            rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image, ref.image, mask, t.label, trace=t,
+            rays=rays, hits=exact, pixels=pixels, held=held, image_columns=cols), base))  # fmt: skip
         if keep_images and not t.reference:
             out.images[t.label] = t.image
             out.angle_maps[t.label] = rays.per_pixel(ang, fill=np.nan)
@@ -357,38 +359,6 @@ def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool) -> 
     if t.reference == "truth_at_hit":  # the truth is not split against itself
         cols.update({k: np.nan for k in cols if k.startswith("dec_")})
     return cols
-
-
-def _row(t: Traced, base: dict, rays, ang, oc, exact: ExactHits, image_cols: dict, extra: dict) -> dict:
-    """One trace's row: the case's columns, the method's knobs, geometry (angle, distance), outcome classes and
-    their intervals, off-screen hits, image columns, then validity, the search's residual and its cost."""
-    return {
-        **base,
-        "method": t.method,
-        "label": t.label,
-        **t.knobs,
-        **metrics.value_stats(ang, "angle", "_deg"),
-        "dist_median": float(np.nanmedian(np.linalg.norm(t.shown - exact.point, axis=-1))),
-        **outcomes.outcome_columns(oc, exact.occluded, ang),
-        **stats.ray_columns(
-            oc,
-            ang,
-            exact.occluded,
-            rays.x,
-            exact.point,  # counts, intervals, fixed tolerances
-            pixels=spatial.ray_pixels(rays.hit, rays.src),
-            shape=rays.hit.shape[:2],
-        ),
-        **outcomes.offscreen_columns(oc, exact.offscreen),
-        **image_cols,
-        **extra,
-        **t.flags,
-        "valid_fraction": float(t.valid.mean()),
-        "ratio_residual_median": float(np.nanmedian(np.abs(t.ratio - 1))),
-        "lookups_per_ray": t.lookups,
-        "lookups_bound": t.bound,
-        "seconds": t.seconds,
-    }
 
 
 #: A light this strong can overflow Mitsuba's float32 radiance (3.4e38) in a render; a weaker one cannot.

@@ -3,16 +3,22 @@ declaring the columns it writes, so that two writers of one name are an error wh
 
 A plug-in adds a per-ray column with one declaration (:func:`study.columns.declare`) and one producer
 (:func:`producer`, also reachable as ``study.measure.case.producer``); :func:`study.measure.case.run_case` calls
-every registered producer for every trace of every case and adds its columns to the trace's row.
+every registered producer for every trace of every case and adds its columns to the trace's row. The built-in
+column groups (the trace's identity, geometry, outcome classes, ray intervals, off-screen hits, image errors,
+the references' own, the method's flags, the search's cost: :mod:`study.measure.groups`) are producers over the
+same context, registered with :func:`group` and declared the same way; a row is theirs in that order, the
+plug-ins' after the references' own.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from study import columns
+from study import columns as columns_table  # where `columns` names a producer's argument
 from study.errors import StudyError
 
 
@@ -31,6 +37,15 @@ class RayContext:
     truth: np.ndarray  # (H, W, 3) truth_at_hit
     mask: np.ndarray  # (H, W) pixels fully on the object
     label: str  # the method's label (or the reference's name)
+    # the case around the trace, once per case (the built-in groups read them; a plug-in may)
+    trace: Any = (
+        None  # study.measure.case.Traced: what the trace answered (validity, ratio, cost, knobs, flags)
+    )
+    rays: Any = None  # study.optics.shading's object rays (pixels, sub-pixel sources)
+    hits: Any = None  # study.measure.case.ExactHits (tolerances, off-screen hits)
+    pixels: np.ndarray | None = None  # (K,) each ray's pixel (study.measure.spatial.ray_pixels)
+    held: np.ndarray | None = None  # (K,) the exact hit is held by o's views (study.measure.split.held)
+    image_columns: dict | None = None  # the trace's image errors, measured with the case's other traces
 
 
 #: column producers beyond the built-in ones (:func:`producer`), called for every trace of every case
@@ -50,6 +65,31 @@ def _written_by(name: str) -> str | None:
     if name in WRITERS:
         return WRITERS[name]
     return BUILTIN_WRITER if name in columns.BUILTIN else None
+
+
+#: the built-in column groups (:func:`group`), in the order a row holds them; ``AFTER``: those after the plug-ins'
+GROUPS: list = []
+AFTER: list = []
+
+
+def group(*, columns: tuple[str, ...] = (), after_plugins: bool = False):
+    """Register a built-in column group ``fn(ctx: RayContext) -> {column: value}`` that writes ``columns`` (each
+    declared in :mod:`study.column_rows`; a group whose names depend on the trace, as the flags', declares none):
+    the plug-ins' producers may write none of them (:func:`producer` names the group)."""
+
+    def register(f):
+        name = f"the built-in group {_writer(f)}"
+        for c in columns:
+            if columns_table.declared(c) is None:
+                raise ValueError(f"{name} writes the column {c!r}, which study.column_rows does not declare")
+            if WRITERS.get(c, name) != name:
+                raise ValueError(f"{name} writes the column {c!r}, which {WRITERS[c]} already writes")
+        WRITERS.update(dict.fromkeys(columns, name))
+        f.columns = tuple(columns)
+        (AFTER if after_plugins else GROUPS).append(f)
+        return f
+
+    return register
 
 
 def producer(fn=None, *, columns: tuple[str, ...] | list[str] = ()):

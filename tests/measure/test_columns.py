@@ -135,17 +135,18 @@ def test_a_producer_declaring_a_built_in_column_is_one_line_at_registration():
     """A plug-in producer that declares ``wrong_fraction`` fails when it registers, naming itself and the built-in
     writer; on main it registered and replaced the outcome classes' value in every row."""
     from study.errors import StudyError
-    from study.measure import producers
+    from study.measure import case, producers  # noqa: F401 - case registers the built-in groups
 
     def scratch(ctx):
         return {"wrong_fraction": 0.0}
 
-    before = list(producers.PRODUCERS)
+    before, writers = list(producers.PRODUCERS), dict(producers.WRITERS)
     with pytest.raises(StudyError) as err:
         producers.producer(columns=("wrong_fraction",))(scratch)
     line = str(err.value)
-    assert "\n" not in line and "scratch" in line and "'wrong_fraction'" in line and "built-in" in line, line
-    assert producers.PRODUCERS == before and "wrong_fraction" not in producers.WRITERS
+    assert "\n" not in line and "scratch writes the column 'wrong_fraction'" in line, line
+    assert "which the built-in group study.measure.groups.outcome_classes already writes" in line, line
+    assert producers.PRODUCERS == before and producers.WRITERS == writers
 
 
 def test_two_producers_declaring_one_column_is_one_line_at_registration():
@@ -183,7 +184,9 @@ def test_a_bare_producer_writing_a_built_in_column_is_one_line(tmp_path):
            "classical", "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "c")]  # fmt: skip
     r = subprocess.run(cli, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
     assert (
-        r.returncode == 2 and "clash.f writes the column 'wrong_fraction', which study's built-in" in r.stderr
+        r.returncode == 2
+        and "clash.f writes the column 'wrong_fraction', which the built-in group study.measure.groups.outcome_classes"
+        in r.stderr
     ), r.stderr[-2000:]
 
 
@@ -212,3 +215,33 @@ def test_a_view_naming_an_undeclared_column_fails_at_import():
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode != 0 and "views name undeclared columns" in r.stderr and "no_such_column" in r.stderr
+
+
+def test_each_built_in_group_writes_what_it_declares():
+    """The built-in groups are producers: on a case's traces (a method with flags, the references) each writes
+    only columns it declares, every declared column reaches a row, and no two groups declare one name."""
+    from study.harness.config import expand_methods
+    from study.measure import producers
+    from study.measure.case import run_case
+    from study.scene import scene_from_dict
+
+    seen = {}
+
+    def keep(ctx):
+        seen[ctx.label] = ctx
+        return {}
+
+    producers.PRODUCERS.append(keep)
+    try:
+        sc = scene_from_dict(small_scene_dict(), source="s.toml")
+        rows = run_case(sc, expand_methods(["classical", "probe_blend"], source="x"), keep_images=False).rows
+    finally:
+        producers.PRODUCERS.remove(keep)
+    groups = producers.GROUPS + producers.AFTER
+    declared = [c for g in groups for c in g.columns]
+    assert len(declared) == len(set(declared)) and all(columns.declared(c) for c in declared)
+    assert set(declared) <= {k for r in rows for k in r}
+    for ctx in seen.values():
+        for g in groups:
+            if g.columns:
+                assert set(g(ctx)) <= set(g.columns), g.__name__
