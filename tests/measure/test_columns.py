@@ -69,47 +69,93 @@ def test_the_printed_tables_read_the_declared_views():
 
 PLUGIN = textwrap.dedent(
     """
+    \"\"\"A per-ray column in one file: the share of rays whose shown point lies above their shading point.\"\"\"
     import numpy as np
     from study.columns import TableColumn, declare
     from study.measure.case import producer
 
-    declare(TableColumn("above_fraction", "fraction", None, "above", ("run",), note="shown point above the object"))
+    declare(TableColumn("above_fraction", "fraction", None, "above", ("run", "summary"), note="shown point above x"))
 
-    @producer
+
+    @producer(columns=("above_fraction",))
     def above(ctx):
         return {"above_fraction": float(np.mean(ctx.shown[:, 1] > ctx.x[:, 1]))}
     """
 )
+#: One process (imports paid once): ``study run``, the API, ``study report`` and ``study check`` with the plug-in
+#: loaded by ``$STUDY_PLUGINS`` (docs/extend.md); the expected share is recomputed from the case's own rays.
+E2E = textwrap.dedent(
+    """
+    import sys
+    from pathlib import Path
+    import numpy as np, pandas as pd
+    from typer.testing import CliRunner
+    import study
+    from study.cli import app
+    from study.measure import producers
+    from study.outputs.markup import md_esc
+    from study.tables import read_csv
+
+    tmp, run = Path(sys.argv[1]), CliRunner().invoke
+    common = ["--cache", str(tmp / "c")]
+    r = run(app, ["run", str(tmp / "s.toml"), "-m", "classical", "--out", str(tmp / "reports" / "run1"), *common])
+    assert r.exit_code == 0, r.output
+    assert "above" in r.output.split("label", 1)[1].splitlines()[0], r.output  # study run's printed header
+    csv = read_csv(tmp / "reports" / "run1" / "table.csv")
+    assert all(0 <= row["above_fraction"] <= 1 for row in csv)
+
+    seen = {}
+    producers.PRODUCERS.append(lambda ctx: seen.setdefault(ctx.label, ctx) and {})
+    res = study.evaluate(study.load_scene(str(tmp / "s.toml")), methods=["classical"])
+    ctx = seen["classical"]
+    want = float(np.mean(ctx.shown[:, 1] > ctx.x[:, 1]))
+    got = res.table.set_index("label")["above_fraction"]
+    assert got["classical"] == want and "above_fraction" in res.shown().columns, (got, want)
+    assert got["truth_at_hit"] == float(np.mean(ctx.exact[:, 1] > ctx.x[:, 1]))  # a reference shows the exact hit
+    res.save(str(tmp / "api"))
+    assert pd.read_parquet(tmp / "api" / "table.parquet").set_index("label")["above_fraction"]["classical"] == want
+
+    r = run(app, ["report", "--reports", str(tmp / "reports")])
+    assert r.exit_code == 0, r.output
+    assert md_esc("above_fraction") in (tmp / "reports" / "index.md").read_text()  # the run's summary table
+
+    r = run(app, ["check", "--config", str(tmp / "check.toml"), "--update", *common])
+    assert r.exit_code == 0, r.output
+    assert "above_fraction" in read_csv(tmp / "baseline" / "results.csv")[0]
+    r = run(app, ["check", "--config", str(tmp / "check.toml"), *common])
+    assert r.exit_code == 0 and "check passed" in r.output, r.output
+    print("ok")
+    """
+)
 
 
-def test_a_column_from_a_plugin_reaches_every_output(tmp_path):
-    """One declaration and one producer in a scratch module: the column is in the CSV and the Parquet, in the API's
-    table and its shown columns, and in ``study run``'s printed table under its header."""
+def test_a_per_ray_column_in_one_file_reaches_every_output(tmp_path):
+    """One scratch module, loaded as a plug-in (``$STUDY_PLUGINS``), adds a per-ray column: it is in the CSV and the
+    Parquet, the API's table (its value recomputed from the trace's rays, a reference's from the exact hits) and
+    shown columns, ``study run``'s printed table, the report's page, and ``study check`` accepts a tolerance on it
+    and compares it with the baseline it wrote. Without the plug-in the same check file is refused."""
+    from study.errors import StudyError
+    from study.report.check import load_check
+
     (tmp_path / "colplug.py").write_text(PLUGIN)
-    (tmp_path / "s.toml").write_text(scene_toml(small_scene_dict()))
-    env = {"PYTHONPATH": f"{tmp_path}:{ROOT}", "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
-    code = textwrap.dedent(
-        f"""
-        import colplug, study, pandas as pd
-        res = study.evaluate(study.load_scene({str(tmp_path / "s.toml")!r}), methods=["classical"])
-        assert "above_fraction" in res.table.columns and "above_fraction" in res.shown().columns
-        assert res.table["above_fraction"].between(0, 1).all()
-        res.save({str(tmp_path / "api")!r})
-        assert "above_fraction" in pd.read_parquet({str(tmp_path / "api" / "table.parquet")!r}).columns
-        assert "above_fraction" in open({str(tmp_path / "api" / "table.csv")!r}).readline()
-        print("ok")
-        """
+    scene = small_scene_dict()
+    scene["render"]["cube_res"] = 16
+    (tmp_path / "s.toml").write_text(scene_toml(scene))
+    (tmp_path / "sweep.toml").write_text(
+        'scene = "s.toml"\nmethods = ["classical"]\n\n[axes]\n"object.center" = [[0.6, 1.2, 0.3]]\n'
     )
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path,
-                       timeout=600)  # fmt: skip
-    assert r.returncode == 0 and "ok" in r.stdout, r.stderr[-3000:]
-    cli = [sys.executable, "-m", "study.cli", "--plugin", "colplug", "run", str(tmp_path / "s.toml"), "-m",
-           "classical", "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "c")]  # fmt: skip
-    r = subprocess.run(cli, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
-    assert r.returncode == 0, r.stderr[-3000:]
-    assert (
-        "above" in r.stdout and "above_fraction" in (tmp_path / "o" / "table.csv").read_text().splitlines()[0]
+    (tmp_path / "check.toml").write_text(
+        'sweep = "sweep.toml"\nbaseline = "baseline"\nseeds = [0, 1, 2]\n\n[tolerance]\n'
+        "above_fraction = { abs = 1e-9, rel = 0.0 }\n"
     )
+    (tmp_path / "e2e.py").write_text(E2E)
+    env = {"PYTHONPATH": f"{tmp_path}:{ROOT}", "PATH": "/usr/bin:/bin", "HOME": str(tmp_path),
+           "STUDY_PLUGINS": "colplug"}  # fmt: skip
+    r = subprocess.run([sys.executable, str(tmp_path / "e2e.py"), str(tmp_path)], capture_output=True, text=True,
+                       env=env, cwd=tmp_path, timeout=600)  # fmt: skip
+    assert r.returncode == 0 and "ok" in r.stdout, r.stdout[-2000:] + r.stderr[-3000:]
+    with pytest.raises(StudyError, match="'above_fraction' is not a declared column"):
+        load_check(tmp_path / "check.toml")  # this process never loaded the plug-in
 
 
 def test_an_undeclared_column_from_a_producer_is_one_line(tmp_path):
@@ -196,8 +242,12 @@ def test_the_hand_lists_read_the_table():
     from study.outputs import convergence, plots
     from study.report import pareto, report
 
-    assert report.SUMMARY == columns.view("summary") and report.COMPARISON == columns.view("comparison")
-    assert report.DECOMPOSITION == columns.view("decomposition") and report.DECOMPOSITION[0] == "dec_total"
+    assert set(report.VIEWS) <= set(columns.ORDER) and columns.view("decomposition")[0] == "dec_total"
+    assert columns.view("summary")[:3] == [
+        "wrong_fraction",
+        "wrong_fraction_visible",
+        "wrong_fraction_hidden",
+    ]
     for view in ("summary", "decomposition", "comparison", "plots", "pareto", "convergence", "run", "figure"):
         assert all(view in c.views for c in columns.in_view(view)), view
     assert plots.METRICS["wrong_fraction"] == (columns.axis("wrong_fraction"), 1e-4)
