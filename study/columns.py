@@ -20,6 +20,7 @@ beside it (its 95 % interval; :mod:`study.measure.stats`), declared with it.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from study.column_rows import (  # noqa: F401 - the table's API
     BACKEND_SENSITIVE,
@@ -27,12 +28,45 @@ from study.column_rows import (  # noqa: F401 - the table's API
     HIGH,
     LOW,
     NONE,
-    ORDER,
     TABLE,
     F,
     TableColumn,
 )
 
+#: the views a printed table may name, in the order of :data:`TABLE` unless :data:`ORDER` says otherwise
+ORDER = {
+    "run": ["label", "wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95",
+            "angle_median_deg", "rmse_truth", "relmse_truth_exposed", "flip_truth", "lookups_per_ray"],
+    "figure": ["case", "label", "angle_median_deg", "angle_p95_deg", "rmse_oracle", "rmse_mitsuba", "flip_truth",
+               "occluded_fraction"],
+    # the report (study.report.report): the summary's medians (outcome classes first: the angle alone is blind to a
+    # wrong depth on the same ray), the error split's (study.measure.split: MSE parts that add up to dec_total),
+    # the comparison's (also fixed tolerances, one meaning at every cube resolution, and robust image errors)
+    "summary": ["wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95", "dist_dropped",
+                "angle_dropped", "wrong_fraction_offscreen", "angle_median_deg", "angle_p95_deg", "rmse_oracle",
+                "rmse_truth_debiased", "rmse_mitsuba_debiased", "flip_truth", "occluded_fraction", "lookups_per_ray"],
+    "decomposition": ["dec_total", "dec_search", "dec_visibility", "dec_representation", "dec_noise", "dec_cross",
+                      "dec_residual", "dec_sums", "dec_representation_direct", "dec_sums_direct", "held_pixels",
+                      "unheld_pixels", "rmse_truth_held", "rmse_truth_unheld", "rmse_truth", "rmse_truth_debiased",
+                      "truth_noise_rmse", "truth_noise_flag", "rmse_mitsuba", "rmse_mitsuba_debiased",
+                      "mitsuba_noise_rmse", "mitsuba_noise_flag"],
+    "comparison": ["wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95", "dist_dropped",
+                   "angle_dropped", "wrong_fraction_1cm", "wrong_fraction_10cm", "wrong_fraction_0p5deg",
+                   "relmse_truth", "relmse_truth_exposed", "rmse_truth_debiased_trim", "sqerr_top_share_truth",
+                   "wrong_fraction_offscreen", "angle_p95_deg", "rmse_oracle", "rmse_truth_debiased",
+                   "rmse_mitsuba_debiased", "flip_truth", "valid_fraction", "lookups_per_ray"],
+    # the plots that draw one metric per figure (study.outputs.plots), the pareto page's error axis
+    # (study.report.pareto), the panels of the convergence figure (study.outputs.convergence): each with its axis
+    "plots": ["wrong_fraction", "angle_median_deg", "angle_p95_deg"],
+    "pareto": ["wrong_fraction", "rmse_truth_debiased", "wrong_fraction_1cm"],
+    "convergence": ["wrong_fraction_texel", "wrong_fraction_visible", "wrong_fraction_1cm", "wrong_fraction_3cm",
+                    "wrong_fraction_10cm", "angle_p95_deg", "rmse_truth"],
+}  # fmt: skip
+#: a row is in each view that :data:`ORDER` lists it in (the view's order is ORDER's): marked here once
+TABLE[:] = [
+    replace(c, views=c.views + tuple(v for v, names in ORDER.items() if c.name in names and v not in c.views))
+    for c in TABLE
+]
 #: the leading columns: every results table writes these first, in this order; the rest of a row follows in the order
 #: it first appears (so tables written before a column was declared keep their layout)
 LEAD = [c.name for c in TABLE[: [c.name for c in TABLE].index("seconds") + 1]]

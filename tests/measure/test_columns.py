@@ -259,11 +259,13 @@ def test_the_hand_lists_read_the_table():
     assert all(columns.declared(c).axis for c in drawn), [c for c in drawn if not columns.declared(c).axis]
 
 
-def test_a_view_naming_an_undeclared_column_fails_at_import():
-    code = (
-        "import study.column_rows as r\nr.ORDER['plots'].insert(0, 'no_such_column')\nimport study.columns\n"
-    )
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+def test_a_view_naming_an_undeclared_column_fails_at_import(tmp_path):
+    src = (ROOT / "study" / "columns.py").read_text()
+    bad = src.replace('"plots": ["wrong_fraction",', '"plots": ["no_such_column", "wrong_fraction",')
+    assert bad != src
+    (tmp_path / "cols.py").write_text(bad)
+    r = subprocess.run([sys.executable, "-c", "import cols"], capture_output=True, text=True, cwd=tmp_path,
+                       env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})  # fmt: skip
     assert r.returncode != 0 and "views name undeclared columns" in r.stderr and "no_such_column" in r.stderr
 
 
