@@ -13,13 +13,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from study import columns
 from study.measure import metrics, outcomes, stats
 from study.measure.producers import AFTER, GROUPS, PRODUCERS, RayContext, _produced, group
 
-#: the fractions whose calibrated ``_lo``/``_hi`` the ray intervals write
-_BOUNDED = ("wrong_fraction_texel", "wrong_fraction_1cm", "wrong_fraction_3cm", "wrong_fraction_10cm",
-            "wrong_fraction_0p5deg", "wrong_fraction_visible", "wrong_fraction_hidden", "angle_median_deg",
-            "angle_p95_deg", "dist_p95")  # fmt: skip
+#: the per-ray columns of the geometry, the outcome classes and the counts and fixed tolerances
+_GEOMETRY = ("angle_median_deg", "angle_p95_deg", "angle_max_deg", "dist_median")
+_OUTCOMES = ("correct_fraction", "wrong_fraction", "wrong_depth_fraction", "wrong_surface_fraction", "no_hit_fraction",
+             "wrong_fraction_visible", "wrong_fraction_hidden", "hidden_fraction", "dist_p50", "dist_p95", "dist_p99",
+             "depth_error_p95", "angle_p95_visible_deg", "angle_p95_hidden_deg")  # fmt: skip
+_COUNTS = ("n_rays", "n_hidden", "n_wrong", "wrong_fraction_texel", "wrong_fraction_1mm", "wrong_fraction_3mm",
+           "wrong_fraction_1cm", "wrong_fraction_3cm", "wrong_fraction_10cm", "wrong_fraction_30cm",
+           "wrong_fraction_0p5deg", "rays_deff", "angle_dropped", "dist_dropped", "angle_p95_all_deg")  # fmt: skip
+#: the calibrated ``_lo``/``_hi`` the ray intervals write: those of the per-ray columns the table gives an interval
+_BOUNDS = tuple(
+    f"{c}_{e}" for c in _GEOMETRY + _OUTCOMES + _COUNTS if columns.declared(c).interval for e in ("lo", "hi")
+)
 
 
 @group(columns=("method", "label", "family", "knob", "knob_value"))
@@ -29,7 +38,7 @@ def trace_identity(ctx: RayContext) -> dict:
     return {"method": t.method, "label": t.label, **t.knobs}
 
 
-@group(columns=("angle_median_deg", "angle_p95_deg", "angle_max_deg", "dist_median"))
+@group(columns=_GEOMETRY)
 def shown_geometry(ctx: RayContext) -> dict:
     """The angle at the shading point between the shown and the exact hit (median, p95, max over the rays with one)
     and the median distance between them."""
@@ -39,19 +48,13 @@ def shown_geometry(ctx: RayContext) -> dict:
     }
 
 
-@group(columns=("correct_fraction", "wrong_fraction", "wrong_depth_fraction", "wrong_surface_fraction",
-                "no_hit_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "hidden_fraction",
-                "dist_p50", "dist_p95", "dist_p99", "depth_error_p95", "angle_p95_visible_deg",
-                "angle_p95_hidden_deg"))  # fmt: skip
+@group(columns=_OUTCOMES)
 def outcome_classes(ctx: RayContext) -> dict:
     """The outcome classes' fractions, among the rays o sees and those it does not (:mod:`study.measure.outcomes`)."""
     return outcomes.outcome_columns(ctx.classes, ctx.occluded, ctx.angle)
 
 
-@group(columns=("n_rays", "n_hidden", "n_wrong", "wrong_fraction_texel", "wrong_fraction_1mm", "wrong_fraction_3mm",
-                "wrong_fraction_1cm", "wrong_fraction_3cm", "wrong_fraction_10cm", "wrong_fraction_30cm",
-                "wrong_fraction_0p5deg", "rays_deff", *(f"{c}_{e}" for c in _BOUNDED for e in ("lo", "hi")),
-                "angle_dropped", "dist_dropped", "angle_p95_all_deg"))  # fmt: skip
+@group(columns=_COUNTS + _BOUNDS)
 def ray_intervals(ctx: RayContext) -> dict:
     """Counts, fixed tolerances and the calibrated intervals over the rays, clustered by pixel (each ray's pixel
     taken once per case)."""
