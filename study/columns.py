@@ -32,6 +32,7 @@ from study.column_rows import (  # noqa: F401 - the table's API
     F,
     TableColumn,
 )
+from study.column_tables import TABLES
 
 #: the views a printed table may name, in the order of :data:`TABLE` unless :data:`ORDER` says otherwise
 ORDER = {
@@ -59,6 +60,13 @@ ORDER = {
     # (study.report.pareto), the panels of the convergence figure (study.outputs.convergence): each with its axis
     "plots": ["wrong_fraction", "angle_median_deg", "angle_p95_deg"],
     "pareto": ["wrong_fraction", "rmse_truth_debiased", "wrong_fraction_1cm"],
+    # the convergence figure's curves.csv beside each ladder's columns (study.outputs.convergence)
+    "curves": ["label", "lookups_per_ray", "n_rays", "wrong_fraction_texel", "wrong_fraction_texel_lo",
+               "wrong_fraction_texel_hi", "wrong_fraction_1cm", "wrong_fraction_1cm_lo", "wrong_fraction_1cm_hi",
+               "wrong_fraction_3cm", "wrong_fraction_3cm_lo", "wrong_fraction_3cm_hi", "wrong_fraction_10cm",
+               "wrong_fraction_10cm_lo", "wrong_fraction_10cm_hi", "wrong_fraction_visible",
+               "wrong_fraction_visible_lo", "wrong_fraction_visible_hi", "wrong_fraction_hidden", "angle_p95_deg",
+               "angle_p95_all_deg", "rmse_truth", "hidden_fraction"],
     "convergence": ["wrong_fraction_texel", "wrong_fraction_visible", "wrong_fraction_1cm", "wrong_fraction_3cm",
                     "wrong_fraction_10cm", "angle_p95_deg", "rmse_truth"],
 }  # fmt: skip
@@ -161,6 +169,18 @@ def view(name: str) -> list[str]:
     return list(ORDER.get(name, []))
 
 
+def table_columns(name: str, view: str = "") -> list[str]:
+    """The columns of study's other table ``name`` (:data:`study.column_tables.TABLES`: ``bench``, ``bench_floors``,
+    ``projection``, ``caustics``, ``power``) in the order its CSV writes them, or those of its ``view`` (in the
+    view's declared order, else the rows' order)."""
+    if name not in TABLES:
+        raise KeyError(f"no declared table {name!r}; declared: {', '.join(TABLES)}")
+    rows, orders = TABLES[name]
+    if not view:
+        return [c.name for c in rows]
+    return list(orders.get(view) or [c.name for c in rows if view in c.views])
+
+
 def in_view(name: str) -> list[TableColumn]:
     """The declared rows of view ``name`` (a printed table, a report section, a plot's metrics), in its order."""
     return [_BY_NAME[n] for n in ORDER.get(name, []) if n in _BY_NAME]
@@ -179,9 +199,11 @@ def headers() -> dict[str, str]:
 
 for _c in TABLE:  # the table's own columns, indexed by name
     _index(_c)
-if _missing := {
-    v: [n for n in ns if n not in _BY_NAME] for v, ns in ORDER.items() if set(ns) - set(_BY_NAME)
-}:
+for _t, (_rows, _orders) in TABLES.items():  # each other table's views name its rows, once each
+    _names = [c.name for c in _rows]
+    if len(set(_names)) < len(_names) or any(set(o) - set(_names) for o in _orders.values()):
+        raise ValueError(f"table {_t!r}: a column declared twice, or a view naming an undeclared one")
+if _missing := {v: bad for v, ns in ORDER.items() if (bad := [n for n in ns if declared(n) is None])}:
     raise ValueError(f"views name undeclared columns: {_missing}")
 #: the built-in columns (each interval's ``_lo``/``_hi`` with it): a plug-in's producer may write none of them
 BUILTIN = frozenset(column_names())

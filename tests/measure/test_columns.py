@@ -255,8 +255,32 @@ def test_the_hand_lists_read_the_table():
     assert (
         dict((c, a) for c, a, _ in convergence.PANELS)["angle_p95_deg"] == plots.METRICS["angle_p95_deg"][0]
     )
+    assert convergence.CURVE_COLUMNS == tuple(columns.view("curves"))
+    assert all(columns.declared(c) for c in convergence.CURVE_COLUMNS)  # _lo/_hi through their column
     drawn = [*plots.METRICS, *pareto.ERRORS, *(c for c, _, _ in convergence.PANELS)]
     assert all(columns.declared(c).axis for c in drawn), [c for c in drawn if not columns.declared(c).axis]
+
+
+def test_the_other_tables_are_declared_the_same_way():
+    """The bench's, its floors', the projection's, the caustics' and the power table's columns are rows of declared
+    tables (study/column_tables.py), read by the modules that write them."""
+    from study.bench import carry, output
+    from study.report import power
+    from study.report.kinds import caustics
+
+    assert output.BENCH_COLS == columns.table_columns("bench") and output.FLOOR_COLS == columns.table_columns(
+        "bench_floors"
+    )
+    assert output.HEADLINE_COLS == columns.table_columns("bench", "headline") and set(
+        output.HEADLINE_COLS
+    ) < set(output.BENCH_COLS)
+    assert carry.PROJECTION_COLS == columns.table_columns(
+        "projection"
+    ) and power.POWER_COLUMNS == columns.table_columns("power")
+    assert caustics.CAUSTIC_COLS == columns.table_columns("caustics", "report")
+    assert "energy_ratio" in caustics.PRINTED and "energy_ratio" not in caustics.CAUSTIC_COLS
+    with pytest.raises(KeyError, match="no declared table 'nope'"):
+        columns.table_columns("nope")
 
 
 def test_a_view_naming_an_undeclared_column_fails_at_import(tmp_path):
