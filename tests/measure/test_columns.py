@@ -321,3 +321,28 @@ def test_each_built_in_group_writes_what_it_declares():
         for g in groups:
             if g.columns:
                 assert set(g(ctx)) <= set(g.columns), g.__name__
+
+
+def test_a_registered_producer_changes_the_case_key(tmp_path, monkeypatch):
+    """A case cached without a plug-in's column is not resumed once the plug-in is loaded (its rows would lack the
+    column): the producer's code is part of every case's key, and editing its file changes the key again."""
+    import importlib
+
+    from study.harness.config import expand_methods
+    from study.harness.sweep import case_code
+    from study.measure import producers
+
+    (tmp_path / "keyplug.py").write_text("def f(ctx):\n    return {}\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    methods = expand_methods(["classical"], source="x")
+    before = case_code(methods)
+    mod = importlib.import_module("keyplug")
+    producers.PRODUCERS.append(mod.f)
+    try:
+        with_plugin = case_code(methods)
+        (tmp_path / "keyplug.py").write_text("def f(ctx):\n    return {}  # edited\n")
+        assert before != with_plugin != case_code(methods)
+    finally:
+        producers.PRODUCERS.remove(mod.f)
+        sys.modules.pop("keyplug", None)
+    assert case_code(methods) == before
