@@ -6,11 +6,13 @@ Everything that lists columns reads this table: the column order of every CSV an
 the columns :class:`study.api.Result` shows first and ``study run`` prints (view ``"run"``), the table ``study
 figure`` prints (view ``"figure"``), the report's summary, error split and comparison (views ``"summary"``,
 ``"decomposition"``, ``"comparison"``), the metrics a plot draws with their axis label and log floor (views
-``"plots"``, ``"pareto"``, ``"convergence"``: :func:`in_view`, :func:`axis`), the tolerances of ``study check``
-(each must name a declared column). A column a producer writes (:func:`study.measure.producers.producer`) must be
-declared here, or with :func:`declare` by the plug-in that adds it — then it reaches every output with no other file
-touched; the producer names the columns it writes, and a name two producers write is an error when the second
-registers (a built-in column, :data:`BUILTIN`, included).
+``"plots"``, ``"pareto"``, ``"convergence"``: :func:`in_view`, :func:`axis`), the columns of ``curves.csv`` (view
+``"curves"``), the tolerances of ``study check`` (each must name a declared column). A column a producer writes
+(:func:`study.measure.producers.producer`) must be declared here, or with :func:`declare` by the plug-in that adds
+it — then it reaches every output with no other file touched; the producer names the columns it writes, and a name
+two producers write is an error when the second registers (a built-in column, :data:`BUILTIN`, included). Study's
+other tables (the bench's, its floors and projection, the caustics', the report's power table) are declared the same
+way (:mod:`study.column_tables`, :func:`table_columns`).
 
 Directions: ``lower_is_better`` True for errors and costs, False for scores (PSNR, SSIM, correct fraction), None
 for what describes the case (counts, positions, context). An ``interval`` column has ``<name>_lo`` / ``<name>_hi``
