@@ -23,6 +23,7 @@ Projection (:func:`projection_rows`, from the headline rows measured on a GPU wi
 
 from __future__ import annotations
 
+from study import columns
 from study.bench.floors import BYTES_PER_RAY
 
 #: Bilinear texture rates, GTexel/s (8-bit, from texture-unit counts and boost clocks; /work field notes).
@@ -34,19 +35,7 @@ RT_CORE_FACTOR = (3.5, 4.3, 5.0)
 #: Bytes a bilinear fetch reads: 4 texels × 4 B per channel (1-channel distance, 4-channel colour).
 FETCH_BYTES = {1: 16, 4: 64}
 
-PROJECTION_COLS = [
-    "batch",
-    "label",
-    "lookups_mean",
-    "bytes_per_ray",
-    "ms_per_frame",
-    "gpu",
-    "ms_per_frame_projected",
-    "exact_ms_projected",
-    "x_vs_preliminary_low",
-    "x_vs_preliminary_high",
-    "traced_shaded_ms_projected",
-]
+PROJECTION_COLS = columns.table_columns("projection")  # study/column_tables.py
 
 
 def shaded_parts(rows: list[dict], variant: str = "cuda_ad_rgb") -> dict[str, tuple[float, float]]:

@@ -14,50 +14,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from study import columns
 from study import methods as registry
 from study.bench.carry import PROJECTION_COLS, projection_rows, projection_title, shaded_parts
 from study.io import atomic_savefig, png_bytes, write_set
 from study.tables import markdown, to_csv
 
-BENCH_COLS = [
-    "batch",
-    "backend",
-    "path",
-    "label",
-    "rays",
-    "lookups_mean",
-    "bytes_per_ray",
-    "ms_per_call",
-    "mrays_per_s",
-    "ms_per_frame",
-    "kernel_ms_per_frame",
-    "query_ms_per_frame",
-    "floor_ms_per_frame",
-    "x_floor",
-    "kernel_x_floor",
-    "x_vs_embree",
-    "x_vs_mitsuba",
-    "x_vs_preliminary",
-    "x_vs_ray_test",
-    "kernel_x_vs_preliminary",
-]
-HEADLINE_COLS = [
-    "batch",
-    "backend",
-    "label",
-    "lookups_mean",
-    "bytes_per_ray",
-    "ms_per_frame",
-    "kernel_ms_per_frame",
-    "floor_ms_per_frame",
-    "x_floor",
-    "kernel_x_floor",
-    "x_vs_preliminary",
-    "x_vs_ray_test",
-    "x_vs_mitsuba",
-    "kernel_x_vs_preliminary",
-]
-FLOOR_COLS = ["backend", "cube_res", "quantity", "value", "unit"]
+BENCH_COLS = columns.table_columns("bench")  # the declared tables: study/column_tables.py
+HEADLINE_COLS = columns.table_columns("bench", "headline")
+FLOOR_COLS = columns.table_columns("bench_floors")
 
 
 def header(info: dict) -> str:

@@ -45,6 +45,7 @@ from study.codehash import code_hash
 from study.errors import StudyError
 from study.harness.config import MethodSpecs, configured_scene, expand_methods
 from study.measure.case import run_case
+from study.measure.producers import PRODUCERS
 from study.methods import Method
 from study.scene import Scene
 from study.scene.schema import MAX_SEED, Int, Vec3
@@ -175,22 +176,28 @@ def load_sweep(path: str | Path, *, backend: str = "numpy") -> Sweep:
             labels = ", ".join(f"{k}={lab}" for k, (lab, _) in chosen.items())
             raise StudyError(f"{err.detail} (case {labels})", file=str(path), key=f"axes.{err.key}") from None
         cases.append(Case(idx, f"c{idx:04d}", sc, {k: lab for k, (lab, _) in chosen.items()}))
-    code = code_hash(run_case, *[type(m) for m in methods])  # once: the same for every case
+    code = case_code(methods)  # once: the same for every case
     for c in cases:
         c.key = case_key(c.scene, methods, backend, code=code)
     return Sweep(path, cfg, methods, cases, hashlib.sha256(path.read_bytes()).hexdigest()[:16])
 
 
+def case_code(methods: list[Method]) -> str:
+    """The hash of the code that computes a case's rows: :func:`study.measure.case.run_case` and what it imports,
+    each method's class, and every column producer registered now (a plug-in's column changes the rows, so a case
+    cached without it is not resumed: :data:`study.measure.producers.PRODUCERS`)."""
+    return code_hash(run_case, *PRODUCERS, *[type(m) for m in methods])
+
+
 def case_key(scene: Scene, methods: list[Method], backend: str, code: str | None = None) -> str:
     """The content key of a case: its scene, the methods' labels, the backend, and the hash of the code that
-    computes its rows (run_case and everything it imports, and each method's class and module; ``code``, when
-    given, is that hash, computed once for many cases)."""
+    computes its rows (:func:`case_code`; ``code``, when given, is that hash, computed once for many cases)."""
     blob = json.dumps(
         {
             "scene": key_fields(scene),
             "methods": [m.label for m in methods],
             "backend": backend,
-            "code": code or code_hash(run_case, *[type(m) for m in methods]),
+            "code": code or case_code(methods),
         },
         sort_keys=True,
     )

@@ -7,7 +7,8 @@ truth_at_hit and Mitsuba (:mod:`study.measure.truth`), and the error split over 
 (:mod:`study.measure.split`, which also defines the oracle).
 
 The references are traces too (:class:`Traced`): ``oracle_map`` and ``truth_at_hit`` show the exact hit, with the
-impostor's radiance and with the truth's; their rows come from the same producer as every method's (:func:`_row`).
+impostor's radiance and with the truth's; their rows come from the same producers as every method's
+(:func:`study.measure.groups.row_of`: the built-in column groups, then the plug-ins' producers).
 """
 
 from __future__ import annotations
@@ -24,7 +25,9 @@ from study.errors import StudyError
 from study.impostor.envmap import EnvMap
 from study.impostor.views import Lobe
 from study.measure import batched, bias, case_columns, lighting, metrics, outcomes, split, truth, worth
+from study.measure.groups import row_of
 from study.measure.inputs import camera_render, capture_views, finite, impostor, second_captures
+from study.measure.producers import PRODUCERS, RayContext, producer  # noqa: F401 - plug-ins' road
 from study.methods import Method
 from study.optics import shading
 from study.reference.tracer import make_tracer
@@ -82,51 +85,6 @@ def knob_columns(m: Method) -> dict:
         "knob": m.knob.param if m.knob else "",
         "knob_value": float(m.knob_value) if m.knob else np.nan,
     }
-
-
-# ---------------------------------------------------------------------------------------------- more columns
-@dataclass(frozen=True)
-class RayContext:
-    """What a column producer sees of one trace in one case: per ray (K) and per pixel (H, W)."""
-
-    x: np.ndarray  # (K, 3) shading points
-    R: np.ndarray  # (K, 3) secondary ray directions
-    shown: np.ndarray  # (K, 3) the trace's shown points
-    exact: np.ndarray  # (K, 3) the exact hits (escaping rays at FAR)
-    occluded: np.ndarray  # (K,) the exact hit is hidden from the reference point
-    classes: np.ndarray  # (K,) outcome classes (study.measure.outcomes)
-    angle: np.ndarray  # (K,) angular error, degrees
-    image: np.ndarray  # (H, W, 3) the trace's image
-    truth: np.ndarray  # (H, W, 3) truth_at_hit
-    mask: np.ndarray  # (H, W) pixels fully on the object
-    label: str  # the method's label (or the reference's name)
-
-
-#: column producers beyond the built-in ones (:func:`producer`), called for every trace of every case
-PRODUCERS: list = []
-
-
-def producer(fn):
-    """Register ``fn(ctx: RayContext) -> {column: value}``: its columns join every row of every case, and so every
-    table, API result and report, once each is declared (:func:`study.columns.declare`). A column that is not
-    declared is an error naming the producer."""
-    PRODUCERS.append(fn)
-    return fn
-
-
-def _produced(ctx: RayContext) -> dict:
-    out = {}
-    for fn in PRODUCERS:
-        cols = fn(ctx)
-        for k in cols:
-            if columns.declared(k) is None:
-                raise StudyError(
-                    f"{fn.__module__}.{fn.__qualname__} writes the column {k!r}, which is not declared; declare it "
-                    "with study.columns.declare(TableColumn(...))",
-                    key="columns",
-                )
-        out.update(cols)
-    return out
 
 
 # ---------------------------------------------------------------------------------------------- stage records
@@ -226,9 +184,9 @@ def run_case(
     keep_images: bool = True,
     intervals: bool | None = None,
 ) -> CaseOutput:
-    """Every method and both references on the same rays of one case: their rows (one per trace, columns of
-    :func:`_row`) and, with ``keep_images``, their images and per-pixel maps. ``intervals`` (default
-    ``keep_images``): a figure's columns, the pixel intervals and the FLIP maps; False: a sweep's (its images,
+    """Every method and both references on the same rays of one case: their rows (one per trace,
+    :func:`study.measure.groups.row_of`) and, with ``keep_images``, their images and per-pixel maps. ``intervals``
+    (default ``keep_images``): a figure's columns, the pixel intervals and the FLIP maps; False: a sweep's (its images,
     with ``keep_images``, leave its rows as they are)."""
     intervals = keep_images if intervals is None else intervals
     cache = cache or Cache(None)
@@ -240,12 +198,9 @@ def run_case(
     tracer = make_tracer(scene.mesh())
     rays = shading.object_rays(scene, occluder=tracer.distance)  # an empty case is refused before rendering
     if int(rays.full.sum()) < 4:  # too few object pixels: every image metric would be NaN
-        raise StudyError(
-            f"the camera sees {int(rays.full.sum())} pixel(s) fully on the object, at least 4 are "
-            "needed; move object.center into view, closer, or turn camera.target towards it (or raise "
-            "camera.width/height)",
-            key="object.center",
-        )
+        raise StudyError(f"the camera sees {int(rays.full.sum())} pixel(s) fully on the object, at least 4 are "
+                         "needed; move object.center into view, closer, or turn camera.target towards it (or raise "
+                         "camera.width/height)", key="object.center")  # fmt: skip
     o = np.asarray(scene.reference.point, float)
     mark("capture")
     imp = impostor(scene, cache, tracer)
@@ -290,16 +245,14 @@ def run_case(
     out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=mitsuba, truth=ref.image, mask=mask, held=held_px,
                      occluded=rays.per_pixel(exact.occluded.astype(float), fill=0.0))  # fmt: skip
     by_trace = _method_columns(traces, refs, backend, intervals)  # every method's, one pass per reference
+    pixels = ray_pixels(rays.hit, rays.src)  # each ray's pixel (the ray intervals' clusters), once per case
     for t in traces:
         ang = metrics.angular_error(rays.x, t.shown, exact.point)
         oc = _classify(B, backend, rays, t.shown, exact)
-        extra = {"held_fraction": float(held.mean()) if len(held) else np.nan} if t.reference else {}
         cols, fmap = by_trace.get(id(t)) or (_image_columns(t, refs, None, backend, intervals), None)
-        if PRODUCERS:
-            ctx = RayContext(rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image, ref.image,
-                             mask, t.label)  # fmt: skip
-            extra = {**extra, **_produced(ctx)}
-        out.rows.append(_row(t, base, rays, ang, oc, exact, cols, extra))
+        out.rows.append(row_of(RayContext(  # the built-in groups' and the plug-ins' columns (study.measure.groups)
+            rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image, ref.image, mask, t.label, trace=t,
+            rays=rays, hits=exact, pixels=pixels, held=held, image_columns=cols), base))  # fmt: skip
         if keep_images and not t.reference:
             out.images[t.label] = t.image
             out.angle_maps[t.label] = rays.per_pixel(ang, fill=np.nan)
@@ -403,30 +356,3 @@ def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool) -> 
     if t.reference == "truth_at_hit":  # the truth is not split against itself
         cols.update({k: np.nan for k in cols if k.startswith("dec_")})
     return cols
-
-
-def _row(t: Traced, base: dict, rays, ang, oc, exact: ExactHits, image_cols: dict, extra: dict) -> dict:
-    """One trace's row: the case's columns, the method's knobs, geometry (angle, distance), outcome classes and
-    their intervals, off-screen hits, image columns, then validity, the search's residual and its cost."""
-    pix = ray_pixels(rays.hit, rays.src)  # counts, intervals, fixed tolerances over the rays
-    return {
-        **base,
-        "method": t.method,
-        "label": t.label,
-        **t.knobs,
-        **metrics.value_stats(ang, "angle", "_deg"),
-        "dist_median": float(np.nanmedian(np.linalg.norm(t.shown - exact.point, axis=-1))),
-        **outcomes.outcome_columns(oc, exact.occluded, ang),
-        **case_columns.ray_columns(
-            oc, ang, exact.occluded, rays.x, exact.point, pixels=pix, shape=rays.hit.shape[:2]
-        ),
-        **outcomes.offscreen_columns(oc, exact.offscreen),
-        **(image_cols if t.reads_views else split.unread_blank(image_cols)),  # the exact row: no map columns
-        **extra,
-        **t.flags,
-        "valid_fraction": float(t.valid.mean()),
-        "ratio_residual_median": float(np.nanmedian(np.abs(t.ratio - 1))),
-        "lookups_per_ray": t.lookups,
-        "lookups_bound": t.bound,
-        "seconds": t.seconds,
-    }

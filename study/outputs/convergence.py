@@ -41,6 +41,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from study import columns
 from study import methods as registry
 from study.cache import Cache
 from study.errors import StudyError
@@ -52,25 +53,10 @@ from study.stats import case_interval
 from study.tables import markdown, to_csv
 from study.validation import validate_file
 
-#: The columns of ``curves.csv`` beside the ladder's (those a row has).
-CURVE_COLUMNS = (
-    "label", "lookups_per_ray", "n_rays", "wrong_fraction_texel", "wrong_fraction_texel_lo",
-    "wrong_fraction_texel_hi", "wrong_fraction_1cm", "wrong_fraction_1cm_lo", "wrong_fraction_1cm_hi",
-    "wrong_fraction_3cm", "wrong_fraction_3cm_lo", "wrong_fraction_3cm_hi", "wrong_fraction_10cm",
-    "wrong_fraction_10cm_lo", "wrong_fraction_10cm_hi", "wrong_fraction_visible", "wrong_fraction_visible_lo",
-    "wrong_fraction_visible_hi", "wrong_fraction_hidden", "angle_p95_deg",
-    "angle_p95_all_deg", "rmse_truth", "hidden_fraction",
-)  # fmt: skip
-#: The plotted metrics: (column, axis label, log axis).
-PANELS = (
-    ("wrong_fraction_texel", "wrong (> 1 texel)", True),
-    ("wrong_fraction_visible", "wrong (> 1 texel), hits o sees", True),
-    ("wrong_fraction_1cm", "wrong (> 1 cm)", True),
-    ("wrong_fraction_3cm", "wrong (> 3 cm)", True),
-    ("wrong_fraction_10cm", "wrong (> 10 cm)", True),
-    ("angle_p95_deg", "p95 angle, °", True),
-    ("rmse_truth", "RMSE vs truth_at_hit", True),
-)
+#: The columns of ``curves.csv`` beside the ladder's (those a row has): the results table's view "curves".
+CURVE_COLUMNS = tuple(columns.view("curves"))
+#: The plotted metrics: (column, axis label, log axis): the declared columns of view "convergence" (study/columns.py).
+PANELS = tuple((c.name, c.axis, True) for c in columns.in_view("convergence"))
 #: Below this a fraction is drawn at it on the log axis (0 wrong).
 LOG_FLOOR = 1e-4
 

@@ -12,15 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
+from study import columns
 from study.io import atomic_savefig
 from study.tables import REFERENCE_ROWS, write_csv
 
-#: metric → (axis label, floor of the log axis: values at or below it are marked at the bottom, not hidden)
-METRICS = {
-    "wrong_fraction": ("fraction of wrong rays", 1e-4),
-    "angle_median_deg": ("median angular error (deg)", 1e-6),
-    "angle_p95_deg": ("p95 angular error (deg)", 1e-6),
-}
+#: metric → (axis label, floor of the log axis: values at or below it are marked at the bottom, not hidden): the
+#: declared columns of view "plots" (study/columns.py)
+METRICS = {c.name: (c.axis, c.log_floor) for c in columns.in_view("plots")}
 #: 20 distinct colours (tab10, then a darker or stronger one of each hue and a few more); beyond them evenly spaced
 #: hues at alternating lightness: every series of a plot its own colour.
 _COLOURS = [

@@ -44,12 +44,10 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field
 
 from study import columns
-from study.codehash import code_hash
 from study.errors import StudyError
 from study.harness.runner import prepare_sweep, run_sweep
-from study.harness.sweep import case_key
+from study.harness.sweep import case_code, case_key
 from study.io import write_set
-from study.measure.case import run_case
 from study.report import claims as claim_registry
 from study.report.baseline import (  # re-exported: the check's API keeps its names
     POOLED_RATIO_MAX,
@@ -241,7 +239,7 @@ def _run_at(sweep_path: Path, seed: int | None, *, backend: str, cache) -> tuple
     """The check's sweep run once (in a temporary directory), at ``seed`` (None: the sweep's own)."""
     sweep = prepare_sweep(sweep_path, backend=backend)
     if seed is not None:  # every case at this seed: a new scene, so a new content key
-        code = code_hash(run_case, *[type(m) for m in sweep.methods])
+        code = case_code(sweep.methods)
         for c in sweep.cases:
             c.scene = c.scene.with_updates({"render.seed": seed}, source="study check --seed")
             c.key = case_key(c.scene, sweep.methods, backend, code=code)

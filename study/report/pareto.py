@@ -39,10 +39,11 @@ from pathlib import Path
 
 import numpy as np
 
+from study import columns
 from study import methods as registry
 from study.errors import StudyError
 from study.io import png_bytes, write_set
-from study.outputs.plots import METRICS, pareto_indices, style
+from study.outputs.plots import pareto_indices, style
 from study.report.bench_times import (
     CLOCK_WORDS,
     CLOCKS,
@@ -59,13 +60,12 @@ from study.tables import REFERENCE_ROWS, check_rows, markdown
 #: Budgets (ms per 1080p frame) the page answers, per bench tag; others get :data:`DEFAULT_BUDGETS`.
 BUDGETS = {"gpu": (0.15, 0.3, 0.6, 1.5), "cpu": (40.0, 80.0, 200.0, 1000.0)}
 DEFAULT_BUDGETS = (1.0, 10.0, 100.0)
-#: Error columns the front can be drawn for → axis label (the log axis's floor: plots.METRICS where it has one).
-ERRORS = {
-    "wrong_fraction": "fraction of wrong rays (median over cases)",
-    "rmse_truth_debiased": "image RMSE against the truth, debiased (median over cases)",
-    "wrong_fraction_1cm": "fraction of rays > 1 cm from the exact hit (median over cases)",
-}
-FLOORS = {"rmse_truth_debiased": 1e-4}
+#: Error columns the front can be drawn for → axis label: the declared columns of view "pareto" (study/columns.py;
+#: the log axis's floor is the column's ``log_floor``, else :data:`AXIS_FLOOR`).
+ERRORS = {c.name: f"{c.axis} (median over cases)" for c in columns.in_view("pareto")}
+AXIS_FLOOR = 1e-4
+#: At or below this an error column counts as exact (no front to draw): an image RMSE this small is the noise's.
+EXACT_AT = {"rmse_truth_debiased": 1e-4}
 
 
 def table_points(rows: list[dict], metric: str, *, cube_res: float = 256) -> tuple[list[dict], str]:
@@ -180,7 +180,7 @@ def scene_plot(name: str, points: list[dict], devices: list[DeviceTimes], metric
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    floor = FLOORS.get(metric, METRICS.get(metric, ("", 1e-4))[1])
+    floor = getattr(columns.declared(metric), "log_floor", None) or AXIS_FLOOR
     families = list(dict.fromkeys(p["family"] for p in points))
     fig, axes = plt.subplots(1, len(devices), figsize=(6.4 * len(devices), 5.2), squeeze=False)
     for ax, d in zip(axes[0], devices):
@@ -276,7 +276,7 @@ def write_pareto(reports: Path, out: Path, benches: list[Path], *, metric: str =
             skipped.append(name)
             continue
         if all(
-            not p[metric] > FLOORS.get(metric, 0.0) for p in points
+            not p[metric] > EXACT_AT.get(metric, 0.0) for p in points
         ):  # every method exact: no front to draw
             exact.append(name)
             continue

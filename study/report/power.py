@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from study import stats
+from study import columns, stats
 from study.report import geometry
 from study.tables import REFERENCE_ROWS
 
@@ -24,21 +24,7 @@ MIN_HIDDEN = 200
 WRONG = "wrong_fraction"
 
 #: The columns of :func:`row`.
-POWER_COLUMNS = [
-    "table",
-    "cases",
-    "seeds",
-    "rays_min",
-    "rays_median",
-    "hidden_min",
-    "hidden_max",
-    "hidden_cases",
-    "best_wrong",
-    "mdd_rays",
-    "mdd_hidden",
-    "mdd_cases_sd",
-    "mdd_cases",
-]
+POWER_COLUMNS = columns.table_columns("power")  # study/column_tables.py
 
 
 def _pct(v: float) -> str:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from study import columns
 from study import progress as pg
 from study.errors import StudyError
 from study.io import locked, write_set
@@ -31,57 +32,10 @@ from study.report.register import bench_sentence, motion_sentences, register_mar
 from study.report.verdicts import verdict_mark
 from study.tables import check_rows
 
-#: Outcome classes first (study.measure.outcomes): the angle alone is blind to a wrong depth on the same ray.
-OUTCOMES = ["wrong_fraction", "wrong_fraction_visible", "wrong_fraction_hidden", "dist_p95", *summary.DROPPED]
-SUMMARY = [
-    *OUTCOMES,
-    "wrong_fraction_offscreen",
-    "angle_median_deg",
-    "angle_p95_deg",
-    "rmse_oracle",
-    "rmse_truth_debiased",
-    "rmse_mitsuba_debiased",
-    "flip_truth",
-    "occluded_fraction",
-    "lookups_per_ray",
-]
-#: The error split over every object pixel (study.measure.split): MSE parts that add up to dec_total.
-DECOMPOSITION = [
-    "dec_total",
-    "dec_search",
-    "dec_visibility",
-    "dec_representation",
-    "dec_noise",
-    "dec_cross",
-    "dec_residual",
-    "dec_sums",
-    "dec_representation_direct",
-    "dec_sums_direct",
-    "held_pixels",
-    "unheld_pixels",
-    "rmse_truth_held",
-    "rmse_truth_unheld",
-    "rmse_truth",
-    "rmse_truth_debiased",
-    "truth_noise_rmse",
-    "truth_noise_flag",
-    "rmse_mitsuba",
-    "rmse_mitsuba_debiased",
-    "mitsuba_noise_rmse",
-    "mitsuba_noise_flag",
-]
-COMPARISON = [
-    *OUTCOMES,
-    *summary.COMPARED,
-    "wrong_fraction_offscreen",
-    "angle_p95_deg",
-    "rmse_oracle",
-    "rmse_truth_debiased",
-    "rmse_mitsuba_debiased",
-    "flip_truth",
-    "valid_fraction",
-    "lookups_per_ray",
-]
+#: The report's tables read their columns from the declared table when they are made (study/columns.py, views
+#: "summary", "decomposition" and "comparison": a plug-in's column declared in one appears there too): outcome
+#: classes first, the error split's, the comparison's fixed tolerances.
+VIEWS = ("summary", "decomposition", "comparison")
 
 
 def _medians(tables: dict[str, list[dict]], cols: list[str]) -> list[dict]:
@@ -150,7 +104,7 @@ def _claims_section(tables: dict[str, list[dict]]) -> list[tuple]:
 
 
 def _decomposition_section(tables: dict[str, list[dict]]) -> list[tuple]:
-    rows = [r for r in _medians(tables, DECOMPOSITION) if np.isfinite(r["dec_total"])]
+    rows = [r for r in _medians(tables, columns.view("decomposition")) if np.isfinite(r["dec_total"])]
     if not rows:
         return []
     return [
@@ -171,19 +125,19 @@ def _decomposition_section(tables: dict[str, list[dict]]) -> list[tuple]:
             "held pixels, noise removed (the exact hit shaded from the impostor vs from the scene); dec_sums_direct "
             "= 1 where search + visibility + representation_direct + noise meet the total within their intervals "
             "(what is left is the cross term); intervals over the spatially correlated pixels: mean ± t·√variance "
-            "from each term's autocovariance (study/measure/spatial.py; in the results tables as dec_*_lo / _hi). "
+            "from each term's autocovariance (study/stats/spatial.py; in the results tables as dec_*_lo / _hi). "
             "rmse_truth_held / _unheld: RMSE against the truth on the pixels whose hits the views "
             "hold / do not hold. *_debiased = √max(0, RMSE² − σ²) with σ the reference's noise; rmse_mitsuba is "
             "against Mitsuba's own camera render with the object (two seeds), which differs from what the methods "
             "are asked by the object's shadow and one bounce on the reflected path.",
         ),
-        ("table", rows, ["table", "method", "cases", *DECOMPOSITION]),
+        ("table", rows, ["table", "method", "cases", *columns.view("decomposition")]),
     ]
 
 
 def _comparison_section(tables: dict[str, list[dict]]) -> list[tuple]:
     """One row per table × method: the median over the table's cases of each metric, and the cost."""
-    rows = _medians(tables, COMPARISON)
+    rows = _medians(tables, columns.view("comparison"))
     if not rows:
         return []
     return [
@@ -197,7 +151,7 @@ def _comparison_section(tables: dict[str, list[dict]]) -> list[tuple]:
             "dist_p95 = 95th percentile of |shown − exact| (m). The cost is cube-map lookups per ray (the oracle's "
             "single lookup is the radiance read at the exact hit).",
         ),
-        ("table", rows, ["table", "method", "cases", *COMPARISON]),
+        ("table", rows, ["table", "method", "cases", *columns.view("comparison")]),
         ("list", table_notes.column_notes()),
     ]
 
@@ -232,7 +186,7 @@ def results_table(path: Path) -> list[dict]:
     """A results table read for the report: well formed (:func:`study.report.check.read_table`) and every number
     possible (:func:`study.tables.check_rows`: within its declared column's domain, each case × label once), else
     one StudyError naming the file, line and column (exit 2) before any claim or headline is drawn from it."""
-    return check_rows(read_table(path, numeric=["cube_res", *SUMMARY]), path)
+    return check_rows(read_table(path, numeric=["cube_res", *columns.view("summary")]), path)
 
 
 def tables_of(reports: Path) -> dict[str, list[dict]]:
@@ -252,15 +206,15 @@ def blocks(reports: Path, tables: dict[str, list[dict]] | None = None) -> list[t
     out = _claims_section(tables) + _comparison_section(tables) + _decomposition_section(tables)
     for k, d in made:
         if k.place == kinds.WITH_FIGURES:
-            out += k.section(reports, d, tables.get(d.name, []) if k.tables else [], SUMMARY)
+            out += k.section(reports, d, tables.get(d.name, []) if k.tables else [], columns.view("summary"))
             out += sections.pareto_plot(reports, d.name) if k.tables else []
     for d in runs:  # study run: one scene each, not among the tables the claims are checked on
-        out += sections.run_section(reports, d, results_table(d / "table.csv"), SUMMARY)
+        out += sections.run_section(reports, d, results_table(d / "table.csv"), columns.view("summary"))
     for d in sweeps:
         out += sections.sweep_section(d, tables[d.name]) + sections.pareto_plot(reports, d.name)
     for k, d in made:
         if k.place == kinds.AFTER_SWEEPS:
-            out += k.section(reports, d, tables.get(d.name, []) if k.tables else [], SUMMARY)
+            out += k.section(reports, d, tables.get(d.name, []) if k.tables else [], columns.view("summary"))
     out += sections.paper_section(reports)
     others = sections.shown(p for p in reports.glob("*.md") if p.name != "index.md")
     others += sections.shown(

@@ -39,17 +39,6 @@ IMAGE = "rmse_truth_debiased"
 #: The image error the summary ranks on where a table has it: relative, the same for a scene × k (module docstring).
 RELATIVE = "relmse_truth_exposed"
 COST = "lookups_per_ray"
-#: Comparison columns: fixed tolerances (one meaning at every cube resolution) and robust image errors.
-COMPARED = [
-    "wrong_fraction_1cm",
-    "wrong_fraction_10cm",
-    "wrong_fraction_0p5deg",
-    "relmse_truth",
-    RELATIVE,
-    "rmse_truth_debiased_trim",
-    "sqerr_top_share_truth",
-]
-DROPPED = ["dist_dropped", "angle_dropped"]  # shown beside the dist_* / angle_* columns
 
 
 def _pct(v: float) -> str:

@@ -6,34 +6,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from study import columns
 from study.caustics.figure import fig8
 from study.report.check import read_table
 from study.report.kinds import AFTER_SWEEPS, FigureKind, register_kind
 from study.report.sections import shown
 
-CAUSTIC_COLS = [
-    "caustic_res",
-    "label",
-    "photons",
-    "lm_rmse",
-    "lm_relmse",
-    "img_rmse_mitsuba",
-    "img_sum_ratio_mitsuba",
-    "mitsuba_noise_rmse",
-    "photon_angle_p95_deg",
-    "seconds_per_map",
-]
+CAUSTIC_COLS = columns.table_columns("caustics", "report")  # the report's table (study/column_tables.py)
 #: The columns ``study figure`` prints per row.
-PRINTED = (
-    "caustic_res",
-    "label",
-    "lm_rmse",
-    "lm_relmse",
-    "energy_ratio",
-    "img_rmse_mitsuba",
-    "mitsuba_noise_rmse",
-    "seconds_per_map",
-)
+PRINTED = tuple(columns.table_columns("caustics", "printed"))
 
 
 def caustics_figure(
