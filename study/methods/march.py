@@ -18,6 +18,8 @@ class Direct:
 
     def __init__(self, smp):
         self.smp = smp
+        if hasattr(smp, "tabulate"):  # before the loop: its body must not evaluate
+            smp.tabulate()
 
     def at(self, k, state):
         return self.smp.direct(k), state

@@ -143,11 +143,29 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
             t = B.select(end, self.one, t)
         return t, (cp, sp)
 
+    def tabulate(self):
+        """Before a loop that calls :meth:`direct`: on Dr.Jit, cos φ_k and sin φ_k for k = 0 … steps in two tables
+        (the same float32 operations on the same φ_k as :meth:`direct` makes per ray, so the same bits), which
+        :meth:`direct` then reads with one gather each in place of the ~90 instructions of a sine and a cosine
+        per sample (an L1-resident table of 2 (steps + 1) floats); numpy keeps computing them per ray."""
+        B = self.B
+        if B.name != "numpy" and self.table is None:
+            phi = B.arange(self.steps + 1) * (math.pi / self.steps)
+            self.table = (B.cos(phi), B.sin(phi))
+            B.eval(*self.table)
+
+    table = None
+
     def direct(self, k):
-        """t_k with φ_k = k π/steps from sin and cos (the rotation's value up to rounding)."""
+        """t_k with φ_k = k π/steps from sin and cos (the rotation's value up to rounding); from the tables of
+        :meth:`tabulate` once made."""
         B, c = self.B, self.c
-        phi = k * (math.pi / self.steps)
-        cp, sp = B.cos(phi), B.sin(phi)
+        if self.table is not None:
+            i = B.minimum(k, float(self.steps))  # k ≥ steps: t = 1 below
+            cp, sp = B.gather(self.table[0], i), B.gather(self.table[1], i)
+        else:
+            phi = k * (math.pi / self.steps)
+            cp, sp = B.cos(phi), B.sin(phi)
         t = sp / B.maximum(self.s * cp + (1.0 - c) * sp, 1e-30)
         t = B.select(cp > c, B.minimum(t, 1.0), self.one)
         return B.select(k >= float(self.steps), self.one, t)
