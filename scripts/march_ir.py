@@ -26,7 +26,7 @@ import numpy as np
 
 _LABEL = re.compile(r"^([A-Za-z0-9_.]+):")
 _DEF = re.compile(r"^\s+%(\S+) = (.*)$")
-_BROADCAST = re.compile(r"insertelement <\d+ x \w+> undef, \w+ [-0-9.ex]+, i32 0$")
+_BROADCAST = re.compile(r"insertelement <\d+ x \w+> undef, \w+ [-0-9.a-fA-Fx]+, i32 0$")
 
 
 def count(ir: str) -> list[dict]:
@@ -104,8 +104,10 @@ def method_loops(name: str, params: dict, dump: Path | None = None) -> list[dict
     B, tex, batch, o, info, screen, tracer, _ = march_side.setup("llvm", 16, 64, 1, False)
     m = methods.make(name, **params)
     sets = {sp: bench_probes(sp, tracer, tex, o, info["room"], B) for sp in m.views_needed().probes}
-    call, finish = method_runner(m, B, tex, batch.x - o, batch.R, frozen=False, info=info, screen=screen,
-                                 probe_sets=sets)  # fmt: skip
+    scr = screen() if m.views_needed().screen else None
+    call, finish = method_runner(
+        m, B, tex, batch.x - o, batch.R, frozen=False, info=info, screen=scr, probe_sets=sets
+    )
     flag = dr.flag(dr.JitFlag.KernelHistory)
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     try:
@@ -128,8 +130,13 @@ def method_loops(name: str, params: dict, dump: Path | None = None) -> list[dict
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--methods", default="linear_secant,layered,multi_probe")
+    ap.add_argument("--variant", default="", help="a restructure undone (scripts/march_side.py --variant)")
     ap.add_argument("--dump", type=Path, default=None, help="write each kernel's IR here")
     a = ap.parse_args()
+    sys.path.insert(0, str(Path(__file__).parent))
+    import march_side
+
+    march_side.variant(a.variant)
     cols = ["ops", "cond", "common", "true", "false", "gathers", "f64", "state"]
     print(f"{'method':36s} {'kernel':>6s} {'loop':>6s} " + " ".join(f"{c:>7s}" for c in cols))
     for name in a.methods.split(","):

@@ -17,7 +17,9 @@ both times over it, and over localized(10)'s. Writes ``march-<tree>-<backend>-<r
 (shown point, radiance, ratio, valid, lookups per ray) as ``.npz`` beside it.
 
 ``--compare DIR``: per method and tree, the median kernel time of its runs, × floor, × localized(10), and the ratio
-to the first tree's; and whether each tree's outputs are bit-identical to the first tree's (NaNs equal), per output.
+to the first tree's (``old`` where there is one); and whether each tree's outputs are bit-identical to the first
+tree's (NaNs equal), per output. ``--variant``: this branch's restructures undone one by one (:func:`variant`), each
+timed as a tree of its own (``--tree new-tables-off``), for the step-by-step times.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ OUTPUTS = ("shown", "radiance", "ratio", "valid", "lookups")
 
 def setup(backend: str, scene_res: int, cube_res: int, repeats: int, timed: bool, synthetic: bool = False):
     """(B, tex, batch, o, info, screen, tracer, floors) of the bench's close-up batch on ``backend`` (floors: {}
-    without ``timed``)."""
+    without ``timed``; screen: a callable that makes the camera's buffer, for the methods that read it)."""
     from study import backend as backends
     from study.bench import floors as floor_model
     from study.bench.batches import closeup_rays, distance_texels, room_triangles, synthetic_rays
@@ -62,7 +64,13 @@ def setup(backend: str, scene_res: int, cube_res: int, repeats: int, timed: bool
         batch = synthetic_rays(scene, scene_res**2, camera=batch.camera)
     B = backends.get(backend)
     info = env_info(scene)
-    screen = bench_screen(camera_depth(batch.camera, tracer), batch.camera, o, B)
+    made = []
+
+    def screen():  # made on first use (its Hi-Z pyramid: kernels of their own, which ncu need not profile)
+        if not made:
+            made.append(bench_screen(camera_depth(batch.camera, tracer), batch.camera, o, B))
+        return made[0]
+
     big = backend == "cuda"
     if not timed:
         return B, tex, batch, o, info, screen, tracer, {}
@@ -77,12 +85,34 @@ def setup(backend: str, scene_res: int, cube_res: int, repeats: int, timed: bool
     return B, tex, batch, o, info, screen, tracer, floors
 
 
+def variant(name: str) -> None:
+    """Undo one of this branch's restructures (issue 56), to time each step in the same run: ``tables-off`` (the
+    arc samples' sine and cosine per ray, not from tables), ``look-off`` (sample k + 1 made on each side of the
+    march's branch, not once before it); ``""`` none. A tree without the restructure ignores it."""
+    from study.methods import layered, linear_secant, multi_probe, search
+
+    if name in ("tables-off", "both-off") and hasattr(search.arc_samples, "tabulate"):
+        search.arc_samples.tabulate = lambda self: None
+    if name in ("look-off", "both-off"):
+        plain = linear_secant.skipper
+
+        def unlooked(*args, **kw):
+            s = plain(*args, **kw)
+            if s is not None and hasattr(s, "look"):
+                s.look = None
+            return s
+
+        for mod in (linear_secant, layered, multi_probe):
+            mod.skipper = unlooked
+
+
 def run(a) -> None:
     from study import methods
     from study.bench import floors as floor_model
     from study.bench.timing import FRAME, bench_probes, method_runner, time_method
 
     t0 = time.perf_counter()
+    variant(a.variant)
     B, tex, batch, o, info, screen, tracer, floors = setup(
         a.backend, a.scene_res, a.cube_res, a.repeats, not a.no_time, a.synthetic
     )
@@ -94,7 +124,7 @@ def run(a) -> None:
             continue
         m = methods.make(name, **params)
         sets = {sp: bench_probes(sp, tracer, tex, o, info["room"], B) for sp in m.views_needed().probes}
-        kw = dict(info=info, screen=screen, probe_sets=sets)
+        kw = dict(info=info, screen=screen() if m.views_needed().screen else None, probe_sets=sets)
         call, finish = method_runner(m, B, tex, x, R, frozen=False, **kw)
         out = call()
         finish(out)
@@ -139,12 +169,14 @@ def same(p: np.ndarray, q: np.ndarray) -> bool:
 
 
 def compare(out: Path) -> None:
-    rows = []
+    rows, dumps = [], {}
     for f in sorted(out.glob("march-*.csv")):
         with open(f) as fh:
-            rows += list(csv.DictReader(fh))
-    trees = list(dict.fromkeys(r["tree"] for r in rows))
-    dumps = {t: [np.load(f) for f in sorted(out.glob(f"march-{t}-*.npz"))] for t in trees}
+            got = list(csv.DictReader(fh))
+        rows += got
+        if got:
+            dumps.setdefault(got[0]["tree"], []).append(np.load(f.with_suffix(".npz")))
+    trees = sorted(dict.fromkeys(r["tree"] for r in rows), key=lambda t: (t != "old", t))  # old first
 
     def med(tree, method, key):
         v = [float(r[key]) for r in rows if r["tree"] == tree and r["method"] == method and r.get(key)]
@@ -153,7 +185,7 @@ def compare(out: Path) -> None:
     methods_ = list(dict.fromkeys(r["method"] for r in rows))
     loc = next((m for m in methods_ if m.startswith("localized")), None)
     print(
-        f"{'method':34s} {'tree':10s} {'kernel ms':>10s} {'x floor':>8s} {'x loc10':>8s} {'x ' + trees[0]:>8s}"
+        f"{'method':34s} {'tree':16s} {'kernel ms':>10s} {'x floor':>8s} {'x loc10':>8s} {'x ' + trees[0]:>8s}"
         f" {'lookups':>8s}  outputs vs {trees[0]}"
     )
     for m in methods_:
@@ -168,7 +200,7 @@ def compare(out: Path) -> None:
                 if any(not same(a0, d[f"{m}/{key}"]) for d in dumps[t]):
                     diff.append(key)
             print(
-                f"{m:34s} {t:10s} {k:10.4f} {k / fl:8.2f} {k / kl:8.2f} {k / base:8.3f} "
+                f"{m:34s} {t:16s} {k:10.4f} {k / fl:8.2f} {k / kl:8.2f} {k / base:8.3f} "
                 f"{med(t, m, 'lookups_mean'):8.2f}  {'identical' if not diff else 'DIFFER: ' + ','.join(diff)}"
             )
 
@@ -187,6 +219,7 @@ def main() -> None:
     )
     ap.add_argument("--no-time", action="store_true", help="outputs only (numpy has no kernels to time)")
     ap.add_argument("--out", type=Path, default=Path("out-march"))
+    ap.add_argument("--variant", default="", choices=["", "tables-off", "look-off", "both-off"])
     ap.add_argument("--compare", type=Path, default=None)
     a = ap.parse_args()
     if a.compare is not None:

@@ -51,7 +51,7 @@ from study.backend import V3, Backend
 from study.impostor import cubemap
 from study.impostor.views import Captured
 from study.methods.base import Knob, Localization, Method, register
-from study.methods.march import Skip, iterations
+from study.methods.march import Look, Skip, iterations
 from study.methods.search import arc_samples, first_crossing, refine, secant_point
 
 
@@ -101,12 +101,19 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
     h = a * sin  # the ray's closest approach to o
     turning = sin > 1e-6  # the ray is not along x̂ (no plane of its own: only whole blocks are cleared)
 
+    def look(t):  # the ray point at t and its face coordinates (pyramid.bound_along's)
+        p = point(t)
+        face, u, v = cubemap.face_uv(B, p.x, p.y, p.z)
+        return Look(t, p, B.length(p), face + base if base is not None else face, u, v)
+
     def reach(k, kb, ta, tb):
-        # the last sample of k + 1 … kb (at t_a … t_b) proven in front of every lookup the pyramid bounds
-        pa, pb = point(ta), point(tb)
-        b = pyramid.bound_along(pa, pb, base)
-        near_a = B.length(pa) < (1.0 - ta) * b  # |p|/(1 − t) < b: the ray point nearer than every lookup
-        whole = near_a & (B.length(pb) < (1.0 - tb) * b)
+        # the last sample of k + 1 … kb (at t_a … t_b; t_a may be its Look) proven in front of every lookup the
+        # pyramid bounds
+        la = ta if isinstance(ta, Look) else look(ta)
+        lb, ta = look(tb), la.t
+        b = pyramid.bound(la.face, la.u, la.v, lb.face, lb.u, lb.v)
+        near_a = la.length < (1.0 - ta) * b  # |p|/(1 − t) < b: the ray point nearer than every lookup
+        whole = near_a & (lb.length < (1.0 - tb) * b)
         # part of the way: from a near start, r(φ) < b' while θ − φ > asin(h/b'), b' = (1 − SAFE) b
         c = B.minimum(h / B.maximum(b * (1.0 - SAFE), 1e-30), 1.0)
         phi = theta - (math.pi / 2) + B.acos(c)  # θ − asin(c)
@@ -131,7 +138,7 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
             out = B.select(k + 1.0 <= e, e, out)
         return out
 
-    return Skip(reach, edge)
+    return Skip(reach, edge, look)
 
 
 def march_bound(res: int | None, p: TexelMarchParams) -> int:
@@ -177,6 +184,9 @@ class LinearSecant(Method):
         g0 = g(zero)
         pyr = getattr(getattr(env, "impostor", env), "pyramid", None) if p.hierarchical else None
         skip = skipper(B, pyr, x, R, a, n)
+        if skip is not None:  # g at the march's Look: the same operations as g(t)
+            imp = getattr(env, "impostor", env)
+            skip.value = lambda L: L.length - (1.0 - L.t) * B.sample(imp.dist, L.face, L.u, L.v)[0]
         # bracket: last undershoot, first overshoot (no crossing: the whole arc, t = 0 to the point at infinity)
         br = first_crossing(
             B, g, zero, g0, arc_samples(B, cos, n), n, t_max=1.0, default=(zero, g0, zero + 1.0, a), skip=skip

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any, NamedTuple
 
 
 class Direct:
@@ -41,10 +42,29 @@ class Skip:
     read once after the march.
     ``edge(k)`` (optional) → (N,) the last sample on the face of sample k + 1: a block is cut there, as the
     pyramid bounds one face at a time (a block across an edge is never cleared, so cutting it loses nothing).
-    At most :func:`iterations` iterations, each one lookup per function at most."""
+    At most :func:`iterations` iterations, each one lookup per function at most.
+    ``look(t)`` (optional) → the :class:`Look` of the sample at t, read by both sides of an iteration (the sample
+    read as the block's start): the march makes it once per iteration, before the branch (a GPU warp whose lanes
+    take both sides computes it once, not twice), and hands it to ``reach`` (as ``t_a``) and to the sample read
+    (``step(k, *state, look=…)``), which then make the same values from it as they would from t; ``value(look)``
+    (set by the method that searches: g at the Look, the same bits as g(t)) is what the sample read reads then.
+    Without ``value`` the march makes no Look."""
 
-    def __init__(self, reach: Callable, edge: Callable | None = None):
-        self.reach, self.edge, self.lookups = reach, edge, None
+    def __init__(self, reach: Callable, edge: Callable | None = None, look: Callable | None = None):
+        self.reach, self.edge, self.look, self.lookups = reach, edge, look, None
+        self.value: Callable | None = None
+
+
+class Look(NamedTuple):
+    """A sample's lookup, shared by the sample read and the pyramid read: t, the ray point p(t), |p|, and p's face
+    coordinates (:func:`study.impostor.cubemap.face_uv`; the face offset by the map's first face in a stack)."""
+
+    t: Any
+    p: Any
+    length: Any
+    face: Any
+    u: Any
+    v: Any
 
 
 #: The first block a march tries, in samples: most rays start far in front of every surface (a camera ray's first
@@ -84,23 +104,26 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         t = smp.direct(k)
         return B.minimum(t, t_max) if t_max is not None else t
 
-    def fine(k, w, spent, *s):  # the next sample, as the texel march reads it
-        s = step(k, *s)
+    def fine(k, w, spent, *s, la=None):  # the next sample, as the texel march reads it
+        s = step(k, *s) if la is None else step(k, *s, look=la)
         return (k + 1.0, w * 0.0 + 2.0, spent + (cost(*s) if cost is not None else float(G)), *s)
 
-    def coarse(k, w, spent, *s):  # a block of w samples in one pyramid read
+    def coarse(k, w, spent, *s, la=None):  # a block of w samples in one pyramid read
         kb = B.minimum(k + w, float(n))
         if skip.edge is not None:  # not across a face's edge
             kb = B.minimum(kb, skip.edge(k))
         # the last sample proven in front: k (none) … kb (all)
-        kn = skip.reach(k, kb, t_at(k + 1.0), t_at(kb))
+        kn = skip.reach(k, kb, t_at(k + 1.0) if la is None else la, t_at(kb))
         whole, part = kn >= kb, kn > k
         w = B.select(whole, B.minimum(w * 2.0, top), B.select(part, w * 0.0 + 2.0, w * 0.5))
         return (kn, w, spent + 1.0, *jumped(part, t_at(kn), *s))
 
     def body(k, w, spent, *s):
         fine_now = (w <= 1.0) | busy(*s) if busy is not None else w <= 1.0
-        return B.branch(fine_now, (k, w, spent, *s), fine, coarse)
+        if skip.look is None or skip.value is None:
+            return B.branch(fine_now, (k, w, spent, *s), fine, coarse)
+        la = skip.look(t_at(k + 1.0))  # sample k + 1: either side reads it
+        return B.branch(fine_now, (k, w, spent, *s), lambda *a: fine(*a, la=la), lambda *a: coarse(*a, la=la))
 
     out = B.while_loop(
         (zero, zero + float(min(FIRST, top)), zero, *state),

@@ -98,6 +98,10 @@ class _Single:
     def distance(self, k, v):
         return self.env.distance(v)
 
+    @property
+    def dist(self):  # the impostor's distance texture (face coordinates of probe 0: the impostor's)
+        return getattr(self.env, "impostor", self.env).dist
+
     def lookup(self, k, v):
         return self.env.lookup(v)
 
@@ -198,6 +202,8 @@ class MultiProbe(TracingMethod):
             g0 = g(zero)
             # hierarchical: probe k's faces are 6k … 6k + 5 of the stacked pyramid (None: an analytic environment)
             skip = skipper(B, P.pyramid, xs, R, a, n, base=kk * 6.0) if p.hierarchical else None
+            if skip is not None:  # g at the march's Look (face offset by 6k as P.distance's): g(t)'s bits
+                skip.value = lambda L: L.length - (1.0 - L.t) * B.sample(P.dist, L.face, L.u, L.v)[0]
             br = first_crossing(
                 B,
                 g,

@@ -230,10 +230,14 @@ def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first, skip
     )  # t_prev, g_prev per function, the crossings, the sampler's
     ns = len(smp.state)
 
-    def step(k, t_prev, *rest):
+    def step(k, t_prev, *rest, look=None):
         g_prev, flat, sst = list(rest[:G]), rest[G : len(rest) - ns], rest[len(rest) - ns :]
-        t, sst = _next(B, smp, k, sst, t_max)
-        gts = g(t) if many else [g(t)]
+        if look is None:
+            t, sst = _next(B, smp, k, sst, t_max)
+            gts = g(t) if many else [g(t)]
+        else:  # the hierarchical march's Look at sample k + 1: the same t and g
+            t, gts = look.t, skip.value(look)
+            gts = gts if many else [gts]
         out = []
         for i, gt in enumerate(gts):
             change = (g_prev[i] < 0.0) & (gt >= 0.0) if rising else (g_prev[i] < 0.0) != (gt < 0.0)
@@ -358,11 +362,14 @@ def first_entry(
     # t_lo, g_lo, t_hi, g_hi, e; 5), the sampler's
     state = (*g_prev, c_prev, in_prev, t0, never, never, never, zero, zero, *res, *res, *smp.state)
 
-    def step(k, *s):
+    def step(k, *s, look=None):
         g_prev, (c_prev, in_prev, t_prev, found, pend, clip, age, c_pend) = list(s[:K]), s[K : K + 8]
         res, pb, sst = s[K + 8 : K + 13], s[K + 13 : K + 18], s[K + 18 :]
-        t, sst = _next(B, smp, k, sst, t_max)
-        gs = list(g(t))
+        if look is None:
+            t, sst = _next(B, smp, k, sst, t_max)
+            gs = list(g(t))
+        else:  # the hierarchical march's Look at sample k + 1: the same t and g's
+            t, gs = look.t, list(skip.value(look))
         c = count(gs)
         ins = inside(c, gs)
         # ---------------------------------------------------- decide the pending entries
