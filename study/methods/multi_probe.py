@@ -127,6 +127,15 @@ def _sel(B, m, a: V3, b: V3) -> V3:
     return V3(B.select(m, a.x, b.x), B.select(m, a.y, b.y), B.select(m, a.z, b.z))
 
 
+def _skip(B, P, xs: V3, R: V3, a, n: int, k):
+    """The hierarchical march's :class:`~study.methods.march.Skip` on probe k (its faces 6k … 6k + 5 of the stacked
+    pyramid; None: an analytic environment), g at its Look made as g(t) makes it (the same bits)."""
+    skip = skipper(B, P.pyramid, xs, R, a, n, base=k * 6.0)
+    if skip is not None:
+        skip.value = lambda L: L.length - (1.0 - L.t) * B.sample(P.dist, L.face, L.u, L.v)[0]
+    return skip
+
+
 def probe_spec(p) -> ProbeSpec:
     """The probe set a method's parameters name (``grid``, ``points``, ``clearance``)."""
     pts = tuple(tuple(float(c) for c in q) for q in p.points) if p.points is not None else None
@@ -200,10 +209,7 @@ class MultiProbe(TracingMethod):
                 return B.length(pt) - (1.0 - t) * P.distance(kk, pt)
 
             g0 = g(zero)
-            # hierarchical: probe k's faces are 6k … 6k + 5 of the stacked pyramid (None: an analytic environment)
-            skip = skipper(B, P.pyramid, xs, R, a, n, base=kk * 6.0) if p.hierarchical else None
-            if skip is not None:  # g at the march's Look (face offset by 6k as P.distance's): g(t)'s bits
-                skip.value = lambda L: L.length - (1.0 - L.t) * B.sample(P.dist, L.face, L.u, L.v)[0]
+            skip = _skip(B, P, xs, R, a, n, kk) if p.hierarchical else None
             br = first_crossing(
                 B,
                 g,

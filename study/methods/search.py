@@ -110,6 +110,14 @@ def _next(B, smp: Samples, k, state, t_max):
     return (B.minimum(t, t_max) if t_max is not None else t), state
 
 
+def _read(B, g, smp: Samples, k, state, t_max, skip, look):
+    """(t_{k+1}, g there, the sampler's next state); from the hierarchical march's Look of that sample if given."""
+    if look is not None:
+        return look.t, skip.value(look), state
+    t, state = _next(B, smp, k, state, t_max)
+    return t, g(t), state
+
+
 class arc_samples(Samples):  # noqa: N801 - used as a function
     """Samples in equal angles along the arc that the t = d/(d+a) parameterization walks (p(t) = (1 − t) x + t a R
     turns from x̂ to R; θ the angle between them, ``cos_theta`` = x̂·R per ray): t_k for k = 1..``steps``
@@ -143,22 +151,19 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
             t = B.select(end, self.one, t)
         return t, (cp, sp)
 
+    table = None
+
     def tabulate(self):
-        """Before a loop that calls :meth:`direct`: on Dr.Jit, cos φ_k and sin φ_k for k = 0 … steps in two tables
-        (the same float32 operations on the same φ_k as :meth:`direct` makes per ray, so the same bits), which
-        :meth:`direct` then reads with one gather each in place of the ~90 instructions of a sine and a cosine
-        per sample (an L1-resident table of 2 (steps + 1) floats); numpy keeps computing them per ray."""
+        """On Dr.Jit, before a loop: cos φ_k, sin φ_k (k = 0 … steps) in tables, made as :meth:`direct` makes them
+        (the same bits), read there with a gather each for a sine and a cosine (~90 instructions) per sample."""
         B = self.B
         if B.name != "numpy" and self.table is None:
             phi = B.arange(self.steps + 1) * (math.pi / self.steps)
             self.table = (B.cos(phi), B.sin(phi))
             B.eval(*self.table)
 
-    table = None
-
     def direct(self, k):
-        """t_k with φ_k = k π/steps from sin and cos (the rotation's value up to rounding); from the tables of
-        :meth:`tabulate` once made."""
+        """t_k with φ_k = k π/steps from sin and cos (the rotation's value up to rounding; :meth:`tabulate`'s)."""
         B, c = self.B, self.c
         if self.table is not None:
             i = B.minimum(k, float(self.steps))  # k ≥ steps: t = 1 below
@@ -232,12 +237,8 @@ def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first, skip
 
     def step(k, t_prev, *rest, look=None):
         g_prev, flat, sst = list(rest[:G]), rest[G : len(rest) - ns], rest[len(rest) - ns :]
-        if look is None:
-            t, sst = _next(B, smp, k, sst, t_max)
-            gts = g(t) if many else [g(t)]
-        else:  # the hierarchical march's Look at sample k + 1: the same t and g
-            t, gts = look.t, skip.value(look)
-            gts = gts if many else [gts]
+        t, gts, sst = _read(B, g, smp, k, sst, t_max, skip, look)
+        gts = gts if many else [gts]
         out = []
         for i, gt in enumerate(gts):
             change = (g_prev[i] < 0.0) & (gt >= 0.0) if rising else (g_prev[i] < 0.0) != (gt < 0.0)
@@ -365,11 +366,8 @@ def first_entry(
     def step(k, *s, look=None):
         g_prev, (c_prev, in_prev, t_prev, found, pend, clip, age, c_pend) = list(s[:K]), s[K : K + 8]
         res, pb, sst = s[K + 8 : K + 13], s[K + 13 : K + 18], s[K + 18 :]
-        if look is None:
-            t, sst = _next(B, smp, k, sst, t_max)
-            gs = list(g(t))
-        else:  # the hierarchical march's Look at sample k + 1: the same t and g's
-            t, gs = look.t, list(skip.value(look))
+        t, gs, sst = _read(B, g, smp, k, sst, t_max, skip, look)
+        gs = list(gs)
         c = count(gs)
         ins = inside(c, gs)
         # ---------------------------------------------------- decide the pending entries
