@@ -88,7 +88,8 @@ def setup(backend: str, scene_res: int, cube_res: int, repeats: int, timed: bool
 def variant(name: str) -> None:
     """Undo one of this branch's restructures (issue 56), to time each step in the same run: ``tables-off`` (the
     arc samples' sine and cosine per ray, not from tables), ``look-off`` (sample k + 1 made on each side of the
-    march's branch, not once before it); ``""`` none. A tree without the restructure ignores it."""
+    march's branch, not once before it, and a jump's arc point made again: both go with ``Skip.shared``),
+    ``both-off``; ``""`` none. A tree without the restructure ignores it."""
     from study.methods import layered, linear_secant, multi_probe, search
 
     if name in ("tables-off", "both-off") and hasattr(search.arc_samples, "tabulate"):

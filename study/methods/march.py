@@ -53,6 +53,23 @@ class Skip:
     def __init__(self, reach: Callable, edge: Callable | None = None, look: Callable | None = None):
         self.reach, self.edge, self.look, self.lookups = reach, edge, look, None
         self.value: Callable | None = None
+        self.last = None  # after the march: per ray, the sample it stopped at (read or jumped to)
+
+    @property
+    def shared(self) -> bool:
+        """The march makes a :class:`Look` per step (``look`` and ``value`` given); then a jump leaves the state's
+        t_prev as it was (``jumped(ok, None, …)``: no arc point is made for it) and the sample read gives the
+        search its k in place of t_prev (the bracket's start holds a sample index, made t by :func:`t_of` after
+        the march)."""
+        return self.look is not None and self.value is not None
+
+
+def t_of(B, smp, k, t0, t_max):
+    """t of sample k per ray (``smp.direct``, clamped to ``t_max``), t0 at k = 0: the t_prev that a march whose
+    jumps leave t_prev alone (:attr:`Skip.shared`) would have carried at k, the same bits."""
+    t = smp.direct(k)
+    t = B.minimum(t, t_max) if t_max is not None else t
+    return B.select(k > 0.0, t, t0)
 
 
 class Look(NamedTuple):
@@ -94,7 +111,8 @@ def reread(B, g: Callable, value, t):
 
 def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jumped, cost=None):
     """The march of :class:`Skip`: ``step(k, *state)`` reads sample k + 1 as the texel march's loop body does,
-    ``jumped(ok, t_b, *state)`` is the state after a jump to the sample t_b where ``ok``; ``done(*state)`` stops a
+    ``jumped(ok, t_b, *state)`` is the state after a jump to the sample t_b where ``ok`` (t_b None: with
+    :attr:`Skip.shared`); ``done(*state)`` stops a
     ray, ``busy(*state)`` (or None) keeps it reading sample by sample; ``cost(*state)`` (or None: G) the lookups
     of the sample read that led to ``state``. Returns the final state; sets ``skip.lookups``."""
     zero = state[0] * 0.0
@@ -116,11 +134,11 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         kn = skip.reach(k, kb, t_at(k + 1.0) if la is None else la, t_at(kb))
         whole, part = kn >= kb, kn > k
         w = B.select(whole, B.minimum(w * 2.0, top), B.select(part, w * 0.0 + 2.0, w * 0.5))
-        return (kn, w, spent + 1.0, *jumped(part, t_at(kn), *s))
+        return (kn, w, spent + 1.0, *jumped(part, t_at(kn) if la is None else None, *s))
 
     def body(k, w, spent, *s):
         fine_now = (w <= 1.0) | busy(*s) if busy is not None else w <= 1.0
-        if skip.look is None or skip.value is None:
+        if not skip.shared:
             return B.branch(fine_now, (k, w, spent, *s), fine, coarse)
         la = skip.look(t_at(k + 1.0))  # sample k + 1: either side reads it
         return B.branch(fine_now, (k, w, spent, *s), lambda *a: fine(*a, la=la), lambda *a: coarse(*a, la=la))
@@ -131,5 +149,5 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         body,
         limit=iterations(n),
     )
-    skip.lookups = out[2] + float(G)  # + the re-read of the bracket's start
+    skip.lookups, skip.last = out[2] + float(G), out[0]  # + the re-read of the bracket's start
     return out[3:]

@@ -35,11 +35,9 @@ that proves blocks of samples free of crossings from a min pyramid); they then r
 
 Every search and the secant steps are one loop through the backend (:meth:`study.backend.Backend.loop`): on Dr.Jit
 one symbolic loop (``dr.while_loop``), so a march of n samples is one kernel whose state stays in registers, not
-n kernels that write and read the whole state back; on numpy
-a Python loop, with the same operations in the same order. g is traced once and must not evaluate (no ``B.eval``,
-no transfer to the host); the arrays it reads are captured.
-
-Each search function has a slow, obvious ``_ref`` twin (one ray, plain Python floats) in
+n kernels that write and read the whole state back; on numpy a Python loop, with the same operations in the same
+order. g is traced once and must not evaluate (no ``B.eval``, no transfer to the host); the arrays it reads are
+captured. Each search function has a slow, obvious ``_ref`` twin (one ray, plain Python floats) in
 :mod:`study.methods.search_ref` that the tests compare it with; :func:`arc_samples` is checked against the arc's
 geometry.
 """
@@ -50,7 +48,7 @@ import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
-from study.methods.march import Direct, Skip, every, march, reread
+from study.methods.march import Direct, Skip, every, march, reread, t_of
 
 
 class Bracket(NamedTuple):
@@ -131,7 +129,7 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
 
     def __init__(self, B, cos_theta, steps: int):
         c = cos_theta
-        self.B, self.c, self.steps = B, c, steps
+        self.B, self.c, self.steps, self.table = B, c, steps, None  # table: tabulate()'s
         self.s = B.sqrt(B.maximum(1.0 - c * c, 0.0))
         self.one = c * 0.0 + 1.0
         self.cd, self.sd = math.cos(math.pi / steps), math.sin(math.pi / steps)
@@ -150,8 +148,6 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
         if end is not False:
             t = B.select(end, self.one, t)
         return t, (cp, sp)
-
-    table = None
 
     def tabulate(self):
         """On Dr.Jit, before a loop: cos φ_k, sin φ_k (k = 0 … steps) in tables, made as :meth:`direct` makes them
@@ -247,7 +243,8 @@ def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first, skip
                 f, *b = flat[(i * count + j) * 5 : (i * count + j + 1) * 5]
                 new = change & ~f if before is None else change & before & ~f
                 before = f
-                out += [f | new, *(B.select(new, v, o) for v, o in zip((t_prev, g_prev[i], t, gt), b))]
+                lo = t_prev if look is None else k  # Skip.shared: sample k's index, its t after the march
+                out += [f | new, *(B.select(new, v, o) for v, o in zip((lo, g_prev[i], t, gt), b))]
         return (t, *gts, *out, *sst)
 
     if skip is None:
@@ -265,17 +262,18 @@ def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first, skip
             done=lambda *s: every([s[1 + G + 5 * i] for i in range(G)]),
             busy=None,
             jumped=lambda ok, t_b, t_prev, *s: (
-                B.select(ok, t_b, t_prev),
+                t_prev if t_b is None else B.select(ok, t_b, t_prev),
                 *(B.select(ok, -math.inf, gp) for gp in s[:G]),
                 *s[G:],
             ),
         )
     g_last, flat = rest[:G], rest[G : len(rest) - ns]
     cross = [[flat[(i * count + j) * 5 : (i * count + j + 1) * 5] for j in range(count)] for i in range(G)]
-    if (
-        skip is not None
-    ):  # g at a bracket's start that a skip left unread (−∞): one more read of every function
+    if skip is not None:  # g at a bracket's start that a skip left unread (−∞): one more read of each
         pick = (lambda i: lambda t: g(t)[i]) if many else (lambda i: g)
+        if skip.shared:  # the brackets' starts hold sample indices (found) or the default
+            cross = [[(f, B.select(f, t_of(B, smp.smp, lo, t0, t_max), lo), *b)] for ((f, lo, *b),) in cross]
+            t_last = t_of(B, smp.smp, skip.last, t0, t_max)
         cross = [
             [[f, t_lo, reread(B, pick(i), g_lo, t_lo), t_hi, g_hi]]
             for i, ((f, t_lo, g_lo, t_hi, g_hi),) in enumerate(cross)
@@ -367,7 +365,7 @@ def first_entry(
         g_prev, (c_prev, in_prev, t_prev, found, pend, clip, age, c_pend) = list(s[:K]), s[K : K + 8]
         res, pb, sst = s[K + 8 : K + 13], s[K + 13 : K + 18], s[K + 18 :]
         t, gs, sst = _read(B, g, smp, k, sst, t_max, skip, look)
-        gs = list(gs)
+        gs, lo = list(gs), (t_prev if look is None else k)  # Skip.shared: lo is sample k's index (t after)
         c = count(gs)
         ins = inside(c, gs)
         # ---------------------------------------------------- decide the pending entries
@@ -385,7 +383,7 @@ def first_entry(
         # ---------------------------------------------------- a new entry
         new = ~found & ~pend & ins & ~in_prev
         e = B.select(c > c_prev, c_prev, c)
-        pb = tuple(B.select(new, v, o) for v, o in zip((t_prev, pick(g_prev, e), t, pick(gs, e), e), pb))
+        pb = tuple(B.select(new, v, o) for v, o in zip((lo, pick(g_prev, e), t, pick(gs, e), e), pb))
         c_pend, age, pend = B.select(new, c_prev, c_pend), B.select(new, zero, age), pend | new
         if hold <= 0:
             res, found, pend = tuple(B.select(new, v, r) for v, r in zip(pb, res)), found | new, pend & ~new
@@ -410,16 +408,16 @@ def first_entry(
                 *(B.select(ok, -math.inf, gp) for gp in s[:K]),
                 B.select(ok, zero, s[K]),
                 s[K + 1] & ~ok,
-                B.select(ok, t_b, s[K + 2]),
+                s[K + 2] if t_b is None else B.select(ok, t_b, s[K + 2]),
                 *s[K + 3 :],
             ),
         )
     found, pend, res, pb = s[K + 3], s[K + 4], s[K + 8 : K + 13], s[K + 13 : K + 18]
-    res = tuple(B.select(pend, v, r) for v, r in zip(pb, res))
-    found = found | pend
+    res, found = tuple(B.select(pend, v, r) for v, r in zip(pb, res)), found | pend
     if skip is not None:  # g at the bracket's start that a skip left unread: one more read of every layer
-        gt = list(g(res[0]))
-        res = (res[0], reread(B, lambda t: pick(gt, res[4]), res[1], res[0]), *res[2:])
+        lo = B.select(found, t_of(B, smp.smp, res[0], t0, t_max), res[0]) if skip.shared else res[0]
+        gt = list(g(lo))
+        res = (lo, reread(B, lambda t: pick(gt, res[4]), res[1], lo), *res[2:])
         if cost is not None:  # the re-read's own cost (the march counted K)
             skip.lookups = skip.lookups + (cost(gt[0]) - float(K))
     return Bracket(*res[:4], found), res[4]
