@@ -100,6 +100,7 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
     theta = B.acos(B.minimum(B.maximum(cos, -1.0), 1.0))
     h = a * sin  # the ray's closest approach to o
     turning = sin > 1e-6  # the ray is not along x̂ (no plane of its own: only whole blocks are cleared)
+    theta_q, full = theta - (math.pi / 2), a * 0.0 + float(n)  # made once, not per step
 
     def look(t):  # the ray point at t and its face coordinates (pyramid.bound_along's)
         p = point(t)
@@ -116,7 +117,7 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
         whole = near_a & (lb.length < (1.0 - tb) * b)
         # part of the way: from a near start, r(φ) < b' while θ − φ > asin(h/b'), b' = (1 − SAFE) b
         c = B.minimum(h / B.maximum(b * (1.0 - SAFE), 1e-30), 1.0)
-        phi = theta - (math.pi / 2) + B.acos(c)  # θ − asin(c)
+        phi = theta_q + B.acos(c)  # θ − asin(c)
         last = -B.floor(10.0 * SAFE - phi * (n / math.pi)) - 1.0  # the last φ_j below φ by 10 SAFE samples
         part = B.select(near_a & (b > 0.0) & turning, B.minimum(B.maximum(last, k), kb), k)
         return B.select(whole, kb, part)
@@ -133,7 +134,7 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
         ends.append(k)
 
     def edge(k):  # the first end at or after sample k + 1 (n past the last one found)
-        out = k * 0.0 + float(n)
+        out = full
         for e in reversed(ends):
             out = B.select(k + 1.0 <= e, e, out)
         return out

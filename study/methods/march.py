@@ -116,6 +116,7 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
     ray, ``busy(*state)`` (or None) keeps it reading sample by sample; ``cost(*state)`` (or None: G) the lookups
     of the sample read that led to ``state``. Returns the final state; sets ``skip.lookups``."""
     zero = state[0] * 0.0
+    two = zero + 2.0  # (a literal would be made again in every step)
     top = float(1 << max(n - 1, 0).bit_length())  # the widest block: ≥ n samples
 
     def t_at(k):
@@ -124,7 +125,7 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
 
     def fine(k, w, spent, *s, la=None):  # the next sample, as the texel march reads it
         s = step(k, *s) if la is None else step(k, *s, look=la)
-        return (k + 1.0, w * 0.0 + 2.0, spent + (cost(*s) if cost is not None else float(G)), *s)
+        return (k + 1.0, two, spent + (cost(*s) if cost is not None else float(G)), *s)
 
     def coarse(k, w, spent, *s, la=None):  # a block of w samples in one pyramid read
         kb = B.minimum(k + w, float(n))
@@ -133,7 +134,7 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         # the last sample proven in front: k (none) … kb (all)
         kn = skip.reach(k, kb, t_at(k + 1.0) if la is None else la, t_at(kb))
         whole, part = kn >= kb, kn > k
-        w = B.select(whole, B.minimum(w * 2.0, top), B.select(part, w * 0.0 + 2.0, w * 0.5))
+        w = B.select(whole, B.minimum(w * 2.0, top), B.select(part, two, w * 0.5))
         return (kn, w, spent + 1.0, *jumped(part, t_at(kn) if la is None else None, *s))
 
     def body(k, w, spent, *s):

@@ -130,7 +130,7 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
     def __init__(self, B, cos_theta, steps: int):
         c = cos_theta
         self.B, self.c, self.steps, self.table = B, c, steps, None  # table: tabulate()'s
-        self.s = B.sqrt(B.maximum(1.0 - c * c, 0.0))
+        self.s, self.c1 = B.sqrt(B.maximum(1.0 - c * c, 0.0)), 1.0 - c  # sin θ, 1 − cos θ, made once
         self.one = c * 0.0 + 1.0
         self.cd, self.sd = math.cos(math.pi / steps), math.sin(math.pi / steps)
         big = B.maximum(c, 2.0)  # = 2, but computed: Dr.Jit must not fold the rotation
@@ -143,7 +143,7 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
             return self.one, state
         cp, sp = state
         cp, sp = cp * self.cd - sp * self.sd, sp * self.cd + cp * self.sd
-        t = sp / B.maximum(self.s * cp + (1.0 - c) * sp, 1e-30)
+        t = sp / B.maximum(self.s * cp + self.c1 * sp, 1e-30)
         t = B.select(cp > c, B.minimum(t, 1.0), self.one)
         if end is not False:
             t = B.select(end, self.one, t)
@@ -167,7 +167,7 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
         else:
             phi = k * (math.pi / self.steps)
             cp, sp = B.cos(phi), B.sin(phi)
-        t = sp / B.maximum(self.s * cp + (1.0 - c) * sp, 1e-30)
+        t = sp / B.maximum(self.s * cp + self.c1 * sp, 1e-30)
         t = B.select(cp > c, B.minimum(t, 1.0), self.one)
         return B.select(k >= float(self.steps), self.one, t)
 
