@@ -4,12 +4,12 @@ at its crossing; see :class:`Skip`. Written against the array backend (numpy and
 (:meth:`study.backend.Backend.while_loop`) whose body reads either a block's bound or the next sample
 (:meth:`study.backend.Backend.branch`: a ray pays only the lookup of its own side). It registers no method.
 
-Per step, the GPU pays instructions rather than memory (issue 56), so a step makes each value once: sample k + 1
-(its :class:`Look`) before the branch, for either side; the arc's sine and cosine from tables
+A step is bound by the instructions it issues rather than by its reads, so it makes each value once: sample
+k + 1 (its :class:`Look`) before the branch, for either side; the arc's sine and cosine from tables
 (:meth:`study.methods.search.arc_samples.tabulate`); no arc point for a jump (:attr:`Skip.shared`); loop invariants
-before the loop. Each in the same operations as before, so hits, validity and lookups are bit for bit those of the
-march that made them twice; ``scripts/march_ir.py`` counts the instructions of the loop (linear_secant: 708 at
-2b63288, 407 with both sides of the branch), ``scripts/march_side.py`` times it against another tree.
+before the loop; each with the same operations as a value made where it is used, so hits, validity and lookups
+are the same bits. ``scripts/march_ir.py`` counts the loop's instructions (linear_secant: 407 for both sides of
+the branch), ``scripts/march_side.py`` times it against another tree.
 """
 
 from __future__ import annotations
