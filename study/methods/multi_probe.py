@@ -185,16 +185,14 @@ class MultiProbe(TracingMethod):
         # ------------------------------------------------------------- the first probe: nearest that sees x
         untried = [~never for _ in range(N)]
         k = self._choose(B, P, x, untried)
-        k = B.select(
-            k >= 0.0, k, zero
-        )  # no probe sees x: probe 0 (the origin check of trace may drop the ray)
+        k = B.select(k >= 0.0, k, zero)  # no probe sees x: probe 0 (trace's origin check may drop the ray)
         active = B.isfinite(B.length(R)) & B.isfinite(B.length(x))
         R, x = _finite(B, R), _finite(B, x)  # dropped rays (NaN) stay inactive; lookups see no NaN
         untried = [u & (k != float(i)) for i, u in enumerate(untried)]
         spent = zero + float(N)
         d0 = zero  # ray parameter where the current segment starts
         found, have_first = never, never
-        hit_l, hit_k, first_l, first_k = x, zero, x, zero
+        hit_l, hit_k, first_l, first_k, table = x, zero, x, zero, None  # table: the arc's, for every round
         for _ in range(N):
             if not B.numpy(active).any():
                 break
@@ -210,25 +208,25 @@ class MultiProbe(TracingMethod):
 
             g0 = g(zero)
             skip = _skip(B, P, xs, R, a, n, kk) if p.hierarchical else None
+            smp = arc_samples(B, xs.dot(R) / a, n, table)
             br = first_crossing(
                 B,
                 g,
                 zero,
                 g0,
-                arc_samples(B, xs.dot(R) / a, n),
+                smp,
                 n,
                 t_max=1.0,
                 default=(zero, g0, zero + 1.0, a),
                 skip=skip,
             )
             marched = zero + float(n) if skip is None else skip.lookups  # the texel march: all n samples
+            table = smp.table
             br = refine(B, g, br, p.secant_steps, rising=True)
             t = secant_point(br)
             t_ok = B.isfinite(t)
             t = B.select(t_ok, t, zero)
-            l = _finite(
-                B, (xs * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)
-            )  # the crossing, from c_k
+            l = _finite(B, (xs * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7))  # crossing, from c_k
             # --------------------------------------------------------- HIT, UNKNOWN or MISS
             r = B.length(l)
             tol = p.thickness + (r * (p.slack / res) if res else zero)

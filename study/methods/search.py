@@ -127,9 +127,9 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
     so that a frozen function can replay it); t is homogeneous in it, so the rounding drift of its length
     cancels."""
 
-    def __init__(self, B, cos_theta, steps: int):
+    def __init__(self, B, cos_theta, steps: int, table=None):
         c = cos_theta
-        self.B, self.c, self.steps, self.table = B, c, steps, None  # table: tabulate()'s
+        self.B, self.c, self.steps, self.table = B, c, steps, table  # table: tabulate()'s (or another's)
         self.s, self.c1 = B.sqrt(B.maximum(1.0 - c * c, 0.0)), 1.0 - c  # sin θ, 1 − cos θ, made once
         self.one = c * 0.0 + 1.0
         self.cd, self.sd = math.cos(math.pi / steps), math.sin(math.pi / steps)
