@@ -234,7 +234,8 @@ s.print_callees('run_case')" "$OUT/side-new.prof" > "$OUT/profile-side-new.txt" 
             # ($MARCH_VARIANTS, default "tables-off look-off"; "" none): kernel ms, × floor, × localized(10), × old,
             # and whether every output (shown, radiance, ratio, valid, lookups) is bit-identical to old's
             # → march-compare.txt; then, if Nsight Compute is here, linear_secant's kernels of both trees (ncu-*.txt).
-            # MARCH_RES (1024) rays², MARCH_CUBE (256), MARCH_BACKEND (cuda; llvm to try it on a CPU).
+            # MARCH_RES (1024) rays², MARCH_CUBE (256), MARCH_BACKEND (cuda; llvm to try it on a CPU), MARCH_NCU=0: no
+            # ncu, NCU_LIMIT (200) seconds per ncu run.
     OLD=${OLD:-.devold}; old=$(cd "$OLD" && pwd) || exit 3
     export HOME=$W/home-march; mkdir -p "$HOME"
     be=${MARCH_BACKEND:-cuda}
@@ -256,7 +257,7 @@ s.print_callees('run_case')" "$OUT/side-new.prof" > "$OUT/profile-side-new.txt" 
     { for t in ncu nsys; do echo "$t: $(command -v $t || echo 'not on PATH')"; done; echo "ncu found: ${NCU:-none}"
       nvidia-smi --query-gpu=name,clocks.sm,clocks.max.sm --format=csv; } > "$OUT/tools.txt" 2>&1
     cat "$OUT/tools.txt"
-    if [ -n "$NCU" ] && [ "$be" = cuda ]; then   # linear_secant's kernels, one plain call per tree
+    if [ -n "$NCU" ] && [ "$be" = cuda ] && [ "${MARCH_NCU:-1}" = 1 ]; then   # linear_secant's kernels, per tree
       for which in old new; do
         src=$PWD; [ "$which" = old ] && src=$old
         ( cd "$src" && PYTHONPATH=${PYTHONPATH%%:*}:$src timeout "${NCU_LIMIT:-200}" "$NCU" --set full --launch-count 20 \
