@@ -72,8 +72,8 @@ class Skip:
 
 
 def t_of(B, smp, k, t0, t_max):
-    """t of sample k per ray (``smp.direct``, clamped to ``t_max``), t0 at k = 0: the t_prev that a march whose
-    jumps leave t_prev alone (:attr:`Skip.shared`) would have carried at k, the same bits."""
+    """t of sample k per ray (``smp.direct``, clamped to ``t_max``), t0 at k = 0: what t_prev holds at sample k in
+    a march that makes it at every read and jump, the same bits (with :attr:`Skip.shared` the march keeps k)."""
     t = smp.direct(k)
     t = B.minimum(t, t_max) if t_max is not None else t
     return B.select(k > 0.0, t, t0)
