@@ -2,7 +2,7 @@
 # The GPU measurements of reports/performance.md (issue 15), run on a lent GPU machine from the repository root:
 #
 #   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3] [hier] [fig4paper]
-#                              [side] [fig4prof] [reproduce] [pixels]
+#                              [side] [fig4prof] [reproduce] [pixels] [marches]
 #                                                                                   (default: bench studies)
 #
 #   bench   : `study bench --backends cuda` — methods, exact queries (ray_intersect, _preliminary, ray_test) and
@@ -226,6 +226,46 @@ s.print_callees('run_case')" "$OUT/side-new.prof" > "$OUT/profile-side-new.txt" 
         --exclude=baseline --exclude=calibration --exclude=pareto reports | xz -T0 -3 \
         > "$W/reports.tar.xz"
       split -b 15M -d "$W/reports.tar.xz" "$OUT/reports-part-"
+    fi ;;
+  marches)  # issue 56: the close-up batch kernels of localized(10), linear_secant(1), layered(1), multi_probe,
+            # probe_blend and ssr_hiz and their floors (scripts/march_side.py), $OLD (default .devold: `git archive <rev>
+            # study configs scenes pyproject.toml | tar x -C .devold`) and this tree side by side on this machine,
+            # $MARCH_ROUNDS (2) rounds of old, new interleaved, then this tree with each restructure undone
+            # ($MARCH_VARIANTS, default "tables-off look-off"; "" none): kernel ms, × floor, × localized(10), × old,
+            # and whether every output (shown, radiance, ratio, valid, lookups) is bit-identical to old's
+            # → march-compare.txt; then, if Nsight Compute is here, linear_secant's kernels of both trees (ncu-*.txt).
+            # MARCH_RES (1024) rays², MARCH_CUBE (256), MARCH_BACKEND (cuda; llvm to try it on a CPU), MARCH_NCU=0: no
+            # ncu, NCU_LIMIT (200) seconds per ncu run.
+    OLD=${OLD:-.devold}; old=$(cd "$OLD" && pwd) || exit 3
+    export HOME=$W/home-march; mkdir -p "$HOME"
+    be=${MARCH_BACKEND:-cuda}
+    M="--backend $be --scene-res ${MARCH_RES:-1024} --cube-res ${MARCH_CUBE:-256} --repeats ${MARCH_REPEATS:-5}"
+    for r in $(seq 1 "${MARCH_ROUNDS:-2}"); do
+      for which in old new; do
+        src=$PWD; [ "$which" = old ] && src=$old
+        ( cd "$src" && PYTHONPATH=${PYTHONPATH%%:*}:$src timed "march-$which-$r" python3 "$OLDPWD/scripts/march_side.py" \
+            --tree "$which" --run "$r" $M --out "$W/march" ) 2>&1 | tee -a "$OUT/log-marches.txt" | tail -2
+      done
+    done
+    for v in ${MARCH_VARIANTS-tables-off look-off}; do
+      timed "march-new-$v" python3 scripts/march_side.py --tree "new-$v" --variant "$v" $M --out "$W/march" 2>&1 \
+        | tee -a "$OUT/log-marches.txt" | tail -1
+    done
+    python3 scripts/march_side.py --compare "$W/march" 2>&1 | tee "$OUT/march-compare.txt"
+    tar czf "$OUT/results-marches.tgz" -C "$W" march
+    NCU=$(command -v ncu || ls /usr/local/cuda*/bin/ncu /opt/nvidia/nsight-compute/*/ncu 2>/dev/null | head -1)
+    { for t in ncu nsys; do echo "$t: $(command -v $t || echo 'not on PATH')"; done; echo "ncu found: ${NCU:-none}"
+      nvidia-smi --query-gpu=name,clocks.sm,clocks.max.sm --format=csv; } > "$OUT/tools.txt" 2>&1
+    cat "$OUT/tools.txt"
+    if [ -n "$NCU" ] && [ "$be" = cuda ] && [ "${MARCH_NCU:-1}" = 1 ]; then   # linear_secant's kernels, per tree
+      for which in old new; do
+        src=$PWD; [ "$which" = old ] && src=$old
+        ( cd "$src" && PYTHONPATH=${PYTHONPATH%%:*}:$src timeout "${NCU_LIMIT:-200}" "$NCU" --set full --launch-count 20 \
+            -f -o "$W/ncu-$which" python3 "$OLDPWD/scripts/march_side.py" --tree "ncu-$which" --methods linear_secant \
+            --no-time $M --out "$W/ncu-out" > "$OUT/log-ncu-$which.txt" 2>&1 ) \
+          && "$NCU" --import "$W/ncu-$which.ncu-rep" --page details > "$OUT/ncu-$which.txt" 2>&1 \
+          || echo "ncu on $which failed (see log-ncu-$which.txt)"
+      done
     fi ;;
   pixels)   # the image columns on the GPU (study/measure/pixels.py) against scikit-image/numpy, and side by side
     timed pixels python3 scripts/pixels_cuda.py 2>&1 | tee "$OUT/log-pixels.txt" ;;

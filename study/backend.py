@@ -72,6 +72,9 @@ class Backend:
 
     def gather(self, data, index): ...
     def gather_at(self, data, base, index): ...
+    def arange(self, n: int):
+        """0, 1, …, n − 1 as a float array, made on the device (no data from the host: a frozen function replays
+        it)."""
 
     def power(self, a, b): ...
     def acos(self, a): ...
@@ -158,6 +161,9 @@ class NumpyBackend(Backend):
     def gather(self, data, index):
         """data[index] (``index`` a float array of integer values)."""
         return data[np.asarray(index).astype(np.int64)]
+
+    def arange(self, n):
+        return np.arange(n, dtype=np.float32)
 
     def gather_at(self, data, base, index):
         """data[base + index], the two whole numbers (floats, or ``base`` a Python int) made integers before they
@@ -316,6 +322,9 @@ class DrJitBackend(Backend):
 
     def gather(self, data, index):
         return self.dr.gather(self.m.Float, data, self.m.UInt32(index))
+
+    def arange(self, n):
+        return self.dr.arange(self.m.Float, n)
 
     def gather_at(self, data, base, index):
         base = self.m.UInt32(int(base)) if isinstance(base, int | float) else self.m.UInt32(base)

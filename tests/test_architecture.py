@@ -387,7 +387,7 @@ LONG_FUNCTIONS = {
     "study/caustics/figure.py::_fig8_files": 105,
     "study/harness/runner.py::run_cases": 92,
     "study/measure/case.py::run_case": 87,  # the pipeline, a banner per stage (as prb_basic.sample)
-    "study/methods/multi_probe.py::search": 91,
+    "study/methods/multi_probe.py::search": 88,
     "study/outputs/animation.py::_animate": 87,
     "study/methods/search.py::first_entry": 126,
     "study/outputs/figures.py::image_grid": 112,

@@ -128,8 +128,14 @@ class Layered(TracingMethod):
             read = reader(t)
             return [read(i) for i in range(K)]
 
-        def gs_lazy(t):  # layer 0, the others only behind it (in front of it, g_0 < 0 stands for every g_k)
-            read = reader(t)
+        def read_at(L):  # reader(L.t) from the hierarchical march's Look (the same operations, one face_uv)
+            if shared:
+                return lambda i: L.length - (1.0 - L.t) * B.sample(maps[i].dist, L.face, L.u, L.v)[0]
+            return lambda i: L.length - (1.0 - L.t) * maps[i].distance(L.p)
+
+        # layer 0, the others only behind it (in front of it g_0 < 0 stands for all)
+        def gs_lazy(t, read=None):
+            read = reader(t) if read is None else read
             g0 = read(0)
             if K == 1:
                 return [g0]
@@ -141,6 +147,8 @@ class Layered(TracingMethod):
         # ------------------------------------------------------------- march: the first entry that is not skin
         # (hierarchical: blocks in front of the nearest layer skipped; g_0 ≥ g_k, so in front of every layer)
         skip = skipper(B, getattr(maps[0], "pyramid", None), x, R, a, n) if p.hierarchical else None
+        if skip is not None:
+            skip.value = lambda L: gs_lazy(L.t, read_at(L))
         br, e = first_entry(
             B,
             gs if skip is None else gs_lazy,

@@ -51,7 +51,7 @@ from study.backend import V3, Backend
 from study.impostor import cubemap
 from study.impostor.views import Captured
 from study.methods.base import Knob, Localization, Method, register
-from study.methods.march import Skip, iterations
+from study.methods.march import Look, Skip, iterations
 from study.methods.search import arc_samples, first_crossing, refine, secant_point
 
 
@@ -100,16 +100,24 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
     theta = B.acos(B.minimum(B.maximum(cos, -1.0), 1.0))
     h = a * sin  # the ray's closest approach to o
     turning = sin > 1e-6  # the ray is not along x̂ (no plane of its own: only whole blocks are cleared)
+    theta_q, full = theta - (math.pi / 2), a * 0.0 + float(n)  # made once, not per step
+
+    def look(t):  # the ray point at t and its face coordinates (pyramid.bound_along's)
+        p = point(t)
+        face, u, v = cubemap.face_uv(B, p.x, p.y, p.z)
+        return Look(t, p, B.length(p), face + base if base is not None else face, u, v)
 
     def reach(k, kb, ta, tb):
-        # the last sample of k + 1 … kb (at t_a … t_b) proven in front of every lookup the pyramid bounds
-        pa, pb = point(ta), point(tb)
-        b = pyramid.bound_along(pa, pb, base)
-        near_a = B.length(pa) < (1.0 - ta) * b  # |p|/(1 − t) < b: the ray point nearer than every lookup
-        whole = near_a & (B.length(pb) < (1.0 - tb) * b)
+        # the last sample of k + 1 … kb (at t_a … t_b; t_a may be its Look) proven in front of every lookup the
+        # pyramid bounds
+        la = ta if isinstance(ta, Look) else look(ta)
+        lb, ta = look(tb), la.t
+        b = pyramid.bound(la.face, la.u, la.v, lb.face, lb.u, lb.v)
+        near_a = la.length < (1.0 - ta) * b  # |p|/(1 − t) < b: the ray point nearer than every lookup
+        whole = near_a & (lb.length < (1.0 - tb) * b)
         # part of the way: from a near start, r(φ) < b' while θ − φ > asin(h/b'), b' = (1 − SAFE) b
         c = B.minimum(h / B.maximum(b * (1.0 - SAFE), 1e-30), 1.0)
-        phi = theta - (math.pi / 2) + B.acos(c)  # θ − asin(c)
+        phi = theta_q + B.acos(c)  # θ − asin(c)
         last = -B.floor(10.0 * SAFE - phi * (n / math.pi)) - 1.0  # the last φ_j below φ by 10 SAFE samples
         part = B.select(near_a & (b > 0.0) & turning, B.minimum(B.maximum(last, k), kb), k)
         return B.select(whole, kb, part)
@@ -126,12 +134,12 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
         ends.append(k)
 
     def edge(k):  # the first end at or after sample k + 1 (n past the last one found)
-        out = k * 0.0 + float(n)
+        out = full
         for e in reversed(ends):
             out = B.select(k + 1.0 <= e, e, out)
         return out
 
-    return Skip(reach, edge)
+    return Skip(reach, edge, look)
 
 
 def march_bound(res: int | None, p: TexelMarchParams) -> int:
@@ -177,6 +185,9 @@ class LinearSecant(Method):
         g0 = g(zero)
         pyr = getattr(getattr(env, "impostor", env), "pyramid", None) if p.hierarchical else None
         skip = skipper(B, pyr, x, R, a, n)
+        if skip is not None:  # g at the march's Look: the same operations as g(t)
+            imp = getattr(env, "impostor", env)
+            skip.value = lambda L: L.length - (1.0 - L.t) * B.sample(imp.dist, L.face, L.u, L.v)[0]
         # bracket: last undershoot, first overshoot (no crossing: the whole arc, t = 0 to the point at infinity)
         br = first_crossing(
             B, g, zero, g0, arc_samples(B, cos, n), n, t_max=1.0, default=(zero, g0, zero + 1.0, a), skip=skip

@@ -3,12 +3,20 @@
 at its crossing; see :class:`Skip`. Written against the array backend (numpy and Dr.Jit): one per-lane loop
 (:meth:`study.backend.Backend.while_loop`) whose body reads either a block's bound or the next sample
 (:meth:`study.backend.Backend.branch`: a ray pays only the lookup of its own side). It registers no method.
+
+A step is bound by the instructions it issues rather than by its reads, so it makes each value once: sample
+k + 1 (its :class:`Look`) before the branch, for either side; the arc's sine and cosine from tables
+(:meth:`study.methods.search.arc_samples.tabulate`); no arc point for a jump (:attr:`Skip.shared`); loop invariants
+before the loop; each with the same operations as a value made where it is used, so hits, validity and lookups
+are the same bits. ``scripts/march_ir.py`` counts the loop's instructions (linear_secant: 407 for both sides of
+the branch), ``scripts/march_side.py`` times it against another tree.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any, NamedTuple
 
 
 class Direct:
@@ -18,6 +26,8 @@ class Direct:
 
     def __init__(self, smp):
         self.smp = smp
+        if hasattr(smp, "tabulate"):  # before the loop: its body must not evaluate
+            smp.tabulate()
 
     def at(self, k, state):
         return self.smp.direct(k), state
@@ -39,10 +49,46 @@ class Skip:
     read once after the march.
     ``edge(k)`` (optional) → (N,) the last sample on the face of sample k + 1: a block is cut there, as the
     pyramid bounds one face at a time (a block across an edge is never cleared, so cutting it loses nothing).
-    At most :func:`iterations` iterations, each one lookup per function at most."""
+    At most :func:`iterations` iterations, each one lookup per function at most.
+    ``look(t)`` (optional) → the :class:`Look` of the sample at t, read by both sides of an iteration (the sample
+    read as the block's start): the march makes it once per iteration, before the branch (a GPU warp whose lanes
+    take both sides computes it once, not twice), and hands it to ``reach`` (as ``t_a``) and to the sample read
+    (``step(k, *state, look=…)``), which then make the same values from it as they would from t; ``value(look)``
+    (set by the method that searches: g at the Look, the same bits as g(t)) is what the sample read reads then.
+    Without ``value`` the march makes no Look."""
 
-    def __init__(self, reach: Callable, edge: Callable | None = None):
-        self.reach, self.edge, self.lookups = reach, edge, None
+    def __init__(self, reach: Callable, edge: Callable | None = None, look: Callable | None = None):
+        self.reach, self.edge, self.look, self.lookups = reach, edge, look, None
+        self.value: Callable | None = None
+        self.last = None  # after the march: per ray, the sample it stopped at (read or jumped to)
+
+    @property
+    def shared(self) -> bool:
+        """The march makes a :class:`Look` per step (``look`` and ``value`` given); then a jump leaves the state's
+        t_prev as it was (``jumped(ok, None, …)``: no arc point is made for it) and the sample read gives the
+        search its k in place of t_prev (the bracket's start holds a sample index, made t by :func:`t_of` after
+        the march)."""
+        return self.look is not None and self.value is not None
+
+
+def t_of(B, smp, k, t0, t_max):
+    """t of sample k per ray (``smp.direct``, clamped to ``t_max``), t0 at k = 0: what t_prev holds at sample k in
+    a march that makes it at every read and jump, the same bits (with :attr:`Skip.shared` the march keeps k)."""
+    t = smp.direct(k)
+    t = B.minimum(t, t_max) if t_max is not None else t
+    return B.select(k > 0.0, t, t0)
+
+
+class Look(NamedTuple):
+    """A sample's lookup, shared by the sample read and the pyramid read: t, the ray point p(t), |p|, and p's face
+    coordinates (:func:`study.impostor.cubemap.face_uv`; the face offset by the map's first face in a stack)."""
+
+    t: Any
+    p: Any
+    length: Any
+    face: Any
+    u: Any
+    v: Any
 
 
 #: The first block a march tries, in samples: most rays start far in front of every surface (a camera ray's first
@@ -72,33 +118,38 @@ def reread(B, g: Callable, value, t):
 
 def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jumped, cost=None):
     """The march of :class:`Skip`: ``step(k, *state)`` reads sample k + 1 as the texel march's loop body does,
-    ``jumped(ok, t_b, *state)`` is the state after a jump to the sample t_b where ``ok``; ``done(*state)`` stops a
+    ``jumped(ok, t_b, *state)`` is the state after a jump to the sample t_b where ``ok`` (t_b None: with
+    :attr:`Skip.shared`); ``done(*state)`` stops a
     ray, ``busy(*state)`` (or None) keeps it reading sample by sample; ``cost(*state)`` (or None: G) the lookups
     of the sample read that led to ``state``. Returns the final state; sets ``skip.lookups``."""
     zero = state[0] * 0.0
+    two = zero + 2.0  # (a literal would be made again in every step)
     top = float(1 << max(n - 1, 0).bit_length())  # the widest block: ≥ n samples
 
     def t_at(k):
         t = smp.direct(k)
         return B.minimum(t, t_max) if t_max is not None else t
 
-    def fine(k, w, spent, *s):  # the next sample, as the texel march reads it
-        s = step(k, *s)
-        return (k + 1.0, w * 0.0 + 2.0, spent + (cost(*s) if cost is not None else float(G)), *s)
+    def fine(k, w, spent, *s, la=None):  # the next sample, as the texel march reads it
+        s = step(k, *s) if la is None else step(k, *s, look=la)
+        return (k + 1.0, two, spent + (cost(*s) if cost is not None else float(G)), *s)
 
-    def coarse(k, w, spent, *s):  # a block of w samples in one pyramid read
+    def coarse(k, w, spent, *s, la=None):  # a block of w samples in one pyramid read
         kb = B.minimum(k + w, float(n))
         if skip.edge is not None:  # not across a face's edge
             kb = B.minimum(kb, skip.edge(k))
         # the last sample proven in front: k (none) … kb (all)
-        kn = skip.reach(k, kb, t_at(k + 1.0), t_at(kb))
+        kn = skip.reach(k, kb, t_at(k + 1.0) if la is None else la, t_at(kb))
         whole, part = kn >= kb, kn > k
-        w = B.select(whole, B.minimum(w * 2.0, top), B.select(part, w * 0.0 + 2.0, w * 0.5))
-        return (kn, w, spent + 1.0, *jumped(part, t_at(kn), *s))
+        w = B.select(whole, B.minimum(w * 2.0, top), B.select(part, two, w * 0.5))
+        return (kn, w, spent + 1.0, *jumped(part, t_at(kn) if la is None else None, *s))
 
     def body(k, w, spent, *s):
         fine_now = (w <= 1.0) | busy(*s) if busy is not None else w <= 1.0
-        return B.branch(fine_now, (k, w, spent, *s), fine, coarse)
+        if not skip.shared:
+            return B.branch(fine_now, (k, w, spent, *s), fine, coarse)
+        la = skip.look(t_at(k + 1.0))  # sample k + 1: either side reads it
+        return B.branch(fine_now, (k, w, spent, *s), lambda *a: fine(*a, la=la), lambda *a: coarse(*a, la=la))
 
     out = B.while_loop(
         (zero, zero + float(min(FIRST, top)), zero, *state),
@@ -106,5 +157,5 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         body,
         limit=iterations(n),
     )
-    skip.lookups = out[2] + float(G)  # + the re-read of the bracket's start
+    skip.lookups, skip.last = out[2] + float(G), out[0]  # + the re-read of the bracket's start
     return out[3:]

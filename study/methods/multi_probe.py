@@ -98,6 +98,10 @@ class _Single:
     def distance(self, k, v):
         return self.env.distance(v)
 
+    @property
+    def dist(self):  # the impostor's distance texture (face coordinates of probe 0: the impostor's)
+        return getattr(self.env, "impostor", self.env).dist
+
     def lookup(self, k, v):
         return self.env.lookup(v)
 
@@ -121,6 +125,15 @@ def _finite(B, v: V3) -> V3:
 
 def _sel(B, m, a: V3, b: V3) -> V3:
     return V3(B.select(m, a.x, b.x), B.select(m, a.y, b.y), B.select(m, a.z, b.z))
+
+
+def _skip(B, P, xs: V3, R: V3, a, n: int, k):
+    """The hierarchical march's :class:`~study.methods.march.Skip` on probe k (its faces 6k … 6k + 5 of the stacked
+    pyramid; None: an analytic environment), g at its Look made as g(t) makes it (the same bits)."""
+    skip = skipper(B, P.pyramid, xs, R, a, n, base=k * 6.0)
+    if skip is not None:
+        skip.value = lambda L: L.length - (1.0 - L.t) * B.sample(P.dist, L.face, L.u, L.v)[0]
+    return skip
 
 
 def probe_spec(p) -> ProbeSpec:
@@ -172,16 +185,14 @@ class MultiProbe(TracingMethod):
         # ------------------------------------------------------------- the first probe: nearest that sees x
         untried = [~never for _ in range(N)]
         k = self._choose(B, P, x, untried)
-        k = B.select(
-            k >= 0.0, k, zero
-        )  # no probe sees x: probe 0 (the origin check of trace may drop the ray)
+        k = B.select(k >= 0.0, k, zero)  # no probe sees x: probe 0 (trace's origin check may drop the ray)
         active = B.isfinite(B.length(R)) & B.isfinite(B.length(x))
         R, x = _finite(B, R), _finite(B, x)  # dropped rays (NaN) stay inactive; lookups see no NaN
         untried = [u & (k != float(i)) for i, u in enumerate(untried)]
         spent = zero + float(N)
         d0 = zero  # ray parameter where the current segment starts
         found, have_first = never, never
-        hit_l, hit_k, first_l, first_k = x, zero, x, zero
+        hit_l, hit_k, first_l, first_k, table = x, zero, x, zero, None  # table: the arc's, for every round
         for _ in range(N):
             if not B.numpy(active).any():
                 break
@@ -196,27 +207,26 @@ class MultiProbe(TracingMethod):
                 return B.length(pt) - (1.0 - t) * P.distance(kk, pt)
 
             g0 = g(zero)
-            # hierarchical: probe k's faces are 6k … 6k + 5 of the stacked pyramid (None: an analytic environment)
-            skip = skipper(B, P.pyramid, xs, R, a, n, base=kk * 6.0) if p.hierarchical else None
+            skip = _skip(B, P, xs, R, a, n, kk) if p.hierarchical else None
+            smp = arc_samples(B, xs.dot(R) / a, n, table)
             br = first_crossing(
                 B,
                 g,
                 zero,
                 g0,
-                arc_samples(B, xs.dot(R) / a, n),
+                smp,
                 n,
                 t_max=1.0,
                 default=(zero, g0, zero + 1.0, a),
                 skip=skip,
             )
             marched = zero + float(n) if skip is None else skip.lookups  # the texel march: all n samples
+            table = smp.table
             br = refine(B, g, br, p.secant_steps, rising=True)
             t = secant_point(br)
             t_ok = B.isfinite(t)
             t = B.select(t_ok, t, zero)
-            l = _finite(
-                B, (xs * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7)
-            )  # the crossing, from c_k
+            l = _finite(B, (xs * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7))  # crossing, from c_k
             # --------------------------------------------------------- HIT, UNKNOWN or MISS
             r = B.length(l)
             tol = p.thickness + (r * (p.slack / res) if res else zero)

@@ -35,11 +35,9 @@ that proves blocks of samples free of crossings from a min pyramid); they then r
 
 Every search and the secant steps are one loop through the backend (:meth:`study.backend.Backend.loop`): on Dr.Jit
 one symbolic loop (``dr.while_loop``), so a march of n samples is one kernel whose state stays in registers, not
-n kernels that write and read the whole state back; on numpy
-a Python loop, with the same operations in the same order. g is traced once and must not evaluate (no ``B.eval``,
-no transfer to the host); the arrays it reads are captured.
-
-Each search function has a slow, obvious ``_ref`` twin (one ray, plain Python floats) in
+n kernels that write and read the whole state back; on numpy a Python loop, with the same operations in the same
+order. g is traced once and must not evaluate (no ``B.eval``, no transfer to the host); the arrays it reads are
+captured. Each search function has a slow, obvious ``_ref`` twin (one ray, plain Python floats) in
 :mod:`study.methods.search_ref` that the tests compare it with; :func:`arc_samples` is checked against the arc's
 geometry.
 """
@@ -50,7 +48,7 @@ import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
-from study.methods.march import Direct, Skip, every, march, reread
+from study.methods.march import Direct, Skip, every, march, reread, t_of
 
 
 class Bracket(NamedTuple):
@@ -110,6 +108,14 @@ def _next(B, smp: Samples, k, state, t_max):
     return (B.minimum(t, t_max) if t_max is not None else t), state
 
 
+def _read(B, g, smp: Samples, k, state, t_max, skip, look):
+    """(t_{k+1}, g there, the sampler's next state); from the hierarchical march's Look of that sample if given."""
+    if look is not None:
+        return look.t, skip.value(look), state
+    t, state = _next(B, smp, k, state, t_max)
+    return t, g(t), state
+
+
 class arc_samples(Samples):  # noqa: N801 - used as a function
     """Samples in equal angles along the arc that the t = d/(d+a) parameterization walks (p(t) = (1 − t) x + t a R
     turns from x̂ to R; θ the angle between them, ``cos_theta`` = x̂·R per ray): t_k for k = 1..``steps``
@@ -121,10 +127,10 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
     so that a frozen function can replay it); t is homogeneous in it, so the rounding drift of its length
     cancels."""
 
-    def __init__(self, B, cos_theta, steps: int):
+    def __init__(self, B, cos_theta, steps: int, table=None):
         c = cos_theta
-        self.B, self.c, self.steps = B, c, steps
-        self.s = B.sqrt(B.maximum(1.0 - c * c, 0.0))
+        self.B, self.c, self.steps, self.table = B, c, steps, table  # table: tabulate()'s (or another's)
+        self.s, self.c1 = B.sqrt(B.maximum(1.0 - c * c, 0.0)), 1.0 - c  # sin θ, 1 − cos θ, made once
         self.one = c * 0.0 + 1.0
         self.cd, self.sd = math.cos(math.pi / steps), math.sin(math.pi / steps)
         big = B.maximum(c, 2.0)  # = 2, but computed: Dr.Jit must not fold the rotation
@@ -137,18 +143,31 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
             return self.one, state
         cp, sp = state
         cp, sp = cp * self.cd - sp * self.sd, sp * self.cd + cp * self.sd
-        t = sp / B.maximum(self.s * cp + (1.0 - c) * sp, 1e-30)
+        t = sp / B.maximum(self.s * cp + self.c1 * sp, 1e-30)
         t = B.select(cp > c, B.minimum(t, 1.0), self.one)
         if end is not False:
             t = B.select(end, self.one, t)
         return t, (cp, sp)
 
+    def tabulate(self):
+        """On Dr.Jit, before a loop: cos φ_k, sin φ_k (k = 0 … steps) in tables, made as :meth:`direct` makes them
+        (the same bits), read there with a gather each for a sine and a cosine (~90 instructions) per sample."""
+        B = self.B
+        if B.name != "numpy" and self.table is None:
+            phi = B.arange(self.steps + 1) * (math.pi / self.steps)
+            self.table = (B.cos(phi), B.sin(phi))
+            B.eval(*self.table)
+
     def direct(self, k):
-        """t_k with φ_k = k π/steps from sin and cos (the rotation's value up to rounding)."""
+        """t_k with φ_k = k π/steps from sin and cos (the rotation's value up to rounding; :meth:`tabulate`'s)."""
         B, c = self.B, self.c
-        phi = k * (math.pi / self.steps)
-        cp, sp = B.cos(phi), B.sin(phi)
-        t = sp / B.maximum(self.s * cp + (1.0 - c) * sp, 1e-30)
+        if self.table is not None:
+            i = B.minimum(k, float(self.steps))  # k ≥ steps: t = 1 below
+            cp, sp = B.gather(self.table[0], i), B.gather(self.table[1], i)
+        else:
+            phi = k * (math.pi / self.steps)
+            cp, sp = B.cos(phi), B.sin(phi)
+        t = sp / B.maximum(self.s * cp + self.c1 * sp, 1e-30)
         t = B.select(cp > c, B.minimum(t, 1.0), self.one)
         return B.select(k >= float(self.steps), self.one, t)
 
@@ -212,10 +231,10 @@ def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first, skip
     )  # t_prev, g_prev per function, the crossings, the sampler's
     ns = len(smp.state)
 
-    def step(k, t_prev, *rest):
+    def step(k, t_prev, *rest, look=None):
         g_prev, flat, sst = list(rest[:G]), rest[G : len(rest) - ns], rest[len(rest) - ns :]
-        t, sst = _next(B, smp, k, sst, t_max)
-        gts = g(t) if many else [g(t)]
+        t, gts, sst = _read(B, g, smp, k, sst, t_max, skip, look)
+        gts = gts if many else [gts]
         out = []
         for i, gt in enumerate(gts):
             change = (g_prev[i] < 0.0) & (gt >= 0.0) if rising else (g_prev[i] < 0.0) != (gt < 0.0)
@@ -224,7 +243,8 @@ def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first, skip
                 f, *b = flat[(i * count + j) * 5 : (i * count + j + 1) * 5]
                 new = change & ~f if before is None else change & before & ~f
                 before = f
-                out += [f | new, *(B.select(new, v, o) for v, o in zip((t_prev, g_prev[i], t, gt), b))]
+                lo = t_prev if look is None else k  # Skip.shared: sample k's index, its t after the march
+                out += [f | new, *(B.select(new, v, o) for v, o in zip((lo, g_prev[i], t, gt), b))]
         return (t, *gts, *out, *sst)
 
     if skip is None:
@@ -242,17 +262,18 @@ def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first, skip
             done=lambda *s: every([s[1 + G + 5 * i] for i in range(G)]),
             busy=None,
             jumped=lambda ok, t_b, t_prev, *s: (
-                B.select(ok, t_b, t_prev),
+                t_prev if t_b is None else B.select(ok, t_b, t_prev),
                 *(B.select(ok, -math.inf, gp) for gp in s[:G]),
                 *s[G:],
             ),
         )
     g_last, flat = rest[:G], rest[G : len(rest) - ns]
     cross = [[flat[(i * count + j) * 5 : (i * count + j + 1) * 5] for j in range(count)] for i in range(G)]
-    if (
-        skip is not None
-    ):  # g at a bracket's start that a skip left unread (−∞): one more read of every function
+    if skip is not None:  # g at a bracket's start that a skip left unread (−∞): one more read of each
         pick = (lambda i: lambda t: g(t)[i]) if many else (lambda i: g)
+        if skip.shared:  # the brackets' starts hold sample indices (found) or the default
+            cross = [[(f, B.select(f, t_of(B, smp.smp, lo, t0, t_max), lo), *b)] for ((f, lo, *b),) in cross]
+            t_last = t_of(B, smp.smp, skip.last, t0, t_max)
         cross = [
             [[f, t_lo, reread(B, pick(i), g_lo, t_lo), t_hi, g_hi]]
             for i, ((f, t_lo, g_lo, t_hi, g_hi),) in enumerate(cross)
@@ -340,11 +361,11 @@ def first_entry(
     # t_lo, g_lo, t_hi, g_hi, e; 5), the sampler's
     state = (*g_prev, c_prev, in_prev, t0, never, never, never, zero, zero, *res, *res, *smp.state)
 
-    def step(k, *s):
+    def step(k, *s, look=None):
         g_prev, (c_prev, in_prev, t_prev, found, pend, clip, age, c_pend) = list(s[:K]), s[K : K + 8]
         res, pb, sst = s[K + 8 : K + 13], s[K + 13 : K + 18], s[K + 18 :]
-        t, sst = _next(B, smp, k, sst, t_max)
-        gs = list(g(t))
+        t, gs, sst = _read(B, g, smp, k, sst, t_max, skip, look)
+        gs, lo = list(gs), (t_prev if look is None else k)  # Skip.shared: lo is sample k's index (t after)
         c = count(gs)
         ins = inside(c, gs)
         # ---------------------------------------------------- decide the pending entries
@@ -362,7 +383,7 @@ def first_entry(
         # ---------------------------------------------------- a new entry
         new = ~found & ~pend & ins & ~in_prev
         e = B.select(c > c_prev, c_prev, c)
-        pb = tuple(B.select(new, v, o) for v, o in zip((t_prev, pick(g_prev, e), t, pick(gs, e), e), pb))
+        pb = tuple(B.select(new, v, o) for v, o in zip((lo, pick(g_prev, e), t, pick(gs, e), e), pb))
         c_pend, age, pend = B.select(new, c_prev, c_pend), B.select(new, zero, age), pend | new
         if hold <= 0:
             res, found, pend = tuple(B.select(new, v, r) for v, r in zip(pb, res)), found | new, pend & ~new
@@ -387,16 +408,16 @@ def first_entry(
                 *(B.select(ok, -math.inf, gp) for gp in s[:K]),
                 B.select(ok, zero, s[K]),
                 s[K + 1] & ~ok,
-                B.select(ok, t_b, s[K + 2]),
+                s[K + 2] if t_b is None else B.select(ok, t_b, s[K + 2]),
                 *s[K + 3 :],
             ),
         )
     found, pend, res, pb = s[K + 3], s[K + 4], s[K + 8 : K + 13], s[K + 13 : K + 18]
-    res = tuple(B.select(pend, v, r) for v, r in zip(pb, res))
-    found = found | pend
+    res, found = tuple(B.select(pend, v, r) for v, r in zip(pb, res)), found | pend
     if skip is not None:  # g at the bracket's start that a skip left unread: one more read of every layer
-        gt = list(g(res[0]))
-        res = (res[0], reread(B, lambda t: pick(gt, res[4]), res[1], res[0]), *res[2:])
+        lo = B.select(found, t_of(B, smp.smp, res[0], t0, t_max), res[0]) if skip.shared else res[0]
+        gt = list(g(lo))
+        res = (lo, reread(B, lambda t: pick(gt, res[4]), res[1], lo), *res[2:])
         if cost is not None:  # the re-read's own cost (the march counted K)
             skip.lookups = skip.lookups + (cost(gt[0]) - float(K))
     return Bracket(*res[:4], found), res[4]
