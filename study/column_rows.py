@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 import sys
-from dataclasses import KW_ONLY, dataclass, replace
+from dataclasses import KW_ONLY, dataclass
 
 LOW, HIGH, NONE = True, False, None
 #: the largest finite float: a domain ending here admits every finite number and not ±inf
@@ -448,13 +448,3 @@ TABLE: list[TableColumn] = [
         note="1: the method does not model the object's surface (scored with --allow-mismatch)",
     ),
 ]
-#: The columns whose values hang on the backend's float32 arithmetic (CUDA against numpy/LLVM differ by up
-#: to 12 % in them with the same captures): percentiles of near-zero angles and distances, the p95s that non-converged
-#: rays set, march step counts. Marked here (``backend_sensitive``) rather than in each row above, so that other
-#: fields of those rows change apart; a plug-in's column passes ``backend_sensitive=True`` to :func:`declare`.
-BACKEND_SENSITIVE = (
-    "angle_median_deg", "angle_p95_deg", "angle_max_deg", "angle_p95_visible_deg", "angle_p95_hidden_deg",
-    "angle_p95_all_deg", "dist_median", "dist_p50", "dist_p95", "dist_p99", "depth_error_p95",
-    "ratio_residual_median", "lookups_per_ray",
-)  # fmt: skip
-TABLE[:] = [replace(c, backend_sensitive=True) if c.name in BACKEND_SENSITIVE else c for c in TABLE]

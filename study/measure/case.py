@@ -252,7 +252,7 @@ def run_case(
         cols, fmap = by_trace.get(id(t)) or (_image_columns(t, refs, None, backend, intervals), None)
         out.rows.append(row_of(RayContext(  # the built-in groups' and the plug-ins' columns (study.measure.groups)
             rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image, ref.image, mask, t.label, trace=t,
-            rays=rays, hits=exact, pixels=pixels, held=held, image_columns=cols), base))  # fmt: skip
+            rays=rays, hits=exact, pixels=pixels, held=held, image_columns=cols, case_columns=base)))  # fmt: skip
         if keep_images and not t.reference:
             out.images[t.label] = t.image
             out.angle_maps[t.label] = rays.per_pixel(ang, fill=np.nan)

@@ -1,12 +1,13 @@
 """The built-in column groups of a results row as producers over one trace's case context (:class:`RayContext`),
 each declaring the columns it writes, as a plug-in's producer does (:mod:`study.measure.producers`).
 
-In the order a row holds them: the trace's identity and knobs, the geometry of the shown point, the outcome classes
-(:mod:`study.measure.outcomes`), their counts, fixed tolerances and ray intervals (:mod:`study.measure.case_columns`),
-the off-screen hits, the image errors (measured for all the case's traces together, :mod:`study.measure.batched`,
-and handed in), the references' own; after the plug-ins' producers: the method's flags and the search's cost.
-What depends only on the case (each ray's pixel, the held hits) is computed once per case and handed in with the
-context, never per trace. A column a group declares is one no plug-in may write (an error when it registers).
+In the order a row holds them: the case's own columns, the trace's identity and knobs, the geometry of the shown
+point, the outcome classes (:mod:`study.measure.outcomes`), their counts, fixed tolerances and ray intervals
+(:mod:`study.measure.case_columns`), the off-screen hits, the image errors (measured for all the case's traces
+together, :mod:`study.measure.batched`, and handed in; blank on the exact rows), the references' own; after the
+plug-ins' producers: the method's flags and the search's cost. What depends only on the case (its own columns, each
+ray's pixel, the held hits) is computed once per case and handed in with the context, never per trace. A column a
+group declares is one no plug-in may write (an error when it registers).
 """
 
 from __future__ import annotations
@@ -25,10 +26,34 @@ _OUTCOMES = ("correct_fraction", "wrong_fraction", "wrong_depth_fraction", "wron
 _COUNTS = ("n_rays", "n_hidden", "n_wrong", "wrong_fraction_texel", "wrong_fraction_1mm", "wrong_fraction_3mm",
            "wrong_fraction_1cm", "wrong_fraction_3cm", "wrong_fraction_10cm", "wrong_fraction_30cm",
            "wrong_fraction_0p5deg", "rays_deff", "angle_dropped", "dist_dropped", "angle_p95_all_deg")  # fmt: skip
-#: the calibrated ``_lo``/``_hi`` the ray intervals write: those of the per-ray columns the table gives an interval
-_BOUNDS = tuple(
-    f"{c}_{e}" for c in _GEOMETRY + _OUTCOMES + _COUNTS if columns.declared(c).interval for e in ("lo", "hi")
-)
+#: the case's own columns, the same in each of its rows (case._base_columns: position, lights, worth looking at)
+_CASE = ("case", "cube_res", "object_x", "object_y", "object_z", "object_alpha", "backend", "displacement", "rays",
+         "occluded_fraction", "own_light_share", "black_share", "clipped_share", "object_share", "mirrored_void",
+         "reference_seen", "own_shadow")  # fmt: skip
+#: the image columns (case._image_columns, batched.method_columns): per reference, the truth's own, the pixel
+#: intervals' counts and robust errors, the error split, the radiance bias
+_IMAGE = (
+    *(f"{m}_{r}" for r in ("oracle", "truth", "mitsuba") for m in ("rmse", "psnr", "ssim", "flip")),
+    *(f"flip_{r}_p95" for r in ("oracle", "truth", "mitsuba")),
+    "rmse_truth_debiased", "relmse_truth", "truth_noise_rmse", "truth_noise_flag", "rmse_mitsuba_debiased",
+    "mitsuba_noise_rmse", "mitsuba_noise_flag", "mitsuba_noise_frame", "relmse_truth_exposed", "truth_noise_relmse",
+    "truth_exposure_ev", "firefly_fraction", "n_pixels", "n_blocks", "corr_px", "rmse_truth_trim",
+    "rmse_truth_debiased_trim", "sqerr_top_share_truth", "held_pixels", "unheld_pixels", "dec_total", "dec_search",
+    "dec_visibility", "dec_representation", "dec_noise", "dec_cross", "dec_residual", "dec_sums",
+    "dec_representation_direct", "dec_sums_direct", "rmse_truth_held", "rmse_truth_unheld", "radiance_bias_truth",
+)  # fmt: skip
+
+
+def _bounds(*names: str) -> tuple[str, ...]:
+    """The calibrated ``_lo``/``_hi`` of those of ``names`` the table gives an interval."""
+    return tuple(f"{c}_{e}" for c in names if columns.declared(c).interval for e in ("lo", "hi"))
+
+
+@group(columns=_CASE)
+def case_own(ctx: RayContext) -> dict:
+    """The case's own columns (computed once per case and handed in), first in every row; a refracting object's
+    ray statistics (``refraction``, ``exit``, …) come with them."""
+    return ctx.case_columns or {}
 
 
 @group(columns=("method", "label", "family", "knob", "knob_value"))
@@ -54,7 +79,7 @@ def outcome_classes(ctx: RayContext) -> dict:
     return outcomes.outcome_columns(ctx.classes, ctx.occluded, ctx.angle)
 
 
-@group(columns=_COUNTS + _BOUNDS)
+@group(columns=_COUNTS + _bounds(*_GEOMETRY, *_OUTCOMES, *_COUNTS))
 def ray_intervals(ctx: RayContext) -> dict:
     """Counts, fixed tolerances and the calibrated intervals over the rays, clustered by pixel (each ray's pixel
     taken once per case)."""
@@ -68,7 +93,7 @@ def offscreen(ctx: RayContext) -> dict:
     return outcomes.offscreen_columns(ctx.classes, ctx.hits.offscreen)
 
 
-@group()
+@group(columns=_IMAGE + _bounds(*_IMAGE))
 def image_measures(ctx: RayContext) -> dict:
     """The image against the oracle, the truth and Mitsuba, the truth's own columns, pixel intervals, the error
     split and the radiance bias (names per reference: :func:`study.measure.case._image_columns`), measured for the
@@ -107,10 +132,10 @@ def cost(ctx: RayContext) -> dict:
     }
 
 
-def row_of(ctx: RayContext, base: dict) -> dict:
-    """One trace's row: the case's columns ``base``, then every built-in group's and every plug-in producer's, in
-    their order (:data:`GROUPS`, :data:`PRODUCERS`, :data:`AFTER`)."""
-    row = dict(base)
+def row_of(ctx: RayContext) -> dict:
+    """One trace's row: every built-in group's columns and every plug-in producer's, in their order (:data:`GROUPS`,
+    :data:`PRODUCERS`, :data:`AFTER`)."""
+    row = {}
     for fn in GROUPS:
         row.update(fn(ctx))
     if PRODUCERS:

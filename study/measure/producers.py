@@ -46,6 +46,7 @@ class RayContext:
     pixels: np.ndarray | None = None  # (K,) each ray's pixel (study.stats.spatial.ray_pixels)
     held: np.ndarray | None = None  # (K,) the exact hit is held by o's views (study.measure.split.held)
     image_columns: dict | None = None  # the trace's image errors, measured with the case's other traces
+    case_columns: dict | None = None  # the case's own columns, the same in each of its rows
 
 
 #: column producers beyond the built-in ones (:func:`producer`), called for every trace of every case
