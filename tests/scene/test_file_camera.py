@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 import study
 from study.scene import placement
 
+CORPUS = Path(__file__).resolve().parents[1] / "assets" / "corpus"
 EYE = np.array([1.0, 1.6, 3.0])
 ROT = Rotation.from_euler("YXZ", [30, -20, 35], degrees=True)  # yaw left, pitch down, a strong roll
 YFOV = 0.9  # radians
@@ -85,9 +86,10 @@ def _write(path: Path) -> None:
     path.write_text(json.dumps(g))
 
 
-def _pixels(centre, radius: float, tan_half: float) -> np.ndarray:
-    """Image-plane coordinates (x, y in units of the frame's half-size) of 4000 points on the sphere's surface, as
-    the file's camera (its rotation :data:`ROT`, looking down its −z) projects them."""
+def _pixels(centre, radius: float, tan_half: float, aspect: float = 1.0) -> np.ndarray:
+    """Image-plane coordinates (x, y in units of the frame's half-width and half-height; ``aspect`` = height /
+    width, ``tan_half`` horizontal) of 4000 points on the sphere's surface, as the file's camera (its rotation
+    :data:`ROT`, looking down its −z) projects them."""
     i = np.arange(4000) + 0.5
     z = 1 - 2 * i / len(i)
     phi = np.pi * (1 + 5**0.5) * i
@@ -95,16 +97,17 @@ def _pixels(centre, radius: float, tan_half: float) -> np.ndarray:
     pts = np.asarray(centre) + radius * np.stack([s * np.cos(phi), z, s * np.sin(phi)], -1)
     local = ROT.inv().apply(pts - EYE)
     assert np.all(local[:, 2] < 0), "part of the sphere is behind the camera"
-    return local[:, :2] / (-local[:, 2:] * tan_half)
+    return local[:, :2] / (-local[:, 2:] * tan_half) / [1.0, aspect]
 
 
-def test_a_file_camera_keeps_its_aim_roll_and_fov_and_sees_the_sphere_whole(tmp_path):
+@pytest.mark.parametrize("size", [{}, {"camera.width": 64, "camera.height": 32}], ids=["square", "2:1"])
+def test_a_file_camera_keeps_its_aim_roll_and_fov_and_sees_the_sphere_whole(tmp_path, size):
     """The camera's axis is blocked 0.4 m ahead: the scene's camera still looks along the node's −z with its +y
     up and the file's field of view, and the sphere (off the axis) projects whole inside the frame, filling a
     visible share of it, touching no box and seen unblocked (it was re-aimed at a sphere placed elsewhere)."""
     p = tmp_path / "chase.gltf"
     _write(p)
-    sc = study.load_scene(str(p))
+    sc = study.load_scene(str(p), size)
     cam, c, r = sc.camera, np.asarray(sc.object.center), sc.object.radius
     got = np.subtract(cam.target, cam.eye)
     np.testing.assert_allclose(cam.eye, EYE, atol=1e-6)
@@ -112,8 +115,7 @@ def test_a_file_camera_keeps_its_aim_roll_and_fov_and_sees_the_sphere_whole(tmp_
     right = np.cross(FORWARD, cam.up)
     np.testing.assert_allclose(np.cross(right / np.linalg.norm(right), FORWARD), UP, atol=1e-6)  # its roll
     assert cam.fov == pytest.approx(math.degrees(YFOV))  # aspect 1: horizontal = vertical = yfov
-    assert cam.width == cam.height
-    xy = _pixels(c, r, math.tan(YFOV / 2))
+    xy = _pixels(c, r, math.tan(YFOV / 2), cam.height / cam.width)
     assert np.abs(xy).max() < 1.0, (np.abs(xy).max(), sc.placement_line())  # whole inside the frame
     assert xy.max(0)[0] - xy.min(0)[0] > 0.1  # not a speck: a twentieth of the frame's width or more
     for lo, hi in BOXES:
@@ -134,3 +136,13 @@ def test_a_user_set_object_centre_still_wins(tmp_path):
     assert sc.object.center == tuple(centre)
     got = np.subtract(sc.camera.target, sc.camera.eye)
     np.testing.assert_allclose(got / np.linalg.norm(got), FORWARD, atol=1e-6)
+
+
+def test_a_file_camera_with_no_free_spot_in_view_is_re_aimed_and_says_so():
+    """Mitsuba's projector test scene: a camera 1 unit above a 2 km plane with a 170° field of view; no sphere of a
+    tenth of the radius asked for fits in its view (1 unit deep), so the camera is re-aimed at the object, and the
+    placement line says so (it was re-aimed silently)."""
+    p = CORPUS / "xml/mitsuba-data/tests/scenes/projector/test_projector_constant_direct.xml"
+    sc = study.load_scene(str(p), {"camera.width": 32, "camera.height": 32})
+    assert "the file's camera re-aimed at the object (no free spot in its view)" in sc.placement_line()
+    assert sc.camera.target == sc.object.center
