@@ -364,9 +364,9 @@ def suggest(env, given: dict[str, Any] | None = None) -> Suggestion:
     if want("object.radius"):
         out["object.radius"] = radius
     up = np.asarray(given.get("camera.up", env.sensor["up"] if env.sensor else (0.0, 1.0, 0.0)), float)
-    aspect = inview.aspect(
-        *(given.get(f"camera.{k}", Camera.model_fields[k].default) for k in ("width", "height"))
-    )
+    size = {f"camera.{k}": Camera.model_fields[k].default for k in ("width", "height")}
+    out.update(inview.frame_size(env.sensor if want("camera.eye") else None, given, tuple(size.values())))
+    aspect = inview.aspect(*({**size, **given, **out}[k] for k in size))
     if want("object.center"):
         start = best - up / np.linalg.norm(up) * 0.45 * gap
         if env.sensor is not None and want(
@@ -415,7 +415,7 @@ def suggest(env, given: dict[str, Any] | None = None) -> Suggestion:
         + (
             f"; {why}"
             if why
-            else "; the file's camera"
+            else "; the file's camera" + (" (its frame's aspect)" if {*size} & {*out} else "")
             if env.sensor is not None and want("camera.eye")
             else ""
         )

@@ -39,6 +39,27 @@ def aspect(width, height) -> float:
     return a if np.isfinite(a) and a > 0 else 1.0
 
 
+def frame_size(sensor: dict | None, given: dict, default: tuple[int, int]) -> dict[str, int]:
+    """``camera.width`` or ``camera.height``, where the user left one or both out, at the file camera's aspect (its
+    ``fov`` is horizontal: the vertical one is then the file's too): the width given (else ``default``'s) and the
+    height at that ratio, or the width at the ratio of the height given; nothing where both are given or the file
+    has no frame size (or no camera: None), or the size left out is the default anyway. Sizes that are not
+    numbers are left to their own validation."""
+    W, H = (sensor.get("width"), sensor.get("height")) if sensor else (None, None)
+    if not W or not H or ("camera.width" in given and "camera.height" in given):
+        return {}
+    ratio = float(sensor.get("aspect") or W / H)  # width / height: a glTF camera's aspectRatio, exact
+    try:
+        if "camera.height" in given:
+            k, v = "camera.width", float(given["camera.height"]) * ratio
+        else:
+            k, v = "camera.height", float(given.get("camera.width", default[0])) / ratio
+        v = int(min(max(round(v), 8), 4096))
+    except (TypeError, ValueError, OverflowError):
+        return {}
+    return {} if v == default[k == "camera.height"] else {k: v}  # as it would be anyway: nothing
+
+
 def basis(sensor: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(eye, forward, right, up) of a file camera: right = forward × up, as Mitsuba's look_at."""
     eye = np.asarray(sensor["eye"], float)

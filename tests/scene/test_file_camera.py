@@ -37,9 +37,9 @@ def _box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
     return V, F
 
 
-def _write(path: Path) -> None:
+def _write(path: Path, aspect: float = 1.0) -> None:
     """A 12 m ground quad facing up, :data:`BOXES` and a perspective camera node at :data:`EYE` rotated by
-    :data:`ROT`, yfov :data:`YFOV`, aspect ratio 1; one buffer, a data URI."""
+    :data:`ROT`, yfov :data:`YFOV`, ``aspect`` (width / height); one buffer, a data URI."""
     parts = [
         (
             np.array([[-6, 0, -6], [6, 0, -6], [6, 0, 6], [-6, 0, 6]], np.float32),
@@ -63,7 +63,7 @@ def _write(path: Path) -> None:
             {"camera": 0, "translation": EYE.tolist(), "rotation": ROT.as_quat().tolist()},
         ],
         "cameras": [
-            {"type": "perspective", "perspective": {"yfov": YFOV, "aspectRatio": 1.0, "znear": 0.01}}
+            {"type": "perspective", "perspective": {"yfov": YFOV, "aspectRatio": aspect, "znear": 0.01}}
         ],
         "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0}]}],
         "buffers": [{"byteLength": len(blob), "uri": "data:;base64," + base64.b64encode(blob).decode()}],
@@ -146,3 +146,23 @@ def test_a_file_camera_with_no_free_spot_in_view_is_re_aimed_and_says_so():
     sc = study.load_scene(str(p), {"camera.width": 32, "camera.height": 32})
     assert "the file's camera re-aimed at the object (no free spot in its view)" in sc.placement_line()
     assert sc.camera.target == sc.object.center
+
+
+@pytest.mark.parametrize(
+    ("size", "want"),
+    [({}, (256, 171)), ({"camera.width": 96}, (96, 64)), ({"camera.height": 100}, (150, 100))],
+    ids=["default", "width given", "height given"],
+)
+def test_the_frame_takes_the_file_cameras_aspect_where_left_out(tmp_path, size, want):
+    """A 3:2 camera (yfov 0.9): the frame the user leaves out takes its 3:2, so that both fields of view are the
+    file's: horizontal 2·atan(tan(yfov/2)·1.5), vertical yfov (to the frame's rounding; it was square: vertical =
+    horizontal, 35 % wider than the file's). Both sizes given: the user's, the horizontal fov the file's."""
+    p = tmp_path / "wide.gltf"
+    _write(p, aspect=1.5)
+    cam = study.load_scene(str(p), size).camera
+    assert (cam.width, cam.height) == want
+    assert cam.fov == pytest.approx(math.degrees(2 * math.atan(math.tan(YFOV / 2) * 1.5)))
+    vertical = 2 * math.atan(math.tan(math.radians(cam.fov) / 2) * cam.height / cam.width)
+    assert vertical == pytest.approx(YFOV, rel=0.01)
+    both = study.load_scene(str(p), {"camera.width": 64, "camera.height": 64}).camera
+    assert (both.width, both.height) == (64, 64) and both.fov == pytest.approx(cam.fov)
