@@ -86,8 +86,8 @@ def _exit(eye, d: np.ndarray, lo, hi) -> np.ndarray:
     enters)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         a, b = (lo - eye) / d, (hi - eye) / d
-    far = np.nanmin(np.maximum(a, b), axis=1)
-    return np.maximum(far, 0.0)
+    near, far = np.nanmax(np.minimum(a, b), axis=1), np.nanmin(np.maximum(a, b), axis=1)
+    return np.where(near <= far, np.maximum(far, 0.0), 0.0)
 
 
 def spot(env, sensor: dict, radius: float, sized: bool, aspect: float) -> tuple[np.ndarray, float] | None:
