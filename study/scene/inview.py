@@ -5,11 +5,12 @@ and field of view, and the object goes where that camera sees it whole (:mod:`st
 Of the points seen through a :data:`VIEW_GRID`² grid over the central :data:`SPAN` of the frame, at :data:`STEPS`
 distances up to the first surface each ray meets (within the bounds grown by a quarter of their diagonal), the
 spot of a sphere that lies whole inside the frame (on the inner side of the four planes through the eye and the
-frame's edges), in free space (clear of every triangle by :data:`GAP` radii, :func:`study.scene.placement.check_free`)
-and unoccluded from the eye (:func:`study.scene.placement.sees`), filling the largest share of the frame's
-half-width (at most :data:`VIEW_FILL`; at least :data:`MIN_SHARE`), to within 10 %, then the largest (up to the radius
-asked for: the object at the scene's scale, not a bead at the eye), then nearest the frame's centre. A sphere
-sized to its spot is at least :data:`MIN_SIZE` of the radius asked for.
+frame's edges), in free space (clear of every triangle by :data:`GAP` radii,
+:func:`study.scene.placement.check_free`) and unoccluded from the eye (:func:`unblocked`: rays to 1024 points of
+its near half), filling the largest share of the frame's half-width (at most :data:`VIEW_FILL`; at least
+:data:`MIN_SHARE`), to within 10 %, then the largest (up to the radius asked for: the object at the scene's scale,
+not a bead at the eye), then nearest the frame's centre. A sphere sized to its spot is at least :data:`MIN_SIZE`
+of the radius asked for.
 """
 
 from __future__ import annotations
@@ -90,6 +91,18 @@ def _exit(eye, d: np.ndarray, lo, hi) -> np.ndarray:
     return np.where(near <= far, np.maximum(far, 0.0), 0.0)
 
 
+def unblocked(mesh, eye, centre, radius: float, n: int = 1024) -> bool:
+    """Whether the rays from ``eye`` to ``n`` points spread over the sphere's half that faces it all reach the
+    sphere before any triangle: seen whole, no pole or wire in front (denser than :func:`placement.sees`)."""
+    eye, centre = np.asarray(eye, float), np.asarray(centre, float)
+    pts = centre + radius * placement.directions(n)
+    pts = pts[(pts - centre) @ (eye - centre) > 0]
+    d = pts - eye
+    dist = np.linalg.norm(d, axis=1)
+    t, _ = placement.cast(mesh, np.broadcast_to(eye, d.shape), d / dist[:, None])
+    return bool(np.all(t >= dist * (1 - 1e-6)))
+
+
 def spot(env, sensor: dict, radius: float, sized: bool, aspect: float) -> tuple[np.ndarray, float] | None:
     """(centre, radius) of the object in the file camera's view (module docstring); ``sized``: the radius the spot
     takes (at least :data:`MIN_SIZE` of ``radius``; else ``radius`` must fit there). None where no spot qualifies."""
@@ -132,7 +145,7 @@ def spot(env, sensor: dict, radius: float, sized: bool, aspect: float) -> tuple[
             placement.check_free(mesh, c, "object.center")
         except KeyedError:
             continue
-        if placement.sees(mesh, eye, c, size) < 1.0:
+        if not unblocked(mesh, eye, c, size):
             continue
         found.append((size / (t * tx), off, t, c, size))
     if not found:
