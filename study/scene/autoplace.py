@@ -14,7 +14,9 @@ left out, and only those (:data:`KEYS`), suggested by ray casting with Embree (:
   it meets, where the scene has a camera: a Mitsuba sensor or a glTF camera), moved to the nearest free spot
   where the sphere touches nothing;
 * the camera: the scene's own where it has one (Mitsuba sensor, glTF camera), with its eye, aim, up and field of
-  view (the object on its axis, sized by :func:`_on_axis` to fill some of the frame); else, of the free eyes around the
+  view (the object on its axis, sized by :func:`_on_axis` to fill some of the frame; where the axis has no free spot,
+  where that camera sees it whole, :mod:`study.scene.inview`; re-aimed at the object only where neither has one,
+  said in the line); else, of the free eyes around the
   object (64 directions × distances of 3, 4 and 5.5 object radii and 1.75 × the clearance) that see it unblocked,
   aimed at the object (and, for an object seen from outside, also halfway to the bounds' middle), the one of the
   highest :func:`score` (:data:`WEIGHTS`): the object's share of the frame (counted up to :data:`FILL`; below
@@ -40,6 +42,7 @@ from typing import Any
 import numpy as np
 
 import study.scene.framing as framing
+import study.scene.inview as inview
 import study.scene.lights as lights
 import study.scene.placement as placement
 from study.errors import StudyError
@@ -131,12 +134,12 @@ FLAT = (
 )
 
 
-def _on_axis(env, sensor, radius: float, diag: float, sized: bool, start) -> tuple[np.ndarray, float]:
+def _on_axis(env, sensor, radius: float, diag: float, sized: bool) -> tuple[np.ndarray, float] | None:
     """(start, radius) of the object on the file camera's view axis: before the first surface the axis meets,
     nearest the bounds' middle (the bounds grown by a quarter of their diagonal: a flat scene has no inside);
     ``sized``: the radius the spot takes, grown to a quarter of the frame's half-width there (the object seen,
     not a dot), at most two thirds of the clearance, the spot the one where the object fills most of the frame.
-    No free spot on the axis: ``start`` and ``radius`` as they were."""
+    No free spot on the axis: None."""
     mesh, (lo, hi) = env.mesh, env.bounds
     eye, target = np.array(sensor["eye"], float), np.array(sensor["target"], float)
     axis = (target - eye) / np.linalg.norm(target - eye)
@@ -148,7 +151,7 @@ def _on_axis(env, sensor, radius: float, diag: float, sized: bool, start) -> tup
     gaps = {i: placement.clearance(mesh, p) for i, p in enumerate(inside)}
     ok = [i for i in gaps if gaps[i] > (0.0 if sized else 1.5 * radius)]
     if not ok:
-        return start, radius
+        return None
     tan = np.tan(np.radians(float(sensor.get("fov", 45.0))) / 2)
 
     def fits(i):  # the radius that fits there (a quarter of the frame's half-width, or more), and its share
@@ -160,11 +163,20 @@ def _on_axis(env, sensor, radius: float, diag: float, sized: bool, start) -> tup
     if sized:  # the largest share of the frame (to within 10 %), then nearest the middle
         ok = [i for i in ok if fits(i)[0] >= 0.1 * radius]  # not a dot at the eye itself
         if not ok:
-            return start, radius
+            return None
         top = max(fits(i)[1] for i in ok)
         ok = [i for i in ok if fits(i)[1] >= 0.9 * top]
     i = min(ok, key=lambda i: np.linalg.norm(inside[i] - mid))
     return inside[i], (fits(i)[0] if sized else radius)
+
+
+def _file_view(
+    env, radius: float, diag: float, sized: bool, aspect: float
+) -> tuple[np.ndarray, float] | None:
+    """(start, radius) of the object in the file camera's view: on its axis (:func:`_on_axis`), else where that
+    camera sees it whole (:func:`study.scene.inview.spot`); None where neither has a free spot."""
+    got = _on_axis(env, env.sensor, radius, diag, sized)
+    return got if got is not None else inview.spot(env, env.sensor, radius, sized, aspect)
 
 
 def _seeing(env, centre, radius: float, best, gap: float, enclosed: float) -> tuple[np.ndarray, float, float]:
@@ -352,11 +364,15 @@ def suggest(env, given: dict[str, Any] | None = None) -> Suggestion:
     if want("object.radius"):
         out["object.radius"] = radius
     up = np.asarray(given.get("camera.up", env.sensor["up"] if env.sensor else (0.0, 1.0, 0.0)), float)
+    size = {f"camera.{k}": Camera.model_fields[k].default for k in ("width", "height")}
+    out.update(inview.frame_size(env.sensor if want("camera.eye") else None, given, tuple(size.values())))
+    aspect = inview.aspect(*({**size, **given, **out}[k] for k in size))
     if want("object.center"):
         start = best - up / np.linalg.norm(up) * 0.45 * gap
-        s = env.sensor
-        if s is not None and want("camera.eye"):  # onto the file camera's view axis
-            start, radius = _on_axis(env, s, radius, diag, want("object.radius"), start)
+        if env.sensor is not None and want(
+            "camera.eye"
+        ):  # onto the file camera's view axis, else into its view
+            start, radius = _file_view(env, radius, diag, want("object.radius"), aspect) or (start, radius)
             if want("object.radius"):
                 out["object.radius"] = radius
         centre = _free_centre(mesh, start, radius, best)
@@ -379,15 +395,11 @@ def suggest(env, given: dict[str, Any] | None = None) -> Suggestion:
                 targets.append(centre + 0.5 * ((lo + hi) / 2 - centre))
             eye, target, why = _eye(env, centre, radius, best, gap, up / np.linalg.norm(up), fov, targets)
             out["camera.eye"] = eye.tolist()
-    if want(
-        "camera.target"
-    ):  # the file's camera aims where the file says (at the object where it is off the axis)
+    if want("camera.target"):  # the file's camera aims where the file says (at the object outside its view)
         aim = env.sensor["target"] if env.sensor is not None and want("camera.eye") else None
-        if aim is not None and want("object.center"):
-            axis = np.subtract(aim, env.sensor["eye"])
-            to = centre - np.asarray(env.sensor["eye"], float)
-            if np.linalg.norm(np.cross(axis, to)) > 1e-6 * np.linalg.norm(axis) * np.linalg.norm(to):
-                aim = None  # no free spot on the axis: aimed at the object, as before
+        if aim is not None and want("object.center") and inview.margin(env.sensor, centre, aspect) < radius:
+            aim = None  # no free spot in the file camera's view: aimed at the object
+            why = "the file's camera re-aimed at the object (no free spot in its view)"
         out["camera.target"] = (
             list(aim) if aim is not None else (target if target is not None else centre).tolist()
         )
@@ -403,7 +415,7 @@ def suggest(env, given: dict[str, Any] | None = None) -> Suggestion:
         + (
             f"; {why}"
             if why
-            else "; the file's camera"
+            else "; the file's camera" + (" (its frame's aspect)" if {*size} & {*out} else "")
             if env.sensor is not None and want("camera.eye")
             else ""
         )

@@ -229,7 +229,7 @@ def _camera(f: GltfFile, i, M: np.ndarray, out: Loaded) -> dict | None:
     fwd, up = fwd / np.linalg.norm(fwd), up / np.linalg.norm(up)
     w = 512
     return {"eye": eye.tolist(), "target": (eye + fwd).tolist(), "up": up.tolist(), "fov": min(fov, 179.0),
-            "width": w, "height": max(8, round(w / aspect))}  # fmt: skip
+            "width": w, "height": max(8, round(w / aspect)), "aspect": float(aspect)}  # fmt: skip
 
 
 def _nodes(f: GltfFile, out: Loaded):

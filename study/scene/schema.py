@@ -166,7 +166,7 @@ class Scene(_Strict):
         data = cls._measuring_frame(data, env, kind, ctx)
         env = data.get("environment")
         given = {}
-        for k in KEYS:
+        for k in (*KEYS, "camera.width", "camera.height"):  # the frame's size: where the object is seen whole
             table, key = k.split(".")
             node = data.get(table)
             node = node.model_dump() if isinstance(node, BaseModel) else node
