@@ -105,29 +105,35 @@ def hiz_levels(z: np.ndarray) -> list[np.ndarray]:
 
 
 class HiZ:
-    """:func:`hiz_levels` on a backend: one flat array, the levels one after the other, then per level (offset,
-    side, cell size in pixels), read by level."""
+    """:func:`hiz_levels` on a backend: one flat array of rows of ``size`` (S) cells, level m (side S/2^m, cell
+    2^m px) in rows 2S − 2·S/2^m onwards (2S² cells in all), so a cell's index needs only the level's 1/2^m: no
+    table of offsets read before the cell (the march's reads in a row, one after the other)."""
 
     def __init__(self, z: np.ndarray, B):
         levels = hiz_levels(z)
-        self.B, self.size, self.top = B, levels[0].shape[0], float(len(levels) - 1)
-        offs = np.cumsum([0] + [a.size for a in levels[:-1]])
-        table = np.array([(o, a.shape[0], 2.0**m) for m, (o, a) in enumerate(zip(offs, levels))], np.float32)
-        flat = np.concatenate([a.ravel() for a in levels])
-        self.table_at = float(flat.size)
-        self.data = B.array(np.concatenate([flat, table.ravel()]))
+        S = levels[0].shape[0]
+        self.B, self.size, self.top = B, S, float(len(levels) - 1)
+        flat = np.zeros((2 * S, S), np.float32)
+        for a in levels:
+            r0 = 2 * S - 2 * a.shape[0]
+            flat[r0 : r0 + a.shape[0], : a.shape[0]] = a
+        self.data = B.array(flat.ravel())
 
-    def level(self, m):
-        """(offset, side, cell size) of level m (per ray)."""
-        return tuple(self.B.gather(self.data, self.table_at + m * 3.0 + c) for c in (0.0, 1.0, 2.0))
+    def cell(self, inv, cx, cy):
+        """d of cell (cx, cy) of the level of cell size 1/``inv`` (2^−m per ray; cx, cy within the level): one
+        lookup. Exact: the row base (a multiple of S below 2S²) and cx become integers before they are added."""
+        S = float(self.size)
+        return self.B.gather_at(self.data, ((2.0 * S - (2.0 * S) * inv) + cy) * S, cx)
 
-    def read(self, off, side, cx, cy):
-        """d of cell (cx, cy) of the level at ``off`` of side ``side`` (clamped into it): one lookup."""
+    def read(self, inv, cx, cy):
+        """:meth:`cell` with (cx, cy) clamped into the level (non-finite: 0), for cells off it or lanes where it
+        does not matter."""
         B = self.B
+        side = inv * float(self.size)
         cx, cy = B.select(B.isfinite(cx), cx, side * 0.0), B.select(B.isfinite(cy), cy, side * 0.0)
         cx = B.minimum(B.maximum(cx, 0.0), side - 1.0)
         cy = B.minimum(B.maximum(cy, 0.0), side - 1.0)
-        return B.gather(self.data, off + cy * side + cx)
+        return self.cell(inv, cx, cy)
 
 
 _HIZ: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -205,7 +211,14 @@ def _exit_t(B, plane, p0, inv, zero):
 
 
 def hiz_march(B, scr, hz: HiZ, r: ScreenRay, max_iterations: int, min_occupancy: int = 0):
-    """(t, level, reads, on_screen) at the march's end, per ray (module docstring)."""
+    """(t, level, reads, on_screen) at the march's end, per ray (module docstring).
+
+    The level is carried as its cell size 2^m and 1/2^m (the exit planes, the cell under the ray: products, exact,
+    where m and a table of offsets, sizes and sides read before the cell were a dependent read more per step); a
+    ray that does not start stands below level 0 (m = −1) from the first test. The loop's test: above level 0 and
+    on screen (the read budget is the loop's limit); in the test's lanes the cell under the ray lies in the level,
+    so the read needs no clamp where the loop runs only the lanes that test true (Dr.Jit's symbolic loop; numpy's
+    loop and the occupancy exit's host loop run every lane: clamped there)."""
     (ix, zx, fx, ux), (iy, zy, fy, uy) = _planes(B, r)
     zero = r.px0 * 0.0
     # InitialAdvanceRay: out of x's pixel at level 0
@@ -216,19 +229,19 @@ def hiz_march(B, scr, hz: HiZ, r: ScreenRay, max_iterations: int, min_occupancy:
     t = B.select(r.start, t, zero)
     away = r.Dd > 0.0
     iz = 1.0 / B.select(away, r.Dd, zero + 1.0)
+    clamp = B.name == "numpy" or min_occupancy > 0  # the body runs on lanes off the screen or below level 0
 
     def on(t):
         px, py, _ = r.at(t)
         return scr.on_screen(px, py)
 
-    def cond(t, m, i, quit):
-        return r.start & ~quit & (i < float(max_iterations)) & (m >= 0.0) & on(t)
+    def cond(t, px, py, size, inv, i):
+        return (size >= 1.0) & scr.on_screen(px, py)
 
-    def body(t, m, i, quit):
-        px, py, pd = r.at(t)
-        off, side, size = hz.level(B.maximum(m, 0.0))
-        cx, cy = B.floor(px / size), B.floor(py / size)
-        ds = hz.read(off, side, cx, cy)
+    def body(t, px, py, size, inv, i):
+        pd = r.d0 + t * r.Dd
+        cx, cy = B.floor(px * inv), B.floor(py * inv)
+        ds = hz.read(B.minimum(inv, 1.0), cx, cy) if clamp else hz.cell(inv, cx, cy)
         tx = _exit_t(B, (cx + fx) * size + ux, r.px0, ix, zx)
         ty = _exit_t(B, (cy + fy) * size + uy, r.py0, iy, zy)
         tz = B.select(away, (ds - r.d0) * iz, zero + BIG)
@@ -236,27 +249,33 @@ def hiz_march(B, scr, hz: HiZ, r: ScreenRay, max_iterations: int, min_occupancy:
         above = ds > pd
         skipped = (tmin != tz) & above
         t = B.select(above, tmin, t)
-        m = B.select(skipped & (m >= hz.top), m, m + B.select(skipped, zero + 1.0, zero - 1.0))
-        return t, m, i + 1.0, quit
+        # one level up where it skipped the cell, else one down; at the top (one cell, the padded square) a skip
+        # leaves the screen (the cell's exit, nudged, lies off it), so no test of the top here: m is capped after
+        size = size * B.select(skipped, zero + 2.0, zero + 0.5)
+        inv = inv * B.select(skipped, zero + 0.5, zero + 2.0)
+        px, py, _ = r.at(t)
+        return t, px, py, size, inv, i + 1.0
 
-    never = r.start & ~r.start
-    state = (t, zero, zero, never)
+    size0 = B.select(r.start, zero + 1.0, zero + 0.5)
+    px, py, _ = r.at(t)
+    state = (t, px, py, size0, B.select(r.start, zero + 1.0, zero + 2.0), zero)
     if min_occupancy <= 0:
-        t, m, i, _ = B.while_loop(state, cond, body, limit=max_iterations)
+        t, _, _, size, _, i = B.while_loop(state, cond, body, limit=max_iterations)
     else:  # the wave exit needs the count of each wave's marching rays: a host loop
-        quit = never
+        quit = r.start & ~r.start
         for _ in range(max_iterations):
-            act = cond(*state[:3], quit)
+            act = cond(*state) & ~quit
             a = B.numpy(act).astype(bool)
             if not a.any():
                 break
-            new = body(*state[:3], quit)
-            state = tuple(B.select(act, p, q) for p, q in zip(new[:3], state[:3]))
+            new = body(*state)
+            state = tuple(B.select(act, p, q) for p, q in zip(new, state))
             n = len(a)
             per = np.pad(a, (0, -n % WAVE)).reshape(-1, WAVE).sum(1)
             low = B.array(np.repeat(per, WAVE)[:n].astype(np.float32)) <= float(min_occupancy)
             quit = quit | (act & low)
-        t, m, i = state[:3]
+        t, _, _, size, _, i = state
+    m = B.select(r.start, B.minimum(B.exponent(size), hz.top), zero)  # 2^m = size; −1 below level 0
     return t, m, i, on(t) & r.start
 
 
@@ -277,7 +296,7 @@ def depth_normal(B, scr, j, i, zs) -> V3:
         pts = []
         for sgn in (-1.0, 1.0):
             jj, ii = j + sgn * dj, i + sgn * di
-            dn = hz.read(zs * 0.0, zs * 0.0 + hz.size, jj, ii)  # level 0
+            dn = hz.read(zs * 0.0 + 1.0, jj, ii)  # level 0
             zn = -1.0 / B.select(dn < 0.0, dn, zs * 0.0 - 1.0)
             inside = (k + sgn >= 0.0) & (k + sgn <= last) & (dn < 0.0)
             pts.append((view_point(jj, ii, zn), B.select(inside, B.abs(zn - zs), zs * 0.0 + BIG)))
