@@ -28,8 +28,9 @@ ANGLES = 24
 #: One batched FFT holds at most about this many bytes of spectra (further samples go in the next batch; larger
 #: batches ran slower on a 2-core host, their arrays outgrowing the caches).
 BATCH_BYTES = 1 << 24
-#: The regions kept for the next call (a case uses a handful: its object's pixels, its rays, their subsets).
-KEPT = 8
+#: The regions kept for the next call (a case uses a handful: its object's pixels, its rays, their subsets), at most
+#: this many bytes of lag arrays (a frame-filling object's are ≈ 100 MB: then only the newest is kept).
+KEPT_BYTES = 1 << 28
 
 
 def lag_sums(fields: np.ndarray, reach: int | None = None) -> np.ndarray:
@@ -155,15 +156,22 @@ def _build(mask: np.ndarray, den, key: bytes = b"") -> Region | None:
 _KEPT: OrderedDict = OrderedDict()
 
 
-def kept(key, build, store: OrderedDict = _KEPT, most: int = KEPT):
-    """``build()``, kept in ``store`` under ``key`` for the next ``most`` distinct keys."""
+def kept(key, build, store: OrderedDict = _KEPT, most: float = KEPT_BYTES, size=None):
+    """``build()``, kept in ``store`` under ``key`` while the values kept weigh at most ``most`` (each 1, or
+    ``size(value)``), the newest always."""
     if key in store:
         store.move_to_end(key)
         return store[key]
     value = store[key] = build()
-    while len(store) > most:
+    while len(store) > 1 and (len(store) if size is None else sum(size(v) for v in store.values())) > most:
         store.popitem(last=False)
     return value
+
+
+def _bytes(value) -> int:
+    """The bytes of a kept :class:`Region`'s lag arrays (or of a (region, ray indices) pair's)."""
+    reg = value[0] if isinstance(value, tuple) else value
+    return 0 if reg is None else sum(a.nbytes for a in (reg.pairs, reg.per_pair, reg.radii, reg.bins))
 
 
 def digest(*arrays) -> bytes:
@@ -185,7 +193,7 @@ def region(mask, den=1.0) -> Region | None:
     mask = np.asarray(mask, bool)
     den = np.asarray(den, float)
     key = digest(b"pixels", np.packbits(mask), np.asarray(mask.shape), den if den.ndim == 0 else den[mask])
-    return kept(key, lambda: _build(mask, den, key))
+    return kept(key, lambda: _build(mask, den, key), size=_bytes)
 
 
 def ray_region(pixels, shape: tuple[int, int]) -> tuple[Region | None, np.ndarray]:
@@ -203,4 +211,4 @@ def ray_region(pixels, shape: tuple[int, int]) -> tuple[Region | None, np.ndarra
         y, x = np.divmod(pix, shape[1])
         return reg, (y - reg.box[0].start) * reg.m.shape[1] + (x - reg.box[1].start)
 
-    return kept(key, build)
+    return kept(key, build, size=_bytes)
