@@ -54,34 +54,54 @@ def window_sum(fields: np.ndarray, my: int, mx: int) -> np.ndarray:
     return out
 
 
+#: The directions (dy, dx) the correlogram is read along: the axes and the diagonals (a streak at 45° reaches far
+#: along a diagonal only; the separable window then reaches as far along both axes).
+DIRECTIONS = ((1, 0), (0, 1), (1, 1), (1, -1))
+
+
+def _shifted(a: np.ndarray, dy: int, dx: int) -> tuple[np.ndarray, np.ndarray]:
+    """The overlapping parts of ``a`` (…, h, w) and of ``a`` shifted by (dy, dx): element i of the first and of
+    the second are the pixels p and p + (dy, dx)."""
+    h, w = a.shape[-2:]
+    ys, yt = (slice(0, h - dy), slice(dy, h)) if dy >= 0 else (slice(-dy, h), slice(0, h + dy))
+    xs, xt = (slice(0, w - dx), slice(dx, w)) if dx >= 0 else (slice(-dx, w), slice(0, w + dx))
+    return a[..., ys, xs], a[..., yt, xt]
+
+
 def axis_reach(resid: np.ndarray, m: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
-    """((k, 2) flat reach along rows and columns, (k,) correlation length): per sample, where its correlogram
-    along each axis (Σ eᵢ·eᵢ₊d over the pairs at d, over the lag-0 mean) first falls below spatial.WINDOW_LEVEL
-    (interpolated between :data:`LAGS`, at least MIN_WINDOW, at most ``limit``), and the mean over both axes of
-    where it falls below 1/e."""
+    """((k, 2) flat reach along rows and columns, (k,) correlation length): per sample and direction of
+    :data:`DIRECTIONS`, where its correlogram (Σ eᵢ·eᵢ₊h over the pairs at h, over the lag-0 mean) first falls
+    below spatial.WINDOW_LEVEL (interpolated between the steps of :data:`LAGS`); each axis reaches as far as the
+    farthest direction's steps along it (at least MIN_WINDOW, at most ``limit``); the correlation length is the
+    mean over the two axes of where theirs falls below 1/e."""
     k = len(resid)
     c0 = (resid * resid).sum(axis=(1, 2)) / m.sum()
-    reach, length = np.full((k, 2), float(limit)), np.zeros((k, 2))
-    for ax in (0, 1):
+    reach, length = np.full((k, 2), MIN_WINDOW), np.zeros((k, 2))
+    for dy, dx in DIRECTIONS:
         prev, prev_d = np.ones(k), 0
         flat, e_len = np.zeros(k, bool), np.zeros(k, bool)
-        for d in (lag for lag in LAGS if lag < m.shape[ax] and lag <= 2 * limit):
-            a = [slice(None)] * 2
-            b = [slice(None)] * 2
-            a[ax], b[ax] = slice(d, None), slice(None, -d)
-            pairs = float((m[tuple(a)] & m[tuple(b)]).sum())
-            s = (resid[(slice(None), *a)] * resid[(slice(None), *b)]).sum(axis=(1, 2))
+        at, e_at = np.full(k, float(limit)), np.zeros(k)
+        for d in (lag for lag in LAGS if lag < min(m.shape) and lag <= 2 * limit):
+            ma, mb = _shifted(m, dy * d, dx * d)
+            ra, rb = _shifted(resid, dy * d, dx * d)
+            pairs = float((ma & mb).sum())
+            s = (ra * rb).sum(axis=(1, 2))
             with np.errstate(invalid="ignore", divide="ignore"):
                 rho = s / pairs / c0 if pairs > 0 else np.full(k, math.nan)
-            for level, done, out in ((spatial.WINDOW_LEVEL, flat, reach), (math.exp(-1), e_len, length)):
+            for level, done, out in ((spatial.WINDOW_LEVEL, flat, at), (math.exp(-1), e_len, e_at)):
                 cross = ~done & ~(rho >= level)
                 frac = np.clip(
                     np.where(prev > rho, (prev - level) / np.where(prev > rho, prev - rho, 1.0), 0.0), 0, 1
                 )
-                out[:, ax] = np.where(cross, prev_d + frac * (d - prev_d), out[:, ax])
+                out[:] = np.where(cross, prev_d + frac * (d - prev_d), out)
                 done |= cross
             prev, prev_d = rho, d
-        length[~e_len, ax] = prev_d
+        e_at[~e_len] = prev_d
+        for ax, step in ((0, dy), (1, dx)):
+            if step:
+                reach[:, ax] = np.maximum(reach[:, ax], at)
+        if dy * dx == 0:
+            length[:, 0 if dy else 1] = e_at
     return np.clip(reach, MIN_WINDOW, max(MIN_WINDOW, limit)), np.maximum(0.5, length.mean(axis=1))
 
 
@@ -123,6 +143,32 @@ def _coverage(rows, replicates: int) -> list[tuple[str, float, float]]:
     return out
 
 
+def _diagonal(replicates: int, seed: int = 0) -> tuple[float, float]:
+    """(coverage, width / ideal) of the RMSE interval on the streak design turned by 45° (not a calibration row:
+    study.stats.fields.streaks lies along an axis): the error 0.5 + a unit-variance field filtered by a Gaussian of
+    σ 0.8 × 12 px along a diagonal (either), over the calibration's 40 px disc; truth √1.25."""
+    from study import stats
+    from study.stats import fields
+
+    n = fields.SIZE
+    yy, xx = (np.where(v > n // 2, v - n, v) for v in np.mgrid[:n, :n])
+    kernels = []
+    for sign in (1, -1):
+        u, v = (xx + sign * yy) / math.sqrt(2), (xx - sign * yy) / math.sqrt(2)
+        k = np.exp(-(u**2 / (2 * 12.0**2) + v**2 / (2 * 0.8**2)))
+        kernels.append(np.fft.rfft2(k / math.sqrt(float((k**2).sum()))))
+    mask, truth = fields.disc(), math.sqrt(1.25)
+    rng = np.random.default_rng([seed, 99])
+    hits, widths, est = 0, [], []
+    for _ in range(replicates):
+        err = 0.5 + np.fft.irfft2(np.fft.rfft2(rng.normal(size=(n, n))) * kernels[rng.integers(2)], s=(n, n))
+        (lo, hi), _ = stats.rmse_interval(err[mask] ** 2, mask)
+        hits += lo <= truth <= hi
+        widths.append(hi - lo)
+        est.append(math.sqrt(float(np.mean(err[mask] ** 2))))
+    return hits / replicates, float(np.mean(widths)) / (2 * 1.96 * float(np.std(est)))
+
+
 def _per_sample_ms(n: int = 1024, k: int = 12) -> tuple[float, float]:
     """ms per sample of the FFT spread and the block one on the bench's 1024² disc (a fifth of the frame wide)."""
     from scipy import ndimage
@@ -150,13 +196,16 @@ def main(argv=None) -> None:
     ap.add_argument("--replicates", type=int, default=400)
     ap.add_argument("--rows", nargs="+", default=["RMSE", "pixel", "split", "ray"])
     a = ap.parse_args(argv)
-    fft = _coverage(a.rows, a.replicates)
+    fft = _coverage(a.rows, a.replicates) + [("RMSE, streaks turned by 45° (not a calibration row)",
+                                              *_diagonal(a.replicates))]  # fmt: skip
     spread = spatial.spread
     spatial.spread = block_spread  # the same intervals with the block window
+    spatial._MEASURED.clear()  # samples kept by their digest were measured with the FFT window
     try:
-        blocks = _coverage(a.rows, a.replicates)
+        blocks = _coverage(a.rows, a.replicates) + [("", *_diagonal(a.replicates))]
     finally:
         spatial.spread = spread
+        spatial._MEASURED.clear()
     print(f"{a.replicates} replicates per row, seed 0: coverage (width / ideal)\n")
     print("| row | FFT window | block sums |\n|---|---|---|")
     for (name, c1, w1), (_, c2, w2) in zip(fft, blocks):
