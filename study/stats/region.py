@@ -17,8 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: The flat part of the lag window reaches at least this many pixels.
-MIN_WINDOW = 2.0
+#: The flat part of the lag window reaches at least this many pixels (at 2 the sparse samples of a small region,
+#: a few scattered wrong rays whose correlogram falls within a pixel or two, summed too few lags: the ray fraction on
+#: a 200-pixel object covered 91.2 % of 400 draws, its misses at 0.22 × the true spread; at 3, 94.2 %).
+MIN_WINDOW = 3.0
 #: The reported correlation length is at most this share of the masked region's smaller extent.
 MAX_LENGTH_SHARE = 0.125
 #: The flat part of the lag window reaches at most this share of the masked region's smaller extent.
@@ -36,16 +38,23 @@ KEPT_BYTES = 1 << 28
 def lag_sums(fields: np.ndarray, reach: int | None = None) -> np.ndarray:
     """(k, H', W') the summed products fᵢ·fᵢ₊ₕ of each (H, W) field over the lags h (lag (dy, dx) at index
     (dy mod H', dx mod W')): every lag, or with ``reach`` only those within ``reach`` pixels along each axis come
-    out exact (zero-padded to H + reach + 1, so none of them wraps; the others are not meaningful)."""
+    out exact (zero-padded to H + reach + 1, so none of them wraps, those beyond the field 0; the others are not
+    meaningful)."""
     from scipy import fft
 
     f = np.asarray(fields, float)
-    pad = [2 * n if reach is None else min(2 * n, n + reach + 1) for n in f.shape[-2:]]
+    pad = [2 * n if reach is None else _padded(n, reach) for n in f.shape[-2:]]
     shape = tuple(fft.next_fast_len(n, True) for n in pad)
     F = fft.rfft2(f, s=shape, axes=(-2, -1), workers=-1)
     power = F.real**2
     power += F.imag**2
     return fft.irfft2(power, s=shape, axes=(-2, -1), workers=-1)
+
+
+def _padded(n: int, reach: int) -> int:
+    """The length a side of n pixels is zero-padded to for lags within ``reach`` that do not wrap: 2n where n ≥
+    reach (lag ±n then shares a slot, and has no pairs), else n + reach + 1 (a side shorter than the window)."""
+    return min(2 * n, n + reach + 1) if n >= reach else n + reach + 1
 
 
 def lag_grid(reach: int) -> tuple[np.ndarray, np.ndarray]:
@@ -111,15 +120,12 @@ class Region:
     def _padded(self) -> list[int]:
         from scipy import fft
 
-        return [fft.next_fast_len(min(2 * n, n + self.reach + 1), True) for n in self.m.shape]
+        return [fft.next_fast_len(_padded(n, self.reach), True) for n in self.m.shape]
 
     def centred_sums(self, fields: np.ndarray) -> np.ndarray:
         """(k, 2·reach + 1, 2·reach + 1) the centred :func:`lag_sums` of ``fields`` (k, h, w), one batched FFT."""
-        R, pad = self.reach, self._padded()
+        R = self.reach
         s = lag_sums(fields, R)
-        if R + 1 > min(pad):  # a tiny region: lags beyond the padded frame wrap (their pairs are 0)
-            rows, cols = (np.arange(-R, R + 1) % n for n in pad)
-            return s[:, rows[:, None], cols[None, :]]
         out = np.empty((len(fields), 2 * R + 1, 2 * R + 1))
         # lag (dy, dx) sits at (dy mod H', dx mod W'): the negative lags from the end, then 0 … reach
         for a, sa in ((slice(0, R), slice(-R, None)), (slice(R, None), slice(0, R + 1))):
