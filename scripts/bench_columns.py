@@ -6,8 +6,10 @@ the table between the ``bench_columns`` markers of reports/performance.md.
 
     PYTHONPATH=. .venv/bin/python scripts/bench_columns.py [--backends numpy llvm] [--size 1024] [--methods 4]
     PYTHONPATH=. .venv/bin/python scripts/bench_columns.py --backends cuda --out reports/performance/columns-cuda.md
+    PYTHONPATH=. .venv/bin/python scripts/bench_columns.py --spatial-before 63fdc9a --methods 15
 
-(the second on a GPU machine: the same table for CUDA, written to its own file; --out '' prints only).
+(the second on a GPU machine: the same table for CUDA, written to its own file; --out '' prints only; the third
+times only the spatial intervals a method row takes, a revision's per-method calls beside today's batched ones).
 """
 
 from __future__ import annotations
@@ -112,6 +114,103 @@ def groups(r, imgs, backend: str):
     ]  # fmt: skip
 
 
+def _module_at(rev: str, path: str):
+    """The module at ``path`` as it stood at git revision ``rev`` (a self-contained module: the spatial intervals
+    before study.stats.region)."""
+    import importlib.util
+    import subprocess
+    import tempfile
+
+    text = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:{path}"], capture_output=True, text=True,
+                          check=True).stdout  # fmt: skip
+    f = Path(tempfile.mkdtemp()) / "spatial_before.py"
+    f.write_text(text)
+    spec = importlib.util.spec_from_file_location("spatial_before", f)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def spatial_groups(r, imgs, old):
+    """(name, before, now) of each group of spatial intervals a case's method rows take: ``old`` the spatial
+    module before (one call per method, the mask's work in each), now study.stats.spatial (every method in one
+    call, the mask's work once per case). Rays: 4 per object pixel, flags from a correlated field per method."""
+    from scipy import ndimage
+
+    from study.measure import split
+    from study.stats import spatial
+
+    mask, M = r.mask, len(imgs)
+    px = imgs[:, mask].astype(float) - r.truth.image[mask].astype(float)
+    se = np.mean(px * px, axis=-1)
+    samples = np.stack([se, se / (1 + se), se**0.5], axis=1)  # (M, 3, P): RMSE, relMSE, FLIP
+    refs = [
+        np.asarray(a)[mask] for a in (r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse)
+    ]
+    t = split.pixel_terms(imgs[:, mask], *refs, r.held_px[mask])
+    h = r.held_px[mask]
+    parts = [[np.broadcast_to(v, se.shape)[i] for v in t.values()] + [t["total"][i] * h, t["total"][i] * ~h]
+             for i in range(M)]  # fmt: skip
+    rng = np.random.default_rng(1)
+    pix = np.repeat(np.flatnonzero(mask), 4)
+    field = ndimage.gaussian_filter(rng.normal(size=(M, *mask.shape)), (0, 3, 3))[:, mask]
+    flags = np.repeat(field > 0.1, 4, axis=1)[:, None] & (rng.random((M, 5, pix.size)) < 0.7)
+    hidden = np.repeat(rng.random(mask.sum()) < 0.2, 4)
+    angle = np.repeat(np.abs(field), 4, axis=1) + rng.random((M, pix.size))
+
+    def new_pixels():
+        return [ci for ci, _ in spatial.grouped_intervals(list(samples), mask, 0.95)]
+
+    def rays(mod):
+        out = []
+        for f, a in zip(flags, angle):
+            row = mod.fraction_intervals(f, pix, mask.shape, 0.95)[0]
+            for sel in (~hidden, hidden):
+                row += mod.fraction_intervals(f[:1, sel], pix[sel], mask.shape, 0.95)[0]
+            out.append(row + [mod.quantile_interval(a, p, pix, mask.shape, 0.95) for p in (50, 95)])
+        return out
+
+    return [
+        ("pixel intervals (RMSE, relMSE, FLIP)", lambda: [old.mean_intervals(x, mask, 0.95)[0] for x in samples],
+         new_pixels),
+        ("the split's intervals (10 terms)", lambda: [old.mean_intervals(x, mask, 0.95)[0] for x in parts],
+         lambda: [ci for ci, _ in spatial.grouped_intervals(parts, mask, 0.95)]),
+        ("exposed relMSE's interval", lambda: [old.mean_intervals([x], mask, 0.95)[0] for x in se],
+         lambda: [ci for ci, _ in spatial.grouped_intervals(se[:, None], mask, 0.95)]),
+        ("ray intervals (5 fractions, visible, hidden, 2 percentiles)", lambda: rays(old), lambda: rays(spatial)),
+    ]  # fmt: skip
+
+
+def bench_spatial(n: int, methods: int, before: str, repeats: int = 3):
+    """ms per method row of each group of spatial intervals, before (``before``'s spatial.py) and now, in one run,
+    CPU time (all threads), the fastest of ``repeats`` (the caches emptied before each, as at a case's start), their
+    values compared."""
+    from study.stats import region, spatial
+
+    old = _module_at(before, "study/stats/spatial.py")
+    r, imgs = frame(n, methods, np.random.default_rng(0))
+    rows = []
+    for name, a_fn, b_fn in spatial_groups(r, imgs, old):
+        b_fn()  # libraries loaded
+        best, outs = [np.inf, np.inf], [None, None]
+        for _ in range(repeats):  # the fastest of a few (a shared host's load varies between runs)
+            for j, fn in enumerate((a_fn, b_fn)):
+                region._KEPT.clear()
+                spatial._MEASURED.clear()
+                t0 = (
+                    time.process_time()
+                )  # CPU seconds (both FFT threads): steadier than the wall on a shared host
+                outs[j] = fn()
+                best[j] = min(best[j], time.process_time() - t0)
+        same = outs[0] == outs[1]
+        rows.append((name, best[0] / methods * 1e3, best[1] / methods * 1e3, same))
+        print(
+            f"spatial {name}: {rows[-1][1]:.0f} → {rows[-1][2]:.0f} ms per row (identical: {same})",
+            flush=True,
+        )
+    return rows
+
+
 def _same(a, b) -> float:
     """The largest relative difference of two lists of column dicts (0: equal)."""
     worst = 0.0
@@ -146,7 +245,21 @@ def main(argv=None) -> None:
     ap.add_argument("--size", type=int, default=1024)
     ap.add_argument("--methods", type=int, default=4)
     ap.add_argument("--out", default=str(REPORT))
+    ap.add_argument(
+        "--spatial-before",
+        metavar="REV",
+        help="time only the spatial intervals, REV's study/stats/spatial.py beside today's (prints)",
+    )
     args = ap.parse_args(argv)
+    if args.spatial_before:
+        rows = bench_spatial(args.size, args.methods, args.spatial_before)
+        print(
+            f"\nms per {args.size}² method row, {args.methods} methods, {os.cpu_count()} CPU cores, load "
+            f"{os.getloadavg()[0]:.1f}: spatial intervals at {args.spatial_before} | now | values identical"
+        )
+        for name, a, b, same in rows:
+            print(f"| {name} | {a:.0f} | {b:.0f} | {same} |")
+        return
     from study import runtime
     from study.codehash import code_hash
     from study.measure import batched

@@ -16,8 +16,10 @@ and its fireflies. :func:`method_columns` computes the latter once and the forme
   image, on the crop where the images differ), the array code over the whole stack for ``llvm`` and ``cuda``.
 
 The pixel intervals (:func:`study.stats.spatial.mean_intervals` through
-:func:`study.measure.case_columns.pixel_columns`, the exposed relMSE's and the split's) are called per method as
-before. The values are those of the per-method path
+:func:`study.measure.case_columns.pixel_columns_stack`, the exposed relMSE's and the split's) take every method's
+samples in one call per column group: the mask's own work (its box, pair counts per lag, lag geometry) once per case
+(:mod:`study.stats.region`), the samples' FFTs batched, a sample no method changes measured once; each sample's
+values are those of a call of its own. The values are those of the per-method path
 (``case._image_columns``, kept for the references' rows): ``tests/measure/test_batched_columns.py`` compares them
 column by column (on ``numpy`` bit for bit: each image's means are summed as one image's; on ``llvm`` where the
 per-method path measured RMSE, PSNR and SSIM with :mod:`study.measure.pixels`, within its 1e-12 of numpy, and FLIP
@@ -31,6 +33,8 @@ import numpy as np
 from study.measure import bias, case_columns, exposure, metrics, split, truth
 from study.measure.metrics import _crop, to_ldr
 from study.measure.pixels import K1, K2, WIN  # scikit-image's SSIM: window size, K₁, K₂
+from study.stats import spatial
+from study.stats.intervals import LEVEL
 
 
 # ---------------------------------------------------------------------------------------------- one reference
@@ -204,9 +208,10 @@ def truth_columns(tests, t: truth.Truth, mitsuba, *, mask, rmse_truth, rmse_mits
     rel = (
         [np.mean(q) for q in d * d / den] if ref_px.size else [np.nan] * len(tests)
     )  # in the images' float32
-    exposed = exposure.exposed_stack(
-        tests, t.image, t.noise, mask=mask, ev=t.ev, interval=truth._interval(mask)
-    )
+    exposed = exposure.exposed_stack(  # truth._interval's, every image in one pass over the mask
+        tests, t.image, t.noise, mask=mask, ev=t.ev,
+        intervals=lambda s: [ci[0] for ci, _ in spatial.grouped_intervals(s[:, None], mask, LEVEL)],
+    )  # fmt: skip
     out = []
     for i in range(len(tests)):
         deb, deb_m = truth.debiased(rmse_truth[i], sigma), truth.debiased(rmse_mitsuba[i], sigma_m)
@@ -269,10 +274,10 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
     sigma = truth.noise_rms(r.truth.noise, mask)
     sp = split.split_stack(imgs, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
                            mask=mask, held_px=r.held_px, intervals=intervals)  # fmt: skip
-    out, px_shared = [], {}  # the truth's masked pixels: once for every image
-    for i in range(M):
-        px = case_columns.pixel_columns(imgs[i], r.truth.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS,
-                                        emap=fmaps[i], shared=px_shared)  # fmt: skip
+    pxs = case_columns.pixel_columns_stack(imgs, r.truth.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS,
+                                           emaps=fmaps if intervals else None)  # fmt: skip
+    out = []
+    for i, px in enumerate(pxs):
         bias_cols = bias.bias_columns(imgs[i], r.truth.image, mask=mask & r.held_px)  # signed (measure.bias)
         out.append({**oracle[i], **tr[i], **mi[i], **tc[i], **px, **sp[i], **bias_cols})
     return out, fmaps

@@ -171,23 +171,44 @@ def pixel_columns(
     summed squared error that those worst pixels carry (near 1: the RMSE is decided by a handful of pixels).
     ``shared``: a dict the calls of one ``ref``, ``mask`` and ``rel_eps`` pass along (several images of a case),
     which keeps the reference's masked pixels and relMSE denominators for the next call."""
+    return pixel_columns_stack(np.asarray(img)[None], ref, mask=mask, sigma=sigma, rel_eps=rel_eps, suffix=suffix,
+                               emaps=None if emap is None else [emap], shared=shared)[0]  # fmt: skip
+
+
+def pixel_columns_stack(
+    imgs, ref, *, mask, sigma: float, rel_eps: float, suffix: str = "truth", emaps=None, shared=None
+) -> list[dict]:
+    """:func:`pixel_columns` of each image of ``imgs`` (M, H, W, 3) with its FLIP map of ``emaps`` (M maps, or
+    None): the same values, every image's intervals in one call (:func:`study.stats.spatial.grouped_intervals`:
+    one batched pass over the mask)."""
     mask = np.asarray(mask, bool)
     if shared is None or "r" not in shared:  # the masked pixels first, then float64 (not whole frames)
         r = np.asarray(ref)[mask].astype(float)
         shared = {} if shared is None else shared
         shared["r"], shared["den"] = r, r * r + rel_eps
     r, den = shared["r"], shared["den"]
-    d = np.asarray(img)[mask].astype(float) - r
+    d = np.asarray(imgs)[:, mask].astype(float) - r
     dd = d * d
-    se = np.mean(dd, axis=-1)  # per pixel, mean over channels: mean(se) = RMSE²
+    se = np.mean(dd, axis=-1)  # (M, P) per pixel, mean over channels: mean(se) = RMSE²
     rel = np.mean(dd / den, axis=-1)
-    names, samples = [f"rmse_{suffix}", f"relmse_{suffix}"], [se, rel]
-    if emap is not None:
-        names.append(f"flip_{suffix}")
-        samples.append(np.asarray(emap)[mask].astype(float))
-    intervals, length = (
-        spatial.mean_intervals(samples, mask, LEVEL) if se.size else ([(math.nan,) * 2] * 3, math.nan)
-    )
+    names = [f"rmse_{suffix}", f"relmse_{suffix}"] + ([] if emaps is None else [f"flip_{suffix}"])
+    groups = [
+        [se[i], rel[i]] + ([] if emaps is None else [np.asarray(emaps[i])[mask].astype(float)])
+        for i in range(len(se))
+    ]
+    measured = (
+        spatial.grouped_intervals(groups, mask, LEVEL) if r.shape[0]
+        else [([(math.nan,) * 2] * 3, [math.nan])] * len(groups)
+    )  # fmt: skip
+    return [
+        _pixel_row(se[i], names, cis, float(lengths[0]), suffix, sigma)
+        for i, (cis, lengths) in enumerate(measured)
+    ]
+
+
+def _pixel_row(se: np.ndarray, names: list[str], intervals, length: float, suffix: str, sigma: float) -> dict:
+    """:func:`pixel_columns`' columns of one image from its squared errors ``se`` (P,) and the intervals of the
+    means of its samples ``names``."""
     out = {"n_pixels": int(se.size), "corr_px": length}
     cis = dict(zip(names, intervals))
     lo, hi = cis.pop(f"rmse_{suffix}")

@@ -86,10 +86,12 @@ def exposed_columns(img, ref, noise, *, mask, ev: float, interval=None) -> dict[
     return out
 
 
-def exposed_stack(images, ref, noise, *, mask, ev: float, interval=None) -> list[dict[str, float]]:
+def exposed_stack(
+    images, ref, noise, *, mask, ev: float, interval=None, intervals=None
+) -> list[dict[str, float]]:
     """:func:`exposed_columns` of each image of ``images`` (M, H, W, 3) against one ``ref``: the reference's
     exposed pixels and its noise's relMSE once, the images' per-pixel relMSE over the stack, ``interval`` per
-    image."""
+    image, or ``intervals`` (a function of the (M, P) per-pixel samples returning M (lo, hi)) once for all."""
     mask = np.asarray(mask, bool)
     g = 2.0**ev
     # the masked pixels first, then float64 (not a stack of whole frames: the same values)
@@ -100,16 +102,17 @@ def exposed_stack(images, ref, noise, *, mask, ev: float, interval=None) -> list
     noise_rel = float(np.mean(n * n / den)) if n.size else math.nan
     d = g * (np.asarray(images)[:, mask].astype(np.float64) - r_px)
     per_pixel = np.mean(d * d / den, axis=-1)  # (M, P)
+    cis = intervals(per_pixel) if intervals is not None and per_pixel.shape[-1] else None
     out = []
-    for pp in per_pixel:
+    for i, pp in enumerate(per_pixel):
         row = {
             "relmse_truth_exposed": float(pp.mean()) if pp.size else math.nan,
             "truth_noise_relmse": noise_rel,
             "truth_exposure_ev": float(ev),
         }
-        if interval is not None:
+        if interval is not None or intervals is not None:
             row["relmse_truth_exposed_lo"], row["relmse_truth_exposed_hi"] = (
-                interval(pp) if pp.size else (math.nan, math.nan)
+                (math.nan, math.nan) if not pp.size else cis[i] if cis is not None else interval(pp)
             )
         out.append(row)
     return out

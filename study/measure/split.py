@@ -81,7 +81,7 @@ import numpy as np
 
 from study.impostor.cubemap import FAR
 from study.stats import LEVEL
-from study.stats.spatial import mean_intervals
+from study.stats.spatial import grouped_intervals
 
 #: The colour of oracle_map pixels whose hits the views do not hold (linear RGB).
 MARK = (1.0, 0.0, 1.0)
@@ -241,11 +241,26 @@ def split_stack(
         np.asarray(images)[:, mask], *refs, h
     )  # (M, P), or (P,) where the image plays no part
     terms = {k: np.broadcast_to(v, (len(images), h.size)) for k, v in terms.items()}
-    return [_split_of({k: v[i] for k, v in terms.items()}, h, mask, intervals) for i in range(len(images))]
+    each = [{k: v[i] for k, v in terms.items()} for i in range(len(images))]
+    parts = [_parts(t, h) for t in each]
+    measured = (  # every image's intervals in one pass over the mask (a term no image changes: measured once)
+        [ci for ci, _ in grouped_intervals([list(p.values()) for p in parts], mask, LEVEL)]
+        if intervals and h.size
+        else [None] * len(each)
+    )
+    return [_split_of(t, h, dict(zip(p, ci)) if ci else None) for t, p, ci in zip(each, parts, measured)]
 
 
-def _split_of(t: dict, h: np.ndarray, mask: np.ndarray, intervals: bool) -> dict[str, float]:
-    """The columns of :func:`split_columns` from one image's per-pixel terms ``t``."""
+def _parts(t: dict, h: np.ndarray) -> dict[str, np.ndarray]:
+    """The per-pixel samples whose means get an interval: each term, and the total on held and on unheld
+    pixels."""
+    names = ["total", *TERMS, "residual", "representation_direct"]
+    return {**{f"dec_{k}": t[k] for k in names}, "held": t["total"] * h, "unheld": t["total"] * ~h}
+
+
+def _split_of(t: dict, h: np.ndarray, cis: dict | None) -> dict[str, float]:
+    """The columns of :func:`split_columns` from one image's per-pixel terms ``t`` and the intervals ``cis`` of
+    its :func:`_parts` (None: without intervals)."""
     names = ["total", *TERMS, "residual", "representation_direct"]
     out: dict[str, float] = {"held_pixels": int(h.sum()), "unheld_pixels": int((~h).sum())}
     nan2 = (math.nan, math.nan)
@@ -255,12 +270,8 @@ def _split_of(t: dict, h: np.ndarray, mask: np.ndarray, intervals: bool) -> dict
             | {f"dec_{k}{s}": math.nan for k in names for s in ("", "_lo", "_hi")}
             | {"dec_sums": math.nan, "dec_sums_direct": math.nan}
         )
-    parts = {**{f"dec_{k}": t[k] for k in names}, "held": t["total"] * h, "unheld": t["total"] * ~h}
-    cis = (
-        dict(zip(parts, mean_intervals(list(parts.values()), mask, LEVEL)[0]))
-        if intervals
-        else dict.fromkeys(parts, nan2)
-    )
+    intervals = cis is not None
+    cis = cis if intervals else dict.fromkeys(_parts(t, h), nan2)
     for k in names:
         out[f"dec_{k}"], (out[f"dec_{k}_lo"], out[f"dec_{k}_hi"]) = float(t[k].mean()), cis[f"dec_{k}"]
     for name, parts_of in (("dec_sums", TERMS), ("dec_sums_direct", DIRECT)):

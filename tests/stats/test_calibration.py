@@ -104,14 +104,15 @@ def test_wilson_at_an_effective_count_is_scipys_wilson():
 
 
 def test_independent_rays_keep_wilsons_interval():
-    """Rays drawn independently of their pixels: the design effect is ≈ 1 and the interval Wilson's."""
+    """Rays drawn independently of their pixels: the design effect is ≈ 1 and the interval Wilson's, widened only by
+    Student's t at the window's degrees of freedom (1.025 × with the flat part at least 2 pixels, 1.06 × at 3)."""
     rng = np.random.default_rng(4)
     pix = np.repeat(np.arange(40 * 40), 4)
     wrong = rng.random(pix.size) < 0.2
     (ci,), (deff,) = stats.fraction_cis([wrong], pix, (40, 40))
     assert 1.0 <= deff < 1.3, deff
     w = stats.fraction_ci(int(wrong.sum()), wrong.size)
-    assert abs((ci[1] - ci[0]) / (w[1] - w[0]) - math.sqrt(deff)) < 0.05
+    assert abs((ci[1] - ci[0]) / (w[1] - w[0]) - math.sqrt(deff)) < 0.08
 
 
 @pytest.mark.slow
@@ -181,13 +182,15 @@ def test_the_summary_intervals_over_cases_contain_their_medians():
 #: below the band, the templates from study's own error maps above it).
 #: A new row outside, or one of these brought inside without updating this set, fails.
 OUTSIDE_IN_THE_REPORT = {
-    "RMSE, sparse heavy-tailed blobs",
-    "RMSE, ≈ 200-pixel object",
+    # in the band since the log-scale ends of a mean of values ≥ 0 (study.stats.spatial): blobs 87.0 → 93.2 %,
+    # 200 px 89.8 → 93.5 % of 400; and since the window's flat part reaches at least 3 pixels (study.stats.region.
+    # MIN_WINDOW, was 2): the ray fraction on a 200-pixel object 91.2 → 94.2 % of 400 (its misses held a third of
+    # the true wrong rays, scattered: a short correlogram). Of 2000: blobs 94.5 %, 200 px 95.5 %, its ray fraction
+    # 95.2 %. Still outside: 200 px + blobs (68 % of the draws hold no blob: the sample is 0, its interval [0, 0])
     "RMSE, ≈ 200 pixels with blobs",
-    "ray fraction, ≈ 200-pixel object",
-    # above the band on the templates from study's own maps (1.6 and 2.2 × the ideal width: the lag window reads the
+    # above the band on the templates from study's own maps (2.1 and 2.2 × the ideal width: the lag window reads the
     # template's large structures as long-range correlation, while the tiled copies, one per tile, vary less
-    # between replicates): 98.2 % and 99.2 % of 400, 97.5 % and 99.4 % of 2000
+    # between replicates): 99.5 % and 99.2 % of 400 (the edge 98.2 % and 1.6 × before the log-scale ends)
     "RMSE, study's reflected-edge map",
     "ray fraction, study's wrong-hit map",
 }
