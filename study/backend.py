@@ -70,6 +70,8 @@ class Backend:
     def exponent(self, a):
         """⌊log₂ a⌋ for a ≥ 1, exactly: the float's binary exponent."""
 
+    def pow2(self, q): ...  # 2^q for whole q (floats) in float32's normal range, exactly: its exponent's bits
+
     def gather(self, data, index): ...
     def gather_at(self, data, base, index): ...
     def arange(self, n: int):
@@ -157,6 +159,9 @@ class NumpyBackend(Backend):
 
     def exponent(self, a):
         return (np.frexp(a)[1] - 1).astype(np.float32)
+
+    def pow2(self, q):
+        return np.ldexp(np.float32(1.0), np.asarray(q).astype(np.int32)).astype(np.float32)
 
     def gather(self, data, index):
         """data[index] (``index`` a float array of integer values)."""
@@ -319,6 +324,9 @@ class DrJitBackend(Backend):
     def exponent(self, a):
         bits = self.dr.reinterpret_array(self.m.UInt32, self.m.Float(a))
         return self.m.Float(self.m.Int32(bits >> 23) - 127)
+
+    def pow2(self, q):
+        return self.dr.reinterpret_array(self.m.Float, self.m.UInt32(self.m.Int32(q) + 127) << 23)
 
     def gather(self, data, index):
         return self.dr.gather(self.m.Float, data, self.m.UInt32(index))

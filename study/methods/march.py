@@ -8,7 +8,7 @@ A step is bound by the instructions it issues rather than by its reads, so it ma
 k + 1 (its :class:`Look`) before the branch, for either side; the arc's sine and cosine from tables
 (:meth:`study.methods.search.arc_samples.tabulate`); no arc point for a jump (:attr:`Skip.shared`); loop invariants
 before the loop; each with the same operations as a value made where it is used, so hits, validity and lookups
-are the same bits. ``scripts/march_ir.py`` counts the loop's instructions (linear_secant: 407 for both sides of
+are the same bits. ``scripts/march_ir.py`` counts the loop's instructions (linear_secant: 382 for both sides of
 the branch), ``scripts/march_side.py`` times it against another tree.
 """
 
@@ -125,6 +125,8 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
     zero = state[0] * 0.0
     two = zero + 2.0  # (a literal would be made again in every step)
     top = float(1 << max(n - 1, 0).bit_length())  # the widest block: ≥ n samples
+    if isinstance(t_max, float) and smp.top is not None and smp.top <= t_max:
+        t_max = None  # no t above it: the clamp leaves every t as it is
 
     def t_at(k):
         t = smp.direct(k)
