@@ -8,7 +8,7 @@ A step is bound by the instructions it issues rather than by its reads, so it ma
 k + 1 (its :class:`Look`) before the branch, for either side; the arc's sine and cosine from tables
 (:meth:`study.methods.search.arc_samples.tabulate`); no arc point for a jump (:attr:`Skip.shared`); loop invariants
 before the loop; each with the same operations as a value made where it is used, so hits, validity and lookups
-are the same bits. ``scripts/march_ir.py`` counts the loop's instructions (linear_secant: 382 for both sides of
+are the same bits. ``scripts/march_ir.py`` counts the loop's instructions (linear_secant: 376 for both sides of
 the branch), ``scripts/march_side.py`` times it against another tree.
 """
 
@@ -47,7 +47,7 @@ class Skip:
     crossing (its kept entry). Only cleared samples are skipped, so the bracket is the texel march's (the samples
     come from :meth:`Samples.direct`, equal to the march's up to rounding); the bracket's start, when skipped, is
     read once after the march.
-    ``edge(k)`` (optional) → (N,) the last sample on the face of sample k + 1: a block is cut there, as the
+    ``edge(k)`` (optional) → (N,) the last sample on the face of sample k + 1 (≤ n): a block is cut there, as the
     pyramid bounds one face at a time (a block across an edge is never cleared, so cutting it loses nothing).
     At most :func:`iterations` iterations, each one lookup per function at most.
     ``look(t)`` (optional) → the :class:`Look` of the sample at t, read by both sides of an iteration (the sample
@@ -80,8 +80,9 @@ def t_of(B, smp, k, t0, t_max):
 
 
 class Look(NamedTuple):
-    """A sample's lookup, shared by the sample read and the pyramid read: t, the ray point p(t), |p|, and p's face
-    coordinates (:func:`study.impostor.cubemap.face_uv`; the face offset by the map's first face in a stack)."""
+    """A sample's lookup, shared by the sample read and the pyramid read: t, the ray point p(t), |p|, p's face
+    coordinates (:func:`study.impostor.cubemap.face_uv`; the face offset by the map's first face in a stack), and
+    1 − t."""
 
     t: Any
     p: Any
@@ -89,6 +90,7 @@ class Look(NamedTuple):
     face: Any
     u: Any
     v: Any
+    rest: Any
 
 
 #: The first block a march tries, in samples: most rays start far in front of every surface (a camera ray's first
@@ -128,8 +130,8 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
     if isinstance(t_max, float) and smp.top is not None and smp.top <= t_max:
         t_max = None  # no t above it: the clamp leaves every t as it is
 
-    def t_at(k):
-        t = smp.direct(k)
+    def t_at(k):  # k ≤ n on every lane that runs
+        t = smp.direct(k, within=True)
         return B.minimum(t, t_max) if t_max is not None else t
 
     def fine(k, w, spent, *s, la=None):  # the next sample, as the texel march reads it
@@ -137,9 +139,8 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         return (k + 1.0, two, spent + (cost(*s) if cost is not None else float(G)), *s)
 
     def coarse(k, w, spent, *s, la=None):  # a block of w samples in one pyramid read
-        kb = B.minimum(k + w, float(n))
-        if skip.edge is not None:  # not across a face's edge
-            kb = B.minimum(kb, skip.edge(k))
+        # not past n, nor across a face's edge (the edge ≤ n)
+        kb = B.minimum(k + w, float(n)) if skip.edge is None else B.minimum(k + w, skip.edge(k))
         # the last sample proven in front: k (none) … kb (all)
         kn = skip.reach(k, kb, t_at(k + 1.0) if la is None else la, t_at(kb))
         whole, part = kn >= kb, kn > k

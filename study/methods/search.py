@@ -83,8 +83,8 @@ class Samples:
         t, self._seq = self.at(k, self._seq)
         return t
 
-    def direct(self, k):
-        """t_k for a per-ray k (an array), without the state: what a search that skips samples reads."""
+    def direct(self, k, within: bool = False):
+        """t_k for a per-ray k (an array), no state, as a search that skips reads it (``within``: k ≤ steps)."""
         raise NotImplementedError
 
 
@@ -95,7 +95,7 @@ class _Uniform(Samples):
     def at(self, k, state):
         return self.t0 + self.dt * k, state  # t0 + k dt (k exact in float32)
 
-    def direct(self, k):
+    def direct(self, k, within: bool = False):
         return self.t0 + self.dt * k
 
 
@@ -160,11 +160,11 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
             self.table = (B.select(j < float(self.steps), B.cos(phi), phi * 0.0 - 2.0), B.sin(phi))
             B.eval(*self.table)
 
-    def direct(self, k):
+    def direct(self, k, within: bool = False):
         """t_k with φ_k = k π/steps from sin and cos (the rotation's value up to rounding; :meth:`tabulate`'s)."""
         B, c = self.B, self.c
         if self.table is not None:
-            i = B.minimum(k, float(self.steps))  # k ≥ steps: the table's end, cos −2, t = 1 below
+            i = k if within else B.minimum(k, float(self.steps))  # k ≥ steps: the table's end, cos −2: t = 1
             cp, sp = B.gather(self.table[0], i), B.gather(self.table[1], i)
         else:
             phi = k * (math.pi / self.steps)
