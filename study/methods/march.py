@@ -8,7 +8,7 @@ A step is bound by the instructions it issues rather than by its reads, so it ma
 k + 1 (its :class:`Look`) before the branch, for either side; the arc's sine and cosine from tables
 (:meth:`study.methods.search.arc_samples.tabulate`); no arc point for a jump (:attr:`Skip.shared`); loop invariants
 before the loop; each with the same operations as a value made where it is used, so hits, validity and lookups
-are the same bits. ``scripts/march_ir.py`` counts the loop's instructions (linear_secant: 376 for both sides of
+are the same bits. ``scripts/march_ir.py`` counts the loop's instructions (linear_secant: 372 for both sides of
 the branch), ``scripts/march_side.py`` times it against another tree.
 """
 
@@ -134,31 +134,39 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         t = smp.direct(k, within=True)
         return B.minimum(t, t_max) if t_max is not None else t
 
-    def fine(k, w, spent, *s, la=None):  # the next sample, as the texel march reads it
-        s = step(k, *s) if la is None else step(k, *s, look=la)
-        return (k + 1.0, two, spent + (cost(*s) if cost is not None else float(G)), *s)
+    # the lookups spent, in the state (none where each iteration is one lookup: the loop counts them)
+    ns = 0 if cost is None and G == 1 else 1
 
-    def coarse(k, w, spent, *s, la=None):  # a block of w samples in one pyramid read
+    def fine(k, w, *s, la=None):  # the next sample, as the texel march reads it
+        spent, s = s[:ns], s[ns:]
+        s = step(k, *s) if la is None else step(k, *s, look=la)
+        return (k + 1.0, two, *(x + (cost(*s) if cost is not None else float(G)) for x in spent), *s)
+
+    def coarse(k, w, *s, la=None):  # a block of w samples in one pyramid read
+        spent, s = s[:ns], s[ns:]
         # not past n, nor across a face's edge (the edge ≤ n)
         kb = B.minimum(k + w, float(n)) if skip.edge is None else B.minimum(k + w, skip.edge(k))
         # the last sample proven in front: k (none) … kb (all)
         kn = skip.reach(k, kb, t_at(k + 1.0) if la is None else la, t_at(kb))
         whole, part = kn >= kb, kn > k
         w = B.select(whole, B.minimum(w * 2.0, top), B.select(part, two, w * 0.5))
-        return (kn, w, spent + 1.0, *jumped(part, t_at(kn) if la is None else None, *s))
+        return (kn, w, *(x + 1.0 for x in spent), *jumped(part, t_at(kn) if la is None else None, *s))
 
-    def body(k, w, spent, *s):
-        fine_now = (w <= 1.0) | busy(*s) if busy is not None else w <= 1.0
+    def body(k, w, *s):
+        fine_now = (w <= 1.0) | busy(*s[ns:]) if busy is not None else w <= 1.0
         if not skip.shared:
-            return B.branch(fine_now, (k, w, spent, *s), fine, coarse)
+            return B.branch(fine_now, (k, w, *s), fine, coarse)
         la = skip.look(t_at(k + 1.0))  # sample k + 1: either side reads it
-        return B.branch(fine_now, (k, w, spent, *s), lambda *a: fine(*a, la=la), lambda *a: coarse(*a, la=la))
+        return B.branch(fine_now, (k, w, *s), lambda *a: fine(*a, la=la), lambda *a: coarse(*a, la=la))
 
     out = B.while_loop(
-        (zero, zero + float(min(FIRST, top)), zero, *state),
-        lambda k, w, spent, *s: (k < float(n)) & ~done(*s),
+        (zero, zero + float(min(FIRST, top)), *(zero,) * ns, *state),
+        lambda k, w, *s: (k < float(n)) & ~done(*s[ns:]),
         body,
         limit=iterations(n),
+        counted=ns == 0,
     )
-    skip.lookups, skip.last = out[2] + float(G), out[0]  # + the re-read of the bracket's start
+    # (the loop's count, k, w, state) or (k, w, spent, state)
+    skip.lookups = (out[0] if ns == 0 else out[2]) + float(G)  # + the re-read of the bracket's start
+    skip.last = out[1 - ns]
     return out[3:]
