@@ -116,7 +116,7 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
         # part of the way: from a near start, r(φ) < b' while θ − φ > asin(h/b'), b' = (1 − SAFE) b
         c = B.minimum(h / B.maximum(b * (1.0 - SAFE), 1e-30), 1.0)
         phi = theta_q + B.acos(c)  # θ − asin(c)
-        last = -B.floor(10.0 * SAFE - phi * (n / math.pi)) - 1.0  # the last φ_j below φ by 10 SAFE samples
+        last = -1.0 - B.floor(10.0 * SAFE - phi * (n / math.pi))  # the last φ_j below φ by 10 SAFE samples
         part = B.select(near_a & (b > 0.0) & turning, B.minimum(B.maximum(last, k), kb), k)
         return B.select(whole, kb, part)
 

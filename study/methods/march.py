@@ -7,9 +7,12 @@ at its crossing; see :class:`Skip`. Written against the array backend (numpy and
 A step is bound by the instructions it issues rather than by its reads, so it makes each value once: sample
 k + 1 (its :class:`Look`) before the branch, for either side; the arc's sine and cosine from tables
 (:meth:`study.methods.search.arc_samples.tabulate`); no arc point for a jump (:attr:`Skip.shared`); loop invariants
-before the loop; each with the same operations as a value made where it is used, so hits, validity and lookups
-are the same bits. ``scripts/march_ir.py`` counts the loop's instructions (linear_secant: 372 for both sides of
-the branch), ``scripts/march_side.py`` times it against another tree.
+before the loop; the pyramid's level made from its index, not read (:attr:`study.impostor.pyramid.MinPyramid.made`);
+no clamp that a value already obeys (t ≤ 1, k ≤ n, the face edges ≤ n); the lookups from the loop's own count where
+each iteration is one; each with the same operations as a value made where it is used, so hits, validity and
+lookups are the same bits. ``scripts/march_ir.py`` counts the loop's instructions (linear_secant: 371 for both sides of
+the branch, 59 of them the bilinear lookup that CUDA makes in one texture instruction), ``scripts/march_side.py``
+times it against another tree.
 """
 
 from __future__ import annotations

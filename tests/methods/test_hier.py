@@ -412,7 +412,7 @@ def test_the_march_makes_sample_k_plus_1_once_per_step_and_no_sine():
     kept as a sample index; t_prev no longer a loop variable). At 2b63288: 708 instructions (sample read 200,
     pyramid read 465, outside the branch 28), 11 loop variables; at 91494d0: 407 (78, 218, 96), 10 and 12 gathers;
     measured now (the pyramid's levels made, not read; no test of the arc's end; no clamp of t ≤ 1 to 1 nor of k ≤ n
-    to n; 1 − t made once, in the Look; the lookups from the loop's own count): 372 (76, 191, 90), 9 and 9 gathers.
+    to n; 1 − t made once, in the Look; the lookups from the loop's own count): 371 (76, 190, 90), 9 and 9 gathers.
     Bounds with a small margin for Dr.Jit's code generation."""
     _llvm_or_skip()
     loops = _march_ir().method_loops("linear_secant", {})
