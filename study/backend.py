@@ -70,6 +70,8 @@ class Backend:
     def exponent(self, a):
         """⌊log₂ a⌋ for a ≥ 1, exactly: the float's binary exponent."""
 
+    def pow2(self, q): ...  # 2^q for whole q (floats) in float32's normal range, exactly: its exponent's bits
+
     def gather(self, data, index): ...
     def gather_at(self, data, base, index): ...
     def arange(self, n: int):
@@ -91,7 +93,7 @@ class Backend:
     def sample(self, tex, face, u, v) -> list: ...
     def eval(self, *arrays) -> None: ...
     def loop(self, n: int, state: tuple, body, *, index: bool = False) -> tuple: ...
-    def while_loop(self, state: tuple, cond, body, *, limit: int) -> tuple: ...
+    def while_loop(self, state: tuple, cond, body, *, limit: int, counted: bool = False) -> tuple: ...
     def branch(self, cond, state: tuple, true_fn, false_fn) -> tuple: ...
     def freeze(self, fn): ...
     def sync(self) -> None: ...
@@ -158,6 +160,9 @@ class NumpyBackend(Backend):
     def exponent(self, a):
         return (np.frexp(a)[1] - 1).astype(np.float32)
 
+    def pow2(self, q):
+        return np.ldexp(np.float32(1.0), np.asarray(q).astype(np.int32)).astype(np.float32)
+
     def gather(self, data, index):
         """data[index] (``index`` a float array of integer values)."""
         return data[np.asarray(index).astype(np.int64)]
@@ -207,17 +212,17 @@ class NumpyBackend(Backend):
             state = tuple(body(i, *state) if index else body(*state))
         return tuple(state)
 
-    def while_loop(self, state, cond, body, *, limit):
-        """``state = body(*state)`` on the lanes where ``cond(*state)`` holds, until it holds on none (at most
-        ``limit`` times); see :meth:`DrJitBackend.while_loop`."""
-        state = tuple(state)
+    def while_loop(self, state, cond, body, *, limit, counted=False):
+        """``state = body(*state)`` where ``cond(*state)`` holds, ≤ ``limit`` times; see DrJitBackend's."""
+        state, i = tuple(state), np.float32(0.0)
         for _ in range(limit):
             active = cond(*state)
             if not np.any(active):
                 break
             new = body(*state)
             state = tuple(np.where(active, b, a) for a, b in zip(state, new))
-        return state
+            i = i + active.astype(np.float32)
+        return (i + np.zeros(np.shape(state[0]), np.float32), *state) if counted else state
 
     def branch(self, cond, state, true_fn, false_fn):
         """``true_fn(*state)`` where ``cond``, ``false_fn(*state)`` elsewhere (numpy evaluates both sides, or the
@@ -320,6 +325,9 @@ class DrJitBackend(Backend):
         bits = self.dr.reinterpret_array(self.m.UInt32, self.m.Float(a))
         return self.m.Float(self.m.Int32(bits >> 23) - 127)
 
+    def pow2(self, q):
+        return self.dr.reinterpret_array(self.m.Float, self.m.UInt32(self.m.Int32(q) + 127) << 23)
+
     def gather(self, data, index):
         return self.dr.gather(self.m.Float, data, self.m.UInt32(index))
 
@@ -376,15 +384,15 @@ class DrJitBackend(Backend):
         out = self.dr.while_loop((i, *state), lambda i, *s: i < n, step)
         return tuple(out[1:])
 
-    def while_loop(self, state, cond, body, *, limit):
+    def while_loop(self, state, cond, body, *, limit, counted=False):
         """``state = body(*state)`` while ``cond(*state)`` holds, per lane (``dr.while_loop``: a lane stops when its
         condition fails; one symbolic loop in the kernel), at most ``limit`` times. ``state``: a flat tuple of
-        arrays."""
+        arrays; ``counted``: the iterations each lane ran (a float array) come first."""
         i = self.m.UInt32(0)
         out = self.dr.while_loop(
             (i, *state), lambda i, *s: (i < limit) & cond(*s), lambda i, *s: (i + 1, *body(*s))
         )
-        return tuple(out[1:])
+        return (self.m.Float(out[0]), *out[1:]) if counted else tuple(out[1:])
 
     def branch(self, cond, state, true_fn, false_fn):
         """``dr.if_stmt``: each lane runs only its side (a lane's lookups on the other side are not made)."""

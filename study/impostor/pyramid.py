@@ -67,9 +67,16 @@ class MinPyramid:
 
     def __init__(self, dist: np.ndarray, B: Backend):
         flat, self.offsets = min_pyramid(dist)
-        # after the levels, per level q: (offset, side, 2^−q), read by level (one array: one frozen argument)
+        # after the levels, per level q: (offset, side, 2^−q), read by level where not made (one array: one frozen
+        # argument)
         levels = np.array([(o, s, 2.0**-q) for q, (o, s) in enumerate(self.offsets)], np.float32)
         self.B, self.res, self.levels_at = B, dist.shape[1], int(flat.size)
+        # a power-of-two side R and six faces per map (K maps): level q's side R 2^−q, its offset
+        # 6K Σ_{p<q} side_p² = 8K (R² − side²), made in the march where float32 holds them exactly, not read
+        R, K = self.res, dist.shape[0] / 6.0
+        made = [np.float32(8.0 * K) * np.float32(R * R - (R >> q) ** 2) for q in range(len(self.offsets))]
+        self.made = R & (R - 1) == 0 and K.is_integer() and made == [o for o, _ in self.offsets]
+        self.maps = K
         self.data = B.array(np.concatenate([flat, levels.ravel()]))
 
     def bound(self, face0, u0, v0, face1, u1, v1):
@@ -78,20 +85,24 @@ class MinPyramid:
         B, R = self.B, self.res
         hi_c = float(max(R - 2, 0))
 
-        def texels(a, b):  # the texel range the bilinear lookups between coordinates a and b touch
-            ca = B.minimum(B.maximum(a * R - 0.5, 0.0), R - 1.0)
-            cb = B.minimum(B.maximum(b * R - 0.5, 0.0), R - 1.0)
+        def texels(a, b):  # the texels lo … hi + 1 the bilinear lookups between coordinates a and b touch
+            # (the lookups clamp c to 0 … R − 1; lo and hi are clamped to 0 … R − 2 after the min and max)
+            ca, cb = a * R - 0.5, b * R - 0.5
             lo = B.minimum(B.floor(B.maximum(B.minimum(ca, cb) - 1e-3, 0.0)), hi_c)
-            hi = B.minimum(B.floor(B.minimum(B.maximum(ca, cb) + 1e-3, R - 1.0)), hi_c) + 1.0
-            return lo, B.minimum(hi, R - 1.0)
+            return lo, B.minimum(B.floor(B.maximum(B.maximum(ca, cb), 0.0) + 1e-3), hi_c)
 
         j0, j1 = texels(u0, u1)  # columns
         i0, i1 = texels(v0, v1)  # rows
-        width = B.maximum(j1 - j0, i1 - i0) + 1.0  # texels along the wider axis
-        # the lowest level q with width ≤ 2^q + 1 (its dilated texel at the box's start covers the box):
-        # q = ⌈log₂(width − 1)⌉ = ⌊log₂(2 width − 3)⌋ for whole width ≥ 2, and 0 at width 1
-        q = B.minimum(B.exponent(B.maximum(2.0 * width - 3.0, 1.0)), len(self.offsets) - 1.0)
-        off, side, scale = (B.gather_at(self.data, self.levels_at, q * 3.0 + c) for c in (0.0, 1.0, 2.0))
+        # the lowest level q whose dilated texel at the box's start covers the box, of width w = d + 2 texels
+        # along its wider axis: w ≤ 2^q + 1, q = ⌈log₂(w − 1)⌉ = ⌊log₂(2 w − 3)⌋ = ⌊log₂(2 d + 1)⌋ (0 at d = 0)
+        d = B.maximum(j1 - j0, i1 - i0)
+        q = B.minimum(B.exponent(d * 2.0 + 1.0), len(self.offsets) - 1.0)
+        if self.made:  # no table read: see __init__
+            scale = B.pow2(0.0 - q)
+            side = scale * float(R)
+            off = (float(R * R) - side * side) * (8.0 * self.maps)
+        else:
+            off, side, scale = (B.gather_at(self.data, self.levels_at, q * 3.0 + c) for c in (0.0, 1.0, 2.0))
         i, j = B.floor(i0 * scale), B.floor(j0 * scale)
         value = B.gather_at(self.data, off, (face0 * side + i) * side + j)  # integers: past 2²⁴ texels
         same = face0 == face1

@@ -130,8 +130,8 @@ class Layered(TracingMethod):
 
         def read_at(L):  # reader(L.t) from the hierarchical march's Look (the same operations, one face_uv)
             if shared:
-                return lambda i: L.length - (1.0 - L.t) * B.sample(maps[i].dist, L.face, L.u, L.v)[0]
-            return lambda i: L.length - (1.0 - L.t) * maps[i].distance(L.p)
+                return lambda i: L.length - L.rest * B.sample(maps[i].dist, L.face, L.u, L.v)[0]
+            return lambda i: L.length - L.rest * maps[i].distance(L.p)
 
         # layer 0, the others only behind it (in front of it g_0 < 0 stands for all)
         def gs_lazy(t, read=None):

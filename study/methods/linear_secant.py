@@ -86,9 +86,6 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
     if pyramid is None:
         return None
 
-    def point(t):
-        return x * (1.0 - t) + R * (a * t)
-
     # ----------------------------------------------------------------- the arc's great circle
     # d(φ) = cos φ e₁ + sin φ e₂ from x̂ towards R, reached at φ = θ; sample j at φ_j = j π/n. The ray point seen in
     # direction d(φ) lies at r(φ) = h / sin(θ − φ) from o, h = |x| sin θ (the law of sines in the triangle o, x,
@@ -103,22 +100,23 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
     theta_q, full = theta - (math.pi / 2), a * 0.0 + float(n)  # made once, not per step
 
     def look(t):  # the ray point at t and its face coordinates (pyramid.bound_along's)
-        p = point(t)
+        rest = 1.0 - t
+        p = x * rest + R * (a * t)  # p(t)
         face, u, v = cubemap.face_uv(B, p.x, p.y, p.z)
-        return Look(t, p, B.length(p), face + base if base is not None else face, u, v)
+        return Look(t, p, B.length(p), face + base if base is not None else face, u, v, rest)
 
     def reach(k, kb, ta, tb):
         # the last sample of k + 1 … kb (at t_a … t_b; t_a may be its Look) proven in front of every lookup the
         # pyramid bounds
         la = ta if isinstance(ta, Look) else look(ta)
-        lb, ta = look(tb), la.t
+        lb = look(tb)
         b = pyramid.bound(la.face, la.u, la.v, lb.face, lb.u, lb.v)
-        near_a = la.length < (1.0 - ta) * b  # |p|/(1 − t) < b: the ray point nearer than every lookup
-        whole = near_a & (lb.length < (1.0 - tb) * b)
+        near_a = la.length < la.rest * b  # |p|/(1 − t) < b: the ray point nearer than every lookup
+        whole = near_a & (lb.length < lb.rest * b)
         # part of the way: from a near start, r(φ) < b' while θ − φ > asin(h/b'), b' = (1 − SAFE) b
         c = B.minimum(h / B.maximum(b * (1.0 - SAFE), 1e-30), 1.0)
         phi = theta_q + B.acos(c)  # θ − asin(c)
-        last = -B.floor(10.0 * SAFE - phi * (n / math.pi)) - 1.0  # the last φ_j below φ by 10 SAFE samples
+        last = -1.0 - B.floor(10.0 * SAFE - phi * (n / math.pi))  # the last φ_j below φ by 10 SAFE samples
         part = B.select(near_a & (b > 0.0) & turning, B.minimum(B.maximum(last, k), kb), k)
         return B.select(whole, kb, part)
 
@@ -131,12 +129,12 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
     ends, k = [], x.x * 0.0
     for _ in range(EDGES):  # before the march: its loop only selects
         k = last_on_face(k)
-        ends.append(k)
+        ends.append(B.minimum(k, full))  # ≤ n: the march's blocks need no cut at n then
 
-    def edge(k):  # the first end at or after sample k + 1 (n past the last one found)
+    def edge(k):  # the first end at or after sample k + 1 (n past the last one found): k < e, k whole
         out = full
         for e in reversed(ends):
-            out = B.select(k + 1.0 <= e, e, out)
+            out = B.select(k < e, e, out)
         return out
 
     return Skip(reach, edge, look)
@@ -187,7 +185,7 @@ class LinearSecant(Method):
         skip = skipper(B, pyr, x, R, a, n)
         if skip is not None:  # g at the march's Look: the same operations as g(t)
             imp = getattr(env, "impostor", env)
-            skip.value = lambda L: L.length - (1.0 - L.t) * B.sample(imp.dist, L.face, L.u, L.v)[0]
+            skip.value = lambda L: L.length - L.rest * B.sample(imp.dist, L.face, L.u, L.v)[0]
         # bracket: last undershoot, first overshoot (no crossing: the whole arc, t = 0 to the point at infinity)
         br = first_crossing(
             B, g, zero, g0, arc_samples(B, cos, n), n, t_max=1.0, default=(zero, g0, zero + 1.0, a), skip=skip

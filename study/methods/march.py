@@ -7,9 +7,12 @@ at its crossing; see :class:`Skip`. Written against the array backend (numpy and
 A step is bound by the instructions it issues rather than by its reads, so it makes each value once: sample
 k + 1 (its :class:`Look`) before the branch, for either side; the arc's sine and cosine from tables
 (:meth:`study.methods.search.arc_samples.tabulate`); no arc point for a jump (:attr:`Skip.shared`); loop invariants
-before the loop; each with the same operations as a value made where it is used, so hits, validity and lookups
-are the same bits. ``scripts/march_ir.py`` counts the loop's instructions (linear_secant: 407 for both sides of
-the branch), ``scripts/march_side.py`` times it against another tree.
+before the loop; the pyramid's level made from its index, not read (:attr:`study.impostor.pyramid.MinPyramid.made`);
+no clamp that a value already obeys (t ≤ 1, k ≤ n, the face edges ≤ n); the lookups from the loop's own count where
+each iteration is one; each with the same operations as a value made where it is used, so hits, validity and
+lookups are the same bits. ``scripts/march_ir.py`` counts the loop's instructions (linear_secant: 371 for both sides of
+the branch, 59 of them the bilinear lookup that CUDA makes in one texture instruction), ``scripts/march_side.py``
+times it against another tree.
 """
 
 from __future__ import annotations
@@ -47,7 +50,7 @@ class Skip:
     crossing (its kept entry). Only cleared samples are skipped, so the bracket is the texel march's (the samples
     come from :meth:`Samples.direct`, equal to the march's up to rounding); the bracket's start, when skipped, is
     read once after the march.
-    ``edge(k)`` (optional) → (N,) the last sample on the face of sample k + 1: a block is cut there, as the
+    ``edge(k)`` (optional) → (N,) the last sample on the face of sample k + 1 (≤ n): a block is cut there, as the
     pyramid bounds one face at a time (a block across an edge is never cleared, so cutting it loses nothing).
     At most :func:`iterations` iterations, each one lookup per function at most.
     ``look(t)`` (optional) → the :class:`Look` of the sample at t, read by both sides of an iteration (the sample
@@ -80,8 +83,9 @@ def t_of(B, smp, k, t0, t_max):
 
 
 class Look(NamedTuple):
-    """A sample's lookup, shared by the sample read and the pyramid read: t, the ray point p(t), |p|, and p's face
-    coordinates (:func:`study.impostor.cubemap.face_uv`; the face offset by the map's first face in a stack)."""
+    """A sample's lookup, shared by the sample read and the pyramid read: t, the ray point p(t), |p|, p's face
+    coordinates (:func:`study.impostor.cubemap.face_uv`; the face offset by the map's first face in a stack), and
+    1 − t."""
 
     t: Any
     p: Any
@@ -89,6 +93,7 @@ class Look(NamedTuple):
     face: Any
     u: Any
     v: Any
+    rest: Any
 
 
 #: The first block a march tries, in samples: most rays start far in front of every surface (a camera ray's first
@@ -125,37 +130,46 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
     zero = state[0] * 0.0
     two = zero + 2.0  # (a literal would be made again in every step)
     top = float(1 << max(n - 1, 0).bit_length())  # the widest block: ≥ n samples
+    if isinstance(t_max, float) and smp.top is not None and smp.top <= t_max:
+        t_max = None  # no t above it: the clamp leaves every t as it is
 
-    def t_at(k):
-        t = smp.direct(k)
+    def t_at(k):  # k ≤ n on every lane that runs
+        t = smp.direct(k, within=True)
         return B.minimum(t, t_max) if t_max is not None else t
 
-    def fine(k, w, spent, *s, la=None):  # the next sample, as the texel march reads it
-        s = step(k, *s) if la is None else step(k, *s, look=la)
-        return (k + 1.0, two, spent + (cost(*s) if cost is not None else float(G)), *s)
+    # the lookups spent, in the state (none where each iteration is one lookup: the loop counts them)
+    ns = 0 if cost is None and G == 1 else 1
 
-    def coarse(k, w, spent, *s, la=None):  # a block of w samples in one pyramid read
-        kb = B.minimum(k + w, float(n))
-        if skip.edge is not None:  # not across a face's edge
-            kb = B.minimum(kb, skip.edge(k))
+    def fine(k, w, *s, la=None):  # the next sample, as the texel march reads it
+        spent, s = s[:ns], s[ns:]
+        s = step(k, *s) if la is None else step(k, *s, look=la)
+        return (k + 1.0, two, *(x + (cost(*s) if cost is not None else float(G)) for x in spent), *s)
+
+    def coarse(k, w, *s, la=None):  # a block of w samples in one pyramid read
+        spent, s = s[:ns], s[ns:]
+        # not past n, nor across a face's edge (the edge ≤ n)
+        kb = B.minimum(k + w, float(n)) if skip.edge is None else B.minimum(k + w, skip.edge(k))
         # the last sample proven in front: k (none) … kb (all)
         kn = skip.reach(k, kb, t_at(k + 1.0) if la is None else la, t_at(kb))
         whole, part = kn >= kb, kn > k
         w = B.select(whole, B.minimum(w * 2.0, top), B.select(part, two, w * 0.5))
-        return (kn, w, spent + 1.0, *jumped(part, t_at(kn) if la is None else None, *s))
+        return (kn, w, *(x + 1.0 for x in spent), *jumped(part, t_at(kn) if la is None else None, *s))
 
-    def body(k, w, spent, *s):
-        fine_now = (w <= 1.0) | busy(*s) if busy is not None else w <= 1.0
+    def body(k, w, *s):
+        fine_now = (w <= 1.0) | busy(*s[ns:]) if busy is not None else w <= 1.0
         if not skip.shared:
-            return B.branch(fine_now, (k, w, spent, *s), fine, coarse)
+            return B.branch(fine_now, (k, w, *s), fine, coarse)
         la = skip.look(t_at(k + 1.0))  # sample k + 1: either side reads it
-        return B.branch(fine_now, (k, w, spent, *s), lambda *a: fine(*a, la=la), lambda *a: coarse(*a, la=la))
+        return B.branch(fine_now, (k, w, *s), lambda *a: fine(*a, la=la), lambda *a: coarse(*a, la=la))
 
     out = B.while_loop(
-        (zero, zero + float(min(FIRST, top)), zero, *state),
-        lambda k, w, spent, *s: (k < float(n)) & ~done(*s),
+        (zero, zero + float(min(FIRST, top)), *(zero,) * ns, *state),
+        lambda k, w, *s: (k < float(n)) & ~done(*s[ns:]),
         body,
         limit=iterations(n),
+        counted=ns == 0,
     )
-    skip.lookups, skip.last = out[2] + float(G), out[0]  # + the re-read of the bracket's start
+    # (the loop's count, k, w, state) or (k, w, spent, state)
+    skip.lookups = (out[0] if ns == 0 else out[2]) + float(G)  # + the re-read of the bracket's start
+    skip.last = out[1 - ns]
     return out[3:]

@@ -132,7 +132,7 @@ def _skip(B, P, xs: V3, R: V3, a, n: int, k):
     pyramid; None: an analytic environment), g at its Look made as g(t) makes it (the same bits)."""
     skip = skipper(B, P.pyramid, xs, R, a, n, base=k * 6.0)
     if skip is not None:
-        skip.value = lambda L: L.length - (1.0 - L.t) * B.sample(P.dist, L.face, L.u, L.v)[0]
+        skip.value = lambda L: L.length - L.rest * B.sample(P.dist, L.face, L.u, L.v)[0]
     return skip
 
 

@@ -72,6 +72,7 @@ class Samples:
     the same t_k outside a loop."""
 
     state: tuple = ()
+    top: float | None = None  # the largest t it gives (None: not known); a clamp to t_max ≥ top is left out
 
     def at(self, k, state):
         raise NotImplementedError
@@ -82,8 +83,8 @@ class Samples:
         t, self._seq = self.at(k, self._seq)
         return t
 
-    def direct(self, k):
-        """t_k for a per-ray k (an array), without the state: what a search that skips samples reads."""
+    def direct(self, k, within: bool = False):
+        """t_k for a per-ray k (an array), no state, as a search that skips reads it (``within``: k ≤ steps)."""
         raise NotImplementedError
 
 
@@ -94,7 +95,7 @@ class _Uniform(Samples):
     def at(self, k, state):
         return self.t0 + self.dt * k, state  # t0 + k dt (k exact in float32)
 
-    def direct(self, k):
+    def direct(self, k, within: bool = False):
         return self.t0 + self.dt * k
 
 
@@ -131,7 +132,7 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
         c = cos_theta
         self.B, self.c, self.steps, self.table = B, c, steps, table  # table: tabulate()'s (or another's)
         self.s, self.c1 = B.sqrt(B.maximum(1.0 - c * c, 0.0)), 1.0 - c  # sin θ, 1 − cos θ, made once
-        self.one = c * 0.0 + 1.0
+        self.one, self.top = c * 0.0 + 1.0, 1.0  # t ≤ 1
         self.cd, self.sd = math.cos(math.pi / steps), math.sin(math.pi / steps)
         big = B.maximum(c, 2.0)  # = 2, but computed: Dr.Jit must not fold the rotation
         self.state = (big * 0.5, big - 2.0)  # cos φ_0, sin φ_0 (φ_0 = 0), not literals
@@ -151,25 +152,26 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
 
     def tabulate(self):
         """On Dr.Jit, before a loop: cos φ_k, sin φ_k (k = 0 … steps) in tables, made as :meth:`direct` makes them
-        (the same bits), read there with a gather each for a sine and a cosine (~90 instructions) per sample."""
+        (the same bits), read there with a gather each for a sine and a cosine (~90 instructions) per sample; cos
+        φ_steps is −2 (not −1), below every cos θ, so that the arc's end gives t = 1 with no test of k."""
         B = self.B
         if B.name != "numpy" and self.table is None:
-            phi = B.arange(self.steps + 1) * (math.pi / self.steps)
-            self.table = (B.cos(phi), B.sin(phi))
+            phi = (j := B.arange(self.steps + 1)) * (math.pi / self.steps)
+            self.table = (B.select(j < float(self.steps), B.cos(phi), phi * 0.0 - 2.0), B.sin(phi))
             B.eval(*self.table)
 
-    def direct(self, k):
+    def direct(self, k, within: bool = False):
         """t_k with φ_k = k π/steps from sin and cos (the rotation's value up to rounding; :meth:`tabulate`'s)."""
         B, c = self.B, self.c
         if self.table is not None:
-            i = B.minimum(k, float(self.steps))  # k ≥ steps: t = 1 below
+            i = k if within else B.minimum(k, float(self.steps))  # k ≥ steps: the table's end, cos −2: t = 1
             cp, sp = B.gather(self.table[0], i), B.gather(self.table[1], i)
         else:
             phi = k * (math.pi / self.steps)
             cp, sp = B.cos(phi), B.sin(phi)
         t = sp / B.maximum(self.s * cp + self.c1 * sp, 1e-30)
         t = B.select(cp > c, B.minimum(t, 1.0), self.one)
-        return B.select(k >= float(self.steps), self.one, t)
+        return t if self.table is not None else B.select(k >= float(self.steps), self.one, t)
 
     def __call__(self, k):
         t = super().__call__(k)
