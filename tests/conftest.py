@@ -116,3 +116,36 @@ def assert_one_line_error(res, words, before, out, code=2):
     assert words in text, text
     assert "Traceback" not in text
     assert digest(out) == before
+
+
+def camera_gltf(path: Path, V: np.ndarray, F: np.ndarray, eye, quat, yfov: float, aspect: float) -> None:
+    """A small glTF written by a test: one mesh (vertices ``V`` (n, 3), triangles ``F`` (m, 3)) and a perspective
+    camera node at ``eye`` rotated by ``quat`` (x, y, z, w), ``yfov`` (radians) and ``aspect`` (width / height);
+    its buffer a data URI."""
+    import base64
+    import json
+
+    V, F = np.asarray(V, np.float32), np.asarray(F, np.uint16)
+    blob = F.tobytes() + V.tobytes()
+    g = {
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"camera": 0, "translation": list(map(float, eye)), "rotation": list(map(float, quat))}],
+        "cameras": [
+            {"type": "perspective", "perspective": {"yfov": yfov, "aspectRatio": aspect, "znear": 0.01}}
+        ],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0}]}],
+        "buffers": [{"byteLength": len(blob),
+                     "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode()}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": F.nbytes},
+            {"buffer": 0, "byteOffset": F.nbytes, "byteLength": V.nbytes},
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5123, "count": F.size, "type": "SCALAR"},
+            {"bufferView": 1, "componentType": 5126, "count": len(V), "type": "VEC3",
+             "min": V.min(0).tolist(), "max": V.max(0).tolist()},
+        ],
+    }  # fmt: skip
+    path.write_text(json.dumps(g))

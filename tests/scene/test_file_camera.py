@@ -4,13 +4,12 @@ view used to be re-aimed at a sphere placed elsewhere, 104° away from the file'
 node's forward, up (its roll) and yfov, and the sphere lies whole inside that frame, in free space, seen unblocked
 from the eye and the reference point. Checked against the glTF written here: its rotation, its boxes."""
 
-import base64
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import camera_gltf
 from scipy.spatial.transform import Rotation
 
 import study
@@ -53,37 +52,7 @@ def _write(path: Path, aspect: float = 1.0) -> None:
         F.append(np.asarray(f) + n)
         n += len(v)
     V, F = np.concatenate(V).astype(np.float32), np.concatenate(F).astype(np.uint16)
-    blob = F.tobytes() + V.tobytes()
-    g = {
-        "asset": {"version": "2.0"},
-        "scene": 0,
-        "scenes": [{"nodes": [0, 1]}],
-        "nodes": [
-            {"mesh": 0},
-            {"camera": 0, "translation": EYE.tolist(), "rotation": ROT.as_quat().tolist()},
-        ],
-        "cameras": [
-            {"type": "perspective", "perspective": {"yfov": YFOV, "aspectRatio": aspect, "znear": 0.01}}
-        ],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0}]}],
-        "buffers": [{"byteLength": len(blob), "uri": "data:;base64," + base64.b64encode(blob).decode()}],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": F.nbytes},
-            {"buffer": 0, "byteOffset": F.nbytes, "byteLength": V.nbytes},
-        ],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5123, "count": F.size, "type": "SCALAR"},
-            {
-                "bufferView": 1,
-                "componentType": 5126,
-                "count": len(V),
-                "type": "VEC3",
-                "min": V.min(0).tolist(),
-                "max": V.max(0).tolist(),
-            },
-        ],
-    }
-    path.write_text(json.dumps(g))
+    camera_gltf(path, V, F, EYE, ROT.as_quat(), YFOV, aspect)
 
 
 def _pixels(centre, radius: float, tan_half: float, aspect: float = 1.0) -> np.ndarray:

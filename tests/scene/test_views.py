@@ -3,12 +3,12 @@ a flat file's light off its plane; a single object seen from outside under a sky
 that sees the object past a shape in between (a matpreview-like Mitsuba scene); a glTF camera used with its
 orientation and field of view."""
 
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import camera_gltf
 
 import study
 from study.scene import placement
@@ -90,44 +90,9 @@ def test_the_reference_point_sees_the_object_past_a_shape_in_between(tmp_path):
 
 def _camera_gltf(path: Path, eye, quat, yfov: float, aspect: float) -> None:
     """A ground quad (10 m, facing up: a flat file, as VC.glb's ground nearly is) and a perspective camera node at
-    ``eye`` rotated by ``quat`` (x, y, z, w): a small glTF written here, its buffer a data URI."""
-    import base64
-
+    ``eye`` rotated by ``quat`` (x, y, z, w): a small glTF written here (:func:`conftest.camera_gltf`)."""
     V = np.array([[-5, 0, -5], [5, 0, -5], [5, 0, 5], [-5, 0, 5]], np.float32)
-    F = np.array([[0, 2, 1], [0, 3, 2]], np.uint16)
-    blob = F.tobytes() + V.tobytes()
-    g = {
-        "asset": {"version": "2.0"},
-        "scene": 0,
-        "scenes": [{"nodes": [0, 1]}],
-        "nodes": [{"mesh": 0}, {"camera": 0, "translation": list(eye), "rotation": list(quat)}],
-        "cameras": [
-            {"type": "perspective", "perspective": {"yfov": yfov, "aspectRatio": aspect, "znear": 0.01}}
-        ],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0}]}],
-        "buffers": [
-            {
-                "byteLength": len(blob),
-                "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode(),
-            }
-        ],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": F.nbytes},
-            {"buffer": 0, "byteOffset": F.nbytes, "byteLength": V.nbytes},
-        ],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5123, "count": F.size, "type": "SCALAR"},
-            {
-                "bufferView": 1,
-                "componentType": 5126,
-                "count": len(V),
-                "type": "VEC3",
-                "min": V.min(0).tolist(),
-                "max": V.max(0).tolist(),
-            },
-        ],
-    }
-    path.write_text(json.dumps(g))
+    camera_gltf(path, V, [[0, 2, 1], [0, 3, 2]], eye, quat, yfov, aspect)
 
 
 def test_a_gltf_camera_is_used_with_its_orientation_and_field_of_view(tmp_path):
