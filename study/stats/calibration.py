@@ -62,6 +62,7 @@ from study.stats.fields import blobs as _blobs
 from study.stats.fields import disc as _disc
 from study.stats.fields import small_disc as _small_disc
 from study.stats.fields import streaks as _streaks
+from study.stats.fields import streaks_diagonal as _diagonal
 from study.stats.fields import study_edge as _study_edge
 
 #: Replicates of the fast tier (tests) and of the slow tier (tests marked slow, reports/calibration.md).
@@ -279,15 +280,15 @@ STUDY_ROWS = {
 }
 
 
+#: The truth, n and band of the RMSE rows on the 40 px disc (per-pixel error 0.5 + a unit-variance field) and
+#: of the ray-fraction rows on it (probit −1.5 + a unit-variance field).
+_DISC_RMSE = (math.sqrt(1.25), "pixels of a 40 px disc", True)
+_DISC_RAYS = (float(sps.norm.cdf(-1.5 / math.sqrt(2))), "4 rays × 5024 pixels", True)
+
 #: name → (draw(rng, with_before) → (estimate, now, before or None), truth (or a function giving it), n in words,
 #: whether the band applies)
 ROWS = {
-    "pixel error (RMSE)": (
-        lambda r, b: _pixel_error(r, b, False),
-        math.sqrt(1.25),
-        "pixels of a 40 px disc",
-        True,
-    ),
+    "pixel error (RMSE)": (lambda r, b: _pixel_error(r, b, False), *_DISC_RMSE),
     "debiased RMSE": (lambda r, b: _pixel_error(r, b, True), math.sqrt(1.25), "pixels of a 40 px disc", True),
     "split term (signed)": (_split_term, 1.0, "pixels of a 40 px disc", True),
     "ray fraction": (_ray_fraction, float(sps.norm.cdf(-1.5 / math.sqrt(2))), "4 rays × 5024 pixels", True),
@@ -298,16 +299,9 @@ ROWS = {
     "JOD over segments": (_jod, 0.0, "4 segments", True),
     "RMSE, long correlation (σ 8 px)": (
         lambda r, b: _field_rmse(r, b, lambda g: correlated_field(g, sigma=LONG_SIGMA), _disc()),
-        math.sqrt(1.25),
-        "pixels of a 40 px disc",
-        True,
+        *_DISC_RMSE,
     ),
-    "RMSE, streaks (σ 0.8 × 12 px)": (
-        lambda r, b: _field_rmse(r, b, _streaks, _disc()),
-        math.sqrt(1.25),
-        "pixels of a 40 px disc",
-        True,
-    ),
+    "RMSE, streaks (σ 0.8 × 12 px)": (lambda r, b: _field_rmse(r, b, _streaks, _disc()), *_DISC_RMSE),
     "RMSE, sparse heavy-tailed blobs": (
         lambda r, b: _field_rmse(r, b, _blobs, _disc(), squared=True),
         math.sqrt(BLOB_MSE),
@@ -328,15 +322,11 @@ ROWS = {
     ),
     "ray fraction, long correlation (σ 8 px)": (
         lambda r, b: _field_fraction(r, b, LONG_SIGMA, _disc()),
-        float(sps.norm.cdf(-1.5 / math.sqrt(2))),
-        "4 rays × 5024 pixels",
-        True,
+        *_DISC_RAYS,
     ),
     "ray fraction, streaks (σ 0.8 × 12 px)": (
         lambda r, b: _field_fraction(r, b, STREAK_SIGMA, _disc()),
-        float(sps.norm.cdf(-1.5 / math.sqrt(2))),
-        "4 rays × 5024 pixels",
-        True,
+        *_DISC_RAYS,
     ),
     "ray fraction, ≈ 200-pixel object": (
         lambda r, b: _field_fraction(r, b, FIELD_SIGMA, _small_disc()),
@@ -345,6 +335,9 @@ ROWS = {
         True,
     ),
     **STUDY_ROWS,
+    # the streaks turned by 45° (study.stats.fields.streaks_diagonal), last: a row's seed is its place in ROWS
+    "RMSE, streaks at 45°": (lambda r, b: _field_rmse(r, b, _diagonal, _disc()), *_DISC_RMSE),
+    "ray fraction, streaks at 45°": (lambda r, b: _rays_wrong(r, -1.5 + _diagonal(r), _disc()), *_DISC_RAYS),
 }
 
 

@@ -54,6 +54,31 @@ def streaks(rng) -> np.ndarray:
     return f if rng.random() < 0.5 else f.T
 
 
+#: The streaks turned by 45° (a reflected edge runs at any angle, not only along the pixel axes).
+STREAK_ANGLE = 45.0
+
+
+@functools.cache
+def _diagonal_transfer() -> np.ndarray:
+    """The periodic transfer function of the anisotropic Gaussian filter of :data:`STREAK_SIGMA` (across, along)
+    with its long axis at :data:`STREAK_ANGLE` to the rows, sampled at the periodic pixel displacements and scaled
+    to unit L2 norm (so the filtered white noise has unit variance)."""
+    d = (np.arange(SIZE) + SIZE // 2) % SIZE - SIZE // 2  # displacements on the torus, −SIZE/2 … SIZE/2 − 1
+    dy, dx = np.meshgrid(d, d, indexing="ij")
+    a = math.radians(STREAK_ANGLE)
+    along, across = dx * math.cos(a) + dy * math.sin(a), -dx * math.sin(a) + dy * math.cos(a)
+    k = np.exp(-0.5 * ((across / STREAK_SIGMA[0]) ** 2 + (along / STREAK_SIGMA[1]) ** 2))
+    return np.fft.rfft2(k / np.sqrt(np.sum(k**2)))
+
+
+def streaks_diagonal(rng) -> np.ndarray:
+    """The streaks of :func:`streaks` with their long axis at :data:`STREAK_ANGLE` (or its mirror, 180° − it,
+    with probability ½): white noise convolved (periodic, by FFT) with the turned anisotropic Gaussian kernel
+    sampled on the pixel grid, unit variance (the kernel's L2 norm 1)."""
+    f = np.fft.irfft2(np.fft.rfft2(rng.normal(size=(SIZE, SIZE))) * _diagonal_transfer(), s=(SIZE, SIZE))
+    return f if rng.random() < 0.5 else f[:, ::-1]
+
+
 def blobs(rng) -> np.ndarray:
     g = correlated_field(rng, sigma=BLOB_SIGMA)
     return np.where(g > BLOB_LEVEL, np.exp(g), 0.0)

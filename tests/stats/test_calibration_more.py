@@ -69,3 +69,22 @@ def test_the_ray_fraction_on_a_small_object_is_covered():
     (ff19424; its misses: a few scattered wrong rays whose correlogram falls within a pixel or two), 94.7 % at 3."""
     (now,) = calibration.coverage("ray fraction, ≈ 200-pixel object", 300, before=0)
     assert now.coverage >= 0.935, now
+
+
+def test_the_diagonal_streaks_have_unit_variance_and_run_along_a_diagonal():
+    """study.stats.fields.streaks_diagonal: unit variance (as the other fields); per draw, the larger of its
+    correlations at a 5-pixel lag along the two diagonals is the turned filter's exp(−50/(4·12²)) = 0.92, and along
+    the rows (or columns) near 0. Planted: STREAK_ANGLE 0 (the axis-aligned streaks) gives 0.01 and 0.95."""
+    from study.stats import fields
+
+    def lag(g, dy, dx):  # the larger correlation of g at (dy, dx) and at its mirror (dy, −dx)
+        return max(np.mean(g * np.roll(g, (dy, dx), (0, 1))), np.mean(g * np.roll(g, (dy, -dx), (0, 1))))
+
+    rng = np.random.default_rng(5)
+    f = [fields.streaks_diagonal(rng) for _ in range(200)]
+    assert abs(np.var(f) - 1.0) < 0.05, np.var(f)
+    diagonal, rows = (
+        np.mean([lag(g, 5, 5) for g in f]),
+        np.mean([max(lag(g, 0, 5), lag(g.T, 0, 5)) for g in f]),
+    )
+    assert 0.8 < diagonal < 1.0 and abs(rows) < 0.1, (diagonal, rows)
