@@ -8,7 +8,7 @@ normal interval) and how often it contains its own estimate:
 ==================  ===========================================================================================
 pixel error         an image whose per-pixel error is 0.5 + a Gaussian-filtered noise field (correlation length
                     :data:`FIELD_SIGMA` px of filter σ) on a disc of :data:`DISC` px radius: RMSE (truth √1.25)
-                    by :func:`study.measure.case_columns.pixel_columns`
+                    by :func:`study.stats.rmse_interval` (what :func:`study.measure.case_columns.pixel_columns` writes)
 debiased RMSE       the same against a reference with white noise of σ = 0.5 (measured, as the study does):
                     √max(0, MSE − σ²) (truth √1.25)
 split term          a signed cross term 2·a·b of two correlated fields (truth 1), paired with a² and b² in one
@@ -22,6 +22,9 @@ case range          3 cases: below 10 cases the study prints their range, not a 
 paired difference   12 paired differences, symmetric about 0: the Wilcoxon signed-rank test keeps the null
                     (its coverage: 1 − its false-positive rate)
 JOD over segments   4 segment scores, truth + normal noise; the whole sequence's score their mean
+other fields        the pixel error and ray fraction on the fields of :mod:`study.stats.fields` beyond the tuned
+                    one: long correlation (σ 8 px), streaks along an axis and at 45°, sparse heavy-tailed blobs, a
+                    ≈ 200-pixel object, that object with blobs
 study's own maps    :data:`STUDY_ROWS`: the frame tiled with copies of study's own error map of a reflected edge
                     (classical, a room case) or of its wrong-hit region (localized, no iteration), each turned,
                     mirrored and scaled at random, the tiling at a random offset, plus a correlated noise field:
