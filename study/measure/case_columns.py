@@ -32,7 +32,7 @@ import math
 import numpy as np
 
 from study.stats import spatial
-from study.stats.intervals import LEVEL, debiased_root, fraction_cis, quantile_ci
+from study.stats.intervals import LEVEL, debiased_root, fraction_cis, quantile_ci, root_bounds
 
 #: The fixed absolute tolerances of ``wrong_fraction_<tol>`` (metres, name suffix): the same distance at every
 #: cube resolution, unlike the texel-relative ``wrong_fraction_texel``. They also sample the wrong-versus-tolerance
@@ -211,11 +211,9 @@ def _pixel_row(se: np.ndarray, names: list[str], intervals, length: float, suffi
     means of its samples ``names``."""
     out = {"n_pixels": int(se.size), "corr_px": length}
     cis = dict(zip(names, intervals))
-    lo, hi = cis.pop(f"rmse_{suffix}")
-    lo = max(lo, 0.0)
-    out[f"rmse_{suffix}_lo"], out[f"rmse_{suffix}_hi"] = math.sqrt(lo), math.sqrt(hi)
-    for k, b in (("lo", lo), ("hi", hi)):
-        out[f"rmse_{suffix}_debiased_{k}"] = debiased_root(b, sigma)
+    (lo, hi), (dlo, dhi) = root_bounds(*cis.pop(f"rmse_{suffix}"), sigma)  # the MSE's interval, rooted
+    out[f"rmse_{suffix}_lo"], out[f"rmse_{suffix}_hi"] = lo, hi
+    out[f"rmse_{suffix}_debiased_lo"], out[f"rmse_{suffix}_debiased_hi"] = dlo, dhi
     for name, (a, b) in cis.items():
         out[f"{name}_lo"], out[f"{name}_hi"] = a, b
     ranked = np.sort(se)  # sorted once: the trimmed mean and the worst pixels' share

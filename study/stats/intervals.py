@@ -179,5 +179,11 @@ def rmse_interval(se, mask, sigma: float = 0.0, level: float = LEVEL):
     floored at 0 and rooted; debiased by a reference noise σ taken as known, √max(0, b² − σ²). What
     :func:`study.measure.case_columns.pixel_columns` writes as ``rmse_*_lo``/``_hi`` (a test holds them equal)."""
     ((lo, hi),), _ = mean_intervals([se], mask, level)
+    return root_bounds(lo, hi, sigma)
+
+
+def root_bounds(lo: float, hi: float, sigma: float = 0.0):
+    """((√lo, √hi), (debiased lo, hi)): an interval (lo, hi) of a mean squared error as one of its RMSE, ``lo``
+    floored at 0, and debiased by a reference noise σ taken as known, √max(0, b² − σ²)."""
     lo = max(lo, 0.0)
     return (math.sqrt(lo), math.sqrt(hi)), (debiased_root(lo, sigma), debiased_root(hi, sigma))
