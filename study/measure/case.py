@@ -202,8 +202,7 @@ def run_case(
                          "needed; move object.center into view, closer, or turn camera.target towards it (or raise "
                          "camera.width/height)", key="object.center")  # fmt: skip
     o = np.asarray(scene.reference.point, float)
-    exact = _exact(scene, tracer, rays, o)
-    worth.refuse_void(scene, exact.escapes, case_id)  # every ray into the void: refused before any render
+    worth.refuse_void(scene, (exact := _exact(scene, tracer, rays, o)).escapes, case_id)  # all into a void
     mark("capture")
     imp = impostor(scene, cache, tracer)
     background = camera_render(scene, cache, with_object=False)
