@@ -221,3 +221,21 @@ def test_the_built_page_renders_its_markdown_and_is_in_sections(tmp_path_factory
     head = page[: page.index("<main>")]
     assert all(f'href="#{i}"' in head for i in ids), ids
     assert f"`{reports.as_posix()}/`" in md and f"{reports.as_posix()}/" in page
+
+
+def test_a_run_with_eight_methods_writes_wrapped_grids(tmp_path):
+    """What ``study run`` writes (Result.save), not only the grid function: with 8 methods run.png and
+    run-errors.png stay within the page's width in several rows of panels. On 635ec81 run.png was one row of
+    shrunk panels, 1500 × 232 px (here 1265 × 660)."""
+    import struct
+
+    import study
+
+    methods = ["classical", "proxy_box", "proxy_sphere", "localized(iterations=3)", "localized(iterations=10)",
+               "traced", "linear_secant", "probe_blend"]  # fmt: skip
+    over = {"camera.width": 32, "camera.height": 32, "render.cube_res": 32, "render.spp": 2, "render.cube_spp": 2,
+            "render.supersample": 1}  # fmt: skip
+    study.evaluate("scenes/room.toml", methods, cache=None, overrides=over).save(tmp_path / "run")
+    for name in ("run.png", "run-errors.png"):
+        w, h = struct.unpack(">II", (tmp_path / "run" / name).read_bytes()[16:24])  # the PNG's IHDR
+        assert w <= figures.MAX_WIDTH_PX and h >= 0.4 * w, (name, w, h)  # rows of panels, not one shrunk row
