@@ -79,6 +79,12 @@ def test_the_exact_row_ranks_first_on_every_column_that_measures_the_method(max_
     ):
         assert col in checked, col
     assert float(t.loc["traced", "rmse_truth"]) < 1e-6 < 1e-3 < float(t.loc["classical", "rmse_truth"])
+    from study.measure import exact_rows
+
+    assert (
+        exact_rows.outranked(res.table.to_dict("records")) == {}
+    )  # so the run says nothing of the exact row
+    assert not [ln for ln in res.notes() if "not the exact image" in ln]
     for col in ("rmse_oracle", "flip_oracle", "dec_search", "dec_total", "dec_residual"):
         assert math.isnan(float(t.loc["traced", col])), col  # not of the method: left out of its row
         assert t.loc[stand, col].astype(float).notna().all(), col  # the stand-ins read the map: measured
