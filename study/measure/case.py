@@ -202,6 +202,7 @@ def run_case(
                          "needed; move object.center into view, closer, or turn camera.target towards it (or raise "
                          "camera.width/height)", key="object.center")  # fmt: skip
     o = np.asarray(scene.reference.point, float)
+    worth.refuse_void(scene, (exact := _exact(scene, tracer, rays, o)).escapes, case_id)  # all into a void
     mark("capture")
     imp = impostor(scene, cache, tracer)
     background = camera_render(scene, cache, with_object=False)
@@ -220,7 +221,6 @@ def run_case(
     mitsuba = (seeds[0] + seeds[1]) / 2
     F = shading.fresnel(scene, rays)
     mask = rays.full
-    exact = _exact(scene, tracer, rays, o)
     ref = truth.build(scene, cache, rays, F, background, seeds, pair())  # truth_at_hit (once), noise images
     held = split.held(exact.occluded, exact.escapes)  # hits o's views hold: seen from o, or escaping
     held_px = split.held_pixels(rays, held)

@@ -15,6 +15,9 @@ that is mostly fireflies, and a truth too noisy to rank the methods by.
   0). Every error is then 0 and ranks nothing; the note says why, by the keys that light a scene (``light.enabled``,
   ``light.position``, ``environment.sky``), instead of a noise share of 0/0 (which asked for
   ``render.spp ≥ inf``).
+* an exact row that is not the exact image (:mod:`study.measure.exact_rows`): a stand-in beats ``traced`` or
+  ``traced_glossy`` on a column that measures the method (a glass object's rays through its distance map, a rough
+  object's lobe samples); the line names the row, the columns and the cause.
 
 :func:`notes` returns these as lines: ``study run`` prints them, and the run's page, ``index.json`` and viewer
 title carry them (:mod:`study.outputs.run_files`).
@@ -26,7 +29,7 @@ import math
 
 import numpy as np
 
-from study.measure import worth
+from study.measure import exact_rows, worth
 from study.measure.exposure import FIREFLY_LIMIT, FIREFLY_STEP
 from study.measure.truth import NOISE_SHARE
 from study.scene import lights
@@ -191,5 +194,5 @@ def notes(rows: list[dict], scene) -> list[str]:
     )  # a black reference says why in its own line (the worth line says no more)
     worth_line = worth.verdict(rows[0]) if rows and not black else ""  # what a reader would complain about
     said = (units, worth_line, black, light_note(rows, scene), firefly_note(rows, spp),
-            noise_note(rows, spp), unmodelled_note(rows))  # fmt: skip
+            noise_note(rows, spp), unmodelled_note(rows), *exact_rows.exact_notes(rows))  # fmt: skip
     return [s for s in said if s]

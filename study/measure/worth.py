@@ -14,6 +14,10 @@ that names the cause and the key to change.
 
 Each has a limit (:data:`WORTH_LIMITS`); :func:`verdict` names the first that fails, with its number, its cause and
 the key to change, in one line, and ``study run`` prints it as a note (:func:`study.measure.lighting.notes`).
+
+A case whose every object ray leaves the scene where no sky shows (``mirrored_void`` 1) cannot be measured: there
+is no surface to find, every method is trivially right and the object black in every image. :func:`refuse_void`
+refuses it before anything is rendered, in one line naming why (a StudyError: exit 2).
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import math
 
 import numpy as np
 
+from study.errors import StudyError
 from study.measure.exposure import auto_exposure, luminance
 
 BLACK = 0.002  # linear luminance after exposure under which a pixel shows black (about 12/255 in sRGB)
@@ -74,7 +79,7 @@ def worth_columns(
     shown = lum * 2.0 ** min(ev if ev is not None else 0.0, MAX_BOOST)
     with np.errstate(invalid="ignore", divide="ignore"):  # a reference point at the object's centre: NaN
         seen = sees(scene.mesh(), scene.reference.point, scene.object.center, scene.object.radius)
-    esc = np.asarray(escapes, bool) & ~_sky(scene)  # under a sky, a ray that leaves the scene shows it
+    esc = np.asarray(escapes, bool) & ~shows_sky(scene)  # under a sky, a ray that leaves the scene shows it
     return {
         "black_share": float(np.mean(shown < BLACK)),
         "clipped_share": float(np.mean(shown > 1.0)),
@@ -101,7 +106,20 @@ def own_shadow(scene, points: np.ndarray, escapes: np.ndarray) -> float:
     return float(np.mean(np.linalg.norm(p + t[:, None] * d - c, axis=1) < r))
 
 
-def _sky(scene) -> bool:
+def refuse_void(scene, escapes: np.ndarray, case: str = "") -> None:
+    """Refuse a case whose every object ray leaves the scene with no sky to show (module docstring)."""
+    esc = np.asarray(escapes, bool)
+    if esc.size and esc.all() and not shows_sky(scene):
+        where = f" (case {case})" if case else ""
+        raise StudyError(
+            f"every one of the object's {esc.size} rays leaves the scene and no sky shows there{where}: no surface "
+            "to find, nothing to measure (every method trivially right, the object black); move object.center "
+            "(or the camera) so that the object reflects the environment's surfaces, or give environment.sky",
+            key="object.center",
+        )
+
+
+def shows_sky(scene) -> bool:
     """Whether rays that leave the scene see something: a sky given (not black), or the file's own emitter at
     infinity (a Mitsuba ``envmap``, ``constant``)."""
     from study.scene.environment import geometry

@@ -9,7 +9,9 @@ its radiance is the radiance arriving along the ray (``Captured.shade``,
 the same samples), so on a mirror object its image is the truth's up to float rounding and it never ranks below a
 stand-in on a column against the truth for path-tracing noise of its own; on other rays (a glass object's rays
 through its distance map, which are not the exact ones; a rough object, whose truth is its lobe's average) path
-traced by Mitsuba in the scene without the object with a seed of its own. A ray that leaves an open environment
+traced by Mitsuba in the scene without the object with a seed of its own; where a stand-in then scores better on a
+column of the method, the run's notes say so for this row (:mod:`study.measure.exact_rows`) and no ranking holds
+it. A ray that leaves an open environment
 is shown at infinity along its direction (``cubemap.FAR``) with the radiance found along it.
 
 Columns: it reads none of the reference point's views (:attr:`reads_views` False), so its rows leave out (NaN) the

@@ -32,6 +32,10 @@ def column_notes() -> list[str]:
         "*_oracle* columns (and the *oracle_map* row) are over the pixels whose every hit the reference point's "
         "views hold (*held_pixels*); *oracle_map* has no value on the others (*unheld_pixels*). `dec_*`: the error "
         "split over all object pixels (study/measure/split.py), each with a pixel interval.",
+        "The exact rows (`traced`, `traced_glossy`) are not ranked among the stand-ins: on a mirror `traced` "
+        "shows the truth's image, but on a glass object whose far side comes from its distance map it follows "
+        "the methods' rays, not the exactly refracted ones, and on a rough object `traced_glossy` carries the "
+        "noise of its K lobe rays, so a stand-in can score better there (a run's notes say so for that row).",
         "In these tables the value per table and method is the median over cases; the summary above gives it "
         "with an interval over the cases and tests differences between methods over the same cases "
         "(Wilcoxon signed-rank).",

@@ -25,9 +25,9 @@ JOD over segments   4 segment scores, truth + normal noise; the whole sequence's
 other fields        the pixel error and ray fraction on the fields of :mod:`study.stats.fields` beyond the tuned
                     one: long correlation (σ 8 px), streaks along an axis and at 45°, sparse heavy-tailed blobs, a
                     ≈ 200-pixel object, that object with blobs
-study's own maps    :data:`STUDY_ROWS`: the frame tiled with copies of study's own error map of a reflected edge
-                    (classical, a room case) or of its wrong-hit region (localized, no iteration), each turned,
-                    mirrored and scaled at random, the tiling at a random offset, plus a correlated noise field:
+study's own maps    :data:`STUDY_ROWS`: copies of study's error map of a reflected edge (classical, a room case)
+                    or of its wrong-hit region (localized, no iteration) at random places (dead leaves,
+                    :func:`study.stats.fields.mosaic`), turned, mirrored and scaled at random, plus correlated noise:
                     the RMSE and the wrong ray fraction (truths analytic: every pixel a uniform draw of the tile)
 ==================  ===========================================================================================
 

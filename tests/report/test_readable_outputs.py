@@ -195,3 +195,47 @@ def test_no_literal_asterisks_in_the_column_notes():
     for note in table_notes.column_notes():
         text = re.sub(r"<code>.*?</code>", "", inline(note))
         assert "**" not in text and not re.search(r"(?<![\w*])\*\w[^*]*\*\*", text), text[:200]
+
+
+def test_the_built_page_renders_its_markdown_and_is_in_sections(tmp_path_factory):
+    """The page ``study report --reports DIR`` writes: index.md's emphasis is rendered in index.html (no literal
+    ``**`` outside code, preformatted text and scripts: the Summary's bold items once showed as asterisks), its
+    sections navigable from a bar of links, and the folder named as given."""
+    import re
+
+    from conftest import run_cli
+
+    built = small_report(tmp_path_factory)
+    reports = built.rename(built.parent / "elsewhere")  # the page made again for a folder of another name
+    res = run_cli("report", "--reports", reports)
+    assert res.exit_code == 0, res.output
+    md = (reports / "index.md").read_text()
+    page = (reports / "index.html").read_text()
+    assert "**" in md  # the premise: the Markdown has bold text
+    body = page[page.index("<main>") : page.index("</main>")]
+    prose = re.sub(r"<(code|pre|script)\b[^>]*>.*?</\1>", "", body, flags=re.S)
+    assert "**" not in prose, prose[max(0, prose.find("**") - 200) : prose.find("**") + 200]
+    assert "<strong>" in body
+    ids = re.findall(r'<section>\s*<h2 id="([^"]+)"', body)
+    assert len(ids) >= 3, ids
+    head = page[: page.index("<main>")]
+    assert all(f'href="#{i}"' in head for i in ids), ids
+    assert f"`{reports.as_posix()}/`" in md and f"{reports.as_posix()}/" in page
+
+
+def test_a_run_with_eight_methods_writes_wrapped_grids(tmp_path):
+    """What ``study run`` writes (Result.save), not only the grid function: with 8 methods run.png and
+    run-errors.png stay within the page's width in several rows of panels. On 635ec81 run.png was one row of
+    shrunk panels, 1500 × 232 px (here 1265 × 660)."""
+    import struct
+
+    import study
+
+    methods = ["classical", "proxy_box", "proxy_sphere", "localized(iterations=3)", "localized(iterations=10)",
+               "traced", "linear_secant", "probe_blend"]  # fmt: skip
+    over = {"camera.width": 32, "camera.height": 32, "render.cube_res": 32, "render.spp": 2, "render.cube_spp": 2,
+            "render.supersample": 1}  # fmt: skip
+    study.evaluate("scenes/room.toml", methods, cache=None, overrides=over).save(tmp_path / "run")
+    for name in ("run.png", "run-errors.png"):
+        w, h = struct.unpack(">II", (tmp_path / "run" / name).read_bytes()[16:24])  # the PNG's IHDR
+        assert w <= figures.MAX_WIDTH_PX and h >= 0.4 * w, (name, w, h)  # rows of panels, not one shrunk row

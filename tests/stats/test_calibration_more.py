@@ -88,3 +88,29 @@ def test_the_diagonal_streaks_have_unit_variance_and_run_along_a_diagonal():
         np.mean([max(lag(g, 0, 5), lag(g.T, 0, 5)) for g in f]),
     )
     assert 0.8 < diagonal < 1.0 and abs(rows) < 0.1, (diagonal, rows)
+
+
+def _copies(rng):
+    """A mosaic of a tile that numbers its copies: each pixel holds the number of the copy on top of it."""
+    from study.stats import fields
+
+    count = iter(range(1, 10**6))
+    return fields.mosaic(rng, np.zeros((44, 44)), lambda t, r: np.full_like(t, next(count)))
+
+
+def test_the_copies_of_a_mosaic_lie_at_random_not_on_a_lattice():
+    """study.stats.fields.mosaic places its copies at independent positions (dead leaves): the borders between
+    copies fall at many columns, not on the few lines of a lattice (the former tiling, 44 px apart: at most 3 lines
+    across the 96 px frame); and every pixel sees a uniform draw of the tile (here a tile of 4 bands: each band's
+    share at two pixels over 1200 draws within 4.5 standard errors of ¼). Planted: the lattice fails the first."""
+    from study.stats import fields
+
+    rng = np.random.default_rng(3)
+    ids = _copies(rng)
+    borders = np.unique(np.nonzero(ids[:, 1:] != ids[:, :-1])[1])
+    assert borders.size > 6, borders
+    bands = np.repeat(np.arange(4.0), 11)[:, None] * np.ones((1, 44))
+    seen = np.array([fields.mosaic(rng, bands, lambda t, r: t)[[0, 50], [0, 61]] for _ in range(1200)])
+    for px in seen.T:
+        share = np.bincount(px.astype(int), minlength=4) / px.size
+        assert np.all(np.abs(share - 0.25) < 4.5 * np.sqrt(0.25 * 0.75 / px.size)), share
