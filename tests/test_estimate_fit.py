@@ -87,7 +87,7 @@ def test_planted_runs_give_back_their_rates_per_backend(tmp_path):
     tab = estimate_fit.fitted_table(tmp_path, "llvm", made_by="test")
     estimate_fit.write(out, "llvm", tab)
     tables = json.loads(out.read_text())["backends"]
-    assert set(tables) == {"numpy", "llvm"} and len(tables["llvm"]["runs"]) == 4
+    assert {"numpy", "llvm"} <= set(tables) and len(tables["llvm"]["runs"]) == 4
     assert np.isclose(estimate.rates(out, "llvm")["traces"], LLVM["traces"], rtol=1e-3)
 
 

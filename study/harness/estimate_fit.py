@@ -59,6 +59,12 @@ def _summed(scenes, methods, *, intervals: bool) -> dict[str, float]:
     return total
 
 
+def _device(meta: dict) -> str:
+    """``GPU, N cores`` or ``CPU, N cores`` of a run's metadata."""
+    dev = meta.get("device") if isinstance(meta.get("device"), dict) else {}
+    return f"{dev.get('gpu') or dev.get('cpu') or meta.get('machine', '?')}, {meta.get('cpus', '?')} cores"
+
+
 def run_of(meta_path: Path, repo: Path = estimate.REPO) -> dict | None:
     """One run: {command, kind, backend, cpus, commit, cases, seconds, split, units}; None where its metadata
     holds no time split, names no config of ``repo`` or a config since changed."""
@@ -89,6 +95,7 @@ def run_of(meta_path: Path, repo: Path = estimate.REPO) -> dict | None:
         "kind": kind,
         "backend": backend,
         "cpus": meta.get("cpus"),
+        "device": _device(meta),
         "commit": str(meta.get("git_commit") or "?")[:7],
         "cases": len(scenes),
         "seconds": float(meta.get("seconds", 0.0)),
@@ -208,7 +215,7 @@ def fitted_table(reports: Path, backend: str, *, made_by: str = "", repo: Path =
     if not mine and not theirs:
         return None
     got = fit(runs, totals, backend, estimate.table_for(backend)[0])
-    cpus = sorted({str(r["cpus"]) for r in mine} or {"?"})
+    machines = sorted({r["device"] for r in mine}) or [f"{platform.machine()}: sweeps' case files"]
     try:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                                 cwd=repo, check=True).stdout.strip()  # fmt: skip
@@ -216,7 +223,7 @@ def fitted_table(reports: Path, backend: str, *, made_by: str = "", repo: Path =
         commit = "unknown"
     return {
         "made_by": made_by,
-        "machine": f"{platform.machine()}, the runs on {'/'.join(cpus)} CPU cores",
+        "machine": "; ".join(machines),
         "backend": backend,
         "commit": commit,
         "fit": _FIT,
