@@ -15,7 +15,8 @@ from study.harness.sweep import load_sweep
 
 REPO = estimate.REPO
 #: the planted seconds per unit (llvm), and numpy's (another backend's runs must not leak into llvm's table)
-LLVM = {"inputs": 2e-7, "renders": 1.5e-6, "probes": 9e-7, "exact": 3e-5, "traces": 4e-9, "columns": 6e-5}
+LLVM = {"inputs": 2e-7, "renders": 1.5e-6, "probes": 9e-7, "exact": 3e-5, "traces": 4e-9, "columns": 6e-5,
+        "columns_method": 0.02}  # fmt: skip
 NUMPY = {k: 10 * v for k, v in LLVM.items()}
 ONES = {**{k: 1.0 for k in estimate.DEFAULT_RATES}, "columns_method": 0.0, "case": 0.0}
 
@@ -25,15 +26,22 @@ def _sha(rel):
 
 
 def _units_of_figure(name):
-    """Each stage's units of a figure's cases, through forecast with every rate 1 (not estimate_fit's code)."""
+    """Each stage's units of a figure's cases, through forecast with every rate 1 (not estimate_fit's code); its
+    method rows as ``columns_method``."""
     cfg, scene, methods = load_figure_config(REPO / "configs" / f"{name}.toml")
     scenes = [scene.with_updates(over) for _, _, over in cfg.case_list()]
-    return estimate.forecast(scenes, methods, cache=Cache(None), table=ONES).stages, len(scenes)
+    units = estimate.forecast(scenes, methods, cache=Cache(None), table=ONES).stages
+    rows = {**ONES, "columns": 0.0, "columns_method": 1.0}
+    units["columns_method"] = estimate.forecast(scenes, methods, cache=Cache(None), table=rows).stages[
+        "columns"
+    ]
+    return units, len(scenes)
 
 
 def _plant_figure(root, name, backend, rates, *, case=0.5, cached=False, cpus=2):
     units, n = _units_of_figure(name)
     split = {k: rates[k] * units[k] for k in rates}
+    split["columns"] += split.pop("columns_method", 0.0)  # a cost per pixel and one per method row
     if cached:  # the impostors were in the cache: read in a trifle of the time
         split["renders"], split["probes"] = 1e-3 * split["renders"], 1e-3 * split["probes"]
     meta = {"figure": name, "config": f"configs/{name}.toml", "config_sha256": _sha(f"configs/{name}.toml"),
@@ -56,7 +64,8 @@ def test_planted_runs_give_back_their_rates_per_backend(tmp_path):
     sw = load_sweep(REPO / "configs" / "sweep_glossy.toml", backend="llvm")
     units = estimate.forecast([c.scene for c in sw.cases], sw.methods, cache=Cache(None), intervals=False,
                               table=ONES).stages  # fmt: skip
-    split = {k: LLVM[k] * units[k] for k in LLVM}
+    split = {k: LLVM[k] * units[k] for k in LLVM if k != "columns_method"}
+    split["columns"] += LLVM["columns_method"] * sum(len(sw.methods) for _ in sw.cases)
     split["columns"] *= 0.25  # a sweep's columns (no pixel intervals): a quarter of a figure's per unit
     (tmp_path / "sweep-sweep_glossy").mkdir()
     record = estimate.run_record(100.0, [c.id for c in sw.cases], [{}] * len(sw.cases))
@@ -95,6 +104,7 @@ def test_a_sweep_without_a_time_split_fits_its_share_from_its_case_files(tmp_pat
     """A sweep written before its metadata held a time split: its case files' case_seconds, less the other
     stages at the fitted rates, give the share of the columns."""
     _plant_figure(tmp_path, "fig_attic", "llvm", LLVM, case=0.0)
+    _plant_figure(tmp_path, "fig_probes", "llvm", LLVM, case=0.0)  # two figures: per pixel and per row apart
     sw = load_sweep(REPO / "configs" / "sweep_tiny.toml", backend="llvm")
     d = tmp_path / "sweep-sweep_tiny"
     (d / "cases").mkdir(parents=True)
@@ -105,7 +115,8 @@ def test_a_sweep_without_a_time_split_fits_its_share_from_its_case_files(tmp_pat
 
         n = estimate.units(c.scene, sw.methods, rendered=impostor_key(c.scene) not in seen, intervals=False)
         seen.add(impostor_key(c.scene))
-        sec = sum(LLVM[k] * n[k] for k in LLVM if k != "columns") + 0.4 * LLVM["columns"] * n["columns"]
+        cols = LLVM["columns"] * n["columns"] + LLVM["columns_method"] * n["columns_method"]
+        sec = sum(LLVM[k] * n[k] for k in LLVM if not k.startswith("columns")) + 0.4 * cols
         rows = [{"case": c.id, "backend": "llvm", "case_seconds": sec}]
         (d / "cases" / f"{c.key}.json").write_text(json.dumps({"key": c.key, "rows": rows}))
     runs, totals = estimate_fit.collect(tmp_path)
@@ -148,31 +159,35 @@ def test_the_backends_table_is_used_and_an_unknown_backend_falls_back_to_numpys_
 
 
 def test_a_figures_last_run_on_the_same_backend_is_preferred(tmp_path, monkeypatch, capsys):
-    """reports/NAME/metadata.json of the same config, backend and CPU count: its measured seconds, with renders
-    and probes from the model (today's cache); another backend's run or --fresh: the stage model."""
+    """reports/NAME/metadata.json of the same config, backend and CPU count: its measured seconds, renders and
+    probes as the cache stands now (measured where it rendered and nothing is cached, none where all is cached,
+    the model's where it read them from a cache and nothing is cached now); another backend's run or --fresh:
+    the stage model."""
     monkeypatch.setattr(estimate, "COSTS", _costs(tmp_path / "costs.json"))
     meta = _plant_figure(tmp_path, "fig_attic", "llvm", LLVM, cpus=os.cpu_count())
     none = Cache(None)
     model = estimate.config_estimate(REPO / "configs" / "fig_attic.toml", backend="llvm", cache=none)
     split = meta["time_split"]
-    want = (
-        meta["seconds"]
-        - split["renders"]
-        - split["probes"]
-        + model.stages["renders"]
-        + model.stages["probes"]
-    )
-    ((cmd, sec, how),) = estimate.step_estimates(
-        ["figure fig_attic"], cache=none, reports=tmp_path, backend="llvm"
-    )
-    assert np.isclose(sec, want) and f"its last run, llvm on {os.cpu_count()} cores" in how
-    ((_, sec, how),) = estimate.step_estimates(
-        ["figure fig_attic"], cache=none, reports=tmp_path, backend="numpy"
-    )
+    drawn = split["renders"] + split["probes"]
+
+    def step(backend="llvm", **kw):
+        return estimate.step_estimates(
+            ["figure fig_attic"], cache=none, reports=tmp_path, backend=backend, **kw
+        )[0]
+
+    (cmd, sec, how) = step()
+    assert np.isclose(sec, meta["seconds"]) and f"its last run, llvm on {os.cpu_count()} cores" in how
+    assert not np.isclose(sec, model.seconds)
+    with monkeypatch.context() as m:  # every impostor in the cache now
+        m.setattr(estimate, "cached_impostor", lambda sc, cache: cache is not None)
+        assert np.isclose(step()[1], meta["seconds"] - drawn)
+    _plant_figure(tmp_path, "fig_attic", "llvm", LLVM, cpus=os.cpu_count(), cached=True)  # it read them
+    thin = json.loads((tmp_path / "fig_attic" / "metadata.json").read_text())
+    got = thin["seconds"] - thin["time_split"]["renders"] - thin["time_split"]["probes"]
+    assert np.isclose(step()[1], got + model.stages["renders"] + model.stages["probes"])
+    (_, sec, how) = step("numpy")
     assert "stage model" in how and "last run" not in how
-    (_, sec, how), = estimate.step_estimates(["figure fig_attic"], cache=none, reports=tmp_path, backend="llvm",
-                                             fresh=True)  # fmt: skip
-    assert sec == model.seconds
+    assert step(fresh=True)[1] == model.seconds
     estimate.main(["--backend", "cuda", "--jobs", "2", "--cache", str(tmp_path / "c"), "--reports", str(tmp_path),
                    "figure fig_attic"])  # fmt: skip
     out = capsys.readouterr().out.splitlines()

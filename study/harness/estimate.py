@@ -310,20 +310,30 @@ def last_run(meta_path: Path, config: Path, backend: str) -> dict | None:
     return meta
 
 
-def from_last_run(meta: dict, est: Forecast, cases: int) -> float:
+#: A last run rendered (its renders or probes) where they took at least this share of what the model prices for
+#: rendering all of them; less, it found them in the cache (a read is a small fraction of a render).
+RENDERED = 0.2
+
+
+def from_last_run(meta: dict, est: Forecast, cases: int, cold: Forecast | None = None) -> float:
     """Core seconds of ``cases`` cases from their command's last run (:func:`last_run`): its measured seconds
-    per case but for renders and probes, which come from ``est`` (the stage model with the cache as it is now:
-    the last run may have rendered what is now cached, or read what is now gone). A figure's ``seconds`` (its
-    cases) and ``outputs``; a sweep's summed stage times over the ``computed`` cases it ran."""
+    per case, a figure's ``seconds`` (its cases) and ``outputs``, a sweep's summed stage times over the
+    ``computed`` cases it ran and the model's fixed cost per case. Renders and probes as the cache stands now:
+    ``est`` the stage model with today's cache, ``cold`` the same with nothing cached (``est`` where None); where
+    the last run rendered (:data:`RENDERED`) its measured seconds × the share ``est``/``cold`` still to render,
+    else (it read them from a cache since gone, say) the model's."""
     split = {k: float(v) for k, v in meta["time_split"].items()}
+    ran = max(int(meta.get("computed", meta.get("cases", cases))), 1)
+    drawn = 0.0
+    for stage in ("renders", "probes"):
+        had, now = split.get(stage, 0.0) * cases / ran, est.stages.get(stage, 0.0)
+        full = (cold or est).stages.get(stage, 0.0)
+        drawn += had * now / full if full > 0 and had >= RENDERED * full else now
     rendered = split.get("renders", 0.0) + split.get("probes", 0.0)
-    model = est.stages.get("renders", 0.0) + est.stages.get("probes", 0.0)
     if "computed" in meta:  # a sweep: its cases' stage times (core seconds) and the cases it computed
-        ran = max(int(meta["computed"]), 1)
         per = (sum(split.get(k, 0.0) for k in CASE_PARTS) - rendered) / ran + est.fixed / max(est.cases, 1)
-        return per * cases + model
-    ran = max(int(meta.get("cases", cases)), 1)
-    return (float(meta["seconds"]) + split.get("outputs", 0.0) - rendered) * cases / ran + model
+        return per * cases + drawn
+    return (float(meta["seconds"]) + split.get("outputs", 0.0) - rendered) * cases / ran + drawn
 
 
 def _backend_of(words: list[str], default: str) -> str:
@@ -371,8 +381,9 @@ def step_estimates(commands, *, cache: Cache | None = None, reports: Path | None
             est = config_estimate(config, cache=cache, backend=b)
             last = None if fresh else last_run(reports / words[1] / "metadata.json", config, b)
             if last:
-                how = f"{est.cases} cases, its last run, {b} on {last['cpus']} cores (renders, probes: stage model)"
-                out.append((cmd, from_last_run(last, est, est.cases), how))
+                how = f"{est.cases} cases, its last run, {b} on {last['cpus']} cores; renders as cached"
+                cold = config_estimate(config, cache=None, backend=b)  # nothing cached: what it rendered
+                out.append((cmd, from_last_run(last, est, est.cases, cold), how))
             else:
                 out.append((cmd, est.seconds, f"{est.cases} cases, stage model, {est.source}"))
         elif len(words) >= 2 and words[0] == "sweep":
@@ -383,8 +394,9 @@ def step_estimates(commands, *, cache: Cache | None = None, reports: Path | None
             est = forecast([c.scene for c in todo], sw.methods, cache=cache, intervals=False, backend=b)
             last = None if fresh or not todo else last_run(where / "metadata.json", REPO / words[1], b)
             if last and "computed" in last:
-                how = f"{len(todo)} cases{done}, its last run, {b} on {last['cpus']} cores (renders, probes: model)"
-                out.append((cmd, from_last_run(last, est, len(todo)), how))
+                how = f"{len(todo)} cases{done}, its last run, {b} on {last['cpus']} cores; renders as cached"
+                cold = forecast([c.scene for c in todo], sw.methods, cache=None, intervals=False, backend=b)
+                out.append((cmd, from_last_run(last, est, len(todo), cold), how))
             else:
                 out.append((cmd, est.seconds, f"{len(todo)} cases{done}, stage model, {est.source}"))
         elif words:

@@ -14,13 +14,15 @@ estimator): a total, so the long runs, which make most of a reproduce's time, we
 times all the units gives back all the seconds measured. By stage:
 
 - inputs, exact, traces: every run.
-- renders, probes: the runs that rendered (seconds per unit at least :data:`RENDERED` of the highest run's of
-  the backend; a run that found its impostors in the cache read them in a small fraction of that and says
-  nothing of the cost of rendering, since the units are counted as if nothing were cached).
-- columns: figures (with their pixel intervals); ``columns_method`` 0 (the per-pixel rate carries it);
-  ``sweep_share`` from the sweeps' columns seconds over their columns units at that rate, or, where the sweeps'
-  metadata holds no time split (written before it did), from their case files' ``case_seconds`` less the other
-  stages at the fitted rates.
+- renders, probes: the runs that rendered (seconds per unit at least ``estimate.RENDERED`` of the highest
+  run's of the backend; a run that found its impostors in the cache read them in a small fraction of that and
+  says nothing of the cost of rendering, since the units are counted as if nothing were cached).
+- columns: figures (with their pixel intervals), two rates, one per pixel × method (``columns``) and one per
+  method row (``columns_method``): their least-squares fit to the figures' columns seconds, both ≥ 0 (one alone,
+  the ratio above, where the other comes out negative or one figure is all there is; measured: a figure's columns
+  follow its method rows more than its pixels, an upper bound). ``sweep_share`` from the sweeps' columns seconds
+  over their columns units at those rates, or, where the sweeps' metadata holds no time split (written before it
+  did), from their case files' ``case_seconds`` less the other stages at the fitted rates.
 - case (fixed seconds per case): the figures' seconds and outputs beyond their stages, per case.
 
 A stage no run measured keeps the base table's rate (numpy's where the backend has none) and is listed as kept.
@@ -35,8 +37,6 @@ from pathlib import Path
 from study.harness import estimate
 from study.progress import CASE_PARTS
 
-#: A run counts for renders (probes) where its seconds per unit are at least this share of the highest run's.
-RENDERED = 0.2
 _FIT = "sum of seconds / sum of units per stage over the runs (least squares, variance ∝ units)"
 
 
@@ -148,6 +148,21 @@ def collect(reports: Path, repo: Path = estimate.REPO) -> tuple[list[dict], list
     return runs, totals
 
 
+def _columns(figs: list[tuple[float, float, float]]) -> tuple[float, float]:
+    """(per pixel × method, per method row) seconds: the least-squares fit to (pixel units, row units, seconds)
+    per figure, both ≥ 0 (a negative one set to 0 and the other the ratio of the sums)."""
+    import numpy as np
+
+    p, m, s = (np.array(v, float) for v in zip(*figs, strict=True))
+    if len(figs) >= 2:
+        (a, b), *_ = np.linalg.lstsq(np.stack([p, m], axis=1), s, rcond=None)
+        if a >= 0 and b >= 0:
+            return float(a), float(b)
+        if a < 0 and m.sum() > 0:
+            return 0.0, float(s.sum() / m.sum())
+    return float(s.sum() / max(p.sum(), 1e-300)), 0.0
+
+
 def fit(runs: list[dict], totals: list[dict], backend: str, base: dict[str, float]) -> dict:
     """The table of ``backend`` from its ``runs`` and sweep ``totals`` (:func:`collect`) over ``base``
     (seconds per unit, the module docstring's fit); its ``seconds_per_unit``, ``kept`` (stages no run measured),
@@ -164,7 +179,7 @@ def fit(runs: list[dict], totals: list[dict], backend: str, base: dict[str, floa
             sec[stage] += s.get(stage, 0.0)
             units[stage] += n[stage]
         for stage in ("renders", "probes"):
-            if n[stage] > 0 and s.get(stage, 0.0) >= RENDERED * n[stage] * top[stage]:
+            if n[stage] > 0 and s.get(stage, 0.0) >= estimate.RENDERED * n[stage] * top[stage]:
                 sec[stage] += s.get(stage, 0.0)
                 units[stage] += n[stage]
         if r["kind"] == "figure":
@@ -174,23 +189,30 @@ def fit(runs: list[dict], totals: list[dict], backend: str, base: dict[str, floa
             units["case"] += r["cases"]
         else:
             sec["sweep_columns"] += s.get("columns", 0.0)
-            units["sweep_columns"] += n["columns"]
     rate, kept = dict(base), []
     for stage in (*CASE_PARTS, "case"):
         if units[stage] > 0:
             rate[stage] = max(sec[stage], 0.0) / units[stage]
         else:
             kept.append(stage)
-    if units["columns"] > 0:
-        rate["columns_method"] = 0.0
-    if units["sweep_columns"] > 0 and rate["columns"] > 0:
-        rate["sweep_share"] = sec["sweep_columns"] / (units["sweep_columns"] * rate["columns"])
-    elif totals and rate["columns"] > 0:  # the cases' wall times less their other stages at the fitted rates
+    figs = [(r["units"]["columns"], r["units"]["columns_method"], r["split"].get("columns", 0.0))
+            for r in runs if r["kind"] == "figure"]  # fmt: skip
+    if figs:
+        rate["columns"], rate["columns_method"] = _columns(figs)
+
+    def cols(n: dict) -> float:  # a case's columns seconds at the fitted rates, before the sweep's share
+        return n["columns"] * rate["columns"] + n["columns_method"] * rate["columns_method"]
+
+    sweeps = [r for r in runs if r["kind"] == "sweep"]
+    units["sweep_columns"] = sum(cols(r["units"]) for r in sweeps)  # in seconds at the figures' rates
+    if units["sweep_columns"] > 0:
+        rate["sweep_share"] = sec["sweep_columns"] / units["sweep_columns"]
+    elif totals:  # the cases' wall times less their other stages at the fitted rates
         rest = sum(t["seconds"] - rate["case"] - sum(t["units"][k] * rate[k] for k in CASE_PARTS[:-1])
                    for t in totals)  # fmt: skip
-        cols = sum(t["units"]["columns"] * rate["columns"] for t in totals)
-        rate["sweep_share"] = max(rest, 0.0) / cols if cols > 0 else rate["sweep_share"]
-        sec["sweep_columns"], units["sweep_columns"] = max(rest, 0.0), cols / rate["columns"]
+        units["sweep_columns"], sec["sweep_columns"] = sum(cols(t["units"]) for t in totals), max(rest, 0.0)
+        if units["sweep_columns"] > 0:
+            rate["sweep_share"] = sec["sweep_columns"] / units["sweep_columns"]
     else:
         kept.append("sweep_share")
     return {
