@@ -185,14 +185,16 @@ def units(scene, methods, *, rendered: bool = True, intervals: bool = True) -> d
 
 
 def forecast(scenes, methods, *, cache: Cache | None = None, intervals: bool = True, jobs: int = 1,
-             table: dict[str, float] | None = None, backend: str = "numpy") -> Forecast:  # fmt: skip
+             table: dict[str, float] | None = None, backend: str = "numpy",
+             seen: set[str] | None = None) -> Forecast:  # fmt: skip
     """The :class:`Forecast` of running ``methods`` on each of ``scenes`` (a command's cases, in order) on
     ``backend`` (its table, :func:`table_for`; ``table``: these rates instead): an impostor already cached or
-    captured by an earlier case of the list costs no renders (module docstring); ``jobs`` cases at a time."""
+    captured by an earlier case of the list (or of ``seen``, the impostor keys earlier commands capture; the
+    keys of these cases are added to it) costs no renders (module docstring); ``jobs`` cases at a time."""
     from study.impostor.capture import impostor_key
 
     rate, source = (table, "the given rates") if table else table_for(backend)
-    seen: set[str] = set()
+    seen = set() if seen is None else seen
     est = Forecast(0, dict.fromkeys(CASE_PARTS, 0.0), jobs=jobs, source=source)
     for sc in scenes:
         k = impostor_key(sc)
@@ -249,15 +251,17 @@ def teller(methods, cache: Cache | None, backend: str = "numpy", *, jobs: int = 
                               jobs=jobs, backend=backend)  # fmt: skip
 
 
-def config_estimate(path, *, backend: str = "numpy", cache: Cache | None = None) -> Forecast:
+def config_estimate(path, *, backend: str = "numpy", cache: Cache | None = None, seen: set[str] | None = None
+                    ) -> Forecast:  # fmt: skip
     """The :class:`Forecast` of a figure config (``study figure``): its cases (positions or cases × seeds) with its
-    methods, as :func:`study.outputs.figures.figure_positions` expands them, on ``backend``."""
+    methods, as :func:`study.outputs.figures.figure_positions` expands them, on ``backend`` (``seen``: as
+    :func:`forecast`)."""
     from study.harness.config import load_figure_config
 
     cfg, scene, methods = load_figure_config(path)
     preset = {}
     scenes = [scene.with_updates({**over, **preset}) for _, _, over in cfg.case_list()]
-    return forecast(scenes, methods, cache=cache, intervals=True, backend=backend)
+    return forecast(scenes, methods, cache=cache, intervals=True, backend=backend, seen=seen)
 
 
 #: Where the last runs' metadata.json are (``reports/NAME``, ``reports/sweep-STEM``, :data:`MEASURED`).
@@ -367,18 +371,19 @@ def step_estimates(commands, *, cache: Cache | None = None, reports: Path | None
     cases measured on this machine are more accurate than the stage model, whose rates are one average over
     every figure and sweep (a figure's methods and pixels differ from that average); renders and probes still
     come from the model with today's cache. ``fresh``: the stage model alone, as if no case were done and no
-    figure had run (how a calibration is checked against a run it did not see). An impostor cached by an
-    earlier command is not counted again only where the cache holds it (each command is modelled on its own)."""
+    figure had run (how a calibration is checked against a run it did not see). An impostor is rendered once:
+    by the first command of the list that needs it, unless the cache holds it (the commands share the cache;
+    run two at a time, a later one may start before the first has captured it and render it too, uncounted)."""
     from study.harness.sweep import load_sweep
 
     reports = REPORTS if reports is None else Path(reports)
-    out = []
+    out, seen = [], set()  # the impostors the commands before capture
     for cmd in commands:
         words = cmd.split()
         b = _backend_of(words, backend)
         if len(words) >= 2 and words[0] == "figure":
             config = REPO / "configs" / f"{words[1]}.toml"
-            est = config_estimate(config, cache=cache, backend=b)
+            est = config_estimate(config, cache=cache, backend=b, seen=seen)
             last = None if fresh else last_run(reports / words[1] / "metadata.json", config, b)
             if last:
                 how = f"{est.cases} cases, its last run, {b} on {last['cpus']} cores; renders as cached"
@@ -391,7 +396,9 @@ def step_estimates(commands, *, cache: Cache | None = None, reports: Path | None
             where = reports / f"sweep-{Path(words[1]).stem}"
             todo = sw.cases if fresh else [c for c in sw.cases if not _done(where, c)]
             done = f" ({len(sw.cases) - len(todo)} done already)" if len(todo) < len(sw.cases) else ""
-            est = forecast([c.scene for c in todo], sw.methods, cache=cache, intervals=False, backend=b)
+            est = forecast(
+                [c.scene for c in todo], sw.methods, cache=cache, intervals=False, backend=b, seen=seen
+            )
             last = None if fresh or not todo else last_run(where / "metadata.json", REPO / words[1], b)
             if last and "computed" in last:
                 how = f"{len(todo)} cases{done}, its last run, {b} on {last['cpus']} cores; renders as cached"

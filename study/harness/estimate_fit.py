@@ -14,9 +14,11 @@ estimator): a total, so the long runs, which make most of a reproduce's time, we
 times all the units gives back all the seconds measured. By stage:
 
 - inputs, exact, traces: every run.
-- renders, probes: the runs that rendered (seconds per unit at least ``estimate.RENDERED`` of the highest
-  run's of the backend; a run that found its impostors in the cache read them in a small fraction of that and
-  says nothing of the cost of rendering, since the units are counted as if nothing were cached).
+- renders, probes: the runs that rendered (seconds per unit at least ``estimate.RENDERED`` of the median run's
+  of the backend; a run that found its impostors in the cache read them in a small fraction of that and says
+  nothing of the cost of rendering, since the units are counted as if nothing were cached; the median, not the
+  highest: one scene whose renders the units undercount, fig_glossy's rough truth at 10× the others' seconds
+  per unit, would otherwise leave only itself).
 - columns: figures (with their pixel intervals), two rates, one per pixel × method (``columns``) and one per
   method row (``columns_method``): their least-squares fit to the figures' columns seconds, both ≥ 0 (one alone,
   the ratio above, where the other comes out negative or one figure is all there is; measured: a figure's columns
@@ -33,6 +35,8 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
+
+import numpy as np
 
 from study.harness import estimate
 from study.progress import CASE_PARTS
@@ -151,8 +155,6 @@ def collect(reports: Path, repo: Path = estimate.REPO) -> tuple[list[dict], list
 def _columns(figs: list[tuple[float, float, float]]) -> tuple[float, float]:
     """(per pixel × method, per method row) seconds: the least-squares fit to (pixel units, row units, seconds)
     per figure, both ≥ 0 (a negative one set to 0 and the other the ratio of the sums)."""
-    import numpy as np
-
     p, m, s = (np.array(v, float) for v in zip(*figs, strict=True))
     if len(figs) >= 2:
         (a, b), *_ = np.linalg.lstsq(np.stack([p, m], axis=1), s, rcond=None)
@@ -171,7 +173,7 @@ def fit(runs: list[dict], totals: list[dict], backend: str, base: dict[str, floa
     totals = [t for t in totals if t["backend"] == backend]
     sec = dict.fromkeys([*CASE_PARTS, "sweep_columns", "case"], 0.0)
     units = dict.fromkeys(sec, 0.0)
-    top = {k: max((r["split"].get(k, 0.0) / r["units"][k] for r in runs if r["units"][k] > 0), default=0.0)
+    mid = {k: float(np.median([r["split"].get(k, 0.0) / r["units"][k] for r in runs if r["units"][k] > 0] or [0]))
            for k in ("renders", "probes")}  # fmt: skip
     for r in runs:
         s, n = r["split"], r["units"]
@@ -179,7 +181,7 @@ def fit(runs: list[dict], totals: list[dict], backend: str, base: dict[str, floa
             sec[stage] += s.get(stage, 0.0)
             units[stage] += n[stage]
         for stage in ("renders", "probes"):
-            if n[stage] > 0 and s.get(stage, 0.0) >= estimate.RENDERED * n[stage] * top[stage]:
+            if n[stage] > 0 and s.get(stage, 0.0) >= estimate.RENDERED * n[stage] * mid[stage]:
                 sec[stage] += s.get(stage, 0.0)
                 units[stage] += n[stage]
         if r["kind"] == "figure":
