@@ -1,16 +1,24 @@
-"""Calibrate the time estimate (study/harness/estimate.py) on this machine: one case of SCENE with every method, run
-cold (an empty cache: every render and probe) and then warm (the cache it filled), each stage's measured time divided
-by its units (estimate.units), written to study/harness/stage_costs.json with the machine, backend and commit.
+"""Calibrate the time estimate (study/harness/estimate.py) on this machine, one table per backend in
+study/harness/stage_costs.json, with the machine, the backend and the commit.
+
+    PYTHONPATH=. .venv/bin/python scripts/calibrate_estimate.py --from-reports reports [--backend llvm ...]
+
+fits each backend's seconds per unit to the figures' and sweeps' last runs under that folder (reports/*/metadata.json,
+reports/sweep-*/metadata.json: their time split over the units of their cases, study.harness.estimate_fit: per
+stage Σ seconds / Σ units over the backend's runs, a least-squares fit with variance ∝ units); every backend found, or
+those named. The folder is only read.
 
     PYTHONPATH=. .venv/bin/python scripts/calibrate_estimate.py [SCENE] [--backend numpy] [--set KEY=VALUE ...]
 
-The default is scenes/room.toml at a third of its sizes (camera 128², cube 128², 16 samples), a few minutes on 2
-cores; the estimate then scales each stage's rate by its units to the command's own sizes."""
+runs one case of SCENE with every method instead, cold (an empty cache: every render and probe) and then warm (the
+cache it filled), each stage's measured time divided by its units (estimate.units). The default is scenes/room.toml
+at a third of its sizes (camera 128², cube 128², 16 samples), a few minutes on 2 cores; the estimate then scales
+each stage's rate by its units to the command's own sizes. One small case under-weighs what long runs spend (the
+traces of many methods over large frames): prefer --from-reports after a reproduce."""
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import subprocess
@@ -29,15 +37,24 @@ SMALL = {"camera.width": 128, "camera.height": 128, "render.cube_res": 128, "ren
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scene", nargs="?", default=str(ROOT / "scenes" / "room.toml"))
-    ap.add_argument("--backend", default="numpy")
+    ap.add_argument(
+        "--backend", action="append", default=None, help="numpy (default) | llvm | cuda; repeatable"
+    )
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument(
+        "--from-reports", type=Path, default=None, metavar="DIR", help="fit to the runs under DIR"
+    )
     args = ap.parse_args(argv)
+    made_by = "PYTHONPATH=. .venv/bin/python scripts/calibrate_estimate.py " + " ".join(argv or sys.argv[1:])
+    if args.from_reports is not None:
+        return from_reports(args.from_reports, args.backend, args.out, made_by)
+    args.backend = (args.backend or ["numpy"])[-1]
     from study import runtime
     from study.api import load_scene, method_list
     from study.cache import Cache
     from study.cli.run import parse_sets
-    from study.harness import estimate
+    from study.harness import estimate, estimate_fit
     from study.harness.config import surface_methods
     from study.measure.case import run_case
 
@@ -82,8 +99,7 @@ def main(argv=None) -> None:
     except Exception:
         commit = "unknown"
     table = {
-        "made_by": "PYTHONPATH=. .venv/bin/python scripts/calibrate_estimate.py "
-        + " ".join(argv or sys.argv[1:]),
+        "made_by": made_by,
         "machine": f"{platform.machine()}, {os.cpu_count()} CPU cores, load average {os.getloadavg()[0]:.1f}",
         "backend": args.backend,
         "commit": commit,
@@ -95,7 +111,23 @@ def main(argv=None) -> None:
         "seconds_per_unit": {k: float(f"{v:.4g}") for k, v in seconds.items()},
     }
     out = args.out or estimate.COSTS
-    out.write_text(json.dumps(table, indent=2) + "\n")
+    estimate_fit.write(out, args.backend, table)
+    print(f"wrote {out} ({args.backend})")
+
+
+def from_reports(reports: Path, backends: list[str] | None, out: Path | None, made_by: str) -> None:
+    """Each backend's table fitted to the runs under ``reports`` (every backend they ran on, or ``backends``)."""
+    from study.harness import estimate, estimate_fit
+
+    out = out or estimate.COSTS
+    collected = runs, totals = estimate_fit.collect(reports)
+    for b in backends or sorted({r["backend"] for r in runs} | {t["backend"] for t in totals}):
+        tab = estimate_fit.fitted_table(reports, b, made_by=made_by, collected=collected)
+        if tab is None:
+            print(f"{b}: no run under {reports}")
+            continue
+        estimate_fit.write(out, b, tab)
+        print(f"{b}: {len(tab['runs'])} runs, kept {tab['kept'] or 'none'}: {tab['seconds_per_unit']}")
     print(f"wrote {out}")
 
 

@@ -69,7 +69,7 @@ B=${REPRODUCE_BACKEND:+ --backend $REPRODUCE_BACKEND}
 # the time it will take, before it starts: one line per command and the total on $J cores (study/harness/estimate.py:
 # figures and sweeps as cases × the stage costs measured here, caustics, animation and convergence from their last run)
 mapfile -t todo < <(printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$")
-PYTHONPATH=.${PYTHONPATH:+:$PYTHONPATH} $P -m study.harness.estimate --jobs "$J" "${todo[@]}" | sed 's/^/reproduce: /' || true
+PYTHONPATH=.${PYTHONPATH:+:$PYTHONPATH} $P -m study.harness.estimate --backend "${REPRODUCE_BACKEND:-numpy}" --jobs "$J" "${todo[@]}" | sed 's/^/reproduce: /' || true
 printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$" | sed -E "\\%^(${REPRODUCE_CPU:-\$^})\$%! s/\$/$B/" \
   | xargs -P "$J" -I CMD bash -c 'set -o pipefail; '"$S"' CMD 2>&1 | sed -u "s|^|[CMD] |"'
 [ -n "${REPRODUCE_SKIP_CALIBRATION:-}" ] \

@@ -414,7 +414,7 @@ def evaluate(
     chosen = not (isinstance(methods, str) and methods == "all")  # the default set: the surface's family
     ms, wrong = surface_methods(scene, method_list(methods), chosen=chosen, allow_mismatch=allow_mismatch)
     budget.check_backend(backend)
-    budget.check_cases([("run", scene)], ms, source=source, tell=estimate.teller(ms, Cache(cache)))
+    budget.check_cases([("run", scene)], ms, source=source, tell=estimate.teller(ms, Cache(cache), backend))
     from study import runtime
 
     with runtime.using_render_device("cuda" if backend == "cuda" else None):  # renders and exact hits too, as

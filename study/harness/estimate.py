@@ -18,9 +18,13 @@ columns    the object's pixels × the methods, and the methods (a fixed cost per
            a sweep's (no pixel intervals) scaled by ``sweep_share``
 =========  ==========================================================================================
 
-The seconds per unit are a table in the repository (:data:`COSTS`, ``stage_costs.json`` beside this module) written
-by ``PYTHONPATH=. .venv/bin/python scripts/calibrate_estimate.py``, which runs one small case cold and one warm on this
-machine and divides each stage's measured time by its units. The object's rays and pixels are those of its bounding
+The seconds per unit are tables in the repository (:data:`COSTS`, ``stage_costs.json`` beside this module), one per
+backend (``"backends": {"numpy": {...}, "llvm": {...}}``: the methods' traces run 4-100x faster on Dr.Jit's LLVM
+backend than on numpy, so one table cannot serve both); the estimate reads the table of the backend the command runs
+with (:func:`table_for`), and a backend without one gets numpy's with its line saying so. They are written by
+``PYTHONPATH=. .venv/bin/python scripts/calibrate_estimate.py``: either one small case run cold and warm here, or
+(``--from-reports reports``, :mod:`study.harness.estimate_fit`) fitted to the time splits of the figures' and
+sweeps' last runs. The object's rays and pixels are those of its bounding
 sphere (:func:`study.harness.budget.object_pixels`: an upper bound). Renders and probes are counted only where the
 cache does not hold the case's impostor (its radiance is what is checked; a cached impostor is taken to come with
 its probes and camera renders, which the same command cached beside it), and an impostor shared by several cases
@@ -39,6 +43,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from study.cache import Cache
+from study.harness.provenance import REPO
 from study.progress import CASE_PARTS
 
 #: The calibrated seconds per unit of every stage (:func:`units`), written by ``scripts/calibrate_estimate.py``.
@@ -65,6 +70,7 @@ class Forecast:
     stages: dict[str, float] = field(default_factory=dict)
     fixed: float = 0.0  # per case: Python, kernels, tables
     jobs: int = 1
+    source: str = "study/harness/stage_costs.json"  # which table the rates came from (:func:`table_for`)
 
     @property
     def seconds(self) -> float:
@@ -74,17 +80,60 @@ class Forecast:
         keys = dict.fromkeys([*self.stages, *other.stages])
         return Forecast(self.cases + other.cases,
                         {k: self.stages.get(k, 0.0) + other.stages.get(k, 0.0) for k in keys},
-                        self.fixed + other.fixed, max(self.jobs, other.jobs))  # fmt: skip
+                        self.fixed + other.fixed, max(self.jobs, other.jobs), self.source)  # fmt: skip
 
 
-def rates(path: Path | None = None) -> dict[str, float]:
-    """Seconds per unit of each stage: the calibrated table (:data:`COSTS`) over :data:`DEFAULT_RATES`."""
-    path = COSTS if path is None else path
+def tables_in(path: Path) -> dict[str, dict]:
+    """backend → its table of ``path``: ``{"backends": {name: table}}``, or the older single table (its
+    ``backend``, numpy where it names none); {} where the file is missing or unreadable."""
     try:
-        table = json.loads(Path(path).read_text())["seconds_per_unit"]
-    except (OSError, ValueError, KeyError, TypeError):
-        table = {}
-    return {**DEFAULT_RATES, **{k: float(v) for k, v in table.items() if k in DEFAULT_RATES}}
+        data = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(data, dict):
+        return {}
+    if isinstance(data.get("backends"), dict):
+        return {k: v for k, v in data["backends"].items() if isinstance(v, dict)}
+    return {str(data.get("backend", "numpy")): data} if "seconds_per_unit" in data else {}
+
+
+def table_for(backend: str = "numpy", path: Path | None = None) -> tuple[dict[str, float], str]:
+    """(seconds per unit, where they come from) for a command on ``backend``: that backend's table in
+    :data:`COSTS` over :data:`DEFAULT_RATES`; numpy's where ``backend`` has none (the line says so), the defaults
+    where neither is there."""
+    path = COSTS if path is None else Path(path)
+    tables = tables_in(path)
+    name = backend if backend in tables else "numpy"
+    try:
+        table = tables[name]["seconds_per_unit"]
+        got = {k: float(v) for k, v in table.items() if k in DEFAULT_RATES}
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return dict(DEFAULT_RATES), f"uncalibrated defaults (no table in {path.name})"
+    where = f"{path.name}'s {name} table"
+    if name != backend:
+        where = f"{path.name}'s numpy table: none for {backend}"
+    return {**DEFAULT_RATES, **got}, where
+
+
+#: The key of a sweep case's first row that carries its stage times from its worker to the runner
+#: (:func:`study.harness.runner.run_cases`), which takes it off the row and sums them (:func:`run_record`).
+TIMES = "_time_split"
+
+
+def run_record(seconds: float, computed: list[str], times: list) -> dict:
+    """What a sweep's metadata.json says of its run: its wall ``seconds``, the ids of the cases it ``computed``
+    and, where every one of them brought its stage times (``times``: a dict per case, or None), their sum per
+    stage of :data:`CASE_PARTS` (``time_split``, core seconds: jobs at a time), what
+    :mod:`study.harness.estimate_fit` calibrates the estimate from."""
+    out = {"seconds": round(seconds, 1), "computed": len(computed), "computed_cases": list(computed)}
+    if computed and len(times) == len(computed) and all(isinstance(t, dict) for t in times):
+        out["time_split"] = {k: round(sum(float(t.get(k, 0.0)) for t in times), 3) for k in CASE_PARTS}
+    return out
+
+
+def rates(path: Path | None = None, backend: str = "numpy") -> dict[str, float]:
+    """Seconds per unit of each stage on ``backend``: :func:`table_for` without its source."""
+    return table_for(backend, path)[0]
 
 
 def cached_impostor(scene, cache: Cache | None) -> bool:
@@ -136,15 +185,17 @@ def units(scene, methods, *, rendered: bool = True, intervals: bool = True) -> d
 
 
 def forecast(scenes, methods, *, cache: Cache | None = None, intervals: bool = True, jobs: int = 1,
-             table: dict[str, float] | None = None) -> Forecast:  # fmt: skip
-    """The :class:`Forecast` of running ``methods`` on each of ``scenes`` (a command's cases, in order): an
-    impostor already cached or captured by an earlier case of the list costs no renders (module docstring);
-    ``jobs`` cases at a time."""
+             table: dict[str, float] | None = None, backend: str = "numpy",
+             seen: set[str] | None = None) -> Forecast:  # fmt: skip
+    """The :class:`Forecast` of running ``methods`` on each of ``scenes`` (a command's cases, in order) on
+    ``backend`` (its table, :func:`table_for`; ``table``: these rates instead): an impostor already cached or
+    captured by an earlier case of the list (or of ``seen``, the impostor keys earlier commands capture; the
+    keys of these cases are added to it) costs no renders (module docstring); ``jobs`` cases at a time."""
     from study.impostor.capture import impostor_key
 
-    rate = table or rates()
-    seen: set[str] = set()
-    est = Forecast(0, dict.fromkeys(CASE_PARTS, 0.0), jobs=jobs)
+    rate, source = (table, "the given rates") if table else table_for(backend)
+    seen = set() if seen is None else seen
+    est = Forecast(0, dict.fromkeys(CASE_PARTS, 0.0), jobs=jobs, source=source)
     for sc in scenes:
         k = impostor_key(sc)
         rendered = k not in seen and not cached_impostor(sc, cache)
@@ -174,76 +225,187 @@ def told(est: Forecast, what: str = "") -> str:
     per = f", {est.jobs} at a time" if est.jobs > 1 else ""
     n = f"{est.cases} case{'s' if est.cases != 1 else ''}"
     return (f"estimate{' ' + what if what else ''}: about {span(est.seconds)} for {n}{per}"
-            + (f" ({split})" if split else "") + "; from study/harness/stage_costs.json")  # fmt: skip
+            + (f" ({split})" if split else "") + f"; from {est.source}")  # fmt: skip
 
 
 def tell(
-    scenes, methods, *, cache: Cache | None = None, intervals: bool = True, jobs: int = 1, what: str = ""
-):
-    """Say the :func:`forecast` of these cases before they start (:func:`study.progress.expect`: a line on stderr,
-    and the ETA of the current task starts from it); a no-op without a progress reporter."""
+    scenes, methods, *, cache: Cache | None = None, intervals: bool = True, jobs: int = 1, what: str = "",
+    backend: str = "numpy",
+):  # fmt: skip
+    """Say the :func:`forecast` of these cases on ``backend`` before they start (:func:`study.progress.expect`: a
+    line on stderr, and the ETA of the current task starts from it); a no-op without a progress reporter."""
     from study import progress
 
     if progress.current() is None:
         return
-    est = forecast(scenes, methods, cache=cache, intervals=intervals, jobs=jobs)
+    est = forecast(scenes, methods, cache=cache, intervals=intervals, jobs=jobs, backend=backend)
     progress.expect(est.seconds, told(est, what))
 
 
-def teller(methods, cache: Cache | None, *, jobs: int = 1, intervals: bool = True):
+def teller(methods, cache: Cache | None, backend: str = "numpy", *, jobs: int = 1, intervals: bool = True):
     """``cases → None``: :func:`tell` for a command's cases (scenes, or a sweep's
-    :class:`~study.harness.sweep.Case` list) with ``methods``; what :func:`study.harness.budget.check_cases` calls
-    (its ``tell``) once it accepted them, and a sweep's runner with the cases left."""
+    :class:`~study.harness.sweep.Case` list) with ``methods`` on ``backend``; what
+    :func:`study.harness.budget.check_cases` calls (its ``tell``) once it accepted them, and a sweep's runner with
+    the cases left."""
     return lambda cases: tell([getattr(c, "scene", c) for c in cases], methods, cache=cache, intervals=intervals,
-                              jobs=jobs)  # fmt: skip
+                              jobs=jobs, backend=backend)  # fmt: skip
 
 
-def config_estimate(path, *, backend: str = "numpy", cache: Cache | None = None) -> Forecast:
+def config_estimate(path, *, backend: str = "numpy", cache: Cache | None = None, seen: set[str] | None = None
+                    ) -> Forecast:  # fmt: skip
     """The :class:`Forecast` of a figure config (``study figure``): its cases (positions or cases × seeds) with its
-    methods, as :func:`study.outputs.figures.figure_positions` expands them."""
+    methods, as :func:`study.outputs.figures.figure_positions` expands them, on ``backend`` (``seen``: as
+    :func:`forecast`)."""
     from study.harness.config import load_figure_config
 
     cfg, scene, methods = load_figure_config(path)
     preset = {}
     scenes = [scene.with_updates({**over, **preset}) for _, _, over in cfg.case_list()]
-    return forecast(scenes, methods, cache=cache, intervals=True)
+    return forecast(scenes, methods, cache=cache, intervals=True, backend=backend, seen=seen)
 
+
+#: Where the last runs' metadata.json are (``reports/NAME``, ``reports/sweep-STEM``, :data:`MEASURED`).
+REPORTS = REPO / "reports"
 
 #: The commands the stage model does not count (their cases are neither a figure's nor a sweep's) → the folder under
 #: reports/ whose metadata.json holds the ``seconds`` their last run took (with its ``backend`` and ``cpus``).
 MEASURED = {"caustics-sweep": "fig8/sweep", "animate": "animation", "convergence": "convergence"}
 
 
+def read_meta(path: Path) -> dict | None:
+    try:
+        meta = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    return meta if isinstance(meta, dict) else None
+
+
 def measured(command: str, reports: Path | None = None) -> tuple[float, str] | None:
     """(seconds, where they come from) of ``command``'s last run (:data:`MEASURED`), or None where it wrote none."""
-    root = Path(__file__).resolve().parents[2] / "reports" if reports is None else Path(reports)
+    root = REPORTS if reports is None else Path(reports)
     name = MEASURED.get(command.split()[0] if command.split() else "")
+    meta = read_meta(root / str(name) / "metadata.json") if name else None
     try:
-        meta = json.loads((root / str(name) / "metadata.json").read_text())
-        seconds = float(meta["seconds"])
-    except (OSError, ValueError, KeyError, TypeError):
+        seconds = float(meta["seconds"])  # type: ignore[index]
+    except (KeyError, TypeError, ValueError):
         return None
     return seconds, f"its last run, {meta.get('backend', '?')} on {meta.get('cpus', '?')} cores"
 
 
-def step_estimates(commands, *, cache: Cache | None = None, reports: Path | None = None):
-    """One (command, seconds or None, how it was found) per command: ``figure NAME`` (its config,
-    ``configs/NAME.toml``) and ``sweep PATH`` (its cases, a sweep's columns) from the stage model, the commands of
-    :data:`MEASURED` from their last run's seconds, None for anything else. An impostor cached by an earlier
-    command is not counted again only where the cache holds it (each command is modelled on its own)."""
+def last_run(meta_path: Path, config: Path, backend: str) -> dict | None:
+    """The metadata.json of a figure's or sweep's last run where it describes this run to come: the same
+    ``backend``, the same config file (its ``config_sha256``), this machine's CPU count, with a ``time_split``
+    and ``seconds``; None otherwise."""
+    import hashlib
+    import os
+
+    meta = read_meta(meta_path)
+    if not meta or meta.get("backend") != backend or meta.get("cpus") != os.cpu_count():
+        return None
+    try:
+        sha = hashlib.sha256(Path(config).read_bytes()).hexdigest()[:16]
+    except OSError:
+        return None
+    split = meta.get("time_split")
+    if meta.get("config_sha256") != sha or not isinstance(split, dict) or "seconds" not in meta:
+        return None
+    if meta.get("quality", "preview") != "preview":
+        return None
+    return meta
+
+
+#: A last run rendered (its renders or probes) where they took at least this share of what the model prices for
+#: rendering all of them; less, it found them in the cache (a read is a small fraction of a render).
+RENDERED = 0.2
+
+
+def from_last_run(meta: dict, est: Forecast, cases: int, cold: Forecast | None = None) -> float:
+    """Core seconds of ``cases`` cases from their command's last run (:func:`last_run`): its measured seconds
+    per case, a figure's ``seconds`` (its cases) and ``outputs``, a sweep's summed stage times over the
+    ``computed`` cases it ran and the model's fixed cost per case. Renders and probes as the cache stands now:
+    ``est`` the stage model with today's cache, ``cold`` the same with nothing cached (``est`` where None); where
+    the last run rendered (:data:`RENDERED`) its measured seconds × the share ``est``/``cold`` still to render,
+    else (it read them from a cache since gone, say) the model's."""
+    split = {k: float(v) for k, v in meta["time_split"].items()}
+    ran = max(int(meta.get("computed", meta.get("cases", cases))), 1)
+    drawn = 0.0
+    for stage in ("renders", "probes"):
+        had, now = split.get(stage, 0.0) * cases / ran, est.stages.get(stage, 0.0)
+        full = (cold or est).stages.get(stage, 0.0)
+        drawn += had * now / full if full > 0 and had >= RENDERED * full else now
+    rendered = split.get("renders", 0.0) + split.get("probes", 0.0)
+    if "computed" in meta:  # a sweep: its cases' stage times (core seconds) and the cases it computed
+        per = (sum(split.get(k, 0.0) for k in CASE_PARTS) - rendered) / ran + est.fixed / max(est.cases, 1)
+        return per * cases + drawn
+    return (float(meta["seconds"]) + split.get("outputs", 0.0) - rendered) * cases / ran + drawn
+
+
+def _backend_of(words: list[str], default: str) -> str:
+    """The ``--backend X`` (or ``--backend=X``) among a command's words, else ``default``."""
+    for i, w in enumerate(words):
+        if w == "--backend" and i + 1 < len(words):
+            return words[i + 1]
+        if w.startswith("--backend="):
+            return w.split("=", 1)[1]
+    return default
+
+
+def _done(out: Path, case) -> bool:
+    """Whether ``out/cases`` holds ``case``'s file under its key (the sweep runner reuses it; its rows are not
+    checked here)."""
+    try:
+        return json.loads((out / "cases" / f"{case.key}.json").read_text()).get("key") == case.key
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def step_estimates(commands, *, cache: Cache | None = None, reports: Path | None = None, backend: str = "numpy",
+                   fresh: bool = False):  # fmt: skip
+    """One (command, seconds or None, how it was found) per command, each on ``backend`` (or its own
+    ``--backend``): ``figure NAME`` (its config, ``configs/NAME.toml``) and ``sweep PATH`` (its cases not already
+    in ``reports/sweep-STEM/cases``, a sweep's columns) from the stage model with the backend's table, the
+    commands of :data:`MEASURED` from their last run's seconds, None for anything else.
+
+    Where ``reports/NAME`` (``reports/sweep-STEM``) holds a last run of the same config on the same backend and
+    CPU count (:func:`last_run`), its measured stage times are used instead (:func:`from_last_run`): the same
+    cases measured on this machine are more accurate than the stage model, whose rates are one average over
+    every figure and sweep (a figure's methods and pixels differ from that average); renders and probes still
+    come from the model with today's cache. ``fresh``: the stage model alone, as if no case were done and no
+    figure had run (how a calibration is checked against a run it did not see). An impostor is rendered once:
+    by the first command of the list that needs it, unless the cache holds it (the commands share the cache;
+    run two at a time, a later one may start before the first has captured it and render it too, uncounted)."""
     from study.harness.sweep import load_sweep
 
-    root = Path(__file__).resolve().parents[2]
-    out = []
+    reports = REPORTS if reports is None else Path(reports)
+    out, seen = [], set()  # the impostors the commands before capture
     for cmd in commands:
         words = cmd.split()
+        b = _backend_of(words, backend)
         if len(words) >= 2 and words[0] == "figure":
-            est = config_estimate(root / "configs" / f"{words[1]}.toml", cache=cache)
-            out.append((cmd, est.seconds, f"{est.cases} cases, stage model"))
+            config = REPO / "configs" / f"{words[1]}.toml"
+            est = config_estimate(config, cache=cache, backend=b, seen=seen)
+            last = None if fresh else last_run(reports / words[1] / "metadata.json", config, b)
+            if last:
+                how = f"{est.cases} cases, its last run, {b} on {last['cpus']} cores; renders as cached"
+                cold = config_estimate(config, cache=None, backend=b)  # nothing cached: what it rendered
+                out.append((cmd, from_last_run(last, est, est.cases, cold), how))
+            else:
+                out.append((cmd, est.seconds, f"{est.cases} cases, stage model, {est.source}"))
         elif len(words) >= 2 and words[0] == "sweep":
-            sw = load_sweep(root / words[1])
-            est = forecast([c.scene for c in sw.cases], sw.methods, cache=cache, intervals=False)
-            out.append((cmd, est.seconds, f"{est.cases} cases, stage model"))
+            sw = load_sweep(REPO / words[1], backend=b)
+            where = reports / f"sweep-{Path(words[1]).stem}"
+            todo = sw.cases if fresh else [c for c in sw.cases if not _done(where, c)]
+            done = f" ({len(sw.cases) - len(todo)} done already)" if len(todo) < len(sw.cases) else ""
+            est = forecast(
+                [c.scene for c in todo], sw.methods, cache=cache, intervals=False, backend=b, seen=seen
+            )
+            last = None if fresh or not todo else last_run(where / "metadata.json", REPO / words[1], b)
+            if last and "computed" in last:
+                how = f"{len(todo)} cases{done}, its last run, {b} on {last['cpus']} cores; renders as cached"
+                cold = forecast([c.scene for c in todo], sw.methods, cache=None, intervals=False, backend=b)
+                out.append((cmd, from_last_run(last, est, len(todo), cold), how))
+            else:
+                out.append((cmd, est.seconds, f"{len(todo)} cases{done}, stage model, {est.source}"))
         elif words:
             m = measured(cmd, reports)
             out.append((cmd, *(m or (None, "not modelled, no measured run"))))
@@ -258,24 +420,33 @@ def wall(steps, cores: int) -> float:
 
 
 def main(argv=None) -> None:
-    """``python -m study.harness.estimate [--jobs J] [--cache DIR] COMMAND...``: the estimate of ``study``
-    commands, one line per command (:func:`step_estimates`: seconds on one core) and the total on ``jobs`` cores
-    (:func:`wall`)."""
+    """``python -m study.harness.estimate [--backend B] [--jobs J] [--cache DIR] [--reports DIR] [--fresh]
+    COMMAND...``: the estimate of ``study`` commands on backend B, one line per command (:func:`step_estimates`:
+    seconds on one core) and the total on ``jobs`` cores (:func:`wall`)."""
     import argparse
 
     ap = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])
     ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--backend", default="numpy", help="where the commands' methods run (their --backend)")
     ap.add_argument("--cache", default=".cache")
+    ap.add_argument(
+        "--reports", default=None, help="the last runs' folder (default: the repository's reports/)"
+    )
+    ap.add_argument(
+        "--fresh", action="store_true", help="the stage model alone: no sweep case done, no last run"
+    )
     ap.add_argument("commands", nargs="*")
     args = ap.parse_args(argv)
-    steps = step_estimates(args.commands, cache=Cache(args.cache))
+    steps = step_estimates(args.commands, cache=Cache(args.cache), reports=args.reports, backend=args.backend,
+                           fresh=args.fresh)  # fmt: skip
     for cmd, sec, how in sorted(steps, key=lambda x: -(x[1] or 0)):
         print(f"  {cmd}: {'unknown' if sec is None else 'about ' + span(sec)} ({how})")
     known = [s for _, s, _ in steps if s is not None]
     left = [c for c, s, _ in steps if s is None]
+    source = table_for(args.backend)[1]
     print(
-        f"estimate: about {span(wall(steps, args.jobs))} wall for {len(steps)} commands on {args.jobs} cores "
-        f"({span(sum(known))} of commands on one); from study/harness/stage_costs.json and the measured runs above"
+        f"estimate: about {span(wall(steps, args.jobs))} wall for {len(steps)} commands on {args.jobs} cores, "
+        f"{args.backend} ({span(sum(known))} of commands on one); from {source} and the runs above"
         + (f"; not counted: {', '.join(left)}" if left else "")
     )
 

@@ -97,6 +97,8 @@ def _run_one(
                 images[0](case, case_id, images[1], [m.label for m in ms], *images[2:])
         for r in case.rows:
             r["case_seconds"] = time.perf_counter() - t0  # the case's wall time in its worker
+        for r in case.rows[:1]:  # its stage times, for the metadata (run_cases takes them off the row)
+            r[estimate.TIMES] = dict(case.times)
         return case.rows
     except StudyError as err:  # which case refused, for the sweep's one line
         raise type(err)(f"{err.detail} (case {case_id})", file=err.file, key=err.key, code=err.code) from None
@@ -267,7 +269,9 @@ def run_sweep(
             warm=(warm_worker, backend),
             group=lambda c: impostor_key(c.scene),
             name=f"sweep {Path(path).stem}",
-            expect=estimate.teller(sweep.methods, Cache(cache_s), jobs=jobs, intervals=False),
+            expect=estimate.teller(
+                sweep.methods, Cache(cache_s), jobs=jobs, intervals=False, backend=backend
+            ),
         )
     except StudyError as err:  # a case's refusal names the sweep file
         if err.file:
@@ -313,14 +317,12 @@ def run_cases(
     t0, out = time.perf_counter(), Path(out)
     task = budget.bounded(task)  # workers stop at the command's --max-minutes too
     with locked(out) if into is None else _locked_into(out, into):
-        done: dict[int, list[dict]] = {}
-        for c in cases:
-            rows = _load_case(out, c, check)
-            if rows is not None:
-                done[c.index] = rows
+        done = {c.index: rows for c in cases if (rows := _load_case(out, c, check)) is not None}
         cached, todo = len(done), [c for c in cases if c.index not in done]
+        times: list = []  # the stage times each computed case's first row brought (estimate.TIMES)
 
         def finish(c: Case, rows: list[dict]):
+            times.append(rows[0].pop(estimate.TIMES, None) if rows and isinstance(rows[0], dict) else None)
             if not rows or (check and not check(c, rows)):
                 raise RuntimeError(
                     f"case {c.id}: its computed rows ({[r.get('label') for r in rows]}) are not "
@@ -353,6 +355,8 @@ def run_cases(
             else:
                 _run_parallel(batches(todo), task, jobs, finish)
         rows = [r for i in sorted(done) for r in done[i]]
+        if into is None:  # its own output set: what this run took (study.harness.estimate_fit reads it)
+            meta = {**meta, **estimate.run_record(time.perf_counter() - t0, [c.id for c in todo], times)}
         outputs = (
             output_set(out, OWNS, keeps=("cases",), lock=False)
             if into is None  # when every case is done

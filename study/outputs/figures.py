@@ -364,8 +364,8 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
         for suffix, _, over in todo
     ]
     budget.check_backend(backend)
-    budget.check_cases(scenes, methods, source=str(config), tell=estimate.teller(methods, Cache(cache)))
     store = Cache(cache)
+    budget.check_cases(scenes, methods, source=str(config), tell=estimate.teller(methods, store, backend))
     job.total = len(scenes)
     every = [m.label for m in methods]
     titles = [None] * len(todo) if cfg.positions is not None else [lab for _, lab, _ in todo]
