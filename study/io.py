@@ -79,24 +79,38 @@ def atomic_savefig(fig, path: str | Path, *, dpi: int = 110) -> None:
 
     path = Path(path)
     try:
-        with _temp_beside(path, ".png") as tmp:
-            fig.savefig(tmp, dpi=dpi, format="png")
+        data = _png(fig, dpi)
     finally:
         plt.close(fig)
+    with _temp_beside(path, ".png") as tmp:
+        Path(tmp).write_bytes(data)
 
 
 def png_bytes(fig, *, dpi: int = 110) -> bytes:
     """A matplotlib figure as PNG bytes (then closed): drawn before its output set is written."""
-    import io
-
     import matplotlib.pyplot as plt
 
-    buf = io.BytesIO()
     try:
-        fig.savefig(buf, dpi=dpi, format="png")
+        return _png(fig, dpi)
     finally:
         plt.close(fig)
-    return buf.getvalue()
+
+
+def _png(fig, dpi: int) -> bytes:
+    """The figure drawn by matplotlib (RGBA), stored as RGB where every pixel is opaque (a figure on its white
+    face: the same pixels), with PIL's optimized deflate: the tracked figures 10 % lighter (7.45 → 6.74 MB)."""
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=dpi, format="png")
+    im = Image.open(io.BytesIO(buf.getvalue()))
+    if im.mode == "RGBA" and im.getchannel("A").getextrema() == (255, 255):
+        im = im.convert("RGB")
+    out = io.BytesIO()
+    im.save(out, format="png", optimize=True)
+    return out.getvalue()
 
 
 def read_toml(path: str | Path, *, what: str = "config file") -> dict:
