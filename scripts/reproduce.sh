@@ -28,25 +28,28 @@ if [ -n "$VERIFY" ]; then
 fi
 S=${STUDY:-.venv/bin/study}
 J=${REPRODUCE_JOBS:-2}
+# longest first (their wall seconds in the cold llvm run on 2 cores, 6c6bdad, in brackets), so that the two slots
+# end together; the calibration is one of them (not a study command: scripts/calibration.py)
 commands=(
-  "sweep configs/sweep.toml --jobs ${REPRODUCE_SWEEP_JOBS:-2}"   # the main sweep: position × cube resolution × occlusion
-  "figure fig5"
-  "figure fig4"
-  "caustics-sweep"                              # Figure 8
-  "figure fig_lroom"                            # scenes nobody here wrote: two mesh rooms, Mitsuba's Cornell box
-  "figure fig_atrium"
-  "figure fig_cornell"
-  "figure fig6"
-  "sweep configs/sweep_cornell.toml"
-  "sweep configs/sweep_atrium.toml"
-  "sweep configs/sweep_lroom.toml"
-  "animate"                                     # sphere and torus in motion, 3 seeds (~20 min) → reports/animation/
-  "figure fig_glossy"                           # rough objects against the lobe's truth, and the error split
-  "sweep configs/sweep_glossy.toml"
-  "figure fig_attic"                            # unequal roof slopes, an off-centre reference point
-  "figure fig_hitcache"                         # hit lighting: the exact hit shaded from a radiance cache, over res
-  "figure fig_probes"                           # screen-space and multi-probe tracing beside the paper's
-  "convergence"                                 # localized's iterations 0…30, the marches' steps → reports/convergence/
+  "sweep configs/sweep.toml --jobs ${REPRODUCE_SWEEP_JOBS:-2}"   # the main sweep: position × cube resolution × occlusion [858]
+  "figure fig5"                                 # [396]
+  "figure fig4"                                 # [365]
+  "convergence"                                 # localized's iterations 0…30, the marches' steps → reports/convergence/ [342]
+  "figure fig_cornell"                          # [341]
+  "figure fig_atrium"                           # [329]
+  "figure fig_glossy"                           # rough objects against the lobe's truth, and the error split [254]
+  "figure fig_lroom"                            # scenes nobody here wrote: two mesh rooms, Mitsuba's Cornell box [192]
+  "caustics-sweep"                              # Figure 8 [181]
+  "calibration"                                 # the intervals' coverage → reports/calibration.md [35–115]
+  "figure fig_probes"                           # screen-space and multi-probe tracing beside the paper's [128]
+  "figure fig_hitcache"                         # hit lighting: the exact hit shaded from a radiance cache, over res [127]
+  "figure fig6"                                 # (after fig4: the room's probes cached) [127]
+  "animate"                                     # sphere and torus in motion, 3 seeds → reports/animation/ [88]
+  "sweep configs/sweep_atrium.toml"             # [81]
+  "sweep configs/sweep_cornell.toml"            # [78]
+  "figure fig_attic"                            # unequal roof slopes, an off-centre reference point [65]
+  "sweep configs/sweep_lroom.toml"              # [56]
+  "sweep configs/sweep_glossy.toml"             # [55]
 )
 t0=$(date +%s)
 P=${STUDY_PYTHON:-.venv/bin/python}
@@ -68,12 +71,12 @@ fi
 B=${REPRODUCE_BACKEND:+ --backend $REPRODUCE_BACKEND}
 # the time it will take, before it starts: one line per command and the total on $J cores (study/harness/estimate.py:
 # figures and sweeps as cases × the stage costs measured here, caustics, animation and convergence from their last run)
+[ -n "${REPRODUCE_SKIP_CALIBRATION:-}" ] && REPRODUCE_SKIP="calibration${REPRODUCE_SKIP:+|$REPRODUCE_SKIP}"
 mapfile -t todo < <(printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$")
 PYTHONPATH=.${PYTHONPATH:+:$PYTHONPATH} $P -m study.harness.estimate --backend "${REPRODUCE_BACKEND:-numpy}" --jobs "$J" "${todo[@]}" | sed 's/^/reproduce: /' || true
-printf '%s\n' "${commands[@]}" | sed 's/ *#.*//' | grep -Ev "^(${REPRODUCE_SKIP:-\$^})\$" | sed -E "\\%^(${REPRODUCE_CPU:-\$^})\$%! s/\$/$B/" \
-  | xargs -P "$J" -I CMD bash -c 'set -o pipefail; '"$S"' CMD 2>&1 | sed -u "s|^|[CMD] |"'
-[ -n "${REPRODUCE_SKIP_CALIBRATION:-}" ] \
-  || PYTHONPATH=.${PYTHONPATH:+:$PYTHONPATH} $P scripts/calibration.py   # the intervals' coverage → reports/calibration.md
+printf '%s\n' "${todo[@]}" | sed -E "\\%^(calibration|${REPRODUCE_CPU:-\$^})\$%! s/\$/$B/" \
+  | PYTHONPATH=.${PYTHONPATH:+:$PYTHONPATH} xargs -P "$J" -I CMD bash -c 'set -o pipefail
+      case "CMD" in calibration) '"$P"' scripts/calibration.py ;; *) '"$S"' CMD ;; esac 2>&1 | sed -u "s|^|[CMD] |"'
 $S pareto   # error vs measured ms per 1080p frame (the committed benches), fronts, budgets → reports/pareto/
 $S report
 PYTHONPATH=.${PYTHONPATH:+:$PYTHONPATH} $P scripts/headline.py --readme README.md   # README's "How sure" from the tables

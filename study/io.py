@@ -74,41 +74,28 @@ def atomic_write(path: str | Path, data: bytes | str) -> None:
 
 
 def atomic_savefig(fig, path: str | Path, *, dpi: int = 110) -> None:
-    """Save a matplotlib figure as PNG atomically, then close it."""
-    import matplotlib.pyplot as plt
-
-    path = Path(path)
-    try:
-        data = _png(fig, dpi)
-    finally:
-        plt.close(fig)
-    with _temp_beside(path, ".png") as tmp:
+    """Save a matplotlib figure as PNG atomically (:func:`png_bytes`), then close it."""
+    data = png_bytes(fig, dpi=dpi)
+    with _temp_beside(Path(path), ".png") as tmp:
         Path(tmp).write_bytes(data)
 
 
 def png_bytes(fig, *, dpi: int = 110) -> bytes:
-    """A matplotlib figure as PNG bytes (then closed): drawn before its output set is written."""
-    import matplotlib.pyplot as plt
-
-    try:
-        return _png(fig, dpi)
-    finally:
-        plt.close(fig)
-
-
-def _png(fig, dpi: int) -> bytes:
-    """The figure drawn by matplotlib (RGBA), stored as RGB where every pixel is opaque (a figure on its white
-    face: the same pixels), with PIL's optimized deflate: the tracked figures 10 % lighter (7.45 → 6.74 MB)."""
+    """A matplotlib figure as PNG bytes (then closed): matplotlib's RGBA stored as RGB where every pixel is opaque
+    (a figure on its white face: the same pixels), deflated by PIL's optimizer (the tracked figures 10 % lighter)."""
     import io
 
+    import matplotlib.pyplot as plt
     from PIL import Image
 
-    buf = io.BytesIO()
-    fig.savefig(buf, dpi=dpi, format="png")
-    im = Image.open(io.BytesIO(buf.getvalue()))
+    buf, out = io.BytesIO(), io.BytesIO()
+    try:
+        fig.savefig(buf, dpi=dpi, format="png")
+    finally:
+        plt.close(fig)
+    im = Image.open(buf)
     if im.mode == "RGBA" and im.getchannel("A").getextrema() == (255, 255):
         im = im.convert("RGB")
-    out = io.BytesIO()
     im.save(out, format="png", optimize=True)
     return out.getvalue()
 
