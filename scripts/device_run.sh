@@ -214,8 +214,9 @@ s.print_callees('run_case')" "$OUT/side-new.prof" > "$OUT/profile-side-new.txt" 
     done
     tar czf "$OUT/results-side.tgz" -C "$W" --exclude=exr --exclude=viewer --exclude="*.png" --exclude=cases \
       $(cd "$W" && ls -d old new 2>/dev/null) ;;
-  reproduce)  # scripts/reproduce.sh's commands on this host's CPU cores (numpy methods, Mitsuba on LLVM: the
-              # committed tables' backends), $REPRODUCE_JOBS at a time; the reports back as reports-part-*.tar.xz
+  reproduce)  # scripts/reproduce.sh's commands on this host, on the GPU (reproduce.sh picks cuda where it runs;
+              # REPRODUCE_BACKEND=llvm: the committed tables' backend, on the host's cores; REPRODUCE_BACKEND= numpy),
+              # $REPRODUCE_JOBS at a time; the reports back as reports-part-*.tar.xz
     export HOME=$W/home-repro; mkdir -p "$HOME"
     STUDY="python3 -m study.cli" STUDY_PYTHON=python3 REPRODUCE_JOBS=${REPRODUCE_JOBS:-8} \
       REPRODUCE_SKIP=${REPRODUCE_SKIP:-animate} REPRODUCE_SKIP_CALIBRATION=1 \
