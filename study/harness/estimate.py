@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from study.cache import Cache
+from study.harness import provenance
 from study.harness.provenance import REPO
 from study.progress import CASE_PARTS
 
@@ -296,14 +297,13 @@ def last_run(meta_path: Path, config: Path, backend: str) -> dict | None:
     """The metadata.json of a figure's or sweep's last run where it describes this run to come: the same
     ``backend``, the same config file (its ``config_sha256``), this machine's CPU count, with a ``time_split``
     and ``seconds``; None otherwise."""
-    import hashlib
     import os
 
     meta = read_meta(meta_path)
     if not meta or meta.get("backend") != backend or meta.get("cpus") != os.cpu_count():
         return None
     try:
-        sha = hashlib.sha256(Path(config).read_bytes()).hexdigest()[:16]
+        sha = provenance.config_sha(config)
     except OSError:
         return None
     split = meta.get("time_split")

@@ -32,20 +32,15 @@ A stage no run measured keeps the base table's rate (numpy's where the backend h
 
 from __future__ import annotations
 
-import hashlib
 import json
 from pathlib import Path
 
 import numpy as np
 
-from study.harness import estimate
+from study.harness import estimate, provenance
 from study.progress import CASE_PARTS
 
 _FIT = "sum of seconds / sum of units per stage over the runs (least squares, variance ∝ units)"
-
-
-def _sha(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
 
 
 def _summed(scenes, methods, *, intervals: bool) -> dict[str, float]:
@@ -79,7 +74,7 @@ def run_of(meta_path: Path, repo: Path = estimate.REPO) -> dict | None:
     if not meta or not isinstance(meta.get("time_split"), dict) or "config" not in meta:
         return None
     config = repo / str(meta["config"])
-    if not config.is_file() or meta.get("config_sha256") != _sha(config):
+    if not config.is_file() or meta.get("config_sha256") != provenance.config_sha(config):
         return None
     backend = str(meta.get("backend", "numpy"))
     if "figure" in meta:

@@ -29,6 +29,11 @@ STAMP = ".study-stamp.json"
 CODE_PATHS = ("study", "configs", "scenes", "pyproject.toml")
 
 
+def config_sha(path: str | Path) -> str:
+    """The ``config_sha256`` of a run's metadata: the config file's SHA-256, its first 16 hex digits."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+
+
 def _git(*args: str, repo: Path = REPO, data: bytes | None = None) -> bytes | None:
     """``git args`` in ``repo``: its stdout, or None where git or the repository is absent or the call fails."""
     try:

@@ -17,7 +17,6 @@ directory (a lock file; a second one stops with a clear message).
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import os
 import platform
@@ -123,7 +122,7 @@ def metadata(
     git = provenance.git_state()
     return {
         "config": str(config),
-        "config_sha256": hashlib.sha256(config.read_bytes()).hexdigest()[:16],
+        "config_sha256": provenance.config_sha(config),
         "seed": seed,
         "git_commit": git["commit"],
         "git_dirty": git["dirty"],
