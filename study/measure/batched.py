@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from study.measure import bias, case_columns, exposure, metrics, split, truth
+from study.measure import bias, case_columns, exposure, metrics, split, truth, workers
 from study.measure.metrics import _crop, to_ldr
 from study.measure.pixels import K1, K2, WIN  # scikit-image's SSIM: window size, K₁, K₂
 from study.stats import spatial
@@ -197,21 +197,13 @@ def errors(
 
 
 # ---------------------------------------------------------------------------------------------- the truth's columns
-def truth_columns(tests, t: truth.Truth, mitsuba, *, mask, rmse_truth, rmse_mitsuba) -> list[dict]:
+def truth_columns(
+    tests, t: truth.Truth, mitsuba, *, mask, rmse_truth, rmse_mitsuba, terms=None
+) -> list[dict]:
     """Per test image, :func:`study.measure.truth.columns` (its numpy path), with the RMSEs already measured by
-    :func:`errors`; the noise σ, Mitsuba's noise and fireflies once for all."""
-    sigma, sigma_m = truth.noise_rms(t.noise, mask), truth.noise_rms(t.mitsuba_noise, mask)
-    frame, fireflies = truth.frame_noise(t.mitsuba_noise), exposure.firefly_fraction(mitsuba, t.mitsuba_noise)
-    ref_px = t.image[mask]
-    den = ref_px * ref_px + truth.REL_EPS
-    d = np.asarray(tests)[:, mask] - ref_px
-    rel = (
-        [np.mean(q) for q in d * d / den] if ref_px.size else [np.nan] * len(tests)
-    )  # in the images' float32
-    exposed = exposure.exposed_stack(  # truth._interval's, every image in one pass over the mask
-        tests, t.image, t.noise, mask=mask, ev=t.ev,
-        intervals=lambda s: [ci[0] for ci, _ in spatial.grouped_intervals(s[:, None], mask, LEVEL)],
-    )  # fmt: skip
+    :func:`errors`; the noise σ, Mitsuba's noise and fireflies once for all. ``terms``: what
+    :func:`truth_terms` gave for the same arguments (else computed here)."""
+    sigma, sigma_m, frame, fireflies, rel, exposed = terms or truth_terms(tests, t, mitsuba, mask=mask)
     out = []
     for i in range(len(tests)):
         deb, deb_m = truth.debiased(rmse_truth[i], sigma), truth.debiased(rmse_mitsuba[i], sigma_m)
@@ -229,6 +221,24 @@ def truth_columns(tests, t: truth.Truth, mitsuba, *, mask, rmse_truth, rmse_mits
             "firefly_fraction": fireflies,
         })  # fmt: skip
     return out
+
+
+def truth_terms(tests, t: truth.Truth, mitsuba, *, mask) -> tuple:
+    """What :func:`truth_columns` needs besides the RMSEs: (σ, Mitsuba's σ, its frame noise, fireflies, relMSE per
+    image, the exposed relMSE's columns per image)."""
+    sigma, sigma_m = truth.noise_rms(t.noise, mask), truth.noise_rms(t.mitsuba_noise, mask)
+    frame, fireflies = truth.frame_noise(t.mitsuba_noise), exposure.firefly_fraction(mitsuba, t.mitsuba_noise)
+    ref_px = t.image[mask]
+    den = ref_px * ref_px + truth.REL_EPS
+    d = np.asarray(tests)[:, mask] - ref_px
+    rel = (
+        [np.mean(q) for q in d * d / den] if ref_px.size else [np.nan] * len(tests)
+    )  # in the images' float32
+    exposed = exposure.exposed_stack(  # truth._interval's, every image in one pass over the mask
+        tests, t.image, t.noise, mask=mask, ev=t.ev,
+        intervals=lambda s: [ci[0] for ci, _ in spatial.grouped_intervals(s[:, None], mask, LEVEL)],
+    )  # fmt: skip
+    return sigma, sigma_m, frame, fireflies, rel, exposed
 
 
 # ---------------------------------------------------------------------------------------------- a case's methods
@@ -252,32 +262,52 @@ def _against_oracle(imgs, r, backend: str) -> list[dict]:
 def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[dict], list]:
     """(columns, FLIP maps): per method image of ``images`` (M, H, W, 3), the image columns of
     ``case._image_columns`` (a trace over every object pixel), and with ``intervals`` its whole-frame FLIP map
-    against the truth (else None); ``r`` the case's references (``case._Refs``)."""
+    against the truth (else None); ``r`` the case's references (``case._Refs``). The groups that need no FLIP run
+    side by side on the columns' threads (:mod:`study.measure.workers`) while FLIP runs here (on the GPU with
+    ``cuda``); the values are those of one group after the other."""
     imgs = np.asarray(images)
     M = len(imgs)
     if M == 0:
         return [], []
     mask = r.mask
+    go = workers.submit
+    shared: dict = {}  # the images' own terms over ``mask``: once for the truth and Mitsuba
+    own = go(_tests_of, imgs, mask, shared)
+    sp = go(split.split_stack, imgs, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
+            mask=mask, held_px=r.held_px, intervals=intervals)  # fmt: skip
+    bias_cols = [go(bias.bias_columns, im, r.truth.image, mask=mask & r.held_px) for im in imgs]  # signed
+    terms = go(truth_terms, imgs, r.truth, r.mitsuba, mask=mask)
+    m_flip = "mitsuba" in r.against and backend != "numpy"  # FLIP against Mitsuba on Dr.Jit: on this thread
+
+    def against_mitsuba():
+        own.result()
+        return errors(r.mitsuba, imgs, mask=mask, suffix="mitsuba", backend=backend,
+                      with_flip="mitsuba" in r.against, shared=shared)  # fmt: skip
+
+    mi = None if m_flip else go(against_mitsuba)
     fmaps = list(flip_maps(r.truth.image, imgs, backend)) if intervals else [None] * M
-    oracle = _against_oracle(imgs, r, backend)
+    pxs = go(case_columns.pixel_columns_stack, imgs, r.truth.image, mask=mask, sigma=truth.noise_rms(
+        r.truth.noise, mask), rel_eps=truth.REL_EPS, emaps=fmaps if intervals else None)  # fmt: skip
     tflip = (
         [np.asarray(f)[mask] for f in fmaps] if intervals and "truth" in r.against
         else None if "truth" in r.against else [np.zeros(0)] * M
     )  # fmt: skip
-    shared: dict = {}  # the images' own terms over ``mask``: once for the truth and Mitsuba
-    tr = errors(r.truth.image, imgs, mask=mask, suffix="truth", backend=backend,
-                with_flip="truth" in r.against, fvals=tflip, shared=shared)  # fmt: skip
-    mi = errors(r.mitsuba, imgs, mask=mask, suffix="mitsuba", backend=backend,
-                with_flip="mitsuba" in r.against, shared=shared)  # fmt: skip
+    t_flip = tflip is None and backend != "numpy"  # FLIP against the truth still to run on Dr.Jit
+
+    def against_truth():
+        own.result()
+        return errors(r.truth.image, imgs, mask=mask, suffix="truth", backend=backend,
+                      with_flip="truth" in r.against, fvals=tflip, shared=shared)  # fmt: skip
+
+    tr = None if t_flip else go(against_truth)
+    oracle = _against_oracle(imgs, r, backend)
+    tr = tr.result() if tr is not None else against_truth()
+    mi = mi.result() if mi is not None else against_mitsuba()
     tc = truth_columns(imgs, r.truth, r.mitsuba, mask=mask, rmse_truth=[c["rmse_truth"] for c in tr],
-                       rmse_mitsuba=[c["rmse_mitsuba"] for c in mi])  # fmt: skip
-    sigma = truth.noise_rms(r.truth.noise, mask)
-    sp = split.split_stack(imgs, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
-                           mask=mask, held_px=r.held_px, intervals=intervals)  # fmt: skip
-    pxs = case_columns.pixel_columns_stack(imgs, r.truth.image, mask=mask, sigma=sigma, rel_eps=truth.REL_EPS,
-                                           emaps=fmaps if intervals else None)  # fmt: skip
-    out = []
-    for i, px in enumerate(pxs):
-        bias_cols = bias.bias_columns(imgs[i], r.truth.image, mask=mask & r.held_px)  # signed (measure.bias)
-        out.append({**oracle[i], **tr[i], **mi[i], **tc[i], **px, **sp[i], **bias_cols})
+                       rmse_mitsuba=[c["rmse_mitsuba"] for c in mi], terms=terms.result())  # fmt: skip
+    sp, pxs = sp.result(), pxs.result()
+    out = [
+        {**oracle[i], **tr[i], **mi[i], **tc[i], **px, **sp[i], **bias_cols[i].result()}
+        for i, px in enumerate(pxs)
+    ]
     return out, fmaps

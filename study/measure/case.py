@@ -28,6 +28,8 @@ from study.measure import batched, bias, case_columns, lighting, metrics, outcom
 from study.measure.groups import row_of
 from study.measure.inputs import camera_render, capture_views, finite, impostor, second_captures
 from study.measure.producers import PRODUCERS, RayContext, producer  # noqa: F401 - plug-ins' road
+from study.measure.workers import each as side_by_side
+from study.measure.workers import submit as side_by_side_one
 from study.methods import Method
 from study.optics import shading
 from study.reference.tracer import make_tracer
@@ -135,7 +137,8 @@ def _exact(scene: Scene, tracer, rays, o: np.ndarray) -> ExactHits:
 
 
 def _trace(m: Method, B, env, x, R, rays, o: np.ndarray, F: np.ndarray, background, res: int) -> Traced:
-    """``m`` on the case's rays (relative to o) on backend B: one kernel for all its outputs, then numpy."""
+    """``m`` on the case's rays (relative to o) on backend B: one kernel for all its outputs, then numpy; its image
+    (a future until :func:`run_case` takes it) is composited on the columns' threads while the next method runs."""
     t0 = time.perf_counter()
     with np.errstate(divide="ignore", invalid="ignore"):  # numpy evaluates both sides of every select
         tr = m.trace(B, env, x, R)
@@ -152,7 +155,9 @@ def _trace(m: Method, B, env, x, R, rays, o: np.ndarray, F: np.ndarray, backgrou
             "point(s) on rays it marked valid (NaN or inf)",
             key="method",
         )
-    image = shading.composite(rays, np.nan_to_num(rad) * F, background)
+    image = side_by_side_one(
+        shading.composite, rays, np.nan_to_num(rad) * F, background
+    )  # beside the next trace
     flags = {
         k: float(np.mean(B.numpy(v).astype(bool))) if len(shown) else np.nan
         for k, v in (tr.flags or {}).items()
@@ -236,6 +241,8 @@ def run_case(
               _reference_trace("truth_at_hit", ref.image, exact, mask)]  # fmt: skip
     x, R = B.vec(rays.x - o), B.vec(rays.R)
     traces += [_trace(m, B, env, x, R, rays, o, F, background, scene.render.cube_res) for m in methods]
+    for t in traces[2:]:
+        t.image = t.image.result()  # each composited on the columns' threads while the next method ran
 
     # ------------------------------------------------------------------ columns and rows
     mark("metrics")
@@ -245,22 +252,38 @@ def run_case(
     out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=mitsuba, truth=ref.image, mask=mask, held=held_px,
                      occluded=rays.per_pixel(exact.occluded.astype(float), fill=0.0))  # fmt: skip
     by_trace = _method_columns(traces, refs, backend, intervals)  # every method's, one pass per reference
-    pixels = ray_pixels(rays.hit, rays.src)  # each ray's pixel (the ray intervals' clusters), once per case
-    for t in traces:
-        ang = metrics.angular_error(rays.x, t.shown, exact.point)
-        oc = _classify(B, backend, rays, t.shown, exact)
-        cols, fmap = by_trace.get(id(t)) or (_image_columns(t, refs, None, backend, intervals), None)
-        out.rows.append(row_of(RayContext(  # the built-in groups' and the plug-ins' columns (study.measure.groups)
-            rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image, ref.image, mask, t.label, trace=t,
-            rays=rays, hits=exact, pixels=pixels, held=held, image_columns=cols, case_columns=base)))  # fmt: skip
-        if keep_images and not t.reference:
-            out.images[t.label] = t.image
-            out.angle_maps[t.label] = rays.per_pixel(ang, fill=np.nan)
-            out.flip_maps[t.label] = fmap
-            out.outcome_maps[t.label] = outcomes.majority(
-                rays.per_pixel(outcomes.class_fractions(oc), fill=np.nan)
-            )
+    for t, r, maps, fmap in _rows(
+        traces, by_trace, refs, B, backend, rays, exact, held, base, keep_images, intervals
+    ):
+        out.rows.append(r)
+        if maps is not None:
+            out.images[t.label], out.flip_maps[t.label] = t.image, fmap
+            out.angle_maps[t.label], out.outcome_maps[t.label] = maps
     return out.timed(mark)
+
+
+def _rows(traces, by_trace, refs, B, backend, rays, exact, held, base, keep_images, intervals):
+    """(trace, row, (angle map, outcome map) or None, FLIP map) per trace in order: Dr.Jit's part (the outcome
+    classes, the references' FLIP) on this thread, then each row (study.measure.groups) and its maps side by side
+    on the columns' threads (study.measure.workers); with a plug-in producer every row is made on this thread (a
+    producer may use Dr.Jit)."""
+    pixels = ray_pixels(rays.hit, rays.src)  # each ray's pixel (the ray intervals' clusters), once per case
+    seen = [(t, _classify(B, backend, rays, t.shown, exact),
+             *(by_trace.get(id(t)) or (_image_columns(t, refs, None, backend, intervals), None)))
+            for t in traces]  # fmt: skip
+
+    def row(item):
+        t, oc, cols, fmap = item
+        ang = metrics.angular_error(rays.x, t.shown, exact.point)
+        r = row_of(RayContext(rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image,
+                              refs.truth.image, refs.mask, t.label, trace=t, rays=rays, hits=exact, pixels=pixels,
+                              held=held, image_columns=cols, case_columns=base))  # fmt: skip
+        if not keep_images or t.reference:
+            return t, r, None, fmap
+        return t, r, (rays.per_pixel(ang, fill=np.nan),
+                      outcomes.majority(rays.per_pixel(outcomes.class_fractions(oc), fill=np.nan))), fmap  # fmt: skip
+
+    return side_by_side(row, seen) if not PRODUCERS else [row(s) for s in seen]
 
 
 # ---------------------------------------------------------------------------------------------- producers

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -162,16 +163,22 @@ def _build(mask: np.ndarray, den, key: bytes = b"") -> Region | None:
 _KEPT: OrderedDict = OrderedDict()
 
 
+_KEEPING = threading.RLock()  # the columns' threads (study.measure.workers) share the memo
+
+
 def kept(key, build, store: OrderedDict = _KEPT, most: float = KEPT_BYTES, size=None):
     """``build()``, kept in ``store`` under ``key`` while the values kept weigh at most ``most`` (each 1, or
-    ``size(value)``), the newest always."""
-    if key in store:
-        store.move_to_end(key)
-        return store[key]
-    value = store[key] = build()
-    while len(store) > 1 and (len(store) if size is None else sum(size(v) for v in store.values())) > most:
-        store.popitem(last=False)
-    return value
+    ``size(value)``), the newest always. Thread-safe: a value another thread is building is waited for, not built
+    twice."""
+    with _KEEPING:
+        if key in store:
+            store.move_to_end(key)
+            return store[key]
+        value = store[key] = build()
+        weight = (lambda: len(store)) if size is None else (lambda: sum(size(v) for v in store.values()))
+        while len(store) > 1 and weight() > most:
+            store.popitem(last=False)
+        return value
 
 
 def _bytes(value) -> int:

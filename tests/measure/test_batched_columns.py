@@ -2,6 +2,7 @@
 both ways, row by row, and the pieces against their references on planted images."""
 
 import math
+import threading
 from types import SimpleNamespace
 
 import numpy as np
@@ -141,3 +142,35 @@ def test_the_stack_differs_where_some_image_differs():
         got = batched._differing_any(r, tests)
         assert got.dtype == bool and np.array_equal(got, want)
         assert want.sum() == (2 if r is ref else 3)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "llvm"][: len(BACKENDS)])
+def test_a_case_measures_the_same_on_one_thread_as_on_several(backend, cache, monkeypatch):
+    """study.measure.workers: the columns' threads change no value (every column, every map, bit for bit), and
+    several threads really ran (a pool thread made a row)."""
+    from study.measure import groups, workers
+
+    scene = scene_from_dict(small_scene_dict())
+    ms = [registry.make(n) for n in ("classical", "proxy_box", "linear_secant", "layered")]
+    monkeypatch.setenv("STUDY_THREADS", "1")
+    one = run_case(scene, ms, backend=backend, cache=cache)
+    made_on = []
+    row_of = groups.row_of
+
+    def spy(ctx):
+        made_on.append(threading.current_thread().name)
+        return row_of(ctx)
+
+    monkeypatch.setattr("study.measure.case.row_of", spy)
+    monkeypatch.setenv("STUDY_THREADS", "4")
+    monkeypatch.setattr(workers, "_pool", None)  # a pool of 4
+    many = run_case(scene, ms, backend=backend, cache=cache)
+    assert any(n.startswith("study-columns") for n in made_on), made_on
+    assert len(one.rows) == len(many.rows) == len(ms) + 2
+    for a, b in zip(one.rows, many.rows):
+        assert list(a) == list(b)
+        bad = [k for k in a if k not in ("seconds", "case_seconds") and not _close(a[k], b[k], 0.0, 0.0)]
+        assert not bad, [(k, a[k], b[k]) for k in bad]
+    for kind in ("images", "angle_maps", "outcome_maps", "flip_maps"):
+        for label, m in getattr(one, kind).items():
+            np.testing.assert_array_equal(getattr(many, kind)[label], m)

@@ -1,0 +1,56 @@
+"""A case's column work spread over the host's cores: one thread pool per process.
+
+The columns of a case (:mod:`study.measure.batched`, the rows of :func:`study.measure.case.run_case`) are numpy and
+scipy over whole frames: reductions, ``uniform_filter``, FFTs and partitions, which release the GIL, so threads run
+them side by side. Only numpy work is handed to the pool: Dr.Jit (FLIP on the GPU, the outcome classes) stays on the
+caller's thread. Every task computes what it would compute alone (no shared random state: the resampling draws
+from generators of their own seeds; the memo of :func:`study.stats.region.kept` is locked), so the values do not
+depend on how many threads run them.
+
+Threads: ``$STUDY_THREADS`` (a sweep worker's share of the cores, :func:`study.harness.runner._limit_threads`),
+else every core, at most :data:`MOST`; 1 runs every task inline, on the caller's thread. A task never submits to the
+pool itself (the pool would wait on itself)."""
+
+from __future__ import annotations
+
+import os
+import threading
+from concurrent.futures import Future, ThreadPoolExecutor
+
+#: The most threads one process gives its columns.
+MOST = 16
+
+_pool: ThreadPoolExecutor | None = None
+_lock = threading.Lock()
+
+
+def threads() -> int:
+    """How many threads the columns use in this process."""
+    n = int(os.environ.get("STUDY_THREADS") or 0) or (os.cpu_count() or 1)
+    return max(1, min(n, MOST))
+
+
+def _get() -> ThreadPoolExecutor:
+    global _pool
+    with _lock:
+        if _pool is None:
+            _pool = ThreadPoolExecutor(threads(), thread_name_prefix="study-columns")
+        return _pool
+
+
+def submit(fn, /, *args, **kwargs) -> Future:
+    """``fn(*args, **kwargs)`` on the pool (inline, already done, with one thread or from inside a pool task)."""
+    if threads() == 1 or threading.current_thread().name.startswith("study-columns"):
+        done: Future = Future()
+        try:
+            done.set_result(fn(*args, **kwargs))
+        except BaseException as err:  # noqa: BLE001 - handed to whoever asks for the result
+            done.set_exception(err)
+        return done
+    return _get().submit(fn, *args, **kwargs)
+
+
+def each(fn, items) -> list:
+    """``[fn(item) for item in items]``, the items side by side, the results in their order."""
+    futures = [submit(fn, item) for item in items]
+    return [f.result() for f in futures]
