@@ -242,20 +242,21 @@ def truth_terms(tests, t: truth.Truth, mitsuba, *, mask) -> tuple:
 
 
 # ---------------------------------------------------------------------------------------------- a case's methods
-def _against_oracle(imgs, r, backend: str) -> list[dict]:
+def _against_oracle(imgs, r, backend: str, go=None):
     """:func:`errors` against the oracle over its held pixels, each image with its own reference (the oracle where
     it holds a value, the image elsewhere), all cut to the held pixels' box + FLIP's margin first: SSIM's and FLIP's
-    crops lie inside it, so the values are those of the whole frames."""
-    on = r.on_held
+    crops lie inside it, so the values are those of the whole frames. ``go``: a :func:`study.measure.workers.submit`
+    that runs the numpy part (FLIP ran here first); the result is then its future."""
+    on, flips = r.on_held, "oracle" in r.against
     if not on.any():
-        return errors(
-            r.oracle, imgs, mask=on, suffix="oracle", backend=backend, with_flip="oracle" in r.against
-        )
+        return errors(r.oracle, imgs, mask=on, suffix="oracle", backend=backend, with_flip=flips)
     m, keep, oracle, *cut = _crop(on, metrics.FLIP_MARGIN, r.held_px | ~r.mask, r.oracle, *imgs)
     cut = np.stack(cut)
     refs = np.where(keep[..., None], oracle, cut)
-    return errors(
-        oracle, cut, mask=m, suffix="oracle", backend=backend, with_flip="oracle" in r.against, refs=refs
+    fvals = _flip_values(oracle, cut, m, backend, refs) if flips else None
+    run = go or (lambda f, *a, **k: f(*a, **k))
+    return run(
+        errors, oracle, cut, mask=m, suffix="oracle", backend=backend, with_flip=flips, refs=refs, fvals=fvals
     )
 
 
@@ -300,7 +301,8 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
                       with_flip="truth" in r.against, fvals=tflip, shared=shared)  # fmt: skip
 
     tr = None if t_flip else go(against_truth)
-    oracle = _against_oracle(imgs, r, backend)
+    oracle = _against_oracle(imgs, r, backend, go)  # its FLIP here, the rest side by side
+    oracle = oracle.result() if hasattr(oracle, "result") else oracle
     tr = tr.result() if tr is not None else against_truth()
     mi = mi.result() if mi is not None else against_mitsuba()
     tc = truth_columns(imgs, r.truth, r.mitsuba, mask=mask, rmse_truth=[c["rmse_truth"] for c in tr],
