@@ -28,7 +28,7 @@ from study.measure import batched, bias, case_columns, lighting, metrics, outcom
 from study.measure.groups import row_of
 from study.measure.inputs import camera_render, capture_views, finite, impostor, second_captures
 from study.measure.producers import PRODUCERS, RayContext, producer  # noqa: F401 - plug-ins' road
-from study.measure.workers import each as side_by_side
+from study.measure.workers import here as run_here
 from study.measure.workers import submit as side_by_side_one
 from study.methods import Method
 from study.optics import shading
@@ -263,18 +263,15 @@ def run_case(
 
 
 def _rows(traces, by_trace, refs, B, backend, rays, exact, held, base, keep_images, intervals):
-    """(trace, row, (angle map, outcome map) or None, FLIP map) per trace in order: Dr.Jit's part (the outcome
-    classes, the references' FLIP) on this thread, then each row (study.measure.groups) and its maps side by side
-    on the columns' threads (study.measure.workers); with a plug-in producer every row is made on this thread (a
-    producer may use Dr.Jit)."""
+    """(trace, row, (angle map, outcome map) or None, FLIP map) per trace in order. Dr.Jit's part (the outcome
+    classes, the references' image columns with their FLIP) runs on this thread, each row (study.measure.groups)
+    and its maps on the columns' threads (study.measure.workers), the methods' rows beside the references' columns;
+    with a plug-in producer every row is made on this thread (a producer may use Dr.Jit)."""
     pixels = ray_pixels(rays.hit, rays.src)  # each ray's pixel (the ray intervals' clusters), once per case
-    seen = [(t, _classify(B, backend, rays, t.shown, exact),
-             *(by_trace.get(id(t)) or (_image_columns(t, refs, None, backend, intervals), None)))
-            for t in traces]  # fmt: skip
+    classes = {id(t): _classify(B, backend, rays, t.shown, exact) for t in traces}
 
-    def row(item):
-        t, oc, cols, fmap = item
-        ang = metrics.angular_error(rays.x, t.shown, exact.point)
+    def row(t, cols, fmap):
+        oc, ang = classes[id(t)], metrics.angular_error(rays.x, t.shown, exact.point)
         r = row_of(RayContext(rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image,
                               refs.truth.image, refs.mask, t.label, trace=t, rays=rays, hits=exact, pixels=pixels,
                               held=held, image_columns=cols, case_columns=base))  # fmt: skip
@@ -283,7 +280,12 @@ def _rows(traces, by_trace, refs, B, backend, rays, exact, held, base, keep_imag
         return t, r, (rays.per_pixel(ang, fill=np.nan),
                       outcomes.majority(rays.per_pixel(outcomes.class_fractions(oc), fill=np.nan))), fmap  # fmt: skip
 
-    return side_by_side(row, seen) if not PRODUCERS else [row(s) for s in seen]
+    go = side_by_side_one if not PRODUCERS else run_here
+    made = {id(t): go(row, t, *by_trace[id(t)]) for t in traces if id(t) in by_trace}  # the methods'
+    for t in traces:
+        if id(t) not in made:  # a reference's: its columns here, beside the methods' rows
+            made[id(t)] = go(row, t, _image_columns(t, refs, None, backend, intervals), None)
+    return [made[id(t)].result() for t in traces]
 
 
 # ---------------------------------------------------------------------------------------------- producers

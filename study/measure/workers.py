@@ -38,19 +38,18 @@ def _get() -> ThreadPoolExecutor:
         return _pool
 
 
+def here(fn, /, *args, **kwargs) -> Future:
+    """``fn(*args, **kwargs)`` on this thread, as a finished future (its exception kept for ``result()``)."""
+    done: Future = Future()
+    try:
+        done.set_result(fn(*args, **kwargs))
+    except BaseException as err:  # noqa: BLE001 - handed to whoever asks for the result
+        done.set_exception(err)
+    return done
+
+
 def submit(fn, /, *args, **kwargs) -> Future:
-    """``fn(*args, **kwargs)`` on the pool (inline, already done, with one thread or from inside a pool task)."""
+    """``fn(*args, **kwargs)`` on the pool (:func:`here`, with one thread or from inside a pool task)."""
     if threads() == 1 or threading.current_thread().name.startswith("study-columns"):
-        done: Future = Future()
-        try:
-            done.set_result(fn(*args, **kwargs))
-        except BaseException as err:  # noqa: BLE001 - handed to whoever asks for the result
-            done.set_exception(err)
-        return done
+        return here(fn, *args, **kwargs)
     return _get().submit(fn, *args, **kwargs)
-
-
-def each(fn, items) -> list:
-    """``[fn(item) for item in items]``, the items side by side, the results in their order."""
-    futures = [submit(fn, item) for item in items]
-    return [f.result() for f in futures]
