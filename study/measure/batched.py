@@ -223,9 +223,9 @@ def truth_columns(
     return out
 
 
-def truth_terms(tests, t: truth.Truth, mitsuba, *, mask) -> tuple:
+def truth_terms(tests, t: truth.Truth, mitsuba, *, mask, exposed=None) -> tuple:
     """What :func:`truth_columns` needs besides the RMSEs: (σ, Mitsuba's σ, its frame noise, fireflies, relMSE per
-    image, the exposed relMSE's columns per image)."""
+    image, the exposed relMSE's columns per image: :func:`exposed_of`, or ``exposed()`` when given)."""
     sigma, sigma_m = truth.noise_rms(t.noise, mask), truth.noise_rms(t.mitsuba_noise, mask)
     frame, fireflies = truth.frame_noise(t.mitsuba_noise), exposure.firefly_fraction(mitsuba, t.mitsuba_noise)
     ref_px = t.image[mask]
@@ -234,11 +234,17 @@ def truth_terms(tests, t: truth.Truth, mitsuba, *, mask) -> tuple:
     rel = (
         [np.mean(q) for q in d * d / den] if ref_px.size else [np.nan] * len(tests)
     )  # in the images' float32
-    exposed = exposure.exposed_stack(  # truth._interval's, every image in one pass over the mask
+    exposed = exposed_of(tests, t, mask=mask) if exposed is None else exposed()
+    return sigma, sigma_m, frame, fireflies, rel, exposed
+
+
+def exposed_of(tests, t: truth.Truth, *, mask) -> list[dict]:
+    """The exposed relMSE's columns of each image of ``tests`` (truth._interval's, every image in one pass over
+    the mask)."""
+    return exposure.exposed_stack(
         tests, t.image, t.noise, mask=mask, ev=t.ev,
         intervals=lambda s: [ci[0] for ci, _ in spatial.grouped_intervals(s[:, None], mask, LEVEL)],
     )  # fmt: skip
-    return sigma, sigma_m, frame, fireflies, rel, exposed
 
 
 # ---------------------------------------------------------------------------------------------- a case's methods
@@ -260,6 +266,20 @@ def _against_oracle(imgs, r, backend: str, go=None):
     )
 
 
+def _chunked(fn, imgs, *args, each: dict | None = None, **kwargs):
+    """``fn`` (a function of a stack of images returning one entry per image) over parts of ``imgs``, side by side
+    on the columns' threads (one part per thread); ``each``: keyword arguments given per image (a list each, or
+    None). Returns a function that waits and gives the entries in order: the values of one call over the whole
+    stack, as every image's are its own (its means over its pixels, its intervals: a call of its own)."""
+    cut = np.linspace(0, len(imgs), min(len(imgs), workers.threads()) + 1).astype(int)
+    parts = [
+        workers.submit(fn, imgs[a:b], *args, **kwargs,
+                       **{k: None if v is None else v[a:b] for k, v in (each or {}).items()})
+        for a, b in zip(cut[:-1], cut[1:]) if b > a
+    ]  # fmt: skip
+    return lambda: [x for p in parts for x in p.result()]
+
+
 def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[dict], list]:
     """(columns, FLIP maps): per method image of ``images`` (M, H, W, 3), the image columns of
     ``case._image_columns`` (a trace over every object pixel), and with ``intervals`` its whole-frame FLIP map
@@ -274,10 +294,11 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
     go = workers.submit
     shared: dict = {}  # the images' own terms over ``mask``: once for the truth and Mitsuba
     own = go(_tests_of, imgs, mask, shared)
-    sp = go(split.split_stack, imgs, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
-            mask=mask, held_px=r.held_px, intervals=intervals)  # fmt: skip
+    sp = _chunked(split.split_stack, imgs, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
+                  mask=mask, held_px=r.held_px, intervals=intervals)  # fmt: skip
     bias_cols = [go(bias.bias_columns, im, r.truth.image, mask=mask & r.held_px) for im in imgs]  # signed
-    terms = go(truth_terms, imgs, r.truth, r.mitsuba, mask=mask)
+    exposed = _chunked(exposed_of, imgs, r.truth, mask=mask)
+    terms = go(truth_terms, imgs, r.truth, r.mitsuba, mask=mask, exposed=exposed)
     m_flip = "mitsuba" in r.against and backend != "numpy"  # FLIP against Mitsuba on Dr.Jit: on this thread
 
     def against_mitsuba():
@@ -287,8 +308,8 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
 
     mi = None if m_flip else go(against_mitsuba)
     fmaps = list(flip_maps(r.truth.image, imgs, backend)) if intervals else [None] * M
-    pxs = go(case_columns.pixel_columns_stack, imgs, r.truth.image, mask=mask, sigma=truth.noise_rms(
-        r.truth.noise, mask), rel_eps=truth.REL_EPS, emaps=fmaps if intervals else None)  # fmt: skip
+    pxs = _chunked(case_columns.pixel_columns_stack, imgs, r.truth.image, mask=mask, sigma=truth.noise_rms(
+        r.truth.noise, mask), rel_eps=truth.REL_EPS, each={"emaps": fmaps if intervals else None})  # fmt: skip
     tflip = (
         [np.asarray(f)[mask] for f in fmaps] if intervals and "truth" in r.against
         else None if "truth" in r.against else [np.zeros(0)] * M
@@ -307,7 +328,7 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
     mi = mi.result() if mi is not None else against_mitsuba()
     tc = truth_columns(imgs, r.truth, r.mitsuba, mask=mask, rmse_truth=[c["rmse_truth"] for c in tr],
                        rmse_mitsuba=[c["rmse_mitsuba"] for c in mi], terms=terms.result())  # fmt: skip
-    sp, pxs = sp.result(), pxs.result()
+    sp, pxs = sp(), pxs()
     out = [
         {**oracle[i], **tr[i], **mi[i], **tc[i], **px, **sp[i], **bias_cols[i].result()}
         for i, px in enumerate(pxs)

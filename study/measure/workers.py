@@ -8,8 +8,9 @@ from generators of their own seeds; the memo of :func:`study.stats.region.kept` 
 depend on how many threads run them.
 
 Threads: ``$STUDY_THREADS`` (a sweep worker's share of the cores, :func:`study.harness.runner._limit_threads`),
-else every core, at most :data:`MOST`; 1 runs every task inline, on the caller's thread. A task never submits to the
-pool itself (the pool would wait on itself)."""
+else every core, at most :data:`MOST`; 1 runs every task inline, on the caller's thread. What a pool task submits runs
+inline, and a task waits only on tasks submitted before it: the queue is first in, first out, so those have
+started, and the pool never waits on itself."""
 
 from __future__ import annotations
 
