@@ -248,22 +248,42 @@ def exposed_of(tests, t: truth.Truth, *, mask) -> list[dict]:
 
 
 # ---------------------------------------------------------------------------------------------- a case's methods
-def _against_oracle(imgs, r, backend: str, go=None):
+def _against_oracle(imgs, r, backend: str, run=None):
     """:func:`errors` against the oracle over its held pixels, each image with its own reference (the oracle where
     it holds a value, the image elsewhere), all cut to the held pixels' box + FLIP's margin first: SSIM's and FLIP's
-    crops lie inside it, so the values are those of the whole frames. ``go``: a :func:`study.measure.workers.submit`
-    that runs the numpy part (FLIP ran here first); the result is then its future."""
+    crops lie inside it, so the values are those of the whole frames. FLIP runs here; the rest through ``run`` (as
+    :func:`_chunked`: a function of ``(fn, tests, *args, each=…, **kwargs)`` returning a function that gives the
+    columns), else here too."""
     on, flips = r.on_held, "oracle" in r.against
+    run = run or (lambda fn, tests, *a, each, **k: (lambda v: lambda: v)(fn(tests, *a, **each, **k)))
     if not on.any():
-        return errors(r.oracle, imgs, mask=on, suffix="oracle", backend=backend, with_flip=flips)
+        return run(
+            _errors_of, imgs, r.oracle, each={}, mask=on, suffix="oracle", backend=backend, with_flip=flips
+        )
     m, keep, oracle, *cut = _crop(on, metrics.FLIP_MARGIN, r.held_px | ~r.mask, r.oracle, *imgs)
     cut = np.stack(cut)
     refs = np.where(keep[..., None], oracle, cut)
     fvals = _flip_values(oracle, cut, m, backend, refs) if flips else None
-    run = go or (lambda f, *a, **k: f(*a, **k))
-    return run(
-        errors, oracle, cut, mask=m, suffix="oracle", backend=backend, with_flip=flips, refs=refs, fvals=fvals
-    )
+    return run(_errors_of, cut, oracle, each={"refs": refs, "fvals": fvals}, mask=m, suffix="oracle",
+               backend=backend, with_flip=flips)  # fmt: skip
+
+
+def _errors_of(tests, ref, **kwargs) -> list[dict]:
+    """:func:`errors` with the test images first (for :func:`_chunked`)."""
+    return errors(ref, tests, **kwargs)
+
+
+def _against_both(
+    tests, t_img, mitsuba, *, mask, backend: str, against, tflip=None
+) -> list[tuple[dict, dict]]:
+    """(columns against the truth, against Mitsuba) of each image of ``tests``: :func:`errors` for both, the
+    images' own terms (:func:`_tests_of`) computed once; ``tflip``: the FLIP values against the truth."""
+    shared: dict = {}
+    tr = errors(t_img, tests, mask=mask, suffix="truth", backend=backend, with_flip="truth" in against, fvals=tflip,
+                shared=shared)  # fmt: skip
+    mi = errors(mitsuba, tests, mask=mask, suffix="mitsuba", backend=backend, with_flip="mitsuba" in against,
+                shared=shared)  # fmt: skip
+    return list(zip(tr, mi))
 
 
 def _chunked(fn, imgs, *args, each: dict | None = None, **kwargs):
@@ -283,30 +303,23 @@ def _chunked(fn, imgs, *args, each: dict | None = None, **kwargs):
 def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[dict], list]:
     """(columns, FLIP maps): per method image of ``images`` (M, H, W, 3), the image columns of
     ``case._image_columns`` (a trace over every object pixel), and with ``intervals`` its whole-frame FLIP map
-    against the truth (else None); ``r`` the case's references (``case._Refs``). The groups that need no FLIP run
-    side by side on the columns' threads (:mod:`study.measure.workers`) while FLIP runs here (on the GPU with
-    ``cuda``); the values are those of one group after the other."""
+    against the truth (else None); ``r`` the case's references (``case._Refs``). FLIP runs here (on the GPU with
+    ``cuda``); every other group runs on the columns' threads (:mod:`study.measure.workers`), in parts of the stack
+    (:func:`_chunked`); the values are those of one group after the other over the whole stack."""
     imgs = np.asarray(images)
     M = len(imgs)
     if M == 0:
         return [], []
     mask = r.mask
-    go = workers.submit
-    shared: dict = {}  # the images' own terms over ``mask``: once for the truth and Mitsuba
-    own = go(_tests_of, imgs, mask, shared)
+    # ------------------------------------------------------------------ what needs no FLIP: started first
     sp = _chunked(split.split_stack, imgs, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
                   mask=mask, held_px=r.held_px, intervals=intervals)  # fmt: skip
-    bias_cols = [go(bias.bias_columns, im, r.truth.image, mask=mask & r.held_px) for im in imgs]  # signed
+    bias_cols = _chunked(
+        lambda ims: [bias.bias_columns(im, r.truth.image, mask=mask & r.held_px) for im in ims], imgs
+    )
     exposed = _chunked(exposed_of, imgs, r.truth, mask=mask)
-    terms = go(truth_terms, imgs, r.truth, r.mitsuba, mask=mask, exposed=exposed)
-    m_flip = "mitsuba" in r.against and backend != "numpy"  # FLIP against Mitsuba on Dr.Jit: on this thread
-
-    def against_mitsuba():
-        own.result()
-        return errors(r.mitsuba, imgs, mask=mask, suffix="mitsuba", backend=backend,
-                      with_flip="mitsuba" in r.against, shared=shared)  # fmt: skip
-
-    mi = None if m_flip else go(against_mitsuba)
+    terms = workers.submit(truth_terms, imgs, r.truth, r.mitsuba, mask=mask, exposed=exposed)
+    # ------------------------------------------------------------------ FLIP against the truth, then its users
     fmaps = list(flip_maps(r.truth.image, imgs, backend)) if intervals else [None] * M
     pxs = _chunked(case_columns.pixel_columns_stack, imgs, r.truth.image, mask=mask, sigma=truth.noise_rms(
         r.truth.noise, mask), rel_eps=truth.REL_EPS, each={"emaps": fmaps if intervals else None})  # fmt: skip
@@ -314,23 +327,14 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
         [np.asarray(f)[mask] for f in fmaps] if intervals and "truth" in r.against
         else None if "truth" in r.against else [np.zeros(0)] * M
     )  # fmt: skip
-    t_flip = tflip is None and backend != "numpy"  # FLIP against the truth still to run on Dr.Jit
-
-    def against_truth():
-        own.result()
-        return errors(r.truth.image, imgs, mask=mask, suffix="truth", backend=backend,
-                      with_flip="truth" in r.against, fvals=tflip, shared=shared)  # fmt: skip
-
-    tr = None if t_flip else go(against_truth)
-    oracle = _against_oracle(imgs, r, backend, go)  # its FLIP here, the rest side by side
-    oracle = oracle.result() if hasattr(oracle, "result") else oracle
-    tr = tr.result() if tr is not None else against_truth()
-    mi = mi.result() if mi is not None else against_mitsuba()
+    here = backend != "numpy" and (tflip is None or "mitsuba" in r.against)  # FLIP left to run on Dr.Jit
+    both = (lambda v: lambda: v)(_against_both(imgs, r.truth.image, r.mitsuba, mask=mask, backend=backend,
+                                               against=r.against, tflip=tflip)) if here else _chunked(
+        _against_both, imgs, r.truth.image, r.mitsuba, mask=mask, backend=backend, against=r.against,
+        each={"tflip": tflip})  # fmt: skip
+    oracle = _against_oracle(imgs, r, backend, _chunked)()  # its FLIP here, the rest in parts
+    tr, mi = zip(*both())
     tc = truth_columns(imgs, r.truth, r.mitsuba, mask=mask, rmse_truth=[c["rmse_truth"] for c in tr],
                        rmse_mitsuba=[c["rmse_mitsuba"] for c in mi], terms=terms.result())  # fmt: skip
-    sp, pxs = sp(), pxs()
-    out = [
-        {**oracle[i], **tr[i], **mi[i], **tc[i], **px, **sp[i], **bias_cols[i].result()}
-        for i, px in enumerate(pxs)
-    ]
-    return out, fmaps
+    cols = zip(oracle, tr, mi, tc, pxs(), sp(), bias_cols())
+    return [{k: v for part in c for k, v in part.items()} for c in cols], fmaps
