@@ -386,12 +386,11 @@ LONG_FUNCTIONS = {
     "study/bench/run.py::run_bench": 145,  # + the exact query priced after every method (CUDA)
     "study/caustics/figure.py::_fig8_files": 105,
     "study/harness/runner.py::run_cases": 92,
-    "study/measure/case.py::run_case": 81,  # the pipeline, a banner per stage (as prb_basic.sample)
     "study/methods/multi_probe.py::search": 88,
     "study/outputs/animation.py::_animate": 87,
     "study/methods/search.py::first_entry": 126,
     "study/outputs/figures.py::image_grid": 112,
-    "study/outputs/figures.py::_figure": 92,
+    "study/outputs/figures.py::_figure": 90,
     "study/scene/obj.py::read_obj": 124,
     "study/scene/sources/mitsuba.py::build": 81,
 }

@@ -306,10 +306,17 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
     against the truth (else None); ``r`` the case's references (``case._Refs``). FLIP runs here (on the GPU with
     ``cuda``); every other group runs on the columns' threads (:mod:`study.measure.workers`), in parts of the stack
     (:func:`_chunked`); the values are those of one group after the other over the whole stack."""
+    columns, fmaps = method_columns_later(images, r, backend=backend, intervals=intervals)
+    return columns(), fmaps
+
+
+def method_columns_later(images, r, *, backend: str, intervals: bool):
+    """:func:`method_columns` that returns once its FLIP ran: (a function that waits for the columns' threads and
+    gives the columns, the FLIP maps)."""
     imgs = np.asarray(images)
     M = len(imgs)
     if M == 0:
-        return [], []
+        return list, []
     mask = r.mask
     # ------------------------------------------------------------------ what needs no FLIP: started first
     sp = _chunked(split.split_stack, imgs, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
@@ -332,9 +339,13 @@ def method_columns(images, r, *, backend: str, intervals: bool) -> tuple[list[di
                                                against=r.against, tflip=tflip)) if here else _chunked(
         _against_both, imgs, r.truth.image, r.mitsuba, mask=mask, backend=backend, against=r.against,
         each={"tflip": tflip})  # fmt: skip
-    oracle = _against_oracle(imgs, r, backend, _chunked)()  # its FLIP here, the rest in parts
-    tr, mi = zip(*both())
-    tc = truth_columns(imgs, r.truth, r.mitsuba, mask=mask, rmse_truth=[c["rmse_truth"] for c in tr],
-                       rmse_mitsuba=[c["rmse_mitsuba"] for c in mi], terms=terms.result())  # fmt: skip
-    cols = zip(oracle, tr, mi, tc, pxs(), sp(), bias_cols())
-    return [{k: v for part in c for k, v in part.items()} for c in cols], fmaps
+    oracle = _against_oracle(imgs, r, backend, _chunked)  # its FLIP here, the rest in parts
+
+    def columns() -> list[dict]:
+        tr, mi = zip(*both())
+        tc = truth_columns(imgs, r.truth, r.mitsuba, mask=mask, rmse_truth=[c["rmse_truth"] for c in tr],
+                           rmse_mitsuba=[c["rmse_mitsuba"] for c in mi], terms=terms.result())  # fmt: skip
+        cols = zip(oracle(), tr, mi, tc, pxs(), sp(), bias_cols())
+        return [{k: v for part in c for k, v in part.items()} for c in cols]
+
+    return columns, fmaps

@@ -13,7 +13,9 @@ impostor's radiance and with the truth's; their rows come from the same producer
 
 from __future__ import annotations
 
+import itertools
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -179,7 +181,14 @@ def _reference_trace(name: str, image: np.ndarray, exact: ExactHits, over: np.nd
 
 
 # ---------------------------------------------------------------------------------------------- the case
-def run_case(
+def run_case(scene: Scene, methods: list[Method], **options) -> CaseOutput:
+    """Every method and both references on the same rays of one case: their rows (one per trace,
+    :func:`study.measure.groups.row_of`) and, with ``keep_images``, their images and per-pixel maps
+    (:func:`start_case`'s options, and the case it finishes)."""
+    return start_case(scene, methods, **options)()
+
+
+def start_case(
     scene: Scene,
     methods: list[Method],
     *,
@@ -188,11 +197,12 @@ def run_case(
     case_id: str = "",
     keep_images: bool = True,
     intervals: bool | None = None,
-) -> CaseOutput:
-    """Every method and both references on the same rays of one case: their rows (one per trace,
-    :func:`study.measure.groups.row_of`) and, with ``keep_images``, their images and per-pixel maps. ``intervals``
-    (default ``keep_images``): a figure's columns, the pixel intervals and the FLIP maps; False: a sweep's (its images,
-    with ``keep_images``, leave its rows as they are)."""
+) -> Callable[[], CaseOutput]:
+    """:func:`run_case` up to its columns' threads: returns once its own thread's part is done (the Dr.Jit work of
+    every stage), with a function that waits for the rest and gives the case, so that the next case can start
+    meanwhile (a figure's cases: :mod:`study.outputs.figures`). ``intervals`` (default ``keep_images``): a figure's
+    columns, the pixel intervals and the FLIP maps; False: a sweep's (its images, with ``keep_images``, leave its
+    rows as they are)."""
     intervals = keep_images if intervals is None else intervals
     cache = cache or Cache(None)
     B = backends.get(backend)
@@ -252,25 +262,45 @@ def run_case(
     out = CaseOutput(scene, [], oracle=oracle_img, mitsuba=mitsuba, truth=ref.image, mask=mask, held=held_px,
                      occluded=rays.per_pixel(exact.occluded.astype(float), fill=0.0))  # fmt: skip
     by_trace = _method_columns(traces, refs, backend, intervals)  # every method's, one pass per reference
-    for t, r, maps, fmap in _rows(
-        traces, by_trace, refs, B, backend, rays, exact, held, base, keep_images, intervals
-    ):
+    rows = _rows(traces, by_trace, refs, B, backend, rays, exact, held, base, keep_images, intervals)
+    mark.end()  # the rest on the columns' threads: the case is done when its rows are
+    return lambda: _finished(out, rows, mark)
+
+
+def one_behind(started):
+    """(key, case, seconds waited) for each (key, finish) of ``started`` (:func:`start_case`'s), finished one case
+    behind: a case's columns' threads run on while the next case starts (its Dr.Jit work on this thread)."""
+    pending = None
+    for item in itertools.chain(started, [None]):  # lazily: a case starts once the one before it is started
+        if pending is not None:
+            t0 = time.perf_counter()
+            case = pending[1]()
+            yield pending[0], case, time.perf_counter() - t0
+        pending = item
+
+
+def _finished(out: CaseOutput, rows: list, mark: progress.Stages) -> CaseOutput:
+    """``out`` with its rows and maps, once the columns' threads made them (the wait counted in its columns)."""
+    t0 = time.perf_counter()
+    for t, r, maps, fmap in (f.result() for f in rows):
         out.rows.append(r)
         if maps is not None:
             out.images[t.label], out.flip_maps[t.label] = t.image, fmap
             out.angle_maps[t.label], out.outcome_maps[t.label] = maps
+    mark.seconds["metrics"] = mark.seconds.get("metrics", 0.0) + time.perf_counter() - t0
     return out.timed(mark)
 
 
 def _rows(traces, by_trace, refs, B, backend, rays, exact, held, base, keep_images, intervals):
-    """(trace, row, (angle map, outcome map) or None, FLIP map) per trace in order. Dr.Jit's part (the outcome
-    classes, the references' image columns with their FLIP) runs on this thread, each row (study.measure.groups)
-    and its maps on the columns' threads (study.measure.workers), the methods' rows beside the references' columns;
-    with a plug-in producer every row is made on this thread (a producer may use Dr.Jit)."""
+    """Futures of (trace, row, (angle map, outcome map) or None, FLIP map), per trace in order. Dr.Jit's part (the
+    outcome classes, the references' image columns with their FLIP) runs on this thread, each row
+    (study.measure.groups) and its maps on the columns' threads (study.measure.workers), the methods' rows beside
+    the references' columns; with a plug-in producer every row is made on this thread (it may use Dr.Jit)."""
     pixels = ray_pixels(rays.hit, rays.src)  # each ray's pixel (the ray intervals' clusters), once per case
     classes = {id(t): _classify(B, backend, rays, t.shown, exact) for t in traces}
 
     def row(t, cols, fmap):
+        cols = cols() if callable(cols) else cols  # a method's: its share of the stack's columns
         oc, ang = classes[id(t)], metrics.angular_error(rays.x, t.shown, exact.point)
         r = row_of(RayContext(rays.x, rays.R, t.shown, exact.point, exact.occluded, oc, ang, t.image,
                               refs.truth.image, refs.mask, t.label, trace=t, rays=rays, hits=exact, pixels=pixels,
@@ -285,7 +315,7 @@ def _rows(traces, by_trace, refs, B, backend, rays, exact, held, base, keep_imag
     for t in traces:
         if id(t) not in made:  # a reference's: its columns here, beside the methods' rows
             made[id(t)] = go(row, t, _image_columns(t, refs, None, backend, intervals), None)
-    return [made[id(t)].result() for t in traces]
+    return [made[id(t)] for t in traces]
 
 
 # ---------------------------------------------------------------------------------------------- producers
@@ -345,15 +375,17 @@ def _base_columns(
 
 
 def _method_columns(traces: list[Traced], r: _Refs, backend: str, intervals: bool) -> dict:
-    """id(trace) → (image columns, FLIP map or None) of every method's trace, measured together, one pass per
-    reference (:func:`study.measure.batched.method_columns`); the references' rows take :func:`_image_columns`."""
+    """id(trace) → (a function giving its image columns, its FLIP map or None) of every method's trace, measured
+    together, one pass per reference (:func:`study.measure.batched.method_columns_later`: FLIP here, the rest on
+    the columns' threads, gathered there once); the references' rows take :func:`_image_columns`."""
     ran = [t for t in traces if not t.reference]
     if not ran:
         return {}
-    cols, maps = batched.method_columns(
+    cols, maps = batched.method_columns_later(
         np.stack([t.image for t in ran]), r, backend=backend, intervals=intervals
     )
-    return {id(t): (c, f) for t, c, f in zip(ran, cols, maps)}
+    every = side_by_side_one(cols)  # after every part it waits on (submitted first: study.measure.workers)
+    return {id(t): ((lambda i=i: every.result()[i]), f) for i, (t, f) in enumerate(zip(ran, maps))}
 
 
 def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool) -> dict:

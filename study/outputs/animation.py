@@ -292,7 +292,7 @@ def _animate(config, out, backend, cache, progress, job: pg.Task) -> list[dict]:
                         cache=store,
                         case_id=case_id,
                         where=f"{config} {run.sequence} seed {run.seed} path (frame {i})",
-                    )
+                    )()  # finished at once
                 for r in case.rows:
                     rows.append({"sequence": run.sequence, "seed": run.seed, "frame": i,
                                  "path_m": float(travelled[i]), **r})  # fmt: skip

@@ -13,6 +13,7 @@ from __future__ import annotations
 import textwrap
 import time
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,7 @@ from study.harness import budget, estimate
 from study.harness.config import load_figure_config, plain_name, quality_overrides
 from study.harness.runner import metadata
 from study.io import atomic_savefig, file_stems, json_text, locked, png_bytes, write_set
-from study.measure.case import CaseOutput, run_case
+from study.measure.case import CaseOutput, one_behind, start_case
 from study.measure.metrics import to_ldr
 from study.measure.outcomes import NAMES as OUTCOME_NAMES
 from study.outputs import viewer
@@ -295,10 +296,17 @@ def image_grids(
 
 
 def run_config_case(scene, methods, *, backend: str, cache, case_id: str, where: str):
-    """:func:`run_case` for one row of a config; a refusal that names no file is blamed on ``where`` (the config
-    and the row, e.g. ``configs/fig4.toml positions[2]``)."""
+    """:func:`start_case` for one row of a config (returns the function that finishes it); a refusal that names no
+    file is blamed on ``where`` (the config and the row, e.g. ``configs/fig4.toml positions[2]``)."""
+    with _blamed(where):
+        finish = start_case(scene, methods, backend=backend, cache=cache, case_id=case_id)
+    return lambda: _blamed(where)(finish)()
+
+
+@contextmanager
+def _blamed(where: str):
     try:
-        return run_case(scene, methods, backend=backend, cache=cache, case_id=case_id)
+        yield
     except StudyError as err:
         if err.file:
             raise
@@ -325,6 +333,17 @@ def figure_positions(
     image_choice(images)
     with pg.task(name, None) as job:  # stage lines and the ETA (study.progress)
         return _figure(config, out, name, backend, cache, progress, quality, job, images)
+
+
+def _started(scenes, methods, backend: str, store, config, cfg):
+    """((index, case id, seconds), finish) of each case, started up to its columns' threads (:func:`start_case`)."""
+    for i, (case_id, sc) in enumerate(scenes):
+        t0 = time.perf_counter()
+        with pg.item(case_id):
+            finish = run_config_case(sc, methods, backend=backend, cache=store, case_id=case_id,
+                                     where=f"{config} {cfg.key_of(i)}")  # fmt: skip
+        pg.advance(case_id)  # its own thread's part done: the counter and the ETA move on
+        yield (i, case_id, time.perf_counter() - t0), finish
 
 
 def _written(made: list, exrs: list, exposure: float) -> tuple[dict, list[dict]]:
@@ -375,13 +394,12 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
     with locked(out), ThreadPoolExecutor(1) as writer:  # one command at a time here; files written at the end
         t_start = time.perf_counter()
         cases, rows, made, exrs = [], [], [], []
-        for i, (case_id, sc) in enumerate(scenes):
-            t0 = time.perf_counter()
-            with pg.item(case_id):
-                case = run_config_case(sc, methods, backend=backend, cache=store, case_id=case_id,
-                                       where=f"{config} {cfg.key_of(i)}")  # fmt: skip
+
+        for (i, case_id, own), case, waited in one_behind(
+            _started(scenes, methods, backend, store, config, cfg)
+        ):
             for r in case.rows:
-                r["case_seconds"] = time.perf_counter() - t0
+                r["case_seconds"] = own + waited  # its own thread's time and the wait for its rows
             cases.append(case)
             rows += case.rows
             # the case's EXR and viewer images (the picture's cases: the other seeds and rows are measured, not
@@ -393,7 +411,6 @@ def _figure(config, out, name, backend, cache, progress, quality, job: pg.Task, 
                 exrs.append(writer.submit(viewer.case_exr, stems[case_id], case, every))
             if progress:
                 progress(i + 1, len(todo))
-            pg.advance(case_id)
         mark = pg.Stages()
         mark("outputs")  # the grid PNGs, then the EXRs and viewer images the writer has made meanwhile
         exposure = figure_exposure([cases[i] for i in shown])
