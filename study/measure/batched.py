@@ -248,24 +248,22 @@ def exposed_of(tests, t: truth.Truth, *, mask) -> list[dict]:
 
 
 # ---------------------------------------------------------------------------------------------- a case's methods
-def _against_oracle(imgs, r, backend: str, run=None):
+def _against_oracle(imgs, r, backend: str):
     """:func:`errors` against the oracle over its held pixels, each image with its own reference (the oracle where
     it holds a value, the image elsewhere), all cut to the held pixels' box + FLIP's margin first: SSIM's and FLIP's
-    crops lie inside it, so the values are those of the whole frames. FLIP runs here; the rest through ``run`` (as
-    :func:`_chunked`: a function of ``(fn, tests, *args, each=…, **kwargs)`` returning a function that gives the
-    columns), else here too."""
+    crops lie inside it, so the values are those of the whole frames. FLIP runs here, the rest in parts
+    (:func:`_chunked`); returns the function that gives the columns."""
     on, flips = r.on_held, "oracle" in r.against
-    run = run or (lambda fn, tests, *a, each, **k: (lambda v: lambda: v)(fn(tests, *a, **each, **k)))
     if not on.any():
-        return run(
-            _errors_of, imgs, r.oracle, each={}, mask=on, suffix="oracle", backend=backend, with_flip=flips
+        return _chunked(
+            _errors_of, imgs, r.oracle, mask=on, suffix="oracle", backend=backend, with_flip=flips
         )
     m, keep, oracle, *cut = _crop(on, metrics.FLIP_MARGIN, r.held_px | ~r.mask, r.oracle, *imgs)
     cut = np.stack(cut)
     refs = np.where(keep[..., None], oracle, cut)
     fvals = _flip_values(oracle, cut, m, backend, refs) if flips else None
-    return run(_errors_of, cut, oracle, each={"refs": refs, "fvals": fvals}, mask=m, suffix="oracle",
-               backend=backend, with_flip=flips)  # fmt: skip
+    return _chunked(_errors_of, cut, oracle, each={"refs": refs, "fvals": fvals}, mask=m, suffix="oracle",
+                    backend=backend, with_flip=flips)  # fmt: skip
 
 
 def _errors_of(tests, ref, **kwargs) -> list[dict]:
@@ -328,18 +326,18 @@ def method_columns_later(images, r, *, backend: str, intervals: bool):
     terms = workers.submit(truth_terms, imgs, r.truth, r.mitsuba, mask=mask, exposed=exposed)
     # ------------------------------------------------------------------ FLIP against the truth, then its users
     fmaps = list(flip_maps(r.truth.image, imgs, backend)) if intervals else [None] * M
-    pxs = _chunked(case_columns.pixel_columns_stack, imgs, r.truth.image, mask=mask, sigma=truth.noise_rms(
-        r.truth.noise, mask), rel_eps=truth.REL_EPS, each={"emaps": fmaps if intervals else None})  # fmt: skip
+    pxs = _chunked(case_columns.pixel_columns_stack, imgs, r.truth.image, mask=mask, sigma=r.sigma,
+                   rel_eps=truth.REL_EPS, each={"emaps": fmaps if intervals else None})  # fmt: skip
     tflip = (
         [np.asarray(f)[mask] for f in fmaps] if intervals and "truth" in r.against
         else None if "truth" in r.against else [np.zeros(0)] * M
     )  # fmt: skip
     here = backend != "numpy" and (tflip is None or "mitsuba" in r.against)  # FLIP left to run on Dr.Jit
-    both = (lambda v: lambda: v)(_against_both(imgs, r.truth.image, r.mitsuba, mask=mask, backend=backend,
-                                               against=r.against, tflip=tflip)) if here else _chunked(
-        _against_both, imgs, r.truth.image, r.mitsuba, mask=mask, backend=backend, against=r.against,
-        each={"tflip": tflip})  # fmt: skip
-    oracle = _against_oracle(imgs, r, backend, _chunked)  # its FLIP here, the rest in parts
+    both = (workers.here(_against_both, imgs, r.truth.image, r.mitsuba, mask=mask, backend=backend,
+                         against=r.against, tflip=tflip).result if here
+            else _chunked(_against_both, imgs, r.truth.image, r.mitsuba, mask=mask, backend=backend,
+                          against=r.against, each={"tflip": tflip}))  # fmt: skip
+    oracle = _against_oracle(imgs, r, backend)  # its FLIP here, the rest in parts
 
     def columns() -> list[dict]:
         tr, mi = zip(*both())

@@ -26,12 +26,21 @@ from study.cache import Cache
 from study.errors import StudyError
 from study.impostor.envmap import EnvMap
 from study.impostor.views import Lobe
-from study.measure import batched, bias, case_columns, lighting, metrics, outcomes, split, truth, worth
+from study.measure import (
+    batched,
+    bias,
+    case_columns,
+    lighting,
+    metrics,
+    outcomes,
+    split,
+    truth,
+    workers,
+    worth,
+)
 from study.measure.groups import row_of
 from study.measure.inputs import camera_render, capture_views, finite, impostor, second_captures
 from study.measure.producers import PRODUCERS, RayContext, producer  # noqa: F401 - plug-ins' road
-from study.measure.workers import here as run_here
-from study.measure.workers import submit as side_by_side_one
 from study.methods import Method
 from study.optics import shading
 from study.reference.tracer import make_tracer
@@ -157,7 +166,7 @@ def _trace(m: Method, B, env, x, R, rays, o: np.ndarray, F: np.ndarray, backgrou
             "point(s) on rays it marked valid (NaN or inf)",
             key="method",
         )
-    image = side_by_side_one(
+    image = workers.submit(
         shading.composite, rays, np.nan_to_num(rad) * F, background
     )  # beside the next trace
     flags = {
@@ -310,7 +319,7 @@ def _rows(traces, by_trace, refs, B, backend, rays, exact, held, base, keep_imag
         return t, r, (rays.per_pixel(ang, fill=np.nan),
                       outcomes.majority(rays.per_pixel(outcomes.class_fractions(oc), fill=np.nan))), fmap  # fmt: skip
 
-    go = side_by_side_one if not PRODUCERS else run_here
+    go = workers.submit if not PRODUCERS else workers.here
     made = {id(t): go(row, t, *by_trace[id(t)]) for t in traces if id(t) in by_trace}  # the methods'
     for t in traces:
         if id(t) not in made:  # a reference's: its columns here, beside the methods' rows
@@ -384,7 +393,7 @@ def _method_columns(traces: list[Traced], r: _Refs, backend: str, intervals: boo
     cols, maps = batched.method_columns_later(
         np.stack([t.image for t in ran]), r, backend=backend, intervals=intervals
     )
-    every = side_by_side_one(cols)  # after every part it waits on (submitted first: study.measure.workers)
+    every = workers.submit(cols)  # after every part it waits on (submitted first: study.measure.workers)
     return {id(t): ((lambda i=i: every.result()[i]), f) for i, (t, f) in enumerate(zip(ran, maps))}
 
 
