@@ -140,8 +140,7 @@ def guarded(llvm: bool = False):
             except KeyboardInterrupt:
                 if DEBUG["on"]:
                     raise
-                err_console.print("error: interrupted", highlight=False)
-                raise typer.Exit(130) from None
+                raise typer.Exit(130) from None  # main() says so: Typer turns an interrupt anywhere into 130
             except Exception as err:
                 if DEBUG["on"]:
                     raise
@@ -183,4 +182,6 @@ def main() -> None:
     except StudyError as err:  # raised outside a command's own handler
         err_console.print(f"error: {_line(str(err))}", highlight=False, soft_wrap=True, markup=False)
         sys.exit(err.code)
+    if rc == 130:  # interrupted in a command, or around one (parsing, the callback): Typer's silent Exit(130)
+        err_console.print("error: interrupted", highlight=False)
     sys.exit(rc if isinstance(rc, int) else 0)

@@ -2,6 +2,7 @@
 ends it with one line, `error: interrupted`, and exit 130: never a traceback, never a SystemError from an import
 interrupted half-way, never exit 4."""
 
+import importlib
 import os
 import signal
 import subprocess
@@ -40,3 +41,24 @@ def test_signal_during_start_up_is_exit_130_in_one_line(sig):
         if proc.returncode == 130:
             assert err.strip().splitlines()[-1] == "error: interrupted", err
     assert any(c != 0 for c in codes), codes
+
+
+@pytest.mark.parametrize("where", ["callback", "command"])
+def test_an_interrupt_around_a_command_says_so(where, monkeypatch, capsys):
+    """Ctrl-C outside a command's own handler (Typer's parsing, the app's callback, after the command returned):
+    Typer turns the KeyboardInterrupt into a silent ``Exit(130)``; ``main`` still prints the one line. Seen once in
+    the slow tier's SIGINT run: exit 130 with nothing on stderr (rc from ``app()``, not from a handler of study's)."""
+    cli_app, commands = (importlib.import_module(f"study.cli.{m}") for m in ("app", "commands"))
+
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    if where == "callback":
+        monkeypatch.setattr(cli_app, "_wide_when_logged", interrupt)
+    else:  # inside the command: guarded's handler
+        monkeypatch.setattr(commands.methods, "names", interrupt)
+    monkeypatch.setattr("sys.argv", ["study", "methods"])
+    with pytest.raises(SystemExit) as done:
+        cli_app.main()
+    assert done.value.code == 130
+    assert capsys.readouterr().err.strip().splitlines() == ["error: interrupted"]
