@@ -2,7 +2,7 @@
 # The GPU measurements of reports/performance.md (issue 15), run on a lent GPU machine from the repository root:
 #
 #   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3] [hier] [fig4paper]
-#                              [side] [fig4prof] [reproduce] [pixels] [marches]
+#                              [side] [fig4prof] [reproduce] [pixels] [marches] [determinism]
 #                                                                                   (default: bench studies)
 #
 #   bench   : `study bench --backends cuda` — methods, exact queries (ray_intersect, _preliminary, ray_test) and
@@ -180,19 +180,23 @@ s.print_callees('run_case')" "$OUT/fp.prof" > "$OUT/profile-fig4prof.txt" 2>&1; 
            # cold and with the kernels warm, fig4 at paper quality cold (this commit's under cProfile →
            # profile-side-new.txt, its time split → split-side-*.txt), then the 256² fig4 + fig5 + fig6 + main sweep.
            # $SIDE (default "old new"): which of the two; SIDE_PAPER=0 / SIDE_256=0 skip the paper-quality or the 256²
-           # part (so that the 10-minute call limit can split them).
+           # part, SIDE_SAMEWORK=0 / SIDE_FIG4PAPER=0 one of the paper-quality part's two (so that the 10-minute call
+           # limit can split them).
     OLD=${OLD:-.devold}
     for which in ${SIDE:-old new}; do
       src=$PWD; [ "$which" = old ] && src=$(cd "$OLD" && pwd)
       export HOME=$W/home-$which; mkdir -p "$HOME"
       ( cd "$src" && export PYTHONPATH=/tmp/site:$src
         if [ "${SIDE_PAPER:-1}" = 1 ]; then
+        if [ "${SIDE_SAMEWORK:-1}" = 1 ]; then
         timed "$which-samework-paper-cold" $S figure --config configs/bench/fig4_samework.toml --quality paper \
           --backend cuda --cache "$W/$which-s1" --out "$W/$which/samework" > "$OUT/log-side-$which-samework.txt" 2>&1
         timed "$which-samework-paper-kernels-warm" $S figure --config configs/bench/fig4_samework.toml \
           --quality paper --backend cuda --cache "$W/$which-s2" --out "$W/$which/samework-warm" > /dev/null 2>&1
+        fi
         export HOME=$W/home-$which-f4; mkdir -p "$HOME"
-        if [ "$which" = new ] && [ "${SIDE_PROFILE:-1}" = 1 ]; then   # SIDE_PROFILE=0: no cProfile
+        if [ "${SIDE_FIG4PAPER:-1}" = 0 ]; then :
+        elif [ "$which" = new ] && [ "${SIDE_PROFILE:-1}" = 1 ]; then   # SIDE_PROFILE=0: no cProfile
           timed "$which-fig4-paper-cold" python3 -m cProfile -o "$OUT/side-new.prof" -m study.cli figure fig4 \
             --quality paper --backend cuda --cache "$W/$which-p1" --out "$W/$which/paper-fig4" \
             > "$OUT/split-side-$which.txt" 2>&1
@@ -268,6 +272,23 @@ s.print_callees('run_case')" "$OUT/side-new.prof" > "$OUT/profile-side-new.txt" 
           || echo "ncu on $which failed (see log-ncu-$which.txt)"
       done
     fi ;;
+  determinism)  # issue 52: do two CUDA runs make the same numbers, and at which stage do they part? fig4 at 256²
+                # (or $DET_FIGURE) twice cold, each with its own caches, then with the first's render cache copied
+                # (warm) at STUDY_THREADS = each of $DET_THREADS ("16 1 8 4"): every wall time, and each run's cache
+                # entries and table against the first's (scripts/compare_runs.py) → determinism.txt
+    f=${DET_FIGURE:-fig4}; d=$W/det; mkdir -p "$d"
+    for i in 1 2; do
+      export HOME=$d/home$i; mkdir -p "$HOME"
+      timed "det-$f-cold-$i" $S figure "$f" --backend ${DET_BACKEND:-cuda} --cache "$d/c$i" --out "$d/o$i" --images none > "$OUT/log-det-$i.txt" 2>&1
+    done
+    { echo "## two cold runs, 16 threads: caches, then tables"; python3 scripts/compare_runs.py "$d/c1" "$d/c2"         "$d/o1/metrics.csv" "$d/o2/metrics.csv"; } 2>&1 | tee "$OUT/determinism.txt"
+    for t in ${DET_THREADS:-16 1 8 4}; do
+      rm -rf "$d/w"; cp -r "$d/c1" "$d/w"; export HOME=$d/home1
+      STUDY_THREADS=$t timed "det-$f-warm-threads-$t" $S figure "$f" --backend ${DET_BACKEND:-cuda} --cache "$d/w" --out "$d/t$t" \
+        --images none > "$OUT/log-det-t$t.txt" 2>&1
+      { echo "## warm copy of run 1's cache, STUDY_THREADS=$t, against run 1"; python3 scripts/compare_runs.py \
+          "$d/c1" "$d/w" "$d/o1/metrics.csv" "$d/t$t/metrics.csv"; } 2>&1 | tee -a "$OUT/determinism.txt"
+    done ;;
   pixels)   # the image columns on the GPU (study/measure/pixels.py) against scikit-image/numpy, and side by side
     timed pixels python3 scripts/pixels_cuda.py 2>&1 | tee "$OUT/log-pixels.txt" ;;
   *) echo "unknown part $part"; exit 2 ;;

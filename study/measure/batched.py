@@ -227,7 +227,7 @@ def truth_terms(tests, t: truth.Truth, mitsuba, *, mask, exposed=None) -> tuple:
     """What :func:`truth_columns` needs besides the RMSEs: (σ, Mitsuba's σ, its frame noise, fireflies, relMSE per
     image, the exposed relMSE's columns per image: :func:`exposed_of`, or ``exposed()`` when given)."""
     sigma, sigma_m = truth.noise_rms(t.noise, mask), truth.noise_rms(t.mitsuba_noise, mask)
-    frame, fireflies = truth.frame_noise(t.mitsuba_noise), exposure.firefly_fraction(mitsuba, t.mitsuba_noise)
+    frame, fireflies = truth.frame_terms(t, mitsuba)
     ref_px = t.image[mask]
     den = ref_px * ref_px + truth.REL_EPS
     d = np.asarray(tests)[:, mask] - ref_px

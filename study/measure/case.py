@@ -302,9 +302,9 @@ def _finished(out: CaseOutput, rows: list, mark: progress.Stages) -> CaseOutput:
 
 def _rows(traces, by_trace, refs, B, backend, rays, exact, held, base, keep_images, intervals):
     """Futures of (trace, row, (angle map, outcome map) or None, FLIP map), per trace in order. Dr.Jit's part (the
-    outcome classes, the references' image columns with their FLIP) runs on this thread, each row
-    (study.measure.groups) and its maps on the columns' threads (study.measure.workers), the methods' rows beside
-    the references' columns; with a plug-in producer every row is made on this thread (it may use Dr.Jit)."""
+    outcome classes, the references' FLIP and image means) runs on this thread, each row (study.measure.groups),
+    its maps and the references' numpy columns on the columns' threads (study.measure.workers); with a plug-in
+    producer every row is made on this thread (it may use Dr.Jit)."""
     pixels = ray_pixels(rays.hit, rays.src)  # each ray's pixel (the ray intervals' clusters), once per case
     classes = {id(t): _classify(B, backend, rays, t.shown, exact) for t in traces}
 
@@ -397,28 +397,42 @@ def _method_columns(traces: list[Traced], r: _Refs, backend: str, intervals: boo
     return {id(t): ((lambda i=i: every.result()[i]), f) for i, (t, f) in enumerate(zip(ran, maps))}
 
 
-def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool) -> dict:
+def _image_columns(t: Traced, r: _Refs, fmap, backend: str, intervals: bool):
     """One image against every reference: the oracle (on held pixels; unheld ones take the image's value, as FLIP
     and SSIM filter across pixels and a marked neighbour must not count), the truth, Mitsuba; the truth's own
     columns, pixel intervals and the error split. The per-trace path: the references' rows take it; the methods'
-    are measured together by :func:`study.measure.batched.method_columns`, to the same values."""
+    are measured together by :func:`study.measure.batched.method_columns`, to the same values. Returns a function
+    giving the columns: what runs on the backend's arrays (FLIP, and on Dr.Jit the means) is measured here, the
+    numpy rest (intervals, the split) on the columns' threads (:mod:`study.measure.workers`)."""
     over = r.mask if t.over is None else t.over
     img = t.image
-    cols = {
+    here = {
         **metrics.image_errors(np.where((r.held_px | ~r.mask)[..., None], r.oracle, img), img, mask=r.on_held,
                                suffix="oracle", backend=backend, with_flip="oracle" in r.against),
         **metrics.image_errors(r.truth.image, img, mask=over, suffix="truth", flip_emap=fmap, backend=backend,
                                with_flip="truth" in r.against),
         **metrics.image_errors(r.mitsuba, img, mask=over, suffix="mitsuba", backend=backend,
                                with_flip="mitsuba" in r.against),
-        **truth.columns(img, r.truth, r.mitsuba, mask=over, backend=backend),
-        **case_columns.pixel_columns(img, r.truth.image, mask=over,  # σ over the same pixels as truth.columns
-                                     sigma=truth.noise_rms(r.truth.noise, over),
-                                     rel_eps=truth.REL_EPS, emap=fmap),
-        **split.split_columns(img, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
-                              mask=over, held_px=r.held_px, intervals=intervals),  # sweeps: values only
-        **bias.bias_columns(img, r.truth.image, mask=over & r.held_px),  # signed: a gain shows with its sign
     }  # fmt: skip
-    if t.reference == "truth_at_hit":  # the truth is not split against itself
-        cols.update({k: np.nan for k in cols if k.startswith("dec_")})
+    made = truth.means(img, r.truth, r.mitsuba, mask=over, backend=backend)
+
+    def rest():
+        return {
+            **truth.columns(img, r.truth, r.mitsuba, mask=over, made=made),
+            **case_columns.pixel_columns(img, r.truth.image, mask=over,  # σ over the pixels of truth.columns
+                                         sigma=truth.noise_rms(r.truth.noise, over),
+                                         rel_eps=truth.REL_EPS, emap=fmap),
+            **split.split_columns(img, r.truth.image, r.truth.noise, r.oracle, r.oracle_seed, r.oracle_coarse,
+                                  mask=over, held_px=r.held_px, intervals=intervals),  # sweeps: values only
+            **bias.bias_columns(img, r.truth.image, mask=over & r.held_px),  # signed: a gain shows with its sign
+        }  # fmt: skip
+
+    later = workers.submit(rest)
+
+    def cols():
+        out = {**here, **later.result()}
+        if t.reference == "truth_at_hit":  # the truth is not split against itself
+            out.update({k: np.nan for k in out if k.startswith("dec_")})
+        return out
+
     return cols

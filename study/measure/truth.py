@@ -28,7 +28,8 @@ the oracle (``oracle_map``) are in :mod:`study.measure.split`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import threading
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -55,6 +56,8 @@ class Truth:
     along: np.ndarray  # (K, 3) the radiance along each exact secondary ray (two seeds' mean, no Fresnel)
     mitsuba_noise: np.ndarray  # (H, W, 3) the same for Mitsuba's camera render with the object
     ev: float = 0.0  # the truth's exposure over the object's pixels (study.measure.exposure.object_exposure)
+    #: :func:`frame_terms` once made (with the Mitsuba render they were made of): the same for every image
+    made: list = field(default_factory=list, init=False, repr=False, compare=False)
 
 
 def truth_at_hit(scene: Scene, cache: Cache, rays: shading.ObjectRays) -> tuple[np.ndarray, np.ndarray]:
@@ -183,28 +186,16 @@ def relmse(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
 
 
 def columns(
-    img: np.ndarray, truth: Truth, mitsuba: np.ndarray, *, mask: np.ndarray, backend: str = "numpy"
+    img: np.ndarray, truth: Truth, mitsuba: np.ndarray, *, mask: np.ndarray, backend: str = "numpy", made=None
 ) -> dict[str, float]:
     """The truth columns of one method's image (or the oracle's) over ``mask``: errors against truth_at_hit (raw,
-    debiased, relMSE) and against Mitsuba debiased (module docstring); measured on
-    :func:`study.measure.metrics.image_backend` of ``backend`` (numpy: the functions above). Then, on numpy, the
-    columns of :mod:`study.measure.exposure`: relMSE after exposure with its pixel interval, the truth's noise in
-    its unit, and the fireflies of Mitsuba's render."""
-    box = None  # only the mask's bounding box travels
-    if backend != "numpy" and mask.any():
-        box = _crop(mask, 0, img, truth.image, mitsuba, truth.noise, truth.mitsuba_noise)
-    on = "numpy" if box is None else image_backend(backend, box[0].size)
-    if on != "numpy":  # the same means as array code where the images are
-        from study.measure import pixels
-
-        names = ("image", "truth", "mitsuba", "truth_noise", "mitsuba_noise")
-        m = pixels.truth_errors(dict(zip(names, box[1:])), mask=box[0], backend=on, rel_eps=REL_EPS)
-        sigma, rmse_truth, sigma_m = (float(np.sqrt(m[k])) for k in ("truth_noise", "truth", "mitsuba_noise"))
-        rmse_mitsuba, relmse_truth = float(np.sqrt(m["mitsuba"])), m["relmse"]
-    else:
-        sigma, rmse_truth = noise_rms(truth.noise, mask), rmse(truth.image, img, mask=mask)
-        sigma_m, rmse_mitsuba = noise_rms(truth.mitsuba_noise, mask), rmse(mitsuba, img, mask=mask)
-        relmse_truth = relmse(img, truth.image, mask)
+    debiased, relMSE) and against Mitsuba debiased (module docstring); their means measured on
+    :func:`study.measure.metrics.image_backend` of ``backend`` (numpy: the functions above), or ``made``: what
+    :func:`means` gave for the same arguments. Then, on numpy, the columns of :mod:`study.measure.exposure`: relMSE
+    after exposure with its pixel interval, the truth's noise in its unit, and the fireflies of Mitsuba's render."""
+    sigma, rmse_truth, sigma_m, rmse_mitsuba, relmse_truth = made or means(
+        img, truth, mitsuba, mask=mask, backend=backend
+    )
     rmse_truth_debiased, rmse_mitsuba_debiased = debiased(rmse_truth, sigma), debiased(rmse_mitsuba, sigma_m)
     return {
         "rmse_truth": rmse_truth,
@@ -215,12 +206,49 @@ def columns(
         "rmse_mitsuba_debiased": rmse_mitsuba_debiased,
         "mitsuba_noise_rmse": sigma_m,
         "mitsuba_noise_flag": noise_flag(sigma_m, rmse_mitsuba_debiased),
-        "mitsuba_noise_frame": frame_noise(truth.mitsuba_noise),
+        "mitsuba_noise_frame": frame_terms(truth, mitsuba)[0],
         **exposure.exposed_columns(
             img, truth.image, truth.noise, mask=mask, ev=truth.ev, interval=_interval(mask)
         ),
-        "firefly_fraction": exposure.firefly_fraction(mitsuba, truth.mitsuba_noise),
+        "firefly_fraction": frame_terms(truth, mitsuba)[1],
     }
+
+
+def means(
+    img: np.ndarray, truth: Truth, mitsuba: np.ndarray, *, mask: np.ndarray, backend: str = "numpy"
+) -> tuple[float, float, float, float, float]:
+    """(σ, RMSE against the truth, Mitsuba's σ, RMSE against Mitsuba, relMSE) of :func:`columns`: the part that
+    runs on the backend's arrays (Dr.Jit on ``cuda`` and ``llvm``: on the thread that owns them)."""
+    box = None  # only the mask's bounding box travels
+    if backend != "numpy" and mask.any():
+        box = _crop(mask, 0, img, truth.image, mitsuba, truth.noise, truth.mitsuba_noise)
+    on = "numpy" if box is None else image_backend(backend, box[0].size)
+    if on != "numpy":  # the same means as array code where the images are
+        from study.measure import pixels
+
+        names = ("image", "truth", "mitsuba", "truth_noise", "mitsuba_noise")
+        m = pixels.truth_errors(dict(zip(names, box[1:])), mask=box[0], backend=on, rel_eps=REL_EPS)
+        sigma, rmse_truth, sigma_m = (float(np.sqrt(m[k])) for k in ("truth_noise", "truth", "mitsuba_noise"))
+        return sigma, rmse_truth, sigma_m, float(np.sqrt(m["mitsuba"])), m["relmse"]
+    sigma, rmse_truth = noise_rms(truth.noise, mask), rmse(truth.image, img, mask=mask)
+    sigma_m, rmse_mitsuba = noise_rms(truth.mitsuba_noise, mask), rmse(mitsuba, img, mask=mask)
+    return sigma, rmse_truth, sigma_m, rmse_mitsuba, relmse(img, truth.image, mask)
+
+
+_made = threading.Lock()
+
+
+def frame_terms(truth: Truth, mitsuba: np.ndarray) -> tuple[float, float]:
+    """(:func:`frame_noise` of Mitsuba's noise, :func:`study.measure.exposure.firefly_fraction` of its render):
+    whole-frame numbers of the case, not of an image (each a few hundred ms at 1024²), made once and kept on
+    ``truth`` for every image measured against it (its references' rows, each part of its methods' stack)."""
+    with _made:
+        for m, terms in truth.made:
+            if m is mitsuba:
+                return terms
+        terms = frame_noise(truth.mitsuba_noise), exposure.firefly_fraction(mitsuba, truth.mitsuba_noise)
+        truth.made.append((mitsuba, terms))
+        return terms
 
 
 def _interval(mask: np.ndarray):

@@ -96,48 +96,60 @@ def window(radii: np.ndarray, reach: float) -> np.ndarray:
     return np.clip(2.0 - radii / m, 0.0, 1.0)
 
 
-def _tile_sums(resid: np.ndarray, mask: np.ndarray, area: float) -> np.ndarray:
-    """The sums of ``resid`` over the square tiles of about ``area`` pixels that hold pixels of ``mask``."""
+def _tile_sums(resid: np.ndarray, mask: np.ndarray, area: float, *more: np.ndarray):
+    """The sums of ``resid`` over the square tiles of about ``area`` pixels that hold pixels of ``mask``; with
+    ``more`` arrays, a list of the same for ``resid`` and each of them (the tiles made once)."""
     t = max(1, round(math.sqrt(max(area, 1.0))))
     h, w = resid.shape
     hh, ww = -(-h // t) * t, -(-w // t) * t
-    sums = np.zeros((2, hh, ww))
-    sums[0, :h, :w], sums[1, :h, :w] = resid, mask
-    s, inside = sums.reshape(2, hh // t, t, ww // t, t).sum(axis=(2, 4)).reshape(2, -1)
-    return s[inside > 0]
+    k = 2 + len(more)
+    sums = np.zeros((k, hh, ww))
+    sums[0, :h, :w], sums[-1, :h, :w] = resid, mask
+    for j, a in enumerate(more):
+        sums[1 + j, :h, :w] = a
+    *s, inside = sums.reshape(k, hh // t, t, ww // t, t).sum(axis=(2, 4)).reshape(k, -1)
+    s = [x[inside > 0] for x in s]
+    return s if more else s[0]
 
 
-def mean_skewness(resid: np.ndarray, mask: np.ndarray, area: float, windows: float) -> float:
+def mean_skewness(
+    resid: np.ndarray, mask: np.ndarray, area: float, windows: float, *, tiles: np.ndarray | None = None
+) -> float:
     """The skewness of the mean of ``resid`` (residuals about it, over ``mask``): the skewness of its sums over
     tiles of about ``area`` pixels (the window's effective size) over √(tiles); with fewer than
     :data:`MIN_TILES` tiles the pixels' own skewness over √``windows`` (larger than the windows' would be: a sum
-    over a window is less skewed than its pixels). A constant residual: 0."""
-    s = _tile_sums(resid, mask, area)
+    over a window is less skewed than its pixels). A constant residual: 0. ``tiles``: those sums, if made."""
+    s = _tile_sums(resid, mask, area) if tiles is None else tiles
     if s.size < MIN_TILES:
         s, scale = resid[mask], math.sqrt(max(windows, 1.0))
     else:
         scale = math.sqrt(s.size)
-    s2 = float(np.mean(s * s))
-    return float(np.mean(s**3)) / s2**1.5 / scale if s2 > 0 else 0.0
+    sq = s * s
+    s2 = float(np.mean(sq))
+    return float(np.mean(sq * s)) / s2**1.5 / scale if s2 > 0 else 0.0  # s·s·s: pow(s, 3) is ~20× slower
 
 
-def contributing_tiles(values: np.ndarray, mask: np.ndarray, area: float) -> float:
+def contributing_tiles(
+    values: np.ndarray, mask: np.ndarray, area: float, *, tiles: np.ndarray | None = None
+) -> float:
     """(Σ s)² / Σ s²: how many tiles of about ``area`` pixels carry the sum of ``values`` ≥ 0 over ``mask`` (s:
     its sums over the tiles that hold pixels of ``mask``; as many as tiles for an even field, 1 for one blob);
-    0 where the values sum to 0."""
-    s = _tile_sums(values, mask, area)
+    0 where the values sum to 0 (``tiles``: s, if made)."""
+    s = _tile_sums(values, mask, area) if tiles is None else tiles
     s2 = float(np.sum(s * s))
     return float(np.sum(s)) ** 2 / s2 if s2 > 0 else 0.0
 
 
-def kurtosis_factor(resid: np.ndarray, mask: np.ndarray, area: float) -> float:
+def kurtosis_factor(
+    resid: np.ndarray, mask: np.ndarray, area: float, *, tiles: np.ndarray | None = None
+) -> float:
     """2 / (2 + κ): the share of the window's degrees of freedom that heavy-tailed residuals keep. The window's
     count of independent windows holds for Gaussian residuals, whose squared window sums vary as 2σ⁴; sums with
     excess kurtosis κ vary as (2 + κ)σ⁴ (Satterthwaite), so the variance is less certain than the count says
     (rare events, e.g. the rays beyond a 95th percentile, are heavy-tailed). κ is measured on the sums of
     ``resid`` over square tiles of about ``area`` pixels (the window's effective size) that hold pixels of
-    ``mask``; κ ≤ 0 or fewer than :data:`MIN_TILES` tiles: 1."""
-    s = _tile_sums(resid, mask, area)
+    ``mask``; κ ≤ 0 or fewer than :data:`MIN_TILES` tiles: 1 (``tiles``: those sums, if made)."""
+    s = _tile_sums(resid, mask, area) if tiles is None else tiles
     s2 = float(np.sum(s * s))
     if s.size < MIN_TILES or s2 <= 0:
         return 1.0
@@ -229,10 +241,11 @@ def spread(sub: np.ndarray, reg: Region, skews: bool = False) -> tuple[np.ndarra
         # the residuals are centred on the estimated ratio, which takes (Σ w·pairs / n²) of the window's sum away
         share = float(np.sum(w * pairs[c])) / (n * n)
         gauss = max(1.0, 1.0 / share - 1.0)
-        dof[i] = max(min(gauss, MIN_DOF), gauss * kurtosis_factor(resid[i], m, share * n))
+        s_res, s_sub = _tile_sums(resid[i], m, share * n, sub[i])  # the window's tiles, made once
+        dof[i] = max(min(gauss, MIN_DOF), gauss * kurtosis_factor(resid[i], m, share * n, tiles=s_res))
         if skews:
-            skew[i] = mean_skewness(resid[i], m, share * n, gauss)
-        teff[i] = contributing_tiles(sub[i], m, share * n)
+            skew[i] = mean_skewness(resid[i], m, share * n, gauss, tiles=s_res)
+        teff[i] = contributing_tiles(sub[i], m, share * n, tiles=s_sub)
         keep = max(MIN_KEPT, 1.0 - share)
         v = float(np.sum(w * sums[j][c])) / keep
         var[i] = max(v, float(sums[j, reach, reach])) / (total * total)  # never below independent pixels

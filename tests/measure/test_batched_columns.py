@@ -25,7 +25,7 @@ def _per_method(images, r, *, backend, intervals):
     for img in images:
         fmap = metrics._flip_frame(r.truth.image, img, backend) if intervals else None
         t = SimpleNamespace(image=img, over=None, reference="")
-        cols.append(case._image_columns(t, r, fmap, backend, intervals))
+        cols.append(case._image_columns(t, r, fmap, backend, intervals)())
         maps.append(fmap)
     return cols, maps
 
