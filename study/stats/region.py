@@ -181,6 +181,13 @@ def kept(key, build, store: OrderedDict = _KEPT, most: float = KEPT_BYTES, size=
         return value
 
 
+def known(keys, store: OrderedDict) -> dict:
+    """The values of ``keys`` that ``store`` (a memo of :func:`kept`) holds now, read under its lock (another
+    thread's :func:`kept` may drop the oldest between a test and a read)."""
+    with _KEEPING:
+        return {key: store[key] for key in keys if key in store}
+
+
 def _bytes(value) -> int:
     """The bytes of a kept :class:`Region`'s lag arrays (or of a (region, ray indices) pair's)."""
     reg = value[0] if isinstance(value, tuple) else value

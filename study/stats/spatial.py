@@ -45,6 +45,7 @@ from study.stats.region import (  # noqa: F401 (the window's limits, named in th
     centre,
     digest,
     kept,
+    known,
     lag_sums,
     ray_region,
     region,
@@ -284,7 +285,7 @@ def _spread_kept(xs: np.ndarray, reg: Region) -> tuple[np.ndarray, ...]:
     distinct sample measured once and kept (by its digest, :data:`SAMPLES_KEPT` of them): a sample's results depend on
     its own values and the region alone."""
     keys = [digest(reg.key, x) for x in xs]
-    found = {key: _MEASURED[key] for key in keys if key in _MEASURED}
+    found = known(keys, _MEASURED)
     todo = {key: i for i, key in enumerate(keys) if key not in found}
     if todo:
         sub = np.zeros((len(todo), reg.m.size))
