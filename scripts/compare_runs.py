@@ -52,18 +52,19 @@ def tables(a: Path, b: Path) -> list[str]:
     common = [k for k in ia if k in ib]
     out = [f"tables: {len(ra)} and {len(rb)} rows, {len(common)} matched by {', '.join(keys)}"]
     for col in [c for c in ra[0] if c in rb[0]] if common else []:
-        differ, largest = 0, 0.0
+        differ, largest = [], 0.0
         for k in common:
             x, y = ia[k][col], ib[k][col]
             if isinstance(x, float) and isinstance(y, float):
                 if x == y or (x != x and y != y):
                     continue
-                differ += 1
+                differ.append(k)
                 largest = max(largest, abs(x - y) / max(abs(x), abs(y)) if x == x and y == y else math.inf)
             elif x != y:
-                differ, largest = differ + 1, math.inf
+                differ, largest = [*differ, k], math.inf
         if differ:
-            out.append(f"  {col}: {differ} rows differ, largest relative {largest:.3g}")
+            rows = "; ".join("/".join(k) for k in differ[:3]) + (" …" if len(differ) > 3 else "")
+            out.append(f"  {col}: {len(differ)} rows differ, largest relative {largest:.3g} (e.g. {rows})")
     if len(out) == 1:
         out.append("  every value equal")
     return out

@@ -187,7 +187,9 @@ def pixel_columns_stack(
         shared = {} if shared is None else shared
         shared["r"], shared["den"] = r, r * r + rel_eps
     r, den = shared["r"], shared["den"]
-    d = np.asarray(imgs)[:, mask].astype(float) - r
+    d = (
+        np.ascontiguousarray(np.asarray(imgs)[:, mask]).astype(float) - r
+    )  # per image as alone (batched._rows)
     dd = d * d
     se = np.mean(dd, axis=-1)  # (M, P) per pixel, mean over channels: mean(se) = RMSE²
     rel = np.mean(dd / den, axis=-1)

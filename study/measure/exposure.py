@@ -100,7 +100,7 @@ def exposed_stack(
     den = r * r + EXPOSED_EPS
     n = g * np.asarray(noise)[mask].astype(np.float64)
     noise_rel = float(np.mean(n * n / den)) if n.size else math.nan
-    d = g * (np.asarray(images)[:, mask].astype(np.float64) - r_px)
+    d = g * (np.ascontiguousarray(np.asarray(images)[:, mask]).astype(np.float64) - r_px)  # batched._rows
     per_pixel = np.mean(d * d / den, axis=-1)  # (M, P)
     cis = intervals(per_pixel) if intervals is not None and per_pixel.shape[-1] else None
     out = []

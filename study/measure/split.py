@@ -238,7 +238,9 @@ def split_stack(
     h = np.asarray(held_px, bool)[mask]
     refs = [np.asarray(a)[mask] for a in (truth, noise, oracle, oracle_seed, oracle_coarse)]
     terms = pixel_terms(
-        np.asarray(images)[:, mask], *refs, h
+        np.ascontiguousarray(np.asarray(images)[:, mask]),
+        *refs,
+        h,  # per image as alone (batched._rows)
     )  # (M, P), or (P,) where the image plays no part
     terms = {k: np.broadcast_to(v, (len(images), h.size)) for k, v in terms.items()}
     each = [{k: v[i] for k, v in terms.items()} for i in range(len(images))]

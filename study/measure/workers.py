@@ -8,7 +8,10 @@ from generators of their own seeds; the memo of :func:`study.stats.region.kept` 
 depend on how many threads run them.
 
 Threads: ``$STUDY_THREADS`` (a sweep worker's share of the cores, :func:`study.harness.runner._limit_threads`),
-else every core, at most :data:`MOST`; 1 runs every task inline, on the caller's thread. What a pool task submits runs
+else half the cores (at least 2), at most :data:`MOST`; 1 runs every task inline, on the caller's thread. Half:
+the case's own thread (renders, traces, Dr.Jit's launches) shares the cores and the GIL with the pool. On one H100
+host (16 cores; reports/performance/determinism-gpu.txt) fig4 at 256² on a warm render cache took 30.0 s with 8
+threads, 34.1 s with 16 and 46.6 s with 1. What a pool task submits runs
 inline, and a task waits only on tasks submitted before it: the queue is first in, first out, so those have
 started, and the pool never waits on itself."""
 
@@ -27,7 +30,7 @@ _lock = threading.Lock()
 
 def threads() -> int:
     """How many threads the columns use in this process."""
-    n = int(os.environ.get("STUDY_THREADS") or 0) or (os.cpu_count() or 1)
+    n = int(os.environ.get("STUDY_THREADS") or 0) or max(2, (os.cpu_count() or 1) // 2)
     return max(1, min(n, MOST))
 
 

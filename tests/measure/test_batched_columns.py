@@ -174,3 +174,31 @@ def test_a_case_measures_the_same_on_one_thread_as_on_several(backend, cache, mo
     for kind in ("images", "angle_maps", "outcome_maps", "flip_maps"):
         for label, m in getattr(one, kind).items():
             np.testing.assert_array_equal(getattr(many, kind)[label], m)
+
+
+def test_a_stack_measures_each_image_as_alone_in_any_part(monkeypatch):
+    """The columns' threads cut a case's stack into parts (batched._chunked): an image's every column has the same
+    bits in a part of 1 as in a part of 6. Boolean indexing lays a stack's masked pixels out pixel-major, and a mean
+    over such a strided image once summed in another order (one unit in the last place in 13 of fig4's 216 rows,
+    1 against 16 threads)."""
+    from study.measure import workers
+    from study.measure.truth import Truth
+
+    rng = np.random.default_rng(3)
+    n = 160
+    yy, xx = np.mgrid[:n, :n]
+    mask = (yy - 80) ** 2 + (xx - 76) ** 2 < 60**2  # ≈ 11,000 pixels: long enough sums to round differently
+    truth = rng.random((n, n, 3)).astype(np.float32)
+    noise = rng.normal(0, 0.02, (n, n, 3)).astype(np.float32)
+    r = SimpleNamespace(truth=Truth(truth, noise, np.zeros((1, 3)), noise, ev=0.0), mitsuba=truth + noise,
+                        oracle=truth + 0.01, oracle_seed=truth + 0.02, oracle_coarse=truth, held_px=xx < 120,
+                        on_held=mask & (xx < 120), mask=mask, sigma=0.02, against=())  # fmt: skip
+    imgs = np.stack([truth + rng.normal(0, 0.1 * (i + 1), (n, n, 3)) for i in range(6)]).astype(np.float32)
+    got = {}
+    for threads in ("1", "6"):
+        monkeypatch.setenv("STUDY_THREADS", threads)
+        monkeypatch.setattr(workers, "_pool", None)
+        got[threads] = batched.method_columns(imgs, r, backend="numpy", intervals=False)[0]
+    for a, b in zip(got["1"], got["6"]):
+        bad = [k for k in a if not _close(a[k], b[k], 0.0, 0.0)]
+        assert not bad, [(k, a[k], b[k]) for k in bad]
