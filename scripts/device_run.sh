@@ -3,6 +3,7 @@
 #
 #   bash scripts/device_run.sh [bench] [studies] [sweep] [dask] [single] [profile] [fig4x3] [hier] [fig4paper]
 #                              [side] [fig4prof] [reproduce] [pixels] [marches] [determinism]
+#                              [wallprof]
 #                                                                                   (default: bench studies)
 #
 #   bench   : `study bench --backends cuda` — methods, exact queries (ray_intersect, _preliminary, ray_test) and
@@ -174,6 +175,17 @@ print(f'{sys.argv[2]} vs {sys.argv[1]}: {len(a)} / {len(b)} rows,', 'identical' 
 s.print_callees('run_case')" "$OUT/fp.prof" > "$OUT/profile-fig4prof.txt" 2>&1; rm -f "$OUT/fp.prof"
     timed fig4prof-paper-kernels-warm $S figure fig4 --quality paper --backend cuda --cache "$W/fp2" \
       --out "$W/fp/fig4-warm" > /dev/null 2>&1 ;;
+  wallprof)  # where the wall clock goes on every thread (scripts/wall_profile.py samples each thread's stack; cProfile
+             # sees the case's thread only): the same-work config at paper quality cold, then with the kernels warm,
+             # then fig4 at paper quality cold → wallprof-*.txt, each run's time split → log-wallprof-*.txt
+    export HOME=$W/home-wp; mkdir -p "$HOME"
+    for run in samework-cold samework-warm fig4-cold; do
+      case $run in samework-*) cfg="--config configs/bench/fig4_samework.toml" ;; *) cfg=fig4
+        export HOME=$W/home-wp4; mkdir -p "$HOME" ;; esac                 # fig4 with its own, cold kernel cache
+      timed "wallprof-$run" python3 scripts/wall_profile.py "$OUT/wallprof-$run.txt" --interval 0.01 \
+        -m study.cli figure $cfg \
+        --quality paper --backend cuda --cache "$W/wp-$run" --out "$W/wp/$run" > "$OUT/log-wallprof-$run.txt" 2>&1
+    done ;;
   side)    # issue-52 targets, the commit before ($OLD, default .devold: `git archive <rev> study configs scenes
            # pyproject.toml | tar x -C .devold`, plus configs/bench/) and this one side by side on one host, each cold
            # (fresh study and kernel caches): the same-work config (configs/bench/fig4_samework.toml) at paper quality
