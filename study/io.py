@@ -173,8 +173,10 @@ def exr_bytes(array: np.ndarray, channels: list[str] | None = None) -> bytes:
         bmp = mi.Bitmap(a, pixel_format=mi.Bitmap.PixelFormat.MultiChannel, channel_names=list(channels))
     s = mi.MemoryStream()
     bmp.write(s, mi.Bitmap.FileFormat.OpenEXR)
-    s.seek(0)
-    return bytes(s.read(s.size()))
+    # the stream's buffer as it stands (its first size() bytes): read() copies byte-wise, 2.2 s for a 1024² case's
+    # 486 MB where raw_buffer takes 0.3 s
+    n, buf = s.size(), s.raw_buffer()
+    return buf if len(buf) == n else buf[:n]
 
 
 def layers_exr_bytes(layers: dict[str, np.ndarray]) -> bytes:

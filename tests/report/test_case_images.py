@@ -115,3 +115,18 @@ def test_bad_images_value_is_one_line(command):
     res = run_cli(*command.split(), "--images", "some")
     assert res.exit_code != 0
     assert "unknown --images 'some'; allowed: none, viewer, all" in res.output
+
+
+def test_exr_bytes_are_the_file_mitsuba_writes(tmp_path):
+    """The in-memory EXR (the stream's buffer, its first size() bytes) is byte for byte the file Mitsuba's Bitmap
+    writes to disk itself, for a buffer that grew past its first capacity (a 1.5 MB image)."""
+    from study import io, runtime
+
+    mi = runtime.mitsuba()
+    rng = np.random.default_rng(3)
+    a = rng.random((256, 256, 6)).astype(np.float32)
+    names = [f"{layer}.{c}" for layer in ("one", "two") for c in "RGB"]
+    mi.Bitmap(a, pixel_format=mi.Bitmap.PixelFormat.MultiChannel, channel_names=names).write(
+        str(tmp_path / "direct.exr")
+    )
+    assert io.exr_bytes(a, names) == (tmp_path / "direct.exr").read_bytes()
