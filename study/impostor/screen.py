@@ -25,12 +25,23 @@ from study.scene import Scene
 from study.scene.camera import camera_rays, look_at_basis
 
 
+def buffers(scene: Scene, tracer: Tracer) -> tuple[np.ndarray, np.ndarray]:
+    """(:func:`depth_buffer`, :func:`normal_buffer`) of ``scene``'s camera from one cast of its pixel rays."""
+    o, d = camera_rays(scene.camera, 1)
+    o, d = o.reshape(-1, 3), d.reshape(-1, 3)
+    t, prim = tracer.hits(o, d)
+    return _depth(scene, d, t), _normals(scene, tracer, d, prim)
+
+
 def normal_buffer(scene: Scene, tracer: Tracer) -> np.ndarray:
     """Unit geometric normals of the environment (no object) through every pixel centre, turned towards the camera
     (a surface the camera sees faces it): (H, W, 3) float32, world axes (0 where nothing is hit) — a G-buffer's."""
     o, d = camera_rays(scene.camera, 1)
     o, d = o.reshape(-1, 3), d.reshape(-1, 3)
-    prim = tracer.intersect(o, d)["prim"]
+    return _normals(scene, tracer, d, tracer.hits(o, d)[1])
+
+
+def _normals(scene: Scene, tracer: Tracer, d: np.ndarray, prim: np.ndarray) -> np.ndarray:
     tri = tracer.mesh.vertices[tracer.mesh.faces[np.maximum(prim, 0)]].astype(np.float64)
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
@@ -43,8 +54,11 @@ def depth_buffer(scene: Scene, tracer: Tracer) -> np.ndarray:
     """z-depth of the environment (no object) through every pixel centre: (H, W) float32 (inf: nothing hit)."""
     o, d = camera_rays(scene.camera, 1)
     o, d = o.reshape(-1, 3), d.reshape(-1, 3)
+    return _depth(scene, d, tracer.distance(o, d))
+
+
+def _depth(scene, d: np.ndarray, t: np.ndarray) -> np.ndarray:
     f, _, _ = look_at_basis(scene.camera.eye, scene.camera.target, scene.camera.up)
-    t = tracer.distance(o, d)
     return (t * (d @ f)).reshape(scene.camera.height, scene.camera.width).astype(np.float32)
 
 
@@ -78,9 +92,9 @@ class ScreenView:
     @classmethod
     def of_scene(cls, scene: Scene, colour: np.ndarray, tracer: Tracer, B: Backend) -> ScreenView:
         """The buffer of ``scene``'s camera: depth by :func:`depth_buffer`, ``colour`` (H, W, 3) the background,
-        normals by :func:`normal_buffer`."""
-        return cls(depth_buffer(scene, tracer), colour, scene.camera, scene.reference.point, B,
-                   normals=normal_buffer(scene, tracer))  # fmt: skip
+        normals by :func:`normal_buffer` (both from one cast: :func:`buffers`)."""
+        depth, normals = buffers(scene, tracer)
+        return cls(depth, colour, scene.camera, scene.reference.point, B, normals=normals)
 
     def camera_space(self, p: V3):
         """(X, Y, z) of points p relative to o."""

@@ -70,20 +70,32 @@ class Tracer:
 
         Only the hit distance is asked of Embree; batches of 4096 rays or more are cut into ``threads`` chunks
         cast at once (embreex releases the GIL)."""
+        return self._cast(o, d, False)[0]
+
+    def hits(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(t, prim): :meth:`intersect`'s ``t`` and ``prim`` alone (inf and −1 on a miss), cast in chunks at once
+        as :meth:`distance` is."""
+        return self._cast(o, d, True)
+
+    def _cast(self, o: np.ndarray, d: np.ndarray, prims: bool) -> tuple[np.ndarray, np.ndarray | None]:
         o = np.ascontiguousarray(o, np.float32).reshape(-1, 3)
         d = np.ascontiguousarray(d, np.float32).reshape(-1, 3)
         t = np.empty(len(o))
+        prim = np.empty(len(o), np.int64) if prims else None
 
         def cast(a: int, b: int) -> None:
             res = self.scene.run(o[a:b], d[a:b], output=1)
-            t[a:b] = np.where(res["geomID"] != -1, res["tfar"], np.inf)
+            hit = res["geomID"] != -1
+            t[a:b] = np.where(hit, res["tfar"], np.inf)
+            if prim is not None:
+                prim[a:b] = np.where(hit, res["primID"], -1)
 
         if self.threads == 1 or len(o) < 4096:
             cast(0, len(o))
-            return t
+            return t, prim
         cuts = np.linspace(0, len(o), self.threads + 1).astype(int)
         list(self._executor().map(cast, cuts[:-1], cuts[1:]))  # list(): wait, and raise a chunk's error
-        return t
+        return t, prim
 
     def _executor(self) -> ThreadPoolExecutor:
         # made lazily and again in a forked child (a parent's pool has no threads there)

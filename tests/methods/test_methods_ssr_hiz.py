@@ -279,3 +279,30 @@ def test_the_march_step_reads_one_cell_and_nothing_else(tmp_path):
     ir = (tmp_path / f"ssr_hiz-{march['kernel']}.ll").read_text()
     loop = ir[ir.index(f"l_{march['loop']}_cond:") : ir.index(f"l_{march['loop']}_done:")]
     assert "fdiv" not in loop and "fdiv" in ir  # (the kernel divides, outside the loop)
+
+
+def test_the_screen_buffers_from_one_cast_are_intersect_s(room):
+    """buffers() (one cast of the pixel rays, in chunks at once) gives the depth and normals made from
+    Tracer.intersect's t and prim of one whole cast, bit for bit; 64² rays, so that 3 chunks are cast."""
+    from study.impostor.screen import buffers
+
+    s, _, _, _ = room
+    s = s.model_copy(update={"camera": s.camera.model_copy(update={"width": 64, "height": 64})})
+    tracer = Tracer(s.mesh(), threads=3)
+    eo, ed = (a.reshape(-1, 3) for a in camera_rays(s.camera, 1))
+    hit = tracer.intersect(eo, ed)
+    f = np.subtract(s.camera.target, s.camera.eye)
+    f = f / np.linalg.norm(f)
+    depth = (hit["t"] * (ed @ f)).reshape(64, 64).astype(np.float32)
+    prim = hit["prim"]
+    tri = tracer.mesh.vertices[tracer.mesh.faces[np.maximum(prim, 0)]].astype(np.float64)
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    n *= np.where(np.sum(n * ed, axis=1) > 0, -1.0, 1.0)[:, None]
+    n[prim < 0] = 0.0
+    got_depth, got_n = buffers(s, tracer)
+    assert np.isinf(depth).any() or (prim >= 0).all()
+    np.testing.assert_array_equal(got_depth, depth)
+    np.testing.assert_array_equal(got_n, n.reshape(64, 64, 3).astype(np.float32))
+    np.testing.assert_array_equal(got_depth, depth_buffer(s, tracer))
+    np.testing.assert_array_equal(got_n, normal_buffer(s, tracer))
