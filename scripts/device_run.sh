@@ -179,7 +179,7 @@ s.print_callees('run_case')" "$OUT/fp.prof" > "$OUT/profile-fig4prof.txt" 2>&1; 
              # sees the case's thread only): the same-work config at paper quality cold, then with the kernels warm,
              # then fig4 at paper quality cold → wallprof-*.txt, each run's time split → log-wallprof-*.txt
     export HOME=$W/home-wp; mkdir -p "$HOME"
-    for run in samework-cold samework-warm fig4-cold; do
+    for run in ${WALLPROF_RUNS:-samework-cold samework-warm fig4-cold}; do   # WALLPROF_RUNS: which of them
       case $run in samework-*) cfg="--config configs/bench/fig4_samework.toml" ;; *) cfg=fig4
         export HOME=$W/home-wp4; mkdir -p "$HOME" ;; esac                 # fig4 with its own, cold kernel cache
       timed "wallprof-$run" python3 scripts/wall_profile.py "$OUT/wallprof-$run.txt" --interval 0.01 \
