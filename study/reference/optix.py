@@ -63,6 +63,15 @@ class MitsubaTracer:
             "uv": np.where(hit[:, None], uv, np.nan),
         }
 
+    def hits(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(t, prim): :meth:`intersect`'s ``t`` and ``prim`` alone (inf and −1 on a miss), one device call."""
+        o = np.ascontiguousarray(o, np.float32).reshape(-1, 3)
+        d = np.ascontiguousarray(d, np.float32).reshape(-1, 3)
+        if not len(o):
+            return np.empty(0), np.empty(0, np.int64)
+        t, prim, _ = self._query(o, d)
+        return t, prim
+
     def distance(self, o: np.ndarray, d: np.ndarray) -> np.ndarray:
         """|hit − o| for unit directions d (inf on a miss): (N,) float64."""
         o = np.ascontiguousarray(o, np.float32).reshape(-1, 3)
