@@ -42,9 +42,10 @@ def normal_buffer(scene: Scene, tracer: Tracer) -> np.ndarray:
 
 
 def _normals(scene: Scene, tracer: Tracer, d: np.ndarray, prim: np.ndarray) -> np.ndarray:
-    tri = tracer.mesh.vertices[tracer.mesh.faces[np.maximum(prim, 0)]].astype(np.float64)
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    tri = tracer.mesh.vertices[tracer.mesh.faces].astype(np.float64)  # each triangle's unit normal, once
+    n_tri = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n_tri /= np.maximum(np.linalg.norm(n_tri, axis=1, keepdims=True), 1e-30)
+    n = n_tri[np.maximum(prim, 0)]
     n *= np.where(np.sum(n * d, axis=1) > 0, -1.0, 1.0)[:, None]
     n[prim < 0] = 0.0
     return n.reshape(scene.camera.height, scene.camera.width, 3).astype(np.float32)

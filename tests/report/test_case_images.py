@@ -130,3 +130,21 @@ def test_exr_bytes_are_the_file_mitsuba_writes(tmp_path):
         str(tmp_path / "direct.exr")
     )
     assert io.exr_bytes(a, names) == (tmp_path / "direct.exr").read_bytes()
+
+
+def test_layers_exr_holds_each_layer_cast_to_float32_and_refuses_mixed_sizes(tmp_path):
+    from study import io
+
+    rng = np.random.default_rng(4)
+    layers = {
+        "rgb": rng.random((24, 16, 3)),
+        "y": rng.random((24, 16)).astype(np.float32),
+        "c": rng.random((24, 16, 1)),
+    }
+    (tmp_path / "a.exr").write_bytes(io.layers_exr_bytes(layers))
+    back = read_exr_layers(tmp_path / "a.exr")
+    for name, a in layers.items():
+        want = np.asarray(a, np.float32)
+        np.testing.assert_array_equal(back[name].reshape(want.shape), want)
+    with pytest.raises(ValueError, match="different sizes"):
+        io.layers_exr_bytes({"a": np.zeros((4, 4)), "b": np.zeros((4, 5, 3))})
