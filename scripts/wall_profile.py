@@ -104,7 +104,7 @@ def main(argv=None):
     p = argparse.ArgumentParser(prog="wall_profile")
     p.add_argument("out")
     p.add_argument("--interval", type=float, default=0.005)
-    p.add_argument("--top", type=int, default=40)
+    p.add_argument("--top", type=int, default=60)
     a = p.parse_args(argv[:i])
     module, rest = argv[i + 1], argv[i + 2 :]
     sampler = Sampler(a.interval)
