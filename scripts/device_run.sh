@@ -203,8 +203,9 @@ s.print_callees('run_case')" "$OUT/fp.prof" > "$OUT/profile-fig4prof.txt" 2>&1; 
         if [ "${SIDE_SAMEWORK:-1}" = 1 ]; then
         timed "$which-samework-paper-cold" $S figure --config configs/bench/fig4_samework.toml --quality paper \
           --backend cuda --cache "$W/$which-s1" --out "$W/$which/samework" > "$OUT/log-side-$which-samework.txt" 2>&1
-        timed "$which-samework-paper-kernels-warm" $S figure --config configs/bench/fig4_samework.toml \
-          --quality paper --backend cuda --cache "$W/$which-s2" --out "$W/$which/samework-warm" > /dev/null 2>&1
+        [ "${SIDE_WARM:-1}" = 1 ] && timed "$which-samework-paper-kernels-warm" $S figure \
+          --config configs/bench/fig4_samework.toml --quality paper --backend cuda --cache "$W/$which-s2" \
+          --out "$W/$which/samework-warm" > /dev/null 2>&1   # SIDE_WARM=0: not this one
         fi
         export HOME=$W/home-$which-f4; mkdir -p "$HOME"
         if [ "${SIDE_FIG4PAPER:-1}" = 0 ]; then :
