@@ -6,6 +6,7 @@
 #   bash scripts/bench_run_side_by_side.sh /tmp/base
 # FIGURE=fig4 [BACKEND=llvm]: `study figure fig4 --backend llvm --images none` instead (the figure's 12 cases, its
 # metrics.csv compared), on the render cache $CACHE when given (a warm one: the columns, traces and outputs are timed).
+# CONFIG=configs/bench/fig4_samework.toml: that config instead; IMAGES=all (default none) and QUALITY=paper for both.
 set -euo pipefail
 base=${1:?usage: bench_run_side_by_side.sh OTHER_CHECKOUT}
 here=$(cd "$(dirname "$0")/.." && pwd)
@@ -14,8 +15,10 @@ for round in 0 1 2; do
   for w in "$base" "$here"; do
     s=$(date +%s.%N)
     o="$outs/out-$(basename "$w")"
-    if [ -n "${FIGURE:-}" ]; then
-      cmd=(figure "$FIGURE" --backend "${BACKEND:-llvm}" --images none)
+    if [ -n "${CONFIG:-}" ]; then   # a figure config file (configs/bench/fig4_samework.toml), IMAGES / QUALITY
+      cmd=(figure --config "$CONFIG" --backend "${BACKEND:-llvm}" --images "${IMAGES:-none}" ${QUALITY:+--quality "$QUALITY"})
+    elif [ -n "${FIGURE:-}" ]; then
+      cmd=(figure "$FIGURE" --backend "${BACKEND:-llvm}" --images "${IMAGES:-none}" ${QUALITY:+--quality "$QUALITY"})
     else
       cmd=(run scenes/room.toml --set render.cube_res=64 --set render.cube_spp=16)
     fi
@@ -24,7 +27,7 @@ for round in 0 1 2; do
     echo "round $round $(basename "$w"): $(echo "$(date +%s.%N) - $s" | bc) s; $(grep 'time split' "$outs/$(basename "$w")-$round.log")"
   done
 done
-t=table.csv; [ -n "${FIGURE:-}" ] && t=metrics.csv
+t=table.csv; [ -n "${FIGURE:-}${CONFIG:-}" ] && t=metrics.csv
 "$here/.venv/bin/python" - "$outs/out-$(basename "$base")/$t" "$outs/out-$(basename "$here")/$t" <<'PY'
 import sys
 import pandas as pd
