@@ -101,20 +101,24 @@ def capture(
 
 
 @progress.rendering  # its time: the case's Mitsuba renders (study.progress)
-def render_cube(scene: Scene, res: int, spp: int) -> np.ndarray:
+def render_cube(scene: Scene, res: int, spp: int, loaded: dict | None = None) -> np.ndarray:
     """Radiance of the environment seen from the reference point, without the object: (6, R, R, 3) float32.
 
     Each face is a Mitsuba perspective render (fov 90) along the face's forward axis with the face's up vector, so
     its pixels are the texels of :mod:`study.impostor.cubemap`; texel radiance is the box-filtered pixel average.
+    ``loaded`` (a dict): keeps the Mitsuba scene built here for the next call, which renders in it; for scenes
+    that differ in the reference point alone (a probe set's probes), which the Mitsuba scene does not hold.
     """
     mi = mitsuba_ref.mi()
     o = np.asarray(scene.reference.point, float)
     faces = []
-    sc = None
+    sc = None if loaded is None else loaded.get("scene")
     for f, (fwd, _right, up) in enumerate(cubemap.FACES):
         sensor = mi.load_dict(mitsuba_ref.sensor(o, o + fwd, up, 90.0, res, res, spp, scene.render.seed + f))
         if sc is None:
             sc = mi.load_dict(mitsuba_ref.scene_dict(scene, with_object=False, sensor=sensor))
+            if loaded is not None:
+                loaded["scene"] = sc
         faces.append(np.array(mi.render(sc, sensor=sensor, seed=scene.render.seed + f), dtype=np.float32))
     return np.stack(faces)
 

@@ -81,6 +81,7 @@ def capture_probes(
     spp = r.probe_spp or r.cube_spp  # the probes' own sample count (render.probe_spp), else the impostor's
     pts = probe_points(spec, bounds if bounds is not None else scene.bounds(), tracer)
     maps, centres = [np.asarray(texels0, np.float32)], [np.asarray(scene.reference.point, float)]
+    loaded: dict = {}  # one Mitsuba scene for every probe: they differ in the reference point alone
     for i, p in enumerate(pts):
         progress.note(
             f"probe {i + 1}/{len(pts)}: its cube map, path traced"
@@ -89,7 +90,7 @@ def capture_probes(
         rad = cache.get(
             "radiance",
             impostor_key(at, spp=spp),
-            lambda at=at: render_cube(at, r.cube_res, spp),
+            lambda at=at: render_cube(at, r.cube_res, spp, loaded),
             code=render_cube,
         )
         dist = cache.get(

@@ -42,7 +42,7 @@ def test_a_bad_flip_reference_is_refused():
 def test_probes_render_at_probe_spp(tmp_path, monkeypatch, probe_spp):
     calls = []
 
-    def fake_render(scene, res, spp):
+    def fake_render(scene, res, spp, loaded=None):
         calls.append(spp)
         return np.zeros((6, res, res, 3), np.float32)
 
@@ -90,7 +90,7 @@ def test_seeds_of_one_geometry_read_one_probe_distance_capture(tmp_path, monkeyp
     again); another probe resolution traces them anew."""
     calls = {"radiance": 0, "distance": 0}
 
-    def fake_render(scene, res, spp):
+    def fake_render(scene, res, spp, loaded=None):
         calls["radiance"] += 1
         return np.full((6, res, res, 3), scene.render.seed, np.float32)
 
@@ -115,3 +115,27 @@ def test_seeds_of_one_geometry_read_one_probe_distance_capture(tmp_path, monkeyp
     np.testing.assert_array_equal(a[1:, ..., 3], b[1:, ..., 3])  # the distances: one capture, the same values
     assert not np.array_equal(a[1:, ..., :3], b[1:, ..., :3])  # the radiance: drawn per seed
     np.testing.assert_array_equal(b[1, ..., 3], distances_from(tracer, centres[1], sc.render.cube_res))
+
+
+def test_a_probe_set_s_probes_render_in_one_mitsuba_scene_as_each_in_its_own():
+    """render_cube with a shared ``loaded`` (capture_probes: one Mitsuba scene for every probe) gives each probe's
+    radiance bit for bit as a scene built for it alone, and builds the scene once."""
+    from study.impostor import capture
+    from study.reference import mitsuba as mitsuba_ref
+
+    sc = load_scene(small_scene_dict(), overrides=TINY)
+    points = [[-0.5, 1.0, 0.2], [0.6, 1.4, -0.3]]
+    built = []
+    real = mitsuba_ref.scene_dict
+    try:
+        mitsuba_ref.scene_dict = lambda *a, **k: built.append(1) or real(*a, **k)
+        loaded = {}
+        shared = [capture.render_cube(sc.with_updates({"reference.point": p}), 8, 4, loaded) for p in points]
+        assert len(built) == 1
+        alone = [capture.render_cube(sc.with_updates({"reference.point": p}), 8, 4) for p in points]
+        assert len(built) == 3
+    finally:
+        mitsuba_ref.scene_dict = real
+    assert not np.array_equal(alone[0], alone[1])  # two places, two cube maps
+    for a, b in zip(shared, alone):
+        np.testing.assert_array_equal(a, b)
