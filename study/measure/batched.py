@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from study.measure import bias, case_columns, exposure, metrics, split, truth, workers
-from study.measure.metrics import _crop, to_ldr
+from study.measure.metrics import _crop, masked_rows, to_ldr
 from study.measure.pixels import K1, K2, WIN  # scikit-image's SSIM: window size, K₁, K₂
 from study.stats import spatial
 from study.stats.intervals import LEVEL
@@ -146,21 +146,13 @@ def flip_maps(ref, tests, backend: str, refs=None) -> np.ndarray:
     return out
 
 
-def _rows(images, mask) -> np.ndarray:
-    """(M, P, C) the masked pixels of a stack of images, each image's P pixels contiguous. Boolean indexing of
-    (M, H, W, C) lays them out pixel-major (strides (C, P·C, 1) items), and a mean over a strided image sums in
-    another order than over the same image alone: the last bit of a column would depend on how many images were
-    measured together (the columns' threads cut the stack into parts, study.measure.workers)."""
-    return np.ascontiguousarray(np.asarray(images)[:, mask])
-
-
 def _tests_of(tests, mask, shared: dict | None) -> dict:
     """What :func:`errors` needs of the test images alone over ``mask``: their masked pixels (``px``), those
     pixels' LDR (``ldr``), SSIM's LDR crop (``crop``) and its :func:`ssim_moments` (``moments``); kept in
     ``shared`` (when given) for the next reference over the same images and mask (the truth, then Mitsuba)."""
     if shared is not None and shared:
         return shared
-    px = _rows(tests, mask)
+    px = masked_rows(tests, mask)
     out = {"px": px, "ldr": to_ldr(px)}
     if mask.any():
         crop = to_ldr(np.stack(_crop(mask, 8, *tests)[1:]))
@@ -238,7 +230,7 @@ def truth_terms(tests, t: truth.Truth, mitsuba, *, mask, exposed=None) -> tuple:
     frame, fireflies = truth.frame_terms(t, mitsuba)
     ref_px = t.image[mask]
     den = ref_px * ref_px + truth.REL_EPS
-    d = _rows(tests, mask) - ref_px
+    d = masked_rows(tests, mask) - ref_px
     rel = (
         [np.mean(q) for q in d * d / den] if ref_px.size else [np.nan] * len(tests)
     )  # in the images' float32

@@ -31,6 +31,7 @@ import math
 
 import numpy as np
 
+from study.measure.metrics import masked_rows
 from study.stats import spatial
 from study.stats.intervals import LEVEL, debiased_root, fraction_cis, quantile_ci, root_bounds
 
@@ -187,9 +188,7 @@ def pixel_columns_stack(
         shared = {} if shared is None else shared
         shared["r"], shared["den"] = r, r * r + rel_eps
     r, den = shared["r"], shared["den"]
-    d = (
-        np.ascontiguousarray(np.asarray(imgs)[:, mask]).astype(float) - r
-    )  # per image as alone (batched._rows)
+    d = masked_rows(imgs, mask).astype(float) - r
     dd = d * d
     se = np.mean(dd, axis=-1)  # (M, P) per pixel, mean over channels: mean(se) = RMSE²
     rel = np.mean(dd / den, axis=-1)

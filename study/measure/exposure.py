@@ -25,6 +25,8 @@ import math
 
 import numpy as np
 
+from study.measure.metrics import masked_rows
+
 #: Exposure from an image as a whole, as a person (or tev) would set it: the median of its visible luminance (the
 #: pixels that show any light) at middle grey, unless that puts more than 5 % of them above 1 (then their 95th
 #: percentile at 1).
@@ -100,7 +102,7 @@ def exposed_stack(
     den = r * r + EXPOSED_EPS
     n = g * np.asarray(noise)[mask].astype(np.float64)
     noise_rel = float(np.mean(n * n / den)) if n.size else math.nan
-    d = g * (np.ascontiguousarray(np.asarray(images)[:, mask]).astype(np.float64) - r_px)  # batched._rows
+    d = g * (masked_rows(images, mask).astype(np.float64) - r_px)
     per_pixel = np.mean(d * d / den, axis=-1)  # (M, P)
     cis = intervals(per_pixel) if intervals is not None and per_pixel.shape[-1] else None
     out = []

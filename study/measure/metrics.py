@@ -42,6 +42,14 @@ def to_ldr(img: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
 
 
+def masked_rows(images, mask) -> np.ndarray:
+    """(M, P, C) the masked pixels of a stack of images (M, H, W, C), each image's P pixels contiguous. Boolean
+    indexing lays them out pixel-major (strides (C, P·C, 1) items), and a mean over a strided image sums in another
+    order than over the same image alone: the last bit of a column would depend on how many images were measured
+    together (the columns' threads cut the stack into parts, study.measure.workers)."""
+    return np.ascontiguousarray(np.asarray(images)[:, mask])
+
+
 def rmse(ref: np.ndarray, test: np.ndarray, *, mask: np.ndarray) -> float:
     """Root mean squared error of linear radiance over the masked pixels (all channels)."""
     # the masked pixels first, then float64 (not whole 1024² frames)

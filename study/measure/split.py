@@ -80,6 +80,7 @@ import math
 import numpy as np
 
 from study.impostor.cubemap import FAR
+from study.measure.metrics import masked_rows
 from study.stats import LEVEL
 from study.stats.spatial import grouped_intervals
 
@@ -237,11 +238,7 @@ def split_stack(
     mask = np.asarray(mask, bool)
     h = np.asarray(held_px, bool)[mask]
     refs = [np.asarray(a)[mask] for a in (truth, noise, oracle, oracle_seed, oracle_coarse)]
-    terms = pixel_terms(
-        np.ascontiguousarray(np.asarray(images)[:, mask]),
-        *refs,
-        h,  # per image as alone (batched._rows)
-    )  # (M, P), or (P,) where the image plays no part
+    terms = pixel_terms(masked_rows(images, mask), *refs, h)  # (M, P), or (P,) where the image plays no part
     terms = {k: np.broadcast_to(v, (len(images), h.size)) for k, v in terms.items()}
     each = [{k: v[i] for k, v in terms.items()} for i in range(len(images))]
     parts = [_parts(t, h) for t in each]
