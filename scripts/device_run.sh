@@ -180,14 +180,17 @@ s.print_callees('run_case')" "$OUT/fp.prof" > "$OUT/profile-fig4prof.txt" 2>&1; 
       --out "$W/fp/fig4-warm" > /dev/null 2>&1 ;;
   wallprof)  # where the wall clock goes on every thread (scripts/wall_profile.py samples each thread's stack; cProfile
              # sees the case's thread only): the same-work config at paper quality cold, then with the kernels warm,
-             # then fig4 at paper quality cold → wallprof-*.txt, each run's time split → log-wallprof-*.txt
+             # then fig4 at paper quality cold → wallprof-*.txt, each run's time split → log-wallprof-*.txt;
+             # WALLPROF_RUNS may also name fig4-256-cold (fig4 at 256², its own cold kernel cache)
     export HOME=$W/home-wp; mkdir -p "$HOME"
     for run in ${WALLPROF_RUNS:-samework-cold samework-warm fig4-cold}; do   # WALLPROF_RUNS: which of them
-      case $run in samework-*) cfg="--config configs/bench/fig4_samework.toml" ;; *) cfg=fig4
-        export HOME=$W/home-wp4; mkdir -p "$HOME" ;; esac                 # fig4 with its own, cold kernel cache
+      q="--quality paper"
+      case $run in samework-*) cfg="--config configs/bench/fig4_samework.toml" ;;
+        fig4-256-*) cfg=fig4; q=""; export HOME=$W/home-wp256; mkdir -p "$HOME" ;;  # 256², its own cold kernels
+        *) cfg=fig4; export HOME=$W/home-wp4; mkdir -p "$HOME" ;; esac   # fig4 with its own, cold kernel cache
       timed "wallprof-$run" python3 scripts/wall_profile.py "$OUT/wallprof-$run.txt" --interval 0.01 \
         -m study.cli figure $cfg \
-        --quality paper --backend cuda --cache "$W/wp-$run" --out "$W/wp/$run" > "$OUT/log-wallprof-$run.txt" 2>&1
+        $q --backend cuda --cache "$W/wp-$run" --out "$W/wp/$run" > "$OUT/log-wallprof-$run.txt" 2>&1
     done ;;
   side)    # issue-52 targets, the commit before ($OLD, default .devold: `git archive <rev> study configs scenes
            # pyproject.toml | tar x -C .devold`, plus configs/bench/) and this one side by side on one host, each cold
