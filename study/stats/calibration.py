@@ -59,7 +59,6 @@ from study.stats.fields import (  # the synthetic fields (correlated_field re-ex
     FIELD_SIGMA,
     LONG_SIGMA,
     SMALL_BLOB_MSE,
-    SMALL_BLOB_SHOWN,
     STREAK_SIGMA,
     correlated_field,
     study_wrong_probit,
@@ -367,13 +366,6 @@ ROWS = {
 }
 
 
-#: What the table says of the rows no band applies to.
-UNBANDED = {
-    "case range (n < 10)": "(a range, not a CI)",
-    "RMSE, ≈ 200 pixels with blobs, every draw": f"({1 - SMALL_BLOB_SHOWN:.0%} of the draws show no error)",
-}
-
-
 @dataclass
 class Row:
     interval: str
@@ -446,53 +438,3 @@ def coverage_table(replicates: int = FAST, seed: int = 0) -> tuple[list[Row], di
         for r in coverage(name, replicates, seed, before=0 if name.startswith("case range") else None)
     ]
     return rows, {n: power(n, replicates, seed) for n in (6, 12, 36)}
-
-
-def _pct(v: float) -> str:
-    return "–" if not v == v else f"{100 * v:.1f} %"
-
-
-def calibration_page(rows: list[Row], powers: dict[int, float], replicates: int, seed: int) -> str:
-    """reports/calibration.md: the coverage table and the power check."""
-    limits = band(replicates)
-    lines = [
-        "# Calibration: how often the printed 95 % intervals cover the truth",
-        "",
-        f"Simulated with known truths (`study/stats/calibration.py`), {replicates} replicates per row, seed "
-        f"{seed}; written by `python scripts/calibration.py`. *width / ideal*: the mean width over 2 × 1.96 × "
-        "the estimates' true spread over the replicates (1: as wide as a calibrated interval needs to be). "
-        "*before*: the interval the tables printed until the calibration (fixed 64 × 64 pixel grid with a "
-        f"percentile bootstrap, Wilson over independent rays, percentile bootstraps); *flag*: a coverage outside "
-        f"{100 * limits[0]:.0f}–{100 * limits[1]:.0f} %.",
-        "",
-        "| interval | variant | n | coverage | width / ideal | contains its estimate | flag |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        flag = "outside" if r.flagged(limits) else (UNBANDED.get(r.interval, "") if not r.banded else "")
-        lines.append(
-            f"| {r.interval} | {r.variant} | {r.n} | {_pct(r.coverage)} | {r.width_ratio:.2f} | "
-            f"{_pct(r.contains_estimate)} | {flag} |"
-        )
-    every = {r.interval: r for r in rows if r.variant == "now"}
-    shown, alone = (
-        every.get("RMSE, ≈ 200 pixels with blobs"),
-        every.get("RMSE, ≈ 200 pixels with blobs, every draw"),
-    )
-    if shown and alone:
-        lines += [
-            "",
-            f"A ≈ 200-pixel object with blobs: a blob reaches into it in {_pct(SMALL_BLOB_SHOWN)} of the draws "
-            "(`study.stats.fields.blob_shown_share`); in the others every pixel's error is 0, the estimate 0 and its "
-            f"interval (0, 0), so over every draw the coverage ({_pct(alone.coverage)}) is at most that share. "
-            f"Among the draws that show error (truth: their mean) it is {_pct(shown.coverage)}.",
-        ]
-    lines += [
-        "",
-        "Smallest detectable difference over cases (`study.stats.detectable_shift`, 80 % power, 5 %): "
-        "the share of paired normal differences shifted by it that the Wilcoxon signed-rank test finds: "
-        + ", ".join(f"{n} cases {100 * p:.0f} %" for n, p in powers.items())
-        + ".",
-        "",
-    ]
-    return "\n".join(lines)
