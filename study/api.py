@@ -399,7 +399,7 @@ def evaluate(
     """
     import pandas as pd
 
-    from study.cache import Cache
+    from study.cache import Cache, flush
     from study.harness import budget, estimate
     from study.harness.config import surface_methods
     from study.measure.case import run_case
@@ -417,14 +417,9 @@ def evaluate(
     budget.check_cases([("run", scene)], ms, source=source, tell=estimate.teller(ms, Cache(cache), backend))
     from study import runtime
 
-    with runtime.using_render_device("cuda" if backend == "cuda" else None):  # renders and exact hits too, as
-        case = run_case(
-            scene,
-            ms,
-            backend=backend,
-            cache=Cache(cache) if cache else None,  # the CLI does
-            case_id="run",
-        )
+    with runtime.using_render_device("cuda" if backend == "cuda" else None):  # renders, hits too (as the CLI)
+        case = run_case(scene, ms, backend=backend, cache=Cache(cache) if cache else None, case_id="run")
+    flush()  # the cache's entries on disk: a failed write is this call's error
     mask = np.asarray(case.mask, bool)
     images = {"oracle_map": case.oracle, "truth_at_hit": case.truth, "mitsuba": case.mitsuba, **case.images}
     flips = {"oracle_map": flip_map(case.truth, case.oracle), **case.flip_maps}

@@ -134,7 +134,10 @@ def guarded(llvm: bool = False):
                     "cuda" if kwargs.get("backend") == "cuda" else None
                 )  # renders and exact hits on the GPU too
                 with runtime.using_render_device(cuda), progress.reporting(_reporter()), budget.time_limit():
-                    return fn(*args, **kwargs)  # past --max-minutes: stopped at a checkpoint, exit 3
+                    out = fn(*args, **kwargs)  # past --max-minutes: stopped at a checkpoint, exit 3
+                    if "study.cache" in sys.modules:  # its entries on disk: a failed write is this command's
+                        sys.modules["study.cache"].flush()
+                    return out
             except (typer.Exit, typer.Abort, typer.TyperException):
                 raise
             except KeyboardInterrupt:

@@ -147,7 +147,7 @@ def cached_impostor(scene, cache: Cache | None) -> bool:
     from study.impostor.capture import impostor_key, render_cube
 
     key = content_key(impostor_key(scene), code_hash(render_cube), *_variant_part())
-    return (Path(cache.root) / "radiance" / f"{key}.json").is_file()
+    return cache.holds("radiance", key)
 
 
 def _probes(methods) -> int:

@@ -29,6 +29,7 @@ from study import methods as registry
 from study import progress as pg
 from study import runtime
 from study.cache import Cache
+from study.cache import flush as cache_flush
 from study.codehash import code_record
 from study.errors import StudyError, os_problem
 from study.harness import budget, estimate, provenance
@@ -92,6 +93,7 @@ def _run_one(
         with runtime.using_render_device("cuda" if backend == "cuda" else None):
             case = run_case(scene, ms, backend=backend, cache=Cache(cache), case_id=case_id,
                             keep_images=bool(images), intervals=False)  # fmt: skip
+            cache_flush()  # its entries on disk before the worker reports the case (a failed write: its error)
             if images:
                 images[0](case, case_id, images[1], [m.label for m in ms], *images[2:])
         for r in case.rows:

@@ -19,6 +19,7 @@ from typer.testing import CliRunner
 
 from study import codehash, methods
 from study.cache import Cache, content_key
+from study.cache import flush as cache_flush
 from study.cli import app
 from study.codehash import code_hash
 from study.harness.runner import run_sweep
@@ -153,6 +154,7 @@ def test_cache_info_and_clear(tmp_path):
     for kind, n in (("radiance", 2), ("mitsuba", 3)):
         for i in range(n):
             cache.get(kind, f"k{i}", lambda: np.ones((4, 4), np.float32), code=test_cache_info_and_clear)
+    cache_flush()  # the entries on disk (written off this thread)
     (root / "mitsuba" / "notes.txt").write_text("mine")  # not the cache's: never counted, never removed
     (root / "mitsuba" / "metadata.json").write_text('{"a": 1}')
     (root / "radiance" / ".x.abc.tmp").write_text("leftover")  # an interrupted write: the cache's

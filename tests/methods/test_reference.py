@@ -5,6 +5,7 @@ import pytest
 from conftest import small_scene_dict
 
 from study.cache import Cache
+from study.cache import flush as cache_flush
 from study.errors import StudyError
 from study.impostor import analytic
 from study.impostor.capture import Impostor, capture_distance, read_exr, write_exr
@@ -80,15 +81,18 @@ def test_cache_recomputes_damaged_entries(tmp_path):
     a = cache.get("k", "key1", make, code=make)
     b = cache.get("k", "key1", make, code=make)
     assert len(calls) == 1 and np.array_equal(a, b)
+    cache_flush()  # the entry on disk (written off this thread)
     arr = next((tmp_path / "k").glob("*.npy"))
     data = bytearray(arr.read_bytes())
     data[-8:] = b"\xff" * 8  # flip the last values' bytes
     arr.write_bytes(bytes(data))
     c = cache.get("k", "key1", make, code=make)
     assert len(calls) == 2 and np.array_equal(c, a)
+    cache_flush()  # the recomputed entry on disk before the next damage
     arr.write_bytes(b"")  # truncated to nothing
     cache.get("k", "key1", make, code=make)
     assert len(calls) == 3
+    cache_flush()
     # an entry of the format before issue 15 (float32 EXR beside the JSON) is read, with the same checks
     arr.unlink()
     write_exr(arr.with_suffix(".exr"), a.reshape(-1, 3, 4))
@@ -96,6 +100,7 @@ def test_cache_recomputes_damaged_entries(tmp_path):
     assert len(calls) == 3 and np.array_equal(d, a)
     write_exr(arr.with_suffix(".exr"), a.reshape(-1, 3, 4) + 1)  # another array: its checksum fails
     cache.get("k", "key1", make, code=make)
+    cache_flush()
     assert len(calls) == 4 and arr.exists()
 
 

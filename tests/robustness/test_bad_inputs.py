@@ -727,3 +727,15 @@ def test_methods_by_bare_name_and_a_misspelt_one():
     assert str(e.value).startswith(
         'c.toml: methods[1]: unknown method \'clasical\'; allowed: "all", "glossy", classical'
     )
+
+
+def test_a_cache_that_cannot_be_written_ends_the_command_on_one_line(workdir):
+    """The cache's entries are written off the case's thread (study.cache's writer): a write that fails still ends
+    the command with one line naming the cache, exit 2, and the earlier outputs untouched."""
+    cfg = workdir / "ok.toml"
+    cfg.write_text(FIG.format(**DEFAULT))
+    (workdir / "plain").write_text("a file where the cache's directory would be")
+    before = digest(workdir / "out")
+    res = run_cli("figure", "fig4", "--config", str(cfg), "--cache", str(workdir / "plain" / "cache"),
+                  "--out", str(workdir / "out"))  # fmt: skip
+    assert_one_line_error(res, "cannot write the cache", before, workdir / "out")
