@@ -19,6 +19,7 @@ the distance map, ``exact_x``/``exact_R`` hold the exactly traced one.
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, field
 
@@ -77,29 +78,134 @@ class ObjectRays:
         return self.hit.all(axis=-1)
 
     def per_pixel(self, values: np.ndarray, fill=np.nan, reduce="mean") -> np.ndarray:
-        """Scatter per-ray values (M, ...) to pixels (H, W, ...), averaging the sub-pixel rays that hit."""
+        """Scatter per-ray values (M, ...) to pixels (H, W, ...), averaging the sub-pixel rays that hit.
+
+        Bit for bit ``np.nanmean`` (``reduce="mean"``) or ``np.nanmax`` (else) over the sub-pixel axis of the
+        NaN-filled (H, W, S, ...) rays, ``fill`` where a pixel has no finite value: only the P pixels with a hit
+        ray are reduced (:class:`_Slots`), in the order numpy reduces the (H, W, S, ...) array."""
         H, W, S = self.hit.shape
         values = self.per_camera_ray(values)
+        tail = values.shape[1:]
         if S == 1:  # one ray per pixel (paper quality): its value; a NaN mean over one sample costs 10× more
-            out = np.full((H, W) + values.shape[1:], np.nan)
-            out[self.hit[..., 0]] = values
-            return np.where(np.isnan(out), fill, out)
-        if (
-            reduce == "mean"
-        ):  # np.nanmean's own sum / count, without its NaN-filled copy: bit for bit, 2x faster
-            ok = ~np.isnan(values)
-            tot = np.zeros((H, W, S) + values.shape[1:])
-            cnt = np.zeros(tot.shape, np.intp)
-            tot[self.hit], cnt[self.hit] = np.where(ok, values, 0.0), ok
+            v = np.asarray(values, float)
+            red = np.where(np.isnan(v), fill, v)
+            out = np.full((H, W) + tail, fill, red.dtype)
+            _scatter(out, self.hit[..., 0], red)
+            return out
+        slots = _Slots(self.hit, len(values))
+        if reduce == "mean":  # np.nanmean's own sum / count, without its NaN-filled copy
             with np.errstate(invalid="ignore", divide="ignore"):
-                red = np.sum(tot, axis=2) / np.sum(cnt, axis=2)
-            return np.where(np.isnan(red), fill, red)
-        out = np.full((H, W, S) + values.shape[1:], np.nan)
-        out[self.hit] = values
-        with np.errstate(invalid="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN pixels: filled below
-            red = np.nanmean(out, axis=2) if reduce == "mean" else np.nanmax(out, axis=2)
-        return np.where(np.isnan(red), fill, red)
+                red = slots.nanmean(np.asarray(values, float))
+        else:
+            full = slots.gather(values)  # (P, S, ...) NaN-filled: the rows of the (H, W, S, ...) layout
+            with np.errstate(invalid="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN pixels: filled below
+                red = np.nanmax(full, axis=1)
+        red = np.where(np.isnan(red), fill, red)
+        out = np.full((H, W) + tail, fill, red.dtype)
+        _scatter(out, slots.on, red)
+        return out
+
+
+class _Slots:
+    """The S sub-pixel slots of the P pixels that at least one of the M rays hits.
+
+    ``on`` (H, W): those pixels; ``index`` (P, S): the ray in each slot (the rays fill the True entries of the
+    (H, W, S) ``hit`` in C order, so a pixel's rays are consecutive), 0 where the slot's ray misses;
+    ``missing[k]``: the pixels whose slot k misses (few: the object's outline)."""
+
+    def __init__(self, hit: np.ndarray, M: int):
+        H, W, S = hit.shape
+        h = np.ascontiguousarray(hit, dtype=bool).reshape(H * W, S)
+        width = next(w for w in (8, 4, 2, 1) if S % w == 0)  # a pixel's S flags as S / width unsigned words
+        words = h.view(np.dtype(f"u{width}"))
+        any_word = words[:, 0].copy()
+        for k in range(1, words.shape[1]):
+            any_word |= words[:, k]
+        on = any_word != 0
+        rows = h.view(np.dtype((np.void, S)))[:, 0][on].view(bool).reshape(-1, S)  # (P, S) hit flags
+        self.on, self.S, self.rows = on.reshape(H, W), S, rows
+        if np.count_nonzero(rows) != M:
+            raise ValueError(f"{M} ray values for {np.count_nonzero(rows)} sub-pixel rays that hit")
+        self.index = np.zeros(rows.shape, np.intp)
+        self.index[rows] = np.arange(M)
+        self.missing = [np.flatnonzero(~rows[:, k]) for k in range(S)]
+
+    def slot(self, values: np.ndarray, k: int, missing) -> np.ndarray:
+        """(P, ...) the values (M, ...) of slot k of each pixel; where it misses ``missing``: a scalar, or one
+        value per pixel of ``self.missing[k]``."""
+        out = values.take(self.index[:, k], axis=0)
+        out[self.missing[k]] = missing
+        return out
+
+    def gather(self, values: np.ndarray) -> np.ndarray:
+        """(P, S, ...) float64 every slot of each pixel, NaN where its ray misses."""
+        out = np.asarray(values, float).take(self.index, axis=0)
+        out[~self.rows] = np.nan
+        return out
+
+    def nanmean(self, values: np.ndarray) -> np.ndarray:
+        """(P, ...) the mean of the finite values (M, ...) float64 of each pixel's rays, NaN where none: bit for
+        bit ``np.sum(tot, axis=2) / np.sum(cnt, axis=2)`` of the zero-filled (H, W, S, ...) values ``tot`` and
+        their counts ``cnt``. Numpy reduces onto 0.0: with C = prod(...) > 1 values per ray the C channels are its
+        inner loop and it adds the S slots one after another, ((0 + v₀) + v₁) + …; with one value per ray the S
+        slots of a pixel are contiguous and it adds their pairwise sum (:func:`_pairwise_sum`). Here slot by slot
+        over (P, ...) arrays, without numpy's inner loop of C (or S) elements per pixel; the counts are integers
+        (exact in any order)."""
+        P, tail = len(self.index), values.shape[1:]
+        nan_count = np.zeros((P,) + tail, np.min_scalar_type(self.S))
+        cols = []
+        for k in range(self.S):
+            v = self.slot(values, k, np.nan)
+            nan = np.isnan(v)
+            np.putmask(v, nan, 0.0)
+            nan_count += nan
+            cols.append(v)
+        if math.prod(tail) > 1:
+            tot = np.zeros((P,) + tail)
+            for v in cols:
+                tot += v
+        else:
+            tot = 0.0 + _pairwise_sum(cols)
+        return tot / (self.S - nan_count)
+
+
+def _pairwise_sum(cols: list) -> np.ndarray:
+    """Elementwise sum of the arrays ``cols`` as numpy's ``pairwise_sum`` (``loops_utils.h``) adds a contiguous
+    run of n values: below 8 one after another from -0.0; up to 128 in 8 accumulators over strides of 8, combined
+    as ((r₀ + r₁) + (r₂ + r₃)) + ((r₄ + r₅) + (r₆ + r₇)), then the rest one by one; above 128 the two halves
+    (the first a multiple of 8 long) separately."""
+    n = len(cols)
+    if n < 8:
+        res = np.full(cols[0].shape, -0.0)
+        for c in cols:
+            res += c
+        return res
+    if n <= 128:
+        r = [c.copy() for c in cols[:8]]
+        i = 8
+        while i < n - n % 8:
+            for j in range(8):
+                r[j] += cols[i + j]
+            i += 8
+        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+        for c in cols[i:]:
+            res += c
+        return res
+    half = n // 2
+    half -= half % 8
+    return _pairwise_sum(cols[:half]) + _pairwise_sum(cols[half:])
+
+
+def _scatter(out: np.ndarray, on: np.ndarray, rows: np.ndarray) -> None:
+    """``out[on] = rows`` for C-contiguous ``out`` (H, W, ...), each pixel's values copied as one item."""
+    n = math.prod(out.shape[2:])
+    if n <= 1 or not out.flags.c_contiguous:
+        out[on] = rows
+        return
+    item = np.dtype((np.void, out.itemsize * n))
+    src = np.ascontiguousarray(rows, out.dtype).reshape(-1, n).view(item)[:, 0]
+    out.reshape(-1, n).view(item)[:, 0][on.reshape(-1)] = src
 
 
 def object_rays(scene: Scene, occluder=None) -> ObjectRays:
@@ -227,8 +333,32 @@ def fresnel(scene: Scene, rays: ObjectRays) -> np.ndarray:
 
 
 def composite(rays: ObjectRays, reflected: np.ndarray, background: np.ndarray) -> np.ndarray:
-    """Image (H, W, 3): sub-pixel rays on the object show ``reflected`` (M, 3), the others the background."""
+    """Image (H, W, 3): sub-pixel rays on the object show ``reflected`` (M, 3), the others the background.
+
+    Bit for bit ``sub.mean(axis=2).astype(np.float32)`` of the (H, W, S, 3) sub-pixel image ``sub`` (in the
+    background's dtype): numpy's mean adds the S sub-pixels onto 0 one after another (the 3 channels are the
+    inner loop), then divides by ``np.intp(S)``. A pixel without a hit ray adds S copies of its background; the
+    P pixels with one take their slots (:class:`_Slots`, a missing ray's slot reads the pixel's background)."""
     H, W, S = rays.hit.shape
-    sub = np.broadcast_to(background[:, :, None, :], (H, W, S, 3)).copy()
-    sub[rays.hit] = rays.per_camera_ray(reflected, total=True)
-    return sub.mean(axis=2).astype(np.float32)
+    values = rays.per_camera_ray(reflected, total=True)
+    bg = np.asarray(background)
+    if bg.shape != (H, W, 3) or bg.dtype not in (np.dtype(np.float32), np.dtype(np.float64)):
+        sub = np.broadcast_to(bg[:, :, None, :], (H, W, S, 3)).copy()
+        sub[rays.hit] = values
+        return sub.mean(axis=2).astype(np.float32)
+    slots = _Slots(rays.hit, len(values))
+    values = np.asarray(values).astype(bg.dtype, copy=False)  # as sub[rays.hit] = values casts
+    pixels, bg_rows = np.flatnonzero(slots.on), bg.reshape(-1, 3)
+    hits = np.zeros((len(pixels), 3), bg.dtype)
+    for k in range(S):
+        hits += slots.slot(values, k, bg_rows[pixels[slots.missing[k]]])
+    divide = lambda a: np.true_divide(a, np.intp(S), out=a, casting="unsafe")  # noqa: E731  as np.mean divides
+    out = np.empty((H, W, 3), bg.dtype)
+    for i in range(0, H, 64):  # S copies of the background, a band of rows at a time (in cache)
+        band = out[i : i + 64]
+        band[...] = 0
+        for _ in range(S):
+            band += bg[i : i + 64]
+        divide(band)
+    _scatter(out, slots.on, divide(hits))
+    return out if out.dtype == np.float32 else out.astype(np.float32)
