@@ -26,6 +26,7 @@ import os
 import re
 import shutil
 import stat
+import sys
 import tempfile
 import tomllib
 from collections.abc import Iterable
@@ -359,10 +360,8 @@ def output_set(
     out = out_dir(out).absolute()
     if out.is_symlink():
         out = out.resolve()  # swap the directory it names, not the link
-    with contextlib.suppress(OSError):
-        if Path.cwd().is_relative_to(
-            out.resolve()
-        ):  # never exchange the working directory away from under us
+    with contextlib.suppress(OSError):  # never exchange the working directory away from under us
+        if Path.cwd().is_relative_to(out.resolve()):
             swap = False
     with locked(out) if lock else contextlib.nullcontext():
         for stale in _stale_temps(out):  # left by a killed run (the lock is held)
@@ -374,6 +373,7 @@ def output_set(
             raise os_problem(err, "cannot write beside the output directory", out.parent) from None
         try:
             yield tmp
+            (c := sys.modules.get("study.cache")) and c.flush()  # cache writes done: a failed one fails here
             try:
                 _commit(tmp, out, set(owns), set(keeps), swap)
             except OSError as err:

@@ -130,6 +130,7 @@ def test_cache_entry_is_bound_to_its_key_and_code(tmp_path, monkeypatch):
     try:
         assert cache.get("k", "a", lambda: make(1), code=prod.make)[0, 0] == 1
         assert cache.get("k", "a", lambda: make(9), code=prod.make)[0, 0] == 1 and calls == [1]  # a hit
+        cache_flush()  # the entry on disk (written off this thread)
         entry = next((tmp_path / "c" / "k").glob("*.json"))
         assert json.loads(entry.read_text())["key"] == entry.stem
         # the entry copied under the key of "b": checksum fine, stored key wrong → recomputed

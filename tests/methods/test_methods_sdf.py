@@ -11,6 +11,7 @@ from conftest import small_scene_dict
 from study import backend as backends
 from study import methods
 from study.cache import Cache
+from study.cache import flush as cache_flush
 from study.errors import StudyError
 from study.harness.config import load_figure_config
 from study.impostor import probes
@@ -301,6 +302,7 @@ def test_case_gives_sdf_its_field_through_the_cache(tmp_path):
         assert row["valid_fraction"] == 1.0 and row["lookups_per_ray"] <= m.lookups_per_ray()
     a, b = rows["sdf(res=128)"], rows["sdf(res=128, shading='exact')"]
     assert a["wrong_fraction"] == b["wrong_fraction"] and a["dist_p95"] == b["dist_p95"]
+    cache_flush()  # the cache's entries on disk (written off this thread)
     assert len(list((tmp_path / "sdf").glob("*.npy"))) == 1
     cache2 = Cache(tmp_path)
     run_case(s, ms, cache=cache2, keep_images=False)
