@@ -119,7 +119,7 @@ class Cache:
 
         ``code`` is the function that produces the array (or a tuple of functions, classes, modules): its
         module's source and that of every study module it imports are part of the key."""
-        _raise_failed()
+        _raise_failed(str(self.root))
         key = content_key(
             key, code_hash(*(code if isinstance(code, (tuple, list)) else (code,))), *_variant_part()
         )
@@ -134,17 +134,18 @@ class Cache:
 
     def holds(self, kind: str, key: str) -> bool:
         """Whether the entry (kind, key) is on disk or being written (its JSON, unchecked)."""
+        if self.root is None:
+            return False
         with _LOCK:
             if (str(self.root), kind, key) in _WRITES:
                 return True
-        return self.root is not None and (self.root / kind / f"{key}.json").is_file()
+        return (self.root / kind / f"{key}.json").is_file()
 
     def store_later(self, kind: str, key: str, a: np.ndarray) -> None:
         """:meth:`store` on the cache's writer thread, of a private copy of ``a`` (the caller may go on changing
         ``a``); a failed write is raised by the next :meth:`get` and by :func:`flush`."""
         if self.root is None:
             return
-        _raise_failed()
         slot = (str(self.root), kind, key)
         mine = np.array(a, np.float32, order="C", copy=True)
         with _LOCK:
@@ -235,11 +236,11 @@ class Cache:
 #: One thread writes every entry that :meth:`Cache.get` made (its SHA-256, its .npy bytes, two atomic writes: about
 #: 2.5 s of a paper-quality fig4 on the case's thread before), from a private copy, in the order they were made:
 #: the entries being written, (root, kind, key) → array, which :meth:`Cache.load` returns meanwhile; the first
-#: failed write's error, raised (once) by the next :meth:`Cache.get` and by :func:`flush`. The CLI's commands
-#: (:func:`study.cli.app.guarded`), the API's ``evaluate`` and a sweep's worker flush before they return, so a write
-#: that fails is still the command's error, one line.
+#: failed write's error, raised (once) by the next :meth:`Cache.get` of that cache and by :func:`flush`. The CLI's
+#: commands (:func:`study.cli.app.guarded`), the API's ``evaluate``, a sweep's worker and an output set
+#: (:func:`study.io.output_set`) flush before they finish, so a write that fails is still the command's error.
 _WRITES: dict[tuple[str, str, str], np.ndarray] = {}
-_FAILED: list[BaseException] = []
+_FAILED: list[tuple[str, BaseException]] = []  # (the cache's root, the error)
 _LOCK = threading.Lock()
 _EXECUTOR: list[ThreadPoolExecutor] = []
 
@@ -256,28 +257,38 @@ def _write(cache: Cache, slot: tuple[str, str, str], a: np.ndarray) -> None:
         cache.store(slot[1], slot[2], a)
     except BaseException as err:  # kept for the caller's thread: raised there
         with _LOCK:
-            _FAILED.append(err)
+            _FAILED.append((slot[0], err))
     finally:
         with _LOCK:
             if _WRITES.get(slot) is a:
                 del _WRITES[slot]
 
 
-def _raise_failed() -> None:
+def _raise_failed(root: str | None = None) -> None:
+    """Raise the first failed write (of cache ``root``, or of any) once the writes queued before it are done, and
+    forget that cache's other failures: the writes queued with it fail alike, and the error ends the command
+    once, not the next command of the same process as well."""
     with _LOCK:
-        if not _FAILED:
+        if not any(root in (None, r) for r, _ in _FAILED):
             return
-        err = _FAILED[0]
-        _FAILED.clear()
+    _drain()
+    with _LOCK:
+        err = next(e for r, e in _FAILED if root in (None, r))
+        _FAILED[:] = [(r, e) for r, e in _FAILED if root not in (None, r)]
     raise err
+
+
+def _drain() -> None:
+    """Wait until every write queued so far is done (one thread, first in first out)."""
+    with _LOCK:
+        ex = _EXECUTOR[0] if _EXECUTOR else None
+    if ex is not None:
+        ex.submit(lambda: None).result()
 
 
 def flush() -> None:
     """Wait until every entry handed to the writer is on disk; raise the first failed write's error (once)."""
-    with _LOCK:
-        ex = _EXECUTOR[0] if _EXECUTOR else None
-    if ex is not None:
-        ex.submit(lambda: None).result()  # one thread, first in first out: every write before it is done
+    _drain()
     _raise_failed()
 
 

@@ -104,3 +104,22 @@ def test_a_forked_child_writes_without_the_parents_thread(tmp_path):
     cache_mod.flush()
     assert names == [f"{_key('child')}.json", f"{_key('child')}.npy"], names
     assert (c.root / "kind" / f"{_key('parent')}.npy").exists()
+
+
+def test_a_failed_burst_ends_one_command_and_leaves_the_next_alone(tmp_path):
+    """Several writes to a cache that cannot be written, queued together: the first get after them raises once,
+    the others of that burst are forgotten with it, and the next command (another cache, then flush) sees none.
+    Before: the burst's later failures stayed queued and ended the next in-process command (two CLI tests in one
+    pytest worker)."""
+    (tmp_path / "file").write_text("not a directory")
+    bad, gate = Cache(tmp_path / "file" / "cache"), threading.Event()
+    cache_mod._writer().submit(gate.wait, 10)  # the burst queued behind it, not yet failed
+    for k in ("k1", "k2", "k3"):
+        bad.get("kind", k, value, code=value)
+    gate.set()
+    cache_mod._writer().submit(lambda: None).result()  # the burst failed, not yet raised
+    with pytest.raises(StudyError, match="cannot write the cache"):
+        bad.get("kind", "k4", value, code=value)
+    good = Cache(tmp_path / "good")
+    np.testing.assert_array_equal(good.get("kind", "k", value, code=value), value())
+    cache_mod.flush()  # nothing left of the burst
