@@ -80,8 +80,8 @@ def main() -> None:
     t0 = time.time()
     rows, powers = calibration.coverage_table(a.replicates, a.seed)
     Path(a.out).write_text(calibration_page(rows, powers, a.replicates, a.seed), encoding="utf-8")
-    band = calibration.band(a.replicates)
-    off = [f"{r.interval} ({r.variant})" for r in rows if r.variant == "now" and r.flagged(band)]
+    limits = band(a.replicates)
+    off = [f"{r.interval} ({r.variant})" for r in rows if r.variant == "now" and r.flagged(limits)]
     print(f"calibration: {a.out} in {time.time() - t0:.0f} s; outside the band: {', '.join(off) or 'none'}")
 
 

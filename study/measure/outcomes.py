@@ -336,21 +336,12 @@ def majority(fractions: np.ndarray) -> np.ndarray:
     """(H, W, 4) class fractions → (H, W) float: the most frequent class (ties to the worse, i.e. the
     higher code), NaN where a pixel has no rays (all fractions NaN or zero)."""
     f = np.asarray(fractions, float)
-    best, top = np.full(f.shape[:-1], 3.0), _nan_to_num(f[..., 3])
+    best, top = np.full(f.shape[:-1], 3.0), np.nan_to_num(f[..., 3])
     for c in (2, 1, 0):  # a better class must be strictly more frequent: ties stay with the worse
-        v = _nan_to_num(f[..., c])
+        v = np.nan_to_num(f[..., c])
         np.copyto(best, c, where=v > top)
         np.maximum(top, v, out=top)
     return np.where(top > 0, best, np.nan)  # fractions are ≥ 0: none > 0 means no rays
-
-
-def _nan_to_num(x: np.ndarray) -> np.ndarray:
-    """``np.nan_to_num(x)`` of float64 ``x`` (NaN → 0, ±inf → ±max) as a new C-contiguous array, in three passes
-    instead of its six."""
-    out = np.array(x, float, order="C")
-    np.putmask(out, np.isnan(out), 0.0)
-    big = np.finfo(float).max
-    return np.clip(out, -big, big, out=out)
 
 
 def off_screen(camera, points) -> np.ndarray:
