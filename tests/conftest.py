@@ -32,6 +32,18 @@ def B(request):
     return backends.get(request.param)
 
 
+def load_script(name: str):
+    """The module ``scripts/<name>.py`` of this checkout, loaded as ``name`` (the scripts are not a package)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        name, Path(__file__).resolve().parents[1] / "scripts" / f"{name}.py"
+    )
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
 def small_scene_dict(**over):
     """A small, fast scene (cube 32², camera 40², few samples) as a dict; ``over`` replaces top-level tables."""
     d = {

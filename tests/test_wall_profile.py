@@ -1,18 +1,13 @@
 """scripts/wall_profile.py: every thread's samples, not the main thread's alone (what cProfile sees)."""
 
-import importlib.util
 import sys
 import textwrap
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import load_script
 
 
 def _load():
-    spec = importlib.util.spec_from_file_location("wall_profile", ROOT / "scripts" / "wall_profile.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("wall_profile")
 
 
 def test_a_worker_thread_s_busy_function_and_the_main_thread_s_wait_are_told_apart(tmp_path, monkeypatch):

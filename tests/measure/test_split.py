@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import load_script
 
 from study.measure import split
 
@@ -95,15 +96,12 @@ def test_oracle_radiance_has_one_meaning():
 
 @pytest.fixture(scope="module")
 def shipped_rows(tmp_path_factory):
-    import importlib.util
 
     from study import methods as registry
     from study.cache import Cache
     from study.measure.case import run_case
 
-    spec = importlib.util.spec_from_file_location("split_table", "scripts/split_table.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = load_script("split_table")
     cache = Cache(tmp_path_factory.mktemp("cache"))
     ms = [registry.make(n) for n in mod.METHODS]
     return {name: run_case(sc, ms, cache=cache, keep_images=True).rows for name, sc in mod.cases(small=True)}

@@ -9,7 +9,7 @@ rooms of tests/methods/test_methods_linear_secant.py and tests/methods/test_meth
 
 import numpy as np
 import pytest
-from conftest import small_scene_dict
+from conftest import load_script, small_scene_dict
 
 from study import methods
 from study.impostor import analytic, cubemap, layers
@@ -359,14 +359,7 @@ def test_a_counted_while_loop_gives_the_iterations_each_lane_ran(B):
 
 
 def _march_ir():
-    import importlib.util
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parents[2]
-    spec = importlib.util.spec_from_file_location("march_ir", root / "scripts" / "march_ir.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("march_ir")
 
 
 def _llvm_or_skip():

@@ -5,7 +5,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import BACKENDS, small_scene_dict
+from conftest import BACKENDS, load_script, small_scene_dict
 
 from study import backend as backends
 from study import methods
@@ -264,16 +264,9 @@ def test_the_march_step_reads_one_cell_and_nothing_else(tmp_path):
     table), 2 divisions, 4 loop variables; measured now: 75 (21, 54), 1 gather, no division, 7 variables (the ray's
     pixel position carried, the cell size and its inverse for the level). Bounds with a small margin for Dr.Jit's
     code generation."""
-    import importlib.util
-    from pathlib import Path
-
     if "llvm" not in BACKENDS:
         pytest.skip("needs Dr.Jit's LLVM backend")
-    root = Path(__file__).resolve().parents[2]
-    spec = importlib.util.spec_from_file_location("march_ir", root / "scripts" / "march_ir.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    (march,) = mod.method_loops("ssr_hiz", {}, tmp_path)
+    (march,) = load_script("march_ir").method_loops("ssr_hiz", {}, tmp_path)
     assert march["gathers"] == 1 and march["f64"] == 0, march
     assert march["ops"] <= 80 and march["cond"] <= 24, march
     ir = (tmp_path / f"ssr_hiz-{march['kernel']}.ll").read_text()

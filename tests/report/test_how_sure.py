@@ -1,10 +1,11 @@
 """The README's "How sure" paragraph is written by code from the committed tables (issue 53 item 5): significance
 counted over distinct geometries (scripts/headline.py --readme → study.report.summary.readme_how_sure)."""
 
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
+
+from conftest import load_script
 
 from study.report import summary
 
@@ -12,10 +13,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _headline():
-    spec = importlib.util.spec_from_file_location("headline", ROOT / "scripts" / "headline.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("headline")
 
 
 def test_the_readmes_how_sure_is_the_generated_one():

@@ -3,12 +3,12 @@ mesh is what ``scripts/make_meshes.py`` makes; Embree's hits on the object equal
 hit normals are the barycentric interpolation of the vertex normals (computed here with trimesh, not with
 study's code); cache keys follow the file's bytes, not its path; bad files are one line naming file and key."""
 
-import importlib.util
 import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import load_script
 
 from study.errors import StudyError
 from study.scene import camera_rays, load_scene_file, objects, scene_from_dict
@@ -36,10 +36,7 @@ def mesh_scene(file=BUNNY, camera=CAMERA, **obj):
 
 
 def test_shipped_mesh_is_what_the_script_makes_and_small():
-    spec = importlib.util.spec_from_file_location("make_meshes", ROOT / "scripts" / "make_meshes.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    made = mod.files()
+    made = load_script("make_meshes").files()
     assert set(made) == {p.name for p in (ROOT / "scenes" / "meshes").glob("bunny.*")}
     for name, text in made.items():
         assert (ROOT / "scenes" / "meshes" / name).read_text() == text
