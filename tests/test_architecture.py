@@ -386,7 +386,6 @@ LONG_FUNCTIONS = {
     "study/bench/run.py::run_bench": 145,  # + the exact query priced after every method (CUDA)
     "study/caustics/figure.py::_fig8_files": 105,
     "study/harness/runner.py::run_cases": 92,
-    "study/methods/multi_probe.py::search": 88,
     "study/outputs/animation.py::_animate": 87,
     "study/methods/search.py::first_entry": 126,
     "study/outputs/figures.py::image_grid": 112,

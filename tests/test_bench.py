@@ -445,6 +445,21 @@ def test_sdf_floor_prices_its_3d_fetches_at_the_3d_rate():
     assert methods.make("ssr_sdf").volume_lookups() == 102 and methods.make("ssr").volume_lookups() == 0
 
 
+def test_probe_blend_floor_reads_a_colour_per_probe_it_weighs():
+    """A blend reads the colour of every probe it weighs (issue 56): at 1 ns per fetch, 5 lookups spent of its
+    bound 9 (8 probes and the global one) are (5 + 1) distance fetches, 5 colour fetches, + 53 bytes at 1 GB/s; a
+    method that reads one colour (localized) still counts 1. Planted (checked): the colour counted once gives 60."""
+    from study.bench.floors import method_floor
+
+    fl = {"fetch_1ch_random": 1e9, "fetch_4ch_random": 1e9, "bandwidth": 1e9}
+    m = methods.make("probe_blend")
+    assert m.lookups_per_ray() == m.colour_lookups() == 9
+    assert math.isclose(method_floor(m, fl, "random", 1, lookups=5.0), (6 + 5 + 53) * 1e-9, rel_tol=1e-12)
+    loc = methods.make("localized", iterations=10)
+    assert loc.colour_lookups() == 0
+    assert math.isclose(method_floor(loc, fl, "random", 1), (14 + 1 + 53) * 1e-9, rel_tol=1e-12)
+
+
 @pytest.mark.skipif("llvm" not in BACKENDS, reason="needs Dr.Jit LLVM")
 def test_measured_floors_are_positive_rates():
     """Fetch rates and copy bandwidth measured on LLVM: positive and finite, every pattern and channel count."""

@@ -19,9 +19,10 @@ Floor of a method (:func:`method_floor`)
     f₁ = the mean lookups per ray measured in the method's timed calls (``Trace.lookups``; ``lookups_per_ray(res)``,
     the bound, where none is given) + 1 − f₃ (every counted lookup reads the distance texture, plus the origin
     check of ``Method.trace``), f₃ = ``volume_lookups(res)`` scaled by measured / bound (its 3D fetches, priced
-    at the 3D fetch rate: f₃ · (3D fetch cost) is added), f₄ = 1 (the colour at the shown
-    point; a 3-channel texture is stored as 4 on CUDA) and :data:`BYTES_PER_RAY` (origin and direction read, the
-    bench's outputs written). The pattern's fetch cost is taken for the batch: coherent for the scene's rays,
+    at the 3D fetch rate: f₃ · (3D fetch cost) is added), f₄ = 1 (the colour at the shown point; a 3-channel
+    texture is stored as 4 on CUDA), or ``colour_lookups(res)`` scaled as f₃ where the method reads more colours
+    (a blend of probes reads the colour of every probe it weighs), and :data:`BYTES_PER_RAY` (origin and direction
+    read, the bench's outputs written). The pattern's fetch cost is taken for the batch: coherent for the scene's rays,
     random for synthetic ones.
 """
 
@@ -178,13 +179,14 @@ def method_floor(
     spent = bound if lookups is None else float(lookups)
     f3 = float(method.volume_lookups(res)) * (spent / bound if bound > 0 else 1.0)  # its 3D share
     f1 = spent + 1 - f3
+    f4 = max(1.0, float(method.colour_lookups(res)) * (spent / bound if bound > 0 else 1.0))  # colours read
     rate3 = floors.get(
         f"fetch_3d_{pattern}", floors[f"fetch_1ch_{pattern}"]
     )  # floors measured before: 2D rate
     per_ray = (
         f1 / floors[f"fetch_1ch_{pattern}"]
         + f3 / rate3
-        + 1 / floors[f"fetch_4ch_{pattern}"]
+        + f4 / floors[f"fetch_4ch_{pattern}"]
         + BYTES_PER_RAY / floors["bandwidth"]
     )
     return per_ray * rays

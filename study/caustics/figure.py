@@ -62,6 +62,7 @@ def sweep_plot(rows: list[dict], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullLocator
 
     fig, axes = plt.subplots(1, 4, figsize=(17, 3.8))
     labels = list(dict.fromkeys(r["label"] for r in rows if r["method"] != "exact"))
@@ -72,6 +73,7 @@ def sweep_plot(rows: list[dict], path: Path) -> None:
         axes[1].semilogx(x, [r["energy_ratio"] for r in rs], "o-", label=lab)
         axes[2].loglog(x, [r.get("img_rmse_mitsuba", np.nan) for r in rs], "o-", label=lab)
         axes[3].loglog(x, [r["seconds_per_map"] * 1e3 for r in rs], "o-", label=lab)
+    res = sorted({int(r["caustic_res"]) for r in rows})
     ex = [r for r in rows if r["method"] == "exact"]
     if ex:
         axes[2].loglog(
@@ -92,9 +94,13 @@ def sweep_plot(rows: list[dict], path: Path) -> None:
     ):
         ax.set_title(t, fontsize=9)
         ax.set_xlabel("caustic-map resolution")
-    axes[0].legend(fontsize=7)
-    axes[2].legend(fontsize=7)
-    fig.tight_layout()
+        # the resolutions measured, plainly (a log axis labels its minor ticks 2×10¹, 3×10¹, … over each other)
+        ax.xaxis.set_minor_locator(NullLocator())
+        ax.set_xticks(res, [str(v) for v in res])
+    # one legend for the four panels, below them (inside, it covered the lines it names)
+    handles, names = axes[2].get_legend_handles_labels()
+    fig.legend(handles, names, loc="lower center", ncol=len(names), fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
     atomic_savefig(fig, path, dpi=100)
 
 

@@ -206,6 +206,12 @@ class Method(ABC):
         a method of many steps on few rays costs; 0 for a method whose cost is its lookups alone."""
         return 0.0
 
+    def colour_lookups(self, res: int | None = None) -> float:
+        """How many of :meth:`lookups_per_ray` also read a colour (a 4-channel texel: a blend of several probes'
+        radiance reads each one's); 0 for a method that reads one colour, at the shown point, which the bench's
+        floor always counts."""
+        return 0.0
+
     def volume_lookups(self, res: int | None = None) -> float:
         """How many of :meth:`lookups_per_ray` are 3D texture fetches (a distance field's), which the bench's
         floor prices at the 3D fetch rate; 0 for a method that reads only cube maps and 2D buffers."""

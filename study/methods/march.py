@@ -121,12 +121,14 @@ def reread(B, g: Callable, value, t):
     return B.select(value == -math.inf, g(t), value)
 
 
-def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jumped, cost=None):
+def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jumped, cost=None, active=None):
     """The march of :class:`Skip`: ``step(k, *state)`` reads sample k + 1 as the texel march's loop body does,
     ``jumped(ok, t_b, *state)`` is the state after a jump to the sample t_b where ``ok`` (t_b None: with
     :attr:`Skip.shared`); ``done(*state)`` stops a
     ray, ``busy(*state)`` (or None) keeps it reading sample by sample; ``cost(*state)`` (or None: G) the lookups
-    of the sample read that led to ``state``. Returns the final state; sets ``skip.lookups``."""
+    of the sample read that led to ``state``; ``active`` (a mask, or None: every ray) the rays that march, the
+    others start at sample n (no iteration: a GPU warp none of whose rays marches ends at once). Returns the final
+    state; sets ``skip.lookups``."""
     zero = state[0] * 0.0
     two = zero + 2.0  # (a literal would be made again in every step)
     top = float(1 << max(n - 1, 0).bit_length())  # the widest block: ≥ n samples
@@ -162,8 +164,9 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         la = skip.look(t_at(k + 1.0))  # sample k + 1: either side reads it
         return B.branch(fine_now, (k, w, *s), lambda *a: fine(*a, la=la), lambda *a: coarse(*a, la=la))
 
+    k0 = zero if active is None else B.select(active, zero, zero + float(n))
     out = B.while_loop(
-        (zero, zero + float(min(FIRST, top)), *(zero,) * ns, *state),
+        (k0, zero + float(min(FIRST, top)), *(zero,) * ns, *state),
         lambda k, w, *s: (k < float(n)) & ~done(*s[ns:]),
         body,
         limit=iterations(n),

@@ -55,7 +55,7 @@ from study.impostor import cubemap
 from study.impostor.views import Captured, ProbeSpec, Views
 from study.methods.base import Found, Knob, TracingMethod, register
 from study.methods.linear_secant import TexelMarchParams, march_bound, march_steps, skipper
-from study.methods.search import arc_samples, first_crossing, refine, secant_point
+from study.methods.search import Bracket, arc_samples, first_crossing, refine, secant_point
 
 Vec3 = tuple[float, float, float]
 
@@ -166,6 +166,50 @@ class MultiProbe(TracingMethod):
             best, best_d = B.select(ok, k, best), B.select(ok, dist, best_d)
         return best
 
+    def _choose_where(self, B, P, mask, pt: V3, untried: list):
+        """:meth:`_choose` on the lanes of ``mask``, −1 on the others (a branch: a GPU warp with none of them reads
+        nothing)."""
+
+        def not_chosen(x, y, z, *u):
+            return (x * 0.0 - 1.0,)
+
+        return B.branch(
+            mask,
+            (pt.x, pt.y, pt.z, *untried),
+            lambda x, y, z, *u: (self._choose(B, P, V3(x, y, z), list(u)),),
+            not_chosen,
+        )[0]
+
+    def _resolve(self, B, P, g, br, active, xs: V3, R: V3, a, k):
+        """The round's secant steps on its bracket ``br`` and the crossing's class (module docstring, 2.) on the
+        lanes of ``active`` (a branch): (the bracket's t_lo, the crossing l (from c_k), cross, ok: HIT where ok, else
+        UNKNOWN where it crossed); elsewhere t_lo, placeholders and False."""
+        p, res = self.params, P.res
+        zero = a * 0.0  # (a > 0 and finite)
+
+        def resolve(t_lo, g_lo, t_hi, g_hi, found):
+            br = refine(B, g, Bracket(t_lo, g_lo, t_hi, g_hi, found), p.secant_steps, rising=True)
+            t = secant_point(br)
+            t_ok = B.isfinite(t)
+            t = B.select(t_ok, t, zero)
+            l = _finite(B, (xs * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7))  # crossing, from c_k
+            r = B.length(l)
+            tol = p.thickness + (r * (p.slack / res) if res else zero)
+            cross = br.found & t_ok
+            w = l / B.maximum(r, 1e-9)  # texels either side along the arc
+            tan = R - w * w.dot(R)
+            tan = tan * ((2.0 / max(res, 1)) / B.maximum(B.length(tan), 1e-9))
+            d_lo, d_at, d_hi = P.nearest(k, w - tan), P.nearest(k, l), P.nearest(k, w + tan)
+            step = (d_lo - d_hi > tol) & (B.abs(d_lo + d_hi - 2.0 * d_at) > 0.5 * (d_lo - d_hi))
+            ok = cross & ~step & (B.abs(r - d_at) <= tol + 0.25 * B.abs(d_hi - d_lo))
+            return br.t_lo, l.x, l.y, l.z, cross, ok
+
+        def not_resolved(t_lo, g_lo, t_hi, g_hi, f):
+            never = f & ~f
+            return t_lo, t_lo, t_lo, t_lo, never, never
+
+        return B.branch(active, tuple(br), resolve, not_resolved)
+
     def _probes(self, env):
         return env.need_probes(self.name, self.spec()) or _Single(env)
 
@@ -219,24 +263,14 @@ class MultiProbe(TracingMethod):
                 t_max=1.0,
                 default=(zero, g0, zero + 1.0, a),
                 skip=skip,
+                active=active,  # a ray resolved in an earlier round marches no more
             )
             marched = zero + float(n) if skip is None else skip.lookups  # the texel march: all n samples
             table = smp.table
-            br = refine(B, g, br, p.secant_steps, rising=True)
-            t = secant_point(br)
-            t_ok = B.isfinite(t)
-            t = B.select(t_ok, t, zero)
-            l = _finite(B, (xs * (1.0 - t) + R * (a * t)) / B.maximum(1.0 - t, 1e-7))  # crossing, from c_k
-            # --------------------------------------------------------- HIT, UNKNOWN or MISS
-            r = B.length(l)
-            tol = p.thickness + (r * (p.slack / res) if res else zero)
-            cross = br.found & t_ok
-            w = l / B.maximum(r, 1e-9)  # texels either side along the arc
-            tan = R - w * w.dot(R)
-            tan = tan * ((2.0 / max(res, 1)) / B.maximum(B.length(tan), 1e-9))
-            d_lo, d_at, d_hi = P.nearest(k, w - tan), P.nearest(k, l), P.nearest(k, w + tan)
-            step = (d_lo - d_hi > tol) & (B.abs(d_lo + d_hi - 2.0 * d_at) > 0.5 * (d_lo - d_hi))
-            ok = cross & ~step & (B.abs(r - d_at) <= tol + 0.25 * B.abs(d_hi - d_lo))
+
+            # a ray resolved in an earlier round: no secant step nor texel read (a GPU warp of such rays skips it)
+            t_lo, lx, ly, lz, cross, ok = self._resolve(B, P, g, br, active, xs, R, a, k)
+            l = V3(lx, ly, lz)
             hit = active & ok
             unknown = active & cross & ~ok
             spent = spent + B.select(active, marched + float(p.secant_steps + 4), zero)
@@ -246,9 +280,8 @@ class MultiProbe(TracingMethod):
             first_l, first_k = _sel(B, first, l + c, first_l), B.select(first, k, first_k)
             have_first = have_first | first
             # --------------------------------------------------------- UNKNOWN: on in the next probe
-            t_lo = br.t_lo
             d0 = B.select(unknown, d0 + a * t_lo / B.maximum(1.0 - t_lo, 1e-7), d0)
-            k_next = self._choose(B, P, x + R * d0, untried)
+            k_next = self._choose_where(B, P, unknown, x + R * d0, untried)
             spent = spent + B.select(unknown, zero + float(N), zero)
             active = unknown & (k_next >= 0.0)
             k = B.select(active, k_next, k)

@@ -205,19 +205,26 @@ class ProbeBlend(TracingMethod):
         w, w0 = blend_weights(B, ndf)
         w = [B.select(usable[0], w0, zero) if w0 is not None else B.select(usable[0], zero + 1.0, zero)] + w
         # ------------------------------------------------------------- each probe's answer
-        # a probe k ≥ 1 of weight 0 reads one fixed texel (the direction (1, 1, 1), as an unusable lane does): its
-        # answer is used nowhere (shown is a probe of weight > 0, or probe 0's; ghosting needs GHOST_WEIGHT), so
-        # its fetch costs a cached read, not a scattered one
+        # a probe k ≥ 1 of weight 0 is not read, nor is its answer made (a branch: a GPU warp none of whose rays
+        # weighs it skips the probe): its answer is used nowhere (shown is a probe of weight > 0, or probe 0's;
+        # ghosting needs GHOST_WEIGHT) and its radiance is weighed by 0, so 0 stands for both
         answers, rads, tols = [], [], []
         for k, (c, (pk, _)) in enumerate(zip(P.centres, projected)):
-            cv = V3(*(zero + float(a) for a in c))
-            v = pk - cv
             read = usable[k] if k == 0 else usable[k] & (w[k] > 0.0)
-            v = V3(*(B.select(read, a, zero + 1.0) for a in (v.x, v.y, v.z)))
-            ch = P.lookup(zero + float(k), v)
-            answers.append(cv + B.normalize(v) * ch[3])
-            rads.append(V3(*ch[:3]))
-            tols.append(B.maximum(ch[3] * (2.0 / max(P.res, 1)), 0.01))
+
+            def answer(vx, vy, vz, k=k, c=c):  # probe k's answer and radiance in direction v from its centre
+                v = V3(vx, vy, vz)
+                ch = P.lookup(vx * 0.0 + float(k), v)
+                a = V3(*(vx * 0.0 + float(ci) for ci in c)) + B.normalize(v) * ch[3]
+                return (a.x, a.y, a.z, *ch[:3], B.maximum(ch[3] * (2.0 / max(P.res, 1)), 0.01))
+
+            # an unread lane looks (1, 1, 1), finite (numpy runs both sides of a branch its lanes split)
+            v = pk - V3(*(zero + float(a) for a in c))
+            v = tuple(B.select(read, a, zero + 1.0) for a in (v.x, v.y, v.z))
+            out = B.branch(read, v, answer, lambda vx, vy, vz: (vx * 0.0,) * 7)
+            answers.append(V3(*out[:3]))
+            rads.append(V3(*out[3:6]))
+            tols.append(out[6])
         # ------------------------------------------------------------- blend, dominant probe, ghosting
         best, best_w = zero, zero - 1.0
         for k, wk in enumerate(w):
@@ -242,3 +249,7 @@ class ProbeBlend(TracingMethod):
     def lookups_per_ray(self, res: int | None = None) -> float:
         p = self.params
         return 1 + (len(p.points) if p.points is not None else int(np.prod(p.grid)))
+
+    def colour_lookups(self, res: int | None = None) -> float:
+        # every probe read is a colour (its radiance, blended) and a distance (its answer)
+        return self.lookups_per_ray(res)

@@ -181,22 +181,15 @@ class arc_samples(Samples):  # noqa: N801 - used as a function
 
 # ---------------------------------------------------------------------------------------------- linear search
 def first_crossing(
-    B,
-    g: Callable,
-    t0,
-    g0,
-    dt,
-    steps: int,
-    *,
-    t_max: float | None = None,
-    default: tuple | None = None,
-    skip: Skip | None = None,
+    B, g: Callable, t0, g0, dt, steps: int, *, t_max=None, default=None, skip=None, active=None
 ):
     """The first step from g < 0 to g ≥ 0: a :class:`Bracket` (a list of them when g returns a list). With
-    ``skip``, the hierarchical march (:class:`Skip`): the same bracket, from fewer lookups."""
+    ``skip``, the hierarchical march (:class:`Skip`): the same bracket, from fewer lookups; ``active`` (a mask, with
+    ``skip``): the rays that march, the others read no sample (their bracket is ``default``'s, not found)."""
     return _scan(
-        B, g, t0, g0, dt, steps, t_max=t_max, default=default, count=1, rising=True, first=True, skip=skip
-    )
+        B, g, t0, g0, dt, steps, t_max=t_max, default=default, count=1, rising=True, first=True, skip=skip,
+        active=active,
+    )  # fmt: skip
 
 
 def sign_changes(
@@ -218,7 +211,7 @@ def sign_changes(
     )
 
 
-def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first, skip=None):
+def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first, skip=None, active=None):
     many = isinstance(g0, (list, tuple))
     G = len(g0) if many else 1
     never = B.isfinite(t0) & ~B.isfinite(t0)  # all False
@@ -261,6 +254,7 @@ def _scan(B, g, t0, g0, dt, steps, *, t_max, default, count, rising, first, skip
             step,
             skip,
             G=G,
+            active=active,
             done=lambda *s: every([s[1 + G + 5 * i] for i in range(G)]),
             busy=None,
             jumped=lambda ok, t_b, t_prev, *s: (

@@ -179,3 +179,63 @@ def test_dropped_rays_are_no_hit_not_a_crash(column, name):
     keep = np.ones(len(x), bool)
     keep[::4] = False
     np.testing.assert_allclose(shown[keep], good[keep], rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("name", BACKENDS)
+def test_a_ray_resolved_in_an_earlier_round_marches_no_more(column, name):
+    """Rays up to the ceiling (resolved in the first round) beside rays that switch probe (a second round): in the
+    second round the first kind read no sample of the march (its lookups: the bracket's re-read alone) and skip the
+    secant steps and texel reads (the branch's condition is the round's active rays), and every output is what the
+    rounds give when every ray runs them all (issue 56: the close-up batch's second round held 1 ray in 65,536 and
+    cost as much as the first)."""
+    from study.methods import multi_probe as MP
+
+    B = backends.get(name)
+    s, o, tracer, maps = column
+    x2, d2, _ = _top_rays(tracer, o, (-0.2, 2.2, 0.0), n=100)
+    rng = np.random.default_rng(1)
+    x1 = rng.uniform(-0.3, 0.3, (100, 3))
+    d1 = np.tile([0.0, 1.0, 0.0], (100, 1)) + rng.normal(0, 0.05, (100, 3))
+    d1 /= np.linalg.norm(d1, axis=1, keepdims=True)
+    x, d = np.r_[x1, x2], np.r_[d1, d2]
+    m, env = _env(B, o, maps, [FAR])
+    rounds, conds = [], []
+    plain_fc, plain_branch = MP.first_crossing, B.branch
+
+    def fc(*a, **kw):
+        out = plain_fc(*a, **kw)
+        rounds.append((B.numpy(kw["active"]).astype(bool), B.numpy(kw["skip"].lookups).astype(float)))
+        return out
+
+    def branch(
+        cond, state, t, f
+    ):  # multi_probe's own branches (the march's, inside its loop, cannot be read)
+        if f.__name__ in ("not_chosen", "not_resolved"):
+            conds.append((f.__name__, B.numpy(cond).astype(bool)))
+        return plain_branch(cond, state, t, f)
+
+    MP.first_crossing, B.branch = fc, branch
+    try:
+        got = _trace(m, B, env, x, d)
+    finally:
+        MP.first_crossing, B.branch = plain_fc, plain_branch
+    assert len(rounds) >= 2
+    (a1, _), (a2, spent2) = rounds[:2]
+    assert a1.all() and a2[:100].mean() < 0.05 and a2[100:].mean() > 0.5, (a2[:100].mean(), a2[100:].mean())
+    assert np.all(spent2[~a2] == 1.0) and np.all(spent2[a2] > 1.0)
+    resolved = [c for f, c in conds if f == "not_resolved"]  # each round's secant steps and texel reads
+    assert len(resolved) == len(rounds) and all(np.array_equal(c, a) for c, (a, _) in zip(resolved, rounds))
+    chosen = [c for f, c in conds if f == "not_chosen"]  # the next probe: only where the round ended UNKNOWN
+    assert not chosen[0][:100].any() and chosen[0][100:].mean() > 0.5
+    # every ray through every round (no mask, no branch): the same outputs
+    MP.first_crossing = lambda *a, **kw: plain_fc(*a, **{k: v for k, v in kw.items() if k != "active"})
+    B.branch = lambda cond, state, t, f: (
+        tuple(t(*state)) if f.__name__ in ("not_chosen", "not_resolved") else plain_branch(cond, state, t, f)
+    )
+    try:
+        full = _trace(m, B, env, x, d)
+    finally:
+        MP.first_crossing, B.branch = plain_fc, plain_branch
+    for a, b in zip(got[:3], full[:3]):
+        np.testing.assert_array_equal(a, b)
+    assert got[3] == full[3]

@@ -92,24 +92,48 @@ def test_exact_in_the_box_room_and_blending_costs_lookups(name):
     assert np.mean(np.linalg.norm(shown_s - exact, axis=1) <= eps) < 0.6
 
 
-def test_probes_of_weight_zero_read_one_fixed_texel():
-    """The masked fetch (issue 56): a probe k ≥ 1 of weight 0 is looked up in the direction (1, 1, 1) (one cached
-    texel), not its scattered one; a probe of weight > 0, and the global probe 0, in their own directions. A point
-    deep inside cell 1 (probe 1 alone: 1 lookup) and the room's centre (all 8 probes)."""
-    B = backends.get("numpy")
+@pytest.mark.parametrize("name", BACKENDS)
+def test_probes_of_weight_zero_are_not_read(name):
+    """The masked read (issue 56): a probe k ≥ 1 of weight 0 is looked up only on the lanes that weigh it (a
+    branch; numpy runs a mixed branch's sides on every lane, so its lanes that do not weigh it are looked up in the
+    fixed direction (1, 1, 1)); a probe of weight > 0, and the global probe 0, in their own directions. A point
+    deep inside cell 1 (probe 1 alone: 1 lookup) and the room's centre (all 8 probes); the shown points, radiance
+    and lookups are those of every probe read on every lane."""
+    B = backends.get(name)
     env = _box_env(B)
     P = next(iter(env.probes.values()))
     seen = []
     plain = P.lookup
-    P.lookup = lambda k, v: (seen.append((int(k[0]), B.to_numpy(v))), plain(k, v))[1]
+    P.lookup = lambda k, v: (seen.append((int(B.numpy(k)[0]), B.to_numpy(v))), plain(k, v))[1]
     pts = np.array([[-1.0, -0.75, -1.0], [0.0, 0.0, 0.0]])
     dirs = np.tile([0.0, 1.0, 0.0], (2, 1))
-    assert list(_trace(methods.make("probe_blend"), B, env, pts, dirs)[3]) == [1.0, 8.0]
-    fixed = {k: np.all(v == 1.0, axis=1) for k, v in seen}
-    assert sorted(fixed) == list(range(9))
-    assert list(fixed[1]) == [False, False]  # probe 1 (centre GRID[0]) weighs > 0 at both points
-    assert all(list(fixed[k]) == [True, False] for k in range(2, 9))  # weight 0 at the first point alone
-    assert not fixed[0].any()  # the global probe: always its own direction
+    masked = _trace(methods.make("probe_blend"), B, env, pts, dirs)
+    assert list(masked[3]) == [1.0, 8.0]
+    looked = {k: v for k, v in seen}
+    assert sorted(looked) == list(range(9))
+    if name == "numpy":  # both sides on every lane of a mixed branch
+        fixed = {k: np.all(v == 1.0, axis=1) for k, v in looked.items()}
+        assert list(fixed[1]) == [False, False]  # probe 1 (centre GRID[0]) weighs > 0 at both points
+        assert all(list(fixed[k]) == [True, False] for k in range(2, 9))  # weight 0 at the first point alone
+    # the branch's condition per probe: the lanes that weigh it (probe 0: where it is usable)
+    conds, orig = [], B.branch
+    B.branch = lambda cond, state, t, f: (conds.append(B.numpy(cond).astype(bool)), orig(cond, state, t, f))[
+        1
+    ]
+    try:
+        _trace(methods.make("probe_blend"), B, env, pts, dirs)
+    finally:
+        B.branch = orig
+    assert len(conds) == 9 and list(conds[0]) == list(conds[1]) == [True, True]
+    assert all(list(c) == [False, True] for c in conds[2:])
+    # every probe read on every lane (no branch): the same shown points, radiance and lookups
+    B.branch = lambda cond, state, t, f: tuple(t(*state))
+    try:
+        full = _trace(methods.make("probe_blend"), B, env, pts, dirs)
+    finally:
+        B.branch = orig
+    for a, b in zip(masked[:4], full[:4]):
+        np.testing.assert_array_equal(a, b)
 
 
 COLUMN = {"center": [-0.8, 0.3], "footprint": [0.5, 0.5], "height": 2.0}
