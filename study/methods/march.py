@@ -43,13 +43,14 @@ class Skip:
     the whole block is. After the search, ``lookups`` holds per ray the lookups the march spent: pyramid reads,
     samples read × functions, and the re-read of the bracket's start (g0 not included).
 
-    The march (Hi-Z style): a block of w samples after the last one read (first :data:`FIRST`) is tried in one
-    pyramid read; cleared, the march jumps over it and doubles w; cleared part of the way (the bound holds the ray
-    off the surface up to a point inside the block), it jumps there and tries w = 2 next; not cleared at all, it
-    halves w; at w = 1 it reads the next sample as the texel march does (and tries w = 2 next). A ray stops at its
-    crossing (its kept entry). Only cleared samples are skipped, so the bracket is the texel march's (the samples
-    come from :meth:`Samples.direct`, equal to the march's up to rounding); the bracket's start, when skipped, is
-    read once after the march.
+    The march (Hi-Z style): a block of w samples after the last one read (first :data:`FIRST`: the widest) is tried
+    in one pyramid read; cleared, the march jumps over it and doubles w; cleared part of the way (the bound holds
+    the ray off the surface up to a point inside the block), it jumps there and tries w = 2 next; not cleared at
+    all, it halves w; at w = 1 it reads the next sample as the texel march does, and tries w = 2 next, or, where a
+    block of 2 was just not cleared (the ray is at a surface), after reading one more sample alone. A ray stops at
+    its crossing (its kept entry). Only cleared samples are skipped, so the bracket is the texel march's (the
+    samples come from :meth:`Samples.direct`, equal to the march's up to rounding); the bracket's start, when
+    skipped, is read once after the march.
     ``edge(k)`` (optional) → (N,) the last sample on the face of sample k + 1 (≤ n): a block is cut there, as the
     pyramid bounds one face at a time (a block across an edge is never cleared, so cutting it loses nothing).
     At most :func:`iterations` iterations, each one lookup per function at most.
@@ -96,16 +97,22 @@ class Look(NamedTuple):
     rest: Any
 
 
-#: The first block a march tries, in samples: most rays start far in front of every surface (a camera ray's first
-#: stretch), so they skip it at once rather than doubling up from 2 (−10 % lookups on fig4's close-up).
-FIRST = 64
+#: The first block a march tries, in samples: None, the widest (≥ n: the rest of the arc's first face, as every
+#: block is cut at the face's edge). Most rays start far in front of every surface (a reflection ray's first
+#: stretch), so one pyramid read clears the face or jumps part of it at once. Mean lookups per ray of linear_secant
+#: by the first block (LLVM, 512² rays, cube 256²): fig4's close-up 16.11 (16), 14.59 (64), 13.97 (128),
+#: 13.46 (the widest); random rays near o 17.17 (64), 15.82 (the widest); after a partial jump w = 2 stays best.
+FIRST: int | None = None
+#: Where a block of 2 after a sample read was not cleared, read one more sample alone before trying 2 again
+#: (False: try 2 after every read); see :func:`march`.
+AT_SURFACE = True
 
 
 def iterations(steps: int) -> int:
     """The most iterations of the hierarchical march over ``steps`` samples: a sample read or a jump (the whole
     block or part of it) at most ``steps`` times, each followed by at most one halving, and the halvings of the
-    first block."""
-    return 2 * steps + max(steps - 1, FIRST).bit_length() + 2
+    first block (from the widest, 2^bitlength(steps − 1), down to 1)."""
+    return 2 * steps + max(steps - 1, FIRST or 1).bit_length() + 2
 
 
 def every(masks):
@@ -130,7 +137,7 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
     others start at sample n (no iteration: a GPU warp none of whose rays marches ends at once). Returns the final
     state; sets ``skip.lookups``."""
     zero = state[0] * 0.0
-    two = zero + 2.0  # (a literal would be made again in every step)
+    two, half = zero + 2.0, zero + 0.5  # (a literal would be made again in every step)
     top = float(1 << max(n - 1, 0).bit_length())  # the widest block: ≥ n samples
     if isinstance(t_max, float) and smp.top is not None and smp.top <= t_max:
         t_max = None  # no t above it: the clamp leaves every t as it is
@@ -145,7 +152,14 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
     def fine(k, w, *s, la=None):  # the next sample, as the texel march reads it
         spent, s = s[:ns], s[ns:]
         s = step(k, *s) if la is None else step(k, *s, look=la)
-        return (k + 1.0, two, *(x + (cost(*s) if cost is not None else float(G)) for x in spent), *s)
+        # w = 1: the block of 2 after the previous read was not cleared (the ray is at a surface, and its next block
+        # of 2 mostly fails too: a pyramid read for nothing): read one more sample alone (w = ½, which no halving
+        # reaches) before trying 2 again. Mean lookups per ray of linear_secant (FIRST's rays), close-up: 13.46
+        # (w = 2 after every read), 13.29 (one more, this), 13.29 (two more), 13.29 (every sample after the first
+        # read: a ray that grazes a surface early then reads sample by sample to the end, up to 166 lookups, 699 on
+        # the random rays, where this keeps the most at 39 and 43); random rays 15.82 → 15.51.
+        after = B.select(w == 1.0, half, two) if AT_SURFACE else two
+        return (k + 1.0, after, *(x + (cost(*s) if cost is not None else float(G)) for x in spent), *s)
 
     def coarse(k, w, *s, la=None):  # a block of w samples in one pyramid read
         spent, s = s[:ns], s[ns:]
@@ -166,7 +180,7 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
 
     k0 = zero if active is None else B.select(active, zero, zero + float(n))
     out = B.while_loop(
-        (k0, zero + float(min(FIRST, top)), *(zero,) * ns, *state),
+        (k0, zero + (top if FIRST is None else float(min(FIRST, top))), *(zero,) * ns, *state),
         lambda k, w, *s: (k < float(n)) & ~done(*s[ns:]),
         body,
         limit=iterations(n),
