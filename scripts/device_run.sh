@@ -259,17 +259,18 @@ s.print_callees('run_case')" "$OUT/side-new.prof" > "$OUT/profile-side-new.txt" 
             # and whether every output (shown, radiance, ratio, valid, lookups) is bit-identical to old's
             # → march-compare.txt; then, if Nsight Compute is here, linear_secant's kernels of both trees (ncu-*.txt).
             # MARCH_RES (1024) rays², MARCH_CUBE (256), MARCH_BACKEND (cuda; llvm to try it on a CPU), MARCH_NCU=0: no
-            # ncu, NCU_LIMIT (200) seconds per ncu run, NCU_METHODS (linear_secant) the methods it
-            # profiles, NCU_TREES (old new) the trees.
+            # ncu, NCU_LIMIT (200) seconds per ncu run, NCU_METHODS (linear_secant) the methods it profiles,
+            # NCU_TREES (old new) their trees, MARCH_TREES (old new) the trees timed.
     OLD=${OLD:-.devold}; old=$(cd "$OLD" && pwd) || exit 3
     export HOME=$W/home-march; mkdir -p "$HOME"
     be=${MARCH_BACKEND:-cuda}
     M="--backend $be --scene-res ${MARCH_RES:-1024} --cube-res ${MARCH_CUBE:-256} --repeats ${MARCH_REPEATS:-5}"
     for r in $(seq 1 "${MARCH_ROUNDS:-2}"); do
-      for which in old new; do
+      for which in ${MARCH_TREES:-old new}; do
         src=$PWD; [ "$which" = old ] && src=$old
         ( cd "$src" && PYTHONPATH=${PYTHONPATH%%:*}:$src timed "march-$which-$r" python3 "$OLDPWD/scripts/march_side.py" \
             --tree "$which" --run "$r" $M --out "$W/march" ) 2>&1 | tee -a "$OUT/log-marches.txt" | tail -2
+        cp "$W"/march/*.csv "$OUT/" 2>/dev/null   # each tree's rows come back even if the call runs out of time
       done
     done
     for v in ${MARCH_VARIANTS-tables-off look-off}; do
