@@ -100,8 +100,8 @@ class Look(NamedTuple):
 #: The first block a march tries, in samples: None, the widest (≥ n: the rest of the arc's first face, as every
 #: block is cut at the face's edge). Most rays start far in front of every surface (a reflection ray's first
 #: stretch), so one pyramid read clears the face or jumps part of it at once. Mean lookups per ray of linear_secant
-#: by the first block (LLVM, 512² rays, cube 256²): fig4's close-up 16.11 (16), 14.59 (64), 13.97 (128),
-#: 13.46 (the widest); random rays near o 17.17 (64), 15.82 (the widest); after a partial jump w = 2 stays best.
+#: by the first block (scripts/march_rules.py: LLVM, 512² rays, cube 256², no second read at a surface): fig4's
+#: close-up 16.11 (16), 14.59 (64), 13.46 (the widest); random rays near o 18.83, 17.17, 15.82.
 FIRST: int | None = None
 #: Where a block of 2 after a sample read was not cleared, read one more sample alone before trying 2 again
 #: (False: try 2 after every read); see :func:`march`.
@@ -154,10 +154,8 @@ def march(B, smp, n: int, t_max, state, step, skip: Skip, *, G, done, busy, jump
         s = step(k, *s) if la is None else step(k, *s, look=la)
         # w = 1: the block of 2 after the previous read was not cleared (the ray is at a surface, and its next block
         # of 2 mostly fails too: a pyramid read for nothing): read one more sample alone (w = ½, which no halving
-        # reaches) before trying 2 again. Mean lookups per ray of linear_secant (FIRST's rays), close-up: 13.46
-        # (w = 2 after every read), 13.29 (one more, this), 13.29 (two more), 13.29 (every sample after the first
-        # read: a ray that grazes a surface early then reads sample by sample to the end, up to 166 lookups, 699 on
-        # the random rays, where this keeps the most at 39 and 43); random rays 15.82 → 15.51.
+        # reaches) before trying 2 again (AT_SURFACE; scripts/march_rules.py measures it). Reading every sample alone
+        # from then on saves no more, and a ray that grazes a surface early would read sample by sample to the end.
         after = B.select(w == 1.0, half, two) if AT_SURFACE else two
         return (k + 1.0, after, *(x + (cost(*s) if cost is not None else float(G)) for x in spent), *s)
 
