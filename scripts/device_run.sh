@@ -260,7 +260,8 @@ s.print_callees('run_case')" "$OUT/side-new.prof" > "$OUT/profile-side-new.txt" 
             # → march-compare.txt; then, if Nsight Compute is here, linear_secant's kernels of both trees (ncu-*.txt).
             # MARCH_RES (1024) rays², MARCH_CUBE (256), MARCH_BACKEND (cuda; llvm to try it on a CPU), MARCH_NCU=0: no
             # ncu, NCU_LIMIT (200) seconds per ncu run, NCU_METHODS (linear_secant) the methods it profiles,
-            # NCU_TREES (old new) their trees, MARCH_TREES (old new) the trees timed.
+            # NCU_TREES (old new) their trees, NCU_ARGS (--set full --launch-count 20) what ncu collects, MARCH_TREES (old new)
+            # the trees timed.
     OLD=${OLD:-.devold}; old=$(cd "$OLD" && pwd) || exit 3
     export HOME=$W/home-march; mkdir -p "$HOME"
     be=${MARCH_BACKEND:-cuda}
@@ -286,7 +287,7 @@ s.print_callees('run_case')" "$OUT/side-new.prof" > "$OUT/profile-side-new.txt" 
     if [ -n "$NCU" ] && [ "$be" = cuda ] && [ "${MARCH_NCU:-1}" = 1 ]; then   # linear_secant's kernels, per tree
       for which in ${NCU_TREES:-old new}; do
         src=$PWD; [ "$which" = old ] && src=$old
-        ( cd "$src" && PYTHONPATH=${PYTHONPATH%%:*}:$src timeout "${NCU_LIMIT:-200}" "$NCU" --set full --launch-count 20 \
+        ( cd "$src" && PYTHONPATH=${PYTHONPATH%%:*}:$src timeout "${NCU_LIMIT:-200}" "$NCU" ${NCU_ARGS:---set full --launch-count 20} \
             -f -o "$W/ncu-$which" python3 "$OLDPWD/scripts/march_side.py" --tree "ncu-$which" --methods "${NCU_METHODS:-linear_secant}" \
             --no-time $M --out "$W/ncu-out" > "$OUT/log-ncu-$which.txt" 2>&1 ) \
           && "$NCU" --import "$W/ncu-$which.ncu-rep" --page details > "$OUT/ncu-$which.txt" 2>&1 \

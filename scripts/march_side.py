@@ -89,8 +89,33 @@ def variant(name: str) -> None:
     """Undo one of this branch's restructures (issue 56), to time each step in the same run: ``tables-off`` (the
     arc samples' sine and cosine per ray, not from tables), ``look-off`` (sample k + 1 made on each side of the
     march's branch, not once before it, and a jump's arc point made again: both go with ``Skip.shared``),
-    ``both-off``; ``""`` none. A tree without the restructure ignores it."""
-    from study.methods import layered, linear_secant, multi_probe, search
+    ``both-off``; ``branch-off`` (the march's two sides both made on every lane and selected, ``dr.select``, not
+    a ``dr.if_stmt`` per iteration: whether the branch costs more than the side a lane does not need); ``""``
+    none. A tree without the restructure ignores it."""
+    from study.methods import layered, linear_secant, march, multi_probe, search
+
+    if name == "branch-off":
+
+        class Selected:  # the backend with its branch made of selects, for the march alone
+            def __init__(self, B):
+                self._B = B
+
+            def __getattr__(self, key):
+                return getattr(self._B, key)
+
+            def branch(self, cond, state, true_fn, false_fn):
+                a, b = true_fn(*state), false_fn(*state)
+                return tuple(self._B.select(cond, p, q) for p, q in zip(a, b))
+
+        plain_march = march.march
+
+        def selected(B, *args, **kw):
+            return plain_march(Selected(B), *args, **kw)
+
+        march.march = selected
+        for mod in (search,):
+            if getattr(mod, "march", None) is plain_march:
+                mod.march = selected
 
     if name in ("tables-off", "both-off") and hasattr(search.arc_samples, "tabulate"):
         search.arc_samples.tabulate = lambda self: None
@@ -220,7 +245,7 @@ def main() -> None:
     )
     ap.add_argument("--no-time", action="store_true", help="outputs only (numpy has no kernels to time)")
     ap.add_argument("--out", type=Path, default=Path("out-march"))
-    ap.add_argument("--variant", default="", choices=["", "tables-off", "look-off", "both-off"])
+    ap.add_argument("--variant", default="", choices=["", "tables-off", "look-off", "both-off", "branch-off"])
     ap.add_argument("--compare", type=Path, default=None)
     a = ap.parse_args()
     if a.compare is not None:
