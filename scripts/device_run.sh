@@ -204,7 +204,9 @@ s.print_callees('run_case')" "$OUT/fp.prof" > "$OUT/profile-fig4prof.txt" 2>&1; 
     for which in ${SIDE:-old new}; do
       src=$PWD; [ "$which" = old ] && src=$(cd "$OLD" && pwd)
       export HOME=$W/home-$which; mkdir -p "$HOME"
-      ( cd "$src" && export PYTHONPATH=/tmp/site:$src
+      # the old tree's git_commit: "unknown", not this checkout's HEAD (its runner asks git from inside $OLD, and
+      # git would walk up to this repository)
+      ( cd "$src" && export PYTHONPATH=/tmp/site:$src; [ "$which" = old ] && export GIT_CEILING_DIRECTORIES=$src
         if [ "${SIDE_PAPER:-1}" = 1 ]; then
         if [ "${SIDE_SAMEWORK:-1}" = 1 ]; then
         timed "$which-samework-paper-cold" $S figure --config configs/bench/fig4_samework.toml --quality paper \
