@@ -33,6 +33,7 @@ ORDER = [
     "validation.py",
     "tables.py",
     "backend.py",
+    "vec.py",
     "io.py",
     "owned.py",
     "runtime.py",

@@ -11,44 +11,14 @@ from __future__ import annotations
 
 import functools
 import gc
-from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from study import runtime as llvm
 from study.errors import StudyError
+from study.vec import V3
 
 BACKENDS = ("numpy", "llvm", "cuda")
-
-
-@dataclass
-class V3:
-    """A 3-vector of equally long 1-D arrays (numpy or Dr.Jit)."""
-
-    x: Any
-    y: Any
-    z: Any
-
-    def __add__(s, o):
-        return V3(s.x + o.x, s.y + o.y, s.z + o.z)
-
-    def __sub__(s, o):
-        return V3(s.x - o.x, s.y - o.y, s.z - o.z)
-
-    def __mul__(s, a):
-        return V3(s.x * a, s.y * a, s.z * a)
-
-    __rmul__ = __mul__
-
-    def __truediv__(s, a):
-        return V3(s.x / a, s.y / a, s.z / a)
-
-    def __neg__(s):
-        return V3(-s.x, -s.y, -s.z)
-
-    def dot(s, o):
-        return s.x * o.x + s.y * o.y + s.z * o.z
 
 
 class Backend:
@@ -60,6 +30,11 @@ class Backend:
     def numpy(self, a) -> np.ndarray: ...
     def select(self, cond, a, b): ...
     def sqrt(self, a): ...
+    def rcp(self, a):
+        """1/a, to within a few ulp: on CUDA the hardware's approximate reciprocal (``rcp.approx.ftz``: one
+        instruction, where an IEEE division ``div.rn`` is a sequence of about eight); for values that bound, with
+        a margin, what the exact ones would say (the march's pyramid boxes), never for values a method reports."""
+
     def abs(self, a): ...
     def minimum(self, a, b): ...
     def maximum(self, a, b): ...
@@ -135,6 +110,9 @@ class NumpyBackend(Backend):
 
     def sqrt(self, a):
         return np.sqrt(a)
+
+    def rcp(self, a):
+        return np.float32(1.0) / a
 
     def abs(self, a):
         return np.abs(a)
@@ -299,6 +277,9 @@ class DrJitBackend(Backend):
 
     def sqrt(self, a):
         return self.dr.sqrt(a)
+
+    def rcp(self, a):
+        return self.dr.rcp(a)
 
     def abs(self, a):
         return self.dr.abs(a)

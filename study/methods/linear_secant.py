@@ -76,6 +76,12 @@ EDGES = 3
 #: n = 805): the bound is lowered by this fraction and the jump ends 10 · SAFE samples short of where the ray point
 #: reaches it.
 SAFE = 1e-3
+#: The pyramid read's divisions as approximate reciprocals (:meth:`study.backend.Backend.rcp`: on CUDA one
+#: instruction for the eight of an IEEE division; the march issues instructions rather than waiting on reads): the
+#: block end's face coordinates (the box is dilated by 1e-3 texel, the reciprocal is off by ~3e-7) and the partial
+#: jump's h/b (SAFE's 1e-3 covers it). What the march proves stays proven, so the bracket is the same; which blocks
+#: it proves can differ at a box's edge, so the lookups can. Never the sample read's Look (g is read there).
+ROUGH = True
 
 
 def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
@@ -99,22 +105,27 @@ def skipper(B, pyramid, x, R, a, n: int, base=None) -> Skip | None:
     turning = sin > 1e-6  # the ray is not along x̂ (no plane of its own: only whole blocks are cleared)
     theta_q, full = theta - (math.pi / 2), a * 0.0 + float(n)  # made once, not per step
 
-    def look(t):  # the ray point at t and its face coordinates (pyramid.bound_along's)
+    # the ray point at t and its face coordinates (pyramid.bound_along's); rough: u, v to within ~3e-7
+    # (cubemap.face_uv's rough), for a block's end, whose box the pyramid dilates by 1e-3 texel
+    def look(t, rough=False):
         rest = 1.0 - t
         p = x * rest + R * (a * t)  # p(t)
-        face, u, v = cubemap.face_uv(B, p.x, p.y, p.z)
+        face, u, v = cubemap.face_uv(B, p.x, p.y, p.z, rough=rough)
         return Look(t, p, B.length(p), face + base if base is not None else face, u, v, rest)
 
     def reach(k, kb, ta, tb):
         # the last sample of k + 1 … kb (at t_a … t_b; t_a may be its Look) proven in front of every lookup the
         # pyramid bounds
         la = ta if isinstance(ta, Look) else look(ta)
-        lb = look(tb)
+        lb = look(tb, rough=ROUGH)  # (not la: the sample read reads g at it)
         b = pyramid.bound(la.face, la.u, la.v, lb.face, lb.u, lb.v)
         near_a = la.length < la.rest * b  # |p|/(1 − t) < b: the ray point nearer than every lookup
         whole = near_a & (lb.length < lb.rest * b)
         # part of the way: from a near start, r(φ) < b' while θ − φ > asin(h/b'), b' = (1 − SAFE) b
-        c = B.minimum(h / B.maximum(b * (1.0 - SAFE), 1e-30), 1.0)
+        # (rough: c' = h/b' exceeds h/b by SAFE, 1e-3 relative, far above the reciprocal's 3e-7, so φ stays below
+        # where the ray point reaches b)
+        bs = B.maximum(b * (1.0 - SAFE), 1e-30)
+        c = B.minimum(h * B.rcp(bs) if ROUGH else h / bs, 1.0)
         phi = theta_q + B.acos(c)  # θ − asin(c)
         last = -1.0 - B.floor(10.0 * SAFE - phi * (n / math.pi))  # the last φ_j below φ by 10 SAFE samples
         part = B.select(near_a & (b > 0.0) & turning, B.minimum(B.maximum(last, k), kb), k)

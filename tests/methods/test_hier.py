@@ -440,3 +440,37 @@ def test_the_widest_first_block_and_a_second_read_at_a_surface_give_the_same_poi
         np.testing.assert_array_equal(shown[valid], o_shown[valid])  # the same bracket, the same bits
         assert lookups.max() <= bound
         assert lookups.mean() < below[name] * o_lookups.mean(), (name, lookups.mean(), o_lookups.mean())
+
+
+def test_rough_reciprocals_in_the_pyramid_read_keep_every_bracket(column_room, B, monkeypatch):
+    """The pyramid read's divisions as approximate reciprocals (linear_secant.ROUGH: the block end's face
+    coordinates, the partial jump's h/b) against exact divisions: the same shown points and valid rays bit for
+    bit on the random rays of the column room, for linear_secant and layered, within the bound; the face
+    coordinates within 1e-6 of the exact ones on the same face. Planted: reciprocals 2 % off (far outside the
+    boxes' 1e-3-texel dilation) step over surfaces, and the shown points change."""
+    from study.methods import linear_secant
+
+    dirs = analytic.random_rays(5000, extent=1.0, seed=9)[1] * np.float32(3.0)
+    v = B.vec(dirs)
+    exact, rough = cubemap.face_uv(B, v.x, v.y, v.z), cubemap.face_uv(B, v.x, v.y, v.z, rough=True)
+    np.testing.assert_array_equal(B.numpy(exact[0]), B.numpy(rough[0]))
+    for e, r in zip(exact[1:], rough[1:]):
+        assert np.abs(B.numpy(e) - B.numpy(r)).max() < 1e-6
+
+    o, tracer, tex = column_room
+    x, d = analytic.random_rays(2000, extent=0.5, seed=4)
+    imp = tex[0][..., [0, 1, 2, 4]]
+    env = Captured(impostor=EnvMap(imp, B), reference=o, layers=tuple(EnvMap(t, B) for t in tex))
+    now = {n: _trace(n, B, env, x, d, hierarchical=True) for n in ("linear_secant", "layered")}
+    monkeypatch.setattr(linear_secant, "ROUGH", False)
+    for name, (shown, valid, lookups, bound) in now.items():
+        e_shown, e_valid, e_lookups, _ = _trace(name, B, env, x, d, hierarchical=True)
+        np.testing.assert_array_equal(valid, e_valid)
+        np.testing.assert_array_equal(shown[valid], e_shown[valid])
+        assert lookups.max() <= bound and abs(lookups.mean() - e_lookups.mean()) < 0.01 * e_lookups.mean()
+    monkeypatch.setattr(linear_secant, "ROUGH", True)
+    exact_rcp = B.rcp
+    monkeypatch.setattr(B, "rcp", lambda a: exact_rcp(a) * 1.02)
+    p_shown, p_valid, _, _ = _trace("linear_secant", B, env, x, d, hierarchical=True)
+    shown, valid = now["linear_secant"][:2]
+    assert not (np.array_equal(valid, p_valid) and np.array_equal(shown[valid], p_shown[valid]))
